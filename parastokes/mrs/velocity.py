@@ -1,0 +1,160 @@
+"""The public entry :func:`velocity`: validation, batching, and dispatch to the compiled kernels."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+import numba
+import numpy as np
+
+from . import compiled
+from .compiled import TILE
+
+EIGHT_PI = 8.0 * math.pi
+
+
+def _points(name: str, value, batch: int | None = None) -> np.ndarray:
+    arr = np.asarray(value, dtype=np.float64)
+    if arr.ndim not in (2, 3) or arr.shape[-1] != 3:
+        raise ValueError(f"{name}: expected shape (N, 3) or (B, N, 3), got {arr.shape}")
+    if batch is not None and (arr.ndim == 3) != (batch > 0):
+        raise ValueError(f"{name}: all point arrays must be batched or all unbatched, got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name}: contains non-finite values")
+    return arr
+
+
+def _positive(name: str, value, batch: int) -> np.ndarray:
+    arr = np.asarray(value, dtype=np.float64)
+    if arr.ndim == 0:
+        arr = np.full(max(batch, 1), float(arr))
+    elif batch == 0 or arr.shape != (batch,):
+        raise ValueError(
+            f"{name}: expected a scalar{' or shape (' + str(batch) + ',)' if batch else ''}, "
+            f"got shape {arr.shape}"
+        )
+    if not np.all(np.isfinite(arr)) or np.any(arr <= 0):
+        raise ValueError(f"{name}: must be finite and > 0, got {value!r}")
+    return arr
+
+
+@contextmanager
+def _threads(n_threads: int | None) -> Iterator[None]:
+    n = 1 if n_threads is None else n_threads
+    if not isinstance(n, int | np.integer) or n < 1:
+        raise ValueError(f"n_threads: must be a positive integer, got {n_threads!r}")
+    n = min(int(n), numba.config.NUMBA_NUM_THREADS)
+    previous = numba.get_num_threads()
+    numba.set_num_threads(n)
+    try:
+        yield
+    finally:
+        numba.set_num_threads(previous)
+
+
+def _soa(points: np.ndarray, padded: int | None = None) -> tuple[np.ndarray, ...]:
+    """(B, N, 3) -> three contiguous (B, N') arrays, padded by repeating the last point."""
+    if padded is not None and padded > points.shape[1]:
+        pad = np.repeat(points[:, -1:, :], padded - points.shape[1], axis=1)
+        points = np.concatenate([points, pad], axis=1)
+    return tuple(np.ascontiguousarray(points[:, :, k]) for k in range(3))
+
+
+def velocity(
+    targets,
+    sources,
+    forces,
+    *,
+    epsilon,
+    mu,
+    torques=None,
+    wall: bool = False,
+    angular: bool = False,
+    n_threads: int | None = None,
+    check: bool = True,
+):
+    """Fluid velocity at ``targets`` from regularized point forces (and torques) at ``sources``.
+
+    Free space: the regularized Stokeslet sum of eq. 6 (blob eq. 3), plus the regularized rotlet
+    for torques (``shared/physics.md`` [1]-[4]). With ``wall=True`` the fluid is bounded by a
+    no-slip plane wall at z = 0 and the image systems [5]-[8] are added (method of images, the
+    paper's ref. [48]).
+
+    Parameters
+    ----------
+    targets : (M, 3) or (B, M, 3) array
+        Where the velocity is evaluated.
+    sources : (N, 3) or (B, N, 3) array
+        Positions of the point forces.
+    forces, torques : (N, 3) or (B, N, 3) arrays
+        Point forces (and torques) exerted on the fluid, same shape as ``sources``.
+    epsilon, mu : float, or (B,) arrays for batched input
+        Regularization parameter ε > 0 and viscosity μ > 0 (one per system when batched).
+    wall : bool
+        Plane wall at z = 0; every point must then have z >= 0.
+    angular : bool
+        Also return the angular velocity w = ½ curl u.
+    n_threads : int, optional
+        Threads over target tiles (default 1). Results are bit-identical for any thread count.
+    check : bool
+        Validate the input (default). ``False`` skips validation in hot loops whose inputs were
+        validated once: then the arrays must already be float64 of the right shapes.
+
+    Returns
+    -------
+    u, or (u, w) when ``angular``: arrays shaped like ``targets``.
+    """
+    if check:
+        targets = _points("targets", targets)
+        batch = targets.shape[0] if targets.ndim == 3 else 0
+        sources = _points("sources", sources, batch)
+        forces = _points("forces", forces, batch)
+        if forces.shape != sources.shape:
+            raise ValueError(f"forces: shape {forces.shape} differs from sources {sources.shape}")
+        if batch and sources.shape[0] != batch:
+            raise ValueError(f"sources: batch size {sources.shape[0]} differs from targets {batch}")
+        if torques is not None:
+            torques = _points("torques", torques, batch)
+            if torques.shape != sources.shape:
+                raise ValueError(
+                    f"torques: shape {torques.shape} differs from sources {sources.shape}"
+                )
+        eps = _positive("epsilon", epsilon, batch)
+        visc = _positive("mu", mu, batch)
+        if wall:
+            for name, arr in (("targets", targets), ("sources", sources)):
+                if np.any(arr[..., 2] < 0):
+                    raise ValueError(f"{name}: points below the wall z = 0 (wall=True)")
+    else:
+        targets = np.asarray(targets)
+        batch = targets.shape[0] if targets.ndim == 3 else 0
+        eps = np.broadcast_to(np.asarray(epsilon, dtype=np.float64), (max(batch, 1),))
+        visc = np.broadcast_to(np.asarray(mu, dtype=np.float64), (max(batch, 1),))
+
+    t3 = targets if batch else targets[None]
+    s3 = sources if batch else sources[None]
+    f3 = forces if batch else forces[None]
+    m = t3.shape[1]
+    padded = -(-m // TILE) * TILE
+    tx, ty, tz = _soa(t3, padded)
+    src = _soa(s3) + _soa(f3)
+    eps = np.ascontiguousarray(eps, dtype=np.float64)
+    nb = t3.shape[0]
+    out = np.empty((6, nb, padded))
+    with _threads(n_threads):
+        if torques is None and not wall and not angular:
+            compiled.free_u_f(tx, ty, tz, *src, eps, out[0], out[1], out[2])
+        else:
+            n3 = np.zeros_like(s3) if torques is None else (torques if batch else torques[None])
+            kernel = compiled.wall_full if wall else compiled.free_full
+            kernel(tx, ty, tz, *src, *_soa(n3), eps, *out)
+    scale = (1.0 / (EIGHT_PI * visc))[:, None]
+    u = np.stack([out[k, :, :m] * scale for k in range(3)], axis=-1)
+    if not batch:
+        u = u[0]
+    if not angular:
+        return u
+    w = np.stack([out[k, :, :m] * scale for k in range(3, 6)], axis=-1)
+    return u, (w if batch else w[0])
