@@ -144,31 +144,39 @@ def free_full(tx, ty, tz, sx, sy, sz, fx, fy, fz, nx, ny, nz, eps, ux, uy, uz, w
         b = job // ntiles
         t0 = (job % ntiles) * TILE
         e2 = eps[b] * eps[b]
-        acc = np.zeros((6, TILE))
+        a0 = np.zeros(TILE)
+        a1 = np.zeros(TILE)
+        a2 = np.zeros(TILE)
+        a3 = np.zeros(TILE)
+        a4 = np.zeros(TILE)
+        a5 = np.zeros(TILE)
+        px = tx[b, t0 : t0 + TILE]
+        py = ty[b, t0 : t0 + TILE]
+        pz = tz[b, t0 : t0 + TILE]
         for j in range(ns):
             yx, yy, yz = sx[b, j], sy[b, j], sz[b, j]
             gx, gy, gz = fx[b, j], fy[b, j], fz[b, j]
             mx, my, mz = nx[b, j], ny[b, j], nz[b, j]
             for i in range(TILE):
-                rx = tx[b, t0 + i] - yx
-                ry = ty[b, t0 + i] - yy
-                rz = tz[b, t0 + i] - yz
+                rx = px[i] - yx
+                ry = py[i] - yy
+                rz = pz[i] - yz
                 r2 = rx * rx + ry * ry + rz * rz
                 inv = 1.0 / np.sqrt(r2 + e2)
                 v0, v1, v2, v3, v4, v5 = _free_pair(rx, ry, rz, r2, e2, inv,
                                                     gx, gy, gz, mx, my, mz)
-                acc[0, i] += v0
-                acc[1, i] += v1
-                acc[2, i] += v2
-                acc[3, i] += v3
-                acc[4, i] += v4
-                acc[5, i] += v5
-        ux[b, t0 : t0 + TILE] = acc[0]
-        uy[b, t0 : t0 + TILE] = acc[1]
-        uz[b, t0 : t0 + TILE] = acc[2]
-        wx[b, t0 : t0 + TILE] = acc[3]
-        wy[b, t0 : t0 + TILE] = acc[4]
-        wz[b, t0 : t0 + TILE] = acc[5]
+                a0[i] += v0
+                a1[i] += v1
+                a2[i] += v2
+                a3[i] += v3
+                a4[i] += v4
+                a5[i] += v5
+        ux[b, t0 : t0 + TILE] = a0
+        uy[b, t0 : t0 + TILE] = a1
+        uz[b, t0 : t0 + TILE] = a2
+        wx[b, t0 : t0 + TILE] = a3
+        wy[b, t0 : t0 + TILE] = a4
+        wz[b, t0 : t0 + TILE] = a5
 
 
 @njit(parallel=True, **_OPTS)
@@ -181,15 +189,23 @@ def wall_full(tx, ty, tz, sx, sy, sz, fx, fy, fz, nx, ny, nz, eps, ux, uy, uz, w
         b = job // ntiles
         t0 = (job % ntiles) * TILE
         e2 = eps[b] * eps[b]
-        acc = np.zeros((6, TILE))
+        a0 = np.zeros(TILE)
+        a1 = np.zeros(TILE)
+        a2 = np.zeros(TILE)
+        a3 = np.zeros(TILE)
+        a4 = np.zeros(TILE)
+        a5 = np.zeros(TILE)
+        px = tx[b, t0 : t0 + TILE]
+        py = ty[b, t0 : t0 + TILE]
+        pz = tz[b, t0 : t0 + TILE]
         for j in range(ns):
             yx, yy, h = sx[b, j], sy[b, j], sz[b, j]
             gx, gy, gz = fx[b, j], fy[b, j], fz[b, j]
             mx, my, mz = nx[b, j], ny[b, j], nz[b, j]
             for i in range(TILE):
-                rx = tx[b, t0 + i] - yx
-                ry = ty[b, t0 + i] - yy
-                z = tz[b, t0 + i]
+                rx = px[i] - yx
+                ry = py[i] - yy
+                z = pz[i]
                 rz = z - h
                 r2 = rx * rx + ry * ry + rz * rz
                 inv = 1.0 / np.sqrt(r2 + e2)
@@ -197,15 +213,15 @@ def wall_full(tx, ty, tz, sx, sy, sz, fx, fy, fz, nx, ny, nz, eps, ux, uy, uz, w
                                                     gx, gy, gz, mx, my, mz)
                 i0, i1, i2, i3, i4, i5 = _image_pair(rx, ry, z + h, z, h, e2,
                                                      gx, gy, gz, mx, my, mz)
-                acc[0, i] += v0 + i0
-                acc[1, i] += v1 + i1
-                acc[2, i] += v2 + i2
-                acc[3, i] += v3 + i3
-                acc[4, i] += v4 + i4
-                acc[5, i] += v5 + i5
-        ux[b, t0 : t0 + TILE] = acc[0]
-        uy[b, t0 : t0 + TILE] = acc[1]
-        uz[b, t0 : t0 + TILE] = acc[2]
-        wx[b, t0 : t0 + TILE] = acc[3]
-        wy[b, t0 : t0 + TILE] = acc[4]
-        wz[b, t0 : t0 + TILE] = acc[5]
+                a0[i] += v0 + i0
+                a1[i] += v1 + i1
+                a2[i] += v2 + i2
+                a3[i] += v3 + i3
+                a4[i] += v4 + i4
+                a5[i] += v5 + i5
+        ux[b, t0 : t0 + TILE] = a0
+        uy[b, t0 : t0 + TILE] = a1
+        uz[b, t0 : t0 + TILE] = a2
+        wx[b, t0 : t0 + TILE] = a3
+        wy[b, t0 : t0 + TILE] = a4
+        wz[b, t0 : t0 + TILE] = a5
