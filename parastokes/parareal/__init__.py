@@ -1,0 +1,34 @@
+"""Parareal (Algorithm 1) with coarse solvers built by extrapolation (section 4 of the paper).
+
+The engine works on any propagators ``P(t_start, t_end, x) -> x`` over numpy arrays; see
+``docs/parareal.md``.
+"""
+
+from .algorithm import run, serial_solution, time_points
+from .extrapolation import Extrapolated, extrapolated
+from .metrics import relative_change
+from .result import PararealResult
+from .speedup import parareal_runtime, predict, speedup, speedup_bound
+from .timings import Timings
+from .transfer import OnCoarseGrid, Transfer
+from .weights import lagrange_weights, richardson_weights, step_weights
+
+__all__ = [
+    "Extrapolated",
+    "OnCoarseGrid",
+    "PararealResult",
+    "Timings",
+    "Transfer",
+    "extrapolated",
+    "lagrange_weights",
+    "parareal_runtime",
+    "predict",
+    "relative_change",
+    "richardson_weights",
+    "run",
+    "serial_solution",
+    "speedup",
+    "speedup_bound",
+    "step_weights",
+    "time_points",
+]

@@ -1,0 +1,166 @@
+"""Coarse solvers built by extrapolation (section 4): eqs. 18, 21/25, 28 and 30.
+
+``extrapolated(system, scheme, dt, lagrange=..., richardson=...)`` combines auxiliary propagators
+G_{Theta^j, r^q tau} = ``integrate.Propagator(system.with_params(**Theta^j), scheme, r^q dt)`` into
+
+    G = sum_j w_j sum_q v_q G_{Theta^j, r^q tau}                                         (eq. 30)
+
+followed by ``system.project``. The w_j are the tensor-product Lagrange weights (eqs. 22, 25) over
+the nodes of every parameter named in ``lagrange``; the v_q the Richardson weights (eq. 27). A
+propagator takes ``n_q = max(1, round(slice / (r^q dt)))`` equal steps, so it actually uses
+h_q = slice / n_q; the v_q are computed for those h_q (``weights.step_weights``), which cancels the
+error terms tau^alpha .. tau^(alpha+m-1) exactly even when r^q dt does not divide the slice.
+"""
+
+from __future__ import annotations
+
+import copy
+import itertools
+import logging
+import math
+from collections.abc import Mapping, Sequence
+from concurrent.futures import Executor
+from typing import Any
+
+import numpy as np
+
+from .. import integrate
+from .transfer import OnCoarseGrid
+from .weights import check_nodes, lagrange_weights, step_weights, validate_richardson
+
+__all__ = ["Extrapolated", "extrapolated"]
+
+logger = logging.getLogger(__name__)
+
+
+class Extrapolated:
+    """The propagator of eq. 30 (eq. 18/25 when m = 0, eq. 28 without Lagrange nodes).
+
+    Build it with :func:`extrapolated`, which validates the inputs. ``auxiliary[j][q]`` is
+    G_{Theta^j, r^q tau}; ``thetas[j]`` is Theta^j; ``lagrange_weights[j]`` is w_j. With an
+    ``executor`` the auxiliary solvers of one call run concurrently on it (Algorithm 1, steps 4 and
+    15). The executor stays with the manager: it is dropped when the combinator is pickled.
+    """
+
+    def __init__(
+        self,
+        system: Any,
+        scheme: str,
+        dt: float,
+        thetas: list[dict[str, float]],
+        lagrange: np.ndarray,
+        r: float,
+        m: int,
+        executor: Executor | None = None,
+    ) -> None:
+        self.system = system
+        self.order = integrate.scheme_order(scheme)
+        self.thetas = thetas
+        self.lagrange_weights = lagrange
+        self.auxiliary = [
+            [integrate.Propagator(variant, scheme, dt * r**q) for q in range(m + 1)]
+            for variant in (system.with_params(**theta) if theta else system for theta in thetas)
+        ]
+        self.executor = executor
+        #: The steps h_q actually taken in the most recent call (None before the first call).
+        self.steps_used: tuple[float, ...] | None = None
+
+    def plan(self, t_start: float, t_end: float) -> tuple[np.ndarray, np.ndarray]:
+        """The steps h_q = (t_end - t_start) / n_q actually taken on a slice, and their weights v_q.
+
+        Raises ValueError when two steps coincide after rounding to whole step counts.
+        """
+        steps = np.array([(t_end - t_start) / p.n_steps(t_start, t_end) for p in self.auxiliary[0]])
+        return steps, step_weights(steps, self.order)
+
+    def __call__(self, t_start: float, t_end: float, x: np.ndarray) -> np.ndarray:
+        steps, v = self.plan(t_start, t_end)
+        if tuple(steps) != self.steps_used:
+            logger.info(
+                "extrapolated coarse solver: steps %s (requested %s), Richardson weights %s",
+                np.array2string(steps, precision=6),
+                np.array2string(np.array([p.dt for p in self.auxiliary[0]]), precision=6),
+                np.array2string(v, precision=6),
+            )
+            self.steps_used = tuple(steps)
+        solvers = [p for row in self.auxiliary for p in row]
+        if self.executor is None:
+            values = [p(t_start, t_end, x) for p in solvers]
+        else:
+            futures = [self.executor.submit(p, t_start, t_end, x) for p in solvers]
+            values = [future.result() for future in futures]
+        coefficients = np.multiply.outer(self.lagrange_weights, v).ravel()
+        return self.system.project(sum(c * g for c, g in zip(coefficients, values, strict=True)))
+
+    def with_executor(self, executor: Executor | None) -> Extrapolated:
+        """A copy whose auxiliary solvers run on ``executor``."""
+        clone = copy.copy(self)
+        clone.executor = executor
+        return clone
+
+    def __getstate__(self) -> dict:
+        return {**self.__dict__, "executor": None}
+
+
+def _lagrange_nodes(system: Any, lagrange: Mapping[str, Sequence[float]] | None):
+    """Validate the Lagrange nodes; return (Theta^j list, flat weights w_j)."""
+    if not lagrange:
+        return [{}], np.ones(1)
+    if not isinstance(lagrange, Mapping):
+        raise ValueError("lagrange must map parameter names to node lists")
+    known = system.params
+    unknown = sorted(set(lagrange) - set(known))
+    if unknown:
+        raise ValueError(
+            f"lagrange: unknown parameter(s) {unknown}; this system has {sorted(known)}"
+        )
+    names = list(lagrange)
+    nodes = [list(lagrange[name]) for name in names]
+    for name, node_set in zip(names, nodes, strict=True):
+        check_nodes(known[name], node_set, f"lagrange[{name!r}]")
+    weights = lagrange_weights([known[name] for name in names], nodes)
+    thetas = [dict(zip(names, combo, strict=True)) for combo in itertools.product(*nodes)]
+    return thetas, weights.ravel()
+
+
+def extrapolated(
+    system: Any,
+    scheme: str,
+    dt: float,
+    lagrange: Mapping[str, Sequence[float]] | None = None,
+    richardson: Mapping[str, float] | None = None,
+    grid: int | None = None,
+    executor: Executor | None = None,
+) -> Extrapolated | OnCoarseGrid:
+    """The extrapolated coarse solver G of eq. 30 (section 4), a picklable propagator.
+
+    - ``lagrange``: ``{name: [theta^1, ..., theta^N]}`` for parameters of ``system.params``; the
+      nodes of each must increase strictly and theta^0 = ``system.params[name]`` must lie outside
+      their interval (section 4.1, conditions 1-2). Several names give the tensor product (eq. 21).
+    - ``richardson``: ``{"m": m, "r": r}`` with integer m >= 0 and r in (0, 1) (eq. 26).
+    - ``grid``: an integer coarsening factor >= 2; the solver then runs on
+      ``system.coarsened(grid)`` and is wrapped in :class:`OnCoarseGrid` (eqs. 32-33).
+    - ``executor``: runs the auxiliary solvers of each call concurrently (Algorithm 1, steps 4, 15);
+      :func:`parastokes.parareal.run` supplies its own when this is None.
+
+    Everything is validated before any solver is built; the message names the rule that failed.
+    """
+    if not (isinstance(dt, int | float) and math.isfinite(dt) and dt > 0.0):
+        raise ValueError(f"dt must be positive and finite, got {dt!r}")
+    integrate.scheme_order(scheme)
+    thetas, weights = _lagrange_nodes(system, lagrange)
+    richardson = dict(richardson or {"m": 0})
+    extra = sorted(set(richardson) - {"m", "r"})
+    if extra or "m" not in richardson:
+        raise ValueError(f"richardson takes the keys 'm' and 'r', got {sorted(richardson)}")
+    m, r = richardson["m"], richardson.get("r")
+    validate_richardson(m, r)
+    if grid is not None:
+        if isinstance(grid, bool) or not isinstance(grid, int) or grid < 2:
+            raise ValueError(f"grid must be an integer coarsening factor >= 2, got {grid!r}")
+        if not hasattr(system, "coarsened"):
+            raise ValueError(f"grid: {type(system).__name__} has no coarsened(factor) method")
+        coarse_system, transfer = system.coarsened(grid)
+        inner = Extrapolated(coarse_system, scheme, dt, thetas, weights, r or 1.0, m, executor)
+        return OnCoarseGrid(inner, transfer)
+    return Extrapolated(system, scheme, dt, thetas, weights, r or 1.0, m, executor)
