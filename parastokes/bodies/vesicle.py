@@ -1,0 +1,35 @@
+"""The spring-network vesicle (paper section 5.2; physics.md section 4, (14)).
+
+Every mesh edge is a Hookean spring of stiffness κ with rest length ℓ⁰ = its initial length; the
+point force on the fluid at vertex i is
+F_i = Σ_{j~i} κ (|X_j - X_i| - ℓ⁰_ij) (X_j - X_i)/|X_j - X_i|.
+A stretched spring pulls its two ends toward each other, so the forces relax the shape; they sum to
+zero and have zero net torque about any point (each spring contributes an equal and opposite pair
+along the line joining its ends).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True, error_model="numpy")
+def spring_forces(points, edges, rest, stiffness):
+    """Point forces (N, 3) on the fluid from springs on ``edges`` (E, 2), rest lengths ``rest``."""
+    out = np.zeros_like(points)
+    for e in range(edges.shape[0]):
+        i = edges[e, 0]
+        j = edges[e, 1]
+        dx = points[j, 0] - points[i, 0]
+        dy = points[j, 1] - points[i, 1]
+        dz = points[j, 2] - points[i, 2]
+        d = np.sqrt(dx * dx + dy * dy + dz * dz)
+        c = stiffness * (d - rest[e]) / d
+        out[i, 0] += c * dx
+        out[i, 1] += c * dy
+        out[i, 2] += c * dz
+        out[j, 0] -= c * dx
+        out[j, 1] -= c * dy
+        out[j, 2] -= c * dz
+    return out

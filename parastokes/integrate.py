@@ -1,0 +1,363 @@
+"""Explicit Runge-Kutta time stepping over the System interface (docs/contracts.md).
+
+A scheme is a Butcher tableau applied through ``system.rates`` and ``system.advance`` only, so one
+implementation serves every body type (physics.md section 3, "Time stepping"):
+
+- stage states are built from the *old* state with ``advance(x, sum_j a_ij k_j, dt)``;
+- the step ends with ``advance(x, sum_j b_j k_j, dt)``.
+
+For positions ``advance`` is ``x + dt * rate``, which makes this the classical Runge-Kutta
+method. For rod frames ``advance`` is the exact rotation by ``dt * |w|`` about ``w`` (eq. 13),
+which makes it a Runge-Kutta-Munthe-Kaas (RKMK) method on SO(3). RKMK needs no correction up to
+order 2, so forward Euler and RK2 (Heun, exactly as physics.md describes: predict with Euler,
+evaluate at ``t + dt``, advance the old state by the averaged rates) are plain tableaux. Order 4
+on SO(3) needs two commutator terms (Munthe-Kaas 1999; Hairer, Lubich & Wanner, *Geometric
+Numerical Integration*, section IV.8):
+
+    k3 = rates(t + dt/2, advance(x, k2/2 - dt/8 [k1, k2], dt))
+    x1 = advance(x, (k1 + 2 k2 + 2 k3 + k4)/6 - dt/12 [k1, k4], dt)
+
+A system whose rates live in a non-abelian Lie algebra provides ``bracket(r1, r2)`` (rods: the
+cross product of the angular parts, zero for the linear parts); systems without it (vesicles) are
+abelian and the terms vanish. Without them, RK4 on rotating frames is only second-order accurate.
+
+``system.project`` (re-orthonormalize frames) is applied to the initial state and to the result of
+every propagation, not per step: the rotation update keeps frames orthonormal to round-off (the
+drift is a random walk of about 1e-16 per step), and leaving the steps alone keeps each one an exact
+RKMK step. Projecting the input makes a propagator safe on states that come straight from a linear
+combination (Parareal's correction, extrapolation); for orthonormal input it changes nothing beyond
+round-off.
+
+Blow-up is an error: after every step the state must be finite and ``system.monitor`` must stay
+below ``blowup_factor * system.monitor_limit``; otherwise :class:`BlowUpError` names the time, the
+step index and the monitor value and keeps the last good state.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "SCHEMES",
+    "BlowUpError",
+    "Propagator",
+    "RunResult",
+    "Scheme",
+    "is_stable",
+    "largest_stable_step",
+    "n_steps",
+    "propagate",
+    "run",
+    "scheme_order",
+    "step",
+]
+
+log = logging.getLogger(__name__)
+
+#: Default ratio of monitor value to ``system.monitor_limit`` at which a run is declared blown up.
+BLOWUP_FACTOR = 100.0
+
+# A bracket term (coefficient, p, q) contributes coefficient * dt * bracket(k_p, k_q).
+Bracket = tuple[float, int, int]
+
+
+@dataclass(frozen=True)
+class Scheme:
+    """An explicit Runge-Kutta tableau with optional RKMK commutator corrections.
+
+    ``a[i]`` holds the coefficients of stages ``0..i-1`` for stage ``i`` (``a[0] == ()``), ``b`` the
+    final weights, ``c`` the stage times; ``stage_brackets[i]`` and ``final_brackets`` are the
+    commutator terms ``(coefficient, p, q)`` described in the module docstring.
+    """
+
+    name: str
+    order: int
+    c: tuple[float, ...]
+    a: tuple[tuple[float, ...], ...]
+    b: tuple[float, ...]
+    stage_brackets: tuple[tuple[Bracket, ...], ...]
+    final_brackets: tuple[Bracket, ...] = ()
+
+    @property
+    def stages(self) -> int:
+        return len(self.b)
+
+
+SCHEMES: dict[str, Scheme] = {
+    "euler": Scheme("euler", 1, c=(0.0,), a=((),), b=(1.0,), stage_brackets=((),)),
+    "rk2": Scheme(
+        "rk2", 2, c=(0.0, 1.0), a=((), (1.0,)), b=(0.5, 0.5), stage_brackets=((), ())
+    ),
+    "rk4": Scheme(
+        "rk4",
+        4,
+        c=(0.0, 0.5, 0.5, 1.0),
+        a=((), (0.5,), (0.0, 0.5), (0.0, 0.0, 1.0)),
+        b=(1 / 6, 1 / 3, 1 / 3, 1 / 6),
+        stage_brackets=((), (), ((-1 / 8, 0, 1),), ()),
+        final_brackets=((-1 / 12, 0, 3),),
+    ),
+}
+
+
+def _scheme(scheme: str | Scheme) -> Scheme:
+    if isinstance(scheme, Scheme):
+        return scheme
+    try:
+        return SCHEMES[scheme]
+    except KeyError:
+        raise ValueError(
+            f"scheme: unknown scheme {scheme!r}; choose one of {sorted(SCHEMES)}"
+        ) from None
+
+
+def scheme_order(name: str) -> int:
+    """Order of accuracy of the named scheme (used by Richardson extrapolation, eq. 26/27)."""
+    return _scheme(name).order
+
+
+class BlowUpError(RuntimeError):
+    """A run produced a non-finite state or a monitor far beyond its limit.
+
+    Attributes: ``t`` (time reached by the failing step), ``step`` (its index, counted from 0 within
+    the run), ``monitor`` (the monitor value there, ``nan`` for a non-finite state) and
+    ``last_state`` (the last good state, at time ``t - dt``).
+    """
+
+    def __init__(self, t: float, step: int, monitor: float, last_state: np.ndarray, reason: str):
+        super().__init__(
+            f"blow-up at t={t:.10g} (step {step}): {reason}; monitor={monitor:.6g}"
+        )
+        self.t = t
+        self.step = step
+        self.monitor = monitor
+        self.last_state = last_state
+        self.reason = reason
+
+    def __reduce__(self):
+        # rebuild from the attributes, so the error crosses process boundaries intact
+        return type(self), (self.t, self.step, self.monitor, self.last_state, self.reason)
+
+
+def _combine(
+    system: Any,
+    coefs: tuple[float, ...],
+    k: list[np.ndarray],
+    brackets: tuple[Bracket, ...],
+    dt: float,
+) -> np.ndarray:
+    """sum_j coefs[j] k_j + dt * sum coefficient * bracket(k_p, k_q)."""
+    terms = [(c, kj) for c, kj in zip(coefs, k, strict=False) if c != 0.0]
+    if len(terms) == 1 and terms[0][0] == 1.0 and not brackets:
+        return terms[0][1]
+    r = terms[0][0] * terms[0][1]
+    for c, kj in terms[1:]:
+        r += c * kj
+    bracket = getattr(system, "bracket", None)
+    if bracket is not None:
+        for c, p, q in brackets:
+            r += (c * dt) * bracket(k[p], k[q])
+    return r
+
+
+def step(system: Any, scheme: str | Scheme, t: float, x: np.ndarray, dt: float) -> np.ndarray:
+    """One step of ``scheme`` from ``(t, x)`` to ``t + dt`` (no projection, no checks)."""
+    s = _scheme(scheme)
+    k: list[np.ndarray] = [system.rates(t, x)]
+    for i in range(1, s.stages):
+        xi = system.advance(x, _combine(system, s.a[i], k, s.stage_brackets[i], dt), dt)
+        k.append(system.rates(t + s.c[i] * dt, xi))
+    return system.advance(x, _combine(system, s.b, k, s.final_brackets, dt), dt)
+
+
+def n_steps(t_start: float, t_end: float, dt: float) -> int:
+    """Equal steps used on ``[t_start, t_end]``: ``max(1, round(span/dt))``, and 0 if span = 0."""
+    if not dt > 0:
+        raise ValueError(f"dt: must be positive, got {dt}")
+    span = t_end - t_start
+    if span < 0:
+        raise ValueError(f"t_end: must not precede t_start, got [{t_start}, {t_end}]")
+    if span == 0:
+        return 0
+    return max(1, round(span / dt))
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """Outcome of :func:`run`: final state, largest monitor seen, steps taken and step used."""
+
+    state: np.ndarray
+    max_monitor: float
+    n_steps: int
+    dt: float
+    completed: bool = True
+
+
+def _stepping(
+    system: Any,
+    scheme: Scheme,
+    x: np.ndarray,
+    t0: float,
+    dt: float,
+    n: int,
+    blowup_factor: float,
+    stop_above: float | None = None,
+) -> RunResult:
+    """Take ``n`` steps of size ``dt``; stop early (``completed=False``) if monitor > stop_above."""
+    limit = blowup_factor * system.monitor_limit
+    x = system.project(x)
+    worst = system.monitor(x)
+    for i in range(n):
+        t = t0 + (i + 1) * dt
+        x_new = step(system, scheme, t0 + i * dt, x, dt)
+        if not np.isfinite(x_new).all():
+            raise BlowUpError(t, i, math.nan, x, "non-finite state")
+        m = system.monitor(x_new)
+        if not m <= limit:
+            raise BlowUpError(
+                t, i, m, x, f"monitor beyond {blowup_factor:g} x its limit {system.monitor_limit:g}"
+            )
+        worst = max(worst, m)
+        x = x_new
+        if stop_above is not None and m > stop_above:
+            return RunResult(system.project(x), worst, i + 1, dt, completed=False)
+    return RunResult(system.project(x), worst, n, dt)
+
+
+def run(
+    system: Any,
+    x: np.ndarray,
+    t0: float,
+    t1: float,
+    scheme: str | Scheme,
+    dt: float,
+    *,
+    blowup_factor: float = BLOWUP_FACTOR,
+) -> RunResult:
+    """Integrate from ``t0`` to ``t1`` with equal steps closest to ``dt``; report the worst monitor.
+
+    The step actually used is ``(t1 - t0) / n_steps(t0, t1, dt)``; a change is logged (DEBUG).
+    The initial and the final state are projected (``system.project``). Raises
+    :class:`BlowUpError` on blow-up.
+    """
+    s = _scheme(scheme)
+    n = n_steps(t0, t1, dt)
+    if n == 0:
+        return RunResult(system.project(np.array(x, dtype=float)), system.monitor(x), 0, dt)
+    h = (t1 - t0) / n
+    if abs(h - dt) > 1e-12 * dt:
+        log.debug("step adjusted from %.6g to %.6g: %d steps divide [%g, %g]", dt, h, n, t0, t1)
+    return _stepping(system, s, np.asarray(x, dtype=float), t0, h, n, blowup_factor)
+
+
+def propagate(
+    system: Any,
+    x: np.ndarray,
+    t0: float,
+    t1: float,
+    scheme: str | Scheme,
+    dt: float,
+    *,
+    blowup_factor: float = BLOWUP_FACTOR,
+) -> np.ndarray:
+    """The state at ``t1`` of the run of :func:`run` (fixed public name, design.md)."""
+    return run(system, x, t0, t1, scheme, dt, blowup_factor=blowup_factor).state
+
+
+@dataclass(frozen=True)
+class Propagator:
+    """A picklable fixed-step solver ``P(t_start, t_end, x) -> x`` (fine F or auxiliary G)."""
+
+    system: Any
+    scheme: str
+    dt: float
+    blowup_factor: float = BLOWUP_FACTOR
+
+    def __post_init__(self) -> None:
+        _scheme(self.scheme)
+        if not self.dt > 0:
+            raise ValueError(f"dt: must be positive, got {self.dt}")
+
+    @property
+    def order(self) -> int:
+        return scheme_order(self.scheme)
+
+    def n_steps(self, t_start: float, t_end: float) -> int:
+        """Number of equal steps actually taken on ``[t_start, t_end]``."""
+        return n_steps(t_start, t_end, self.dt)
+
+    def __call__(self, t_start: float, t_end: float, x: np.ndarray) -> np.ndarray:
+        return propagate(
+            self.system, x, t_start, t_end, self.scheme, self.dt, blowup_factor=self.blowup_factor
+        )
+
+
+def is_stable(
+    system: Any,
+    scheme: str | Scheme,
+    dt: float,
+    t_span: float,
+    *,
+    x0: np.ndarray | None = None,
+    t0: float = 0.0,
+) -> bool:
+    """Whether ``ceil(t_span/dt)`` steps of exactly ``dt`` keep the monitor within its limit."""
+    x = system.initial_state() if x0 is None else np.asarray(x0, dtype=float)
+    n = max(1, math.ceil(t_span / dt - 1e-9))
+    try:
+        res = _stepping(
+            system, _scheme(scheme), x, t0, dt, n, BLOWUP_FACTOR, stop_above=system.monitor_limit
+        )
+    except BlowUpError:
+        return False
+    return res.completed and res.max_monitor <= system.monitor_limit
+
+
+def largest_stable_step(
+    system: Any,
+    scheme: str | Scheme,
+    t_span: float,
+    dt_lo: float,
+    dt_hi: float,
+    *,
+    x0: np.ndarray | None = None,
+    t0: float = 0.0,
+    rtol: float = 0.05,
+) -> float:
+    """Largest step in ``[dt_lo, dt_hi]`` keeping the monitor within ``system.monitor_limit``.
+
+    Bisects geometrically on runs of length ``t_span`` (steps of exactly dt, see
+    :func:`is_stable`) until the bracket is narrower than ``rtol``: the result passes and a step at
+    most ``result * (1 + rtol)`` failed. The paper picks its coarse steps "close to the largest time
+    step permitted" (section 5.1.1, Fig. 3) with the limits of physics.md (rod length 1%, vesicle
+    area 0.01%). ``dt_lo`` must pass
+    (ValueError otherwise); if ``dt_hi`` passes it is returned with a warning.
+    """
+    if not 0 < dt_lo < dt_hi:
+        raise ValueError(f"dt_lo, dt_hi: need 0 < dt_lo < dt_hi, got {dt_lo}, {dt_hi}")
+    if not t_span > 0:
+        raise ValueError(f"t_span: must be positive, got {t_span}")
+    if not rtol > 0:
+        raise ValueError(f"rtol: must be positive, got {rtol}")
+
+    def ok(dt: float) -> bool:
+        return is_stable(system, scheme, dt, t_span, x0=x0, t0=t0)
+
+    if not ok(dt_lo):
+        raise ValueError(f"dt_lo: {dt_lo:g} is not stable over t_span={t_span:g}")
+    if ok(dt_hi):
+        log.warning("largest_stable_step: dt_hi=%g is stable; the limit lies above it", dt_hi)
+        return dt_hi
+    lo, hi = dt_lo, dt_hi
+    while hi > lo * (1 + rtol):
+        mid = math.sqrt(lo * hi)
+        if ok(mid):
+            lo = mid
+        else:
+            hi = mid
+    return lo

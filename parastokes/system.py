@@ -1,0 +1,295 @@
+"""Systems: bodies + fluid + background flow + physical parameters Θ (docs/contracts.md).
+
+- :class:`RodSystem`: Kirchhoff rods (paper section 5.1; physics.md section 3) in free space or
+  above the no-slip wall z = 0; point forces and torques (eq. 12) drive u and w through the
+  regularized Stokeslet/rotlet kernels with images (physics.md (1)-(8)); Θ = (ε, μ, a).
+- :class:`VesicleSystem`: the spring-network sphere (section 5.2; physics.md section 4) in free
+  space and the shear flow u∞ = (γ̇ z, 0, 0) (eq. 6 and physics.md (15)); Θ = (ε, μ, κ).
+
+Systems are frozen dataclasses of scalars (the rod's initial shape and the vesicle's mesh are
+rebuilt from them on demand, the mesh cached per process), so they pickle in a few hundred bytes.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+
+from . import mrs
+from .bodies import frames, geometry, rod, vesicle
+from .bodies.rod_transfer import RodTransfer
+
+__all__ = ["RodSystem", "VesicleSystem"]
+
+
+def _require_positive(**values: float) -> None:
+    for name, value in values.items():
+        if not (isinstance(value, int | float | np.number) and math.isfinite(value) and value > 0):
+            raise ValueError(f"{name}: must be a finite number > 0, got {value!r}")
+
+
+def _replace_params(system: Any, theta: dict[str, float]) -> Any:
+    """``dataclasses.replace`` restricted to the names of ``system.params``."""
+    unknown = sorted(set(theta) - set(system.params))
+    if unknown:
+        raise ValueError(
+            f"with_params: unknown parameter(s) {unknown}; allowed: {sorted(system.params)}"
+        )
+    return dataclasses.replace(system, **{k: float(v) for k, v in theta.items()})
+
+
+@dataclass(frozen=True)
+class RodSystem:
+    """``n_rods`` Kirchhoff rods of ``n_points`` nodes each, interacting through the fluid.
+
+    Rods start straight along x (geometry.straight_rods), side by side in y, at ``height`` above the
+    wall. The preferred strain is ``preferred + (0, -k² A sin(k s + f t), 0)`` (eq. 36), k = 2π/λ.
+    ``bending`` is the common value a of a1 = a2 = a3 (section 5.1); ``shear`` = (b1, b2, b3).
+    State rows: ``[X, D1, D2, D3]``; rates rows ``[u, w]``.
+    """
+
+    n_rods: int = 1
+    n_points: int = 301
+    length: float = 60.0
+    epsilon: float = 1.0
+    viscosity: float = 1e-6
+    bending: float = 1.0
+    shear: tuple[float, float, float] = (0.6, 0.6, 0.6)
+    preferred: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    amplitude: float = 0.0
+    wavelength: float = 30.0
+    frequency: float = 0.0
+    wall: bool = True
+    height: float = 10.0
+    spacing: float = 5.0
+    n_threads: int | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("n_rods", "n_points"):
+            value = getattr(self, name)
+            if not isinstance(value, int | np.integer) or value < (1 if name == "n_rods" else 3):
+                raise ValueError(
+                    f"{name}: must be an integer >= {1 if name == 'n_rods' else 3}, got {value!r}"
+                )
+        _require_positive(
+            length=self.length,
+            epsilon=self.epsilon,
+            viscosity=self.viscosity,
+            bending=self.bending,
+            wavelength=self.wavelength,
+            spacing=self.spacing,
+        )
+        if len(self.shear) != 3 or min(self.shear) <= 0:
+            raise ValueError(f"shear: need three moduli > 0, got {self.shear!r}")
+        if len(self.preferred) != 3:
+            raise ValueError(f"preferred: need three strains, got {self.preferred!r}")
+        if self.wall:
+            _require_positive(height=self.height)
+
+    # ---- geometry --------------------------------------------------------------------------
+    @property
+    def ds(self) -> float:
+        """Node spacing Δs = σ."""
+        return self.length / (self.n_points - 1)
+
+    def preferred_strain(self, t: float) -> np.ndarray:
+        """Ω̂ at the half points s_{k+½} at time t, shape (M - 1, 3) (eq. 36)."""
+        return rod.preferred_strain(
+            (np.arange(self.n_points - 1) + 0.5) * self.ds,
+            float(t),
+            np.asarray(self.preferred, dtype=float),
+            self.amplitude,
+            2.0 * math.pi / self.wavelength,
+            self.frequency,
+        )
+
+    def initial_state(self) -> np.ndarray:
+        return geometry.straight_rods(
+            self.n_rods, self.n_points, self.length, self.height, self.spacing
+        )
+
+    def positions(self, state: np.ndarray) -> np.ndarray:
+        return np.array(state[:, :3])
+
+    # ---- physics ---------------------------------------------------------------------------
+    def loads(self, t: float, state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Point forces and torques on the fluid (eq. 12), two (n, 3) arrays."""
+        return rod.rod_loads(
+            state,
+            self.n_rods,
+            self.ds,
+            np.full(3, self.bending, dtype=float),
+            np.asarray(self.shear, dtype=float),
+            self.preferred_strain(t),
+        )
+
+    def rates(self, t: float, state: np.ndarray) -> np.ndarray:
+        """``[u, w]`` per node (physics.md (13)): velocities from all points of all rods."""
+        f, n = self.loads(t, state)
+        x = state[:, :3]
+        u, w = mrs.velocity(
+            x,
+            x,
+            f,
+            epsilon=self.epsilon,
+            mu=self.viscosity,
+            torques=n,
+            wall=self.wall,
+            angular=True,
+            n_threads=self.n_threads,
+            check=False,
+        )
+        return np.concatenate([u, w], axis=1)
+
+    def advance(self, state: np.ndarray, rates: np.ndarray, dt: float) -> np.ndarray:
+        """X + dt u; frames rotated by |w| dt about w (Rodrigues, eq. 13)."""
+        return frames.advance_rod(state, rates, dt)
+
+    @staticmethod
+    def bracket(r1: np.ndarray, r2: np.ndarray) -> np.ndarray:
+        """Lie bracket of two rates: [u, w] x [u', w'] -> [0, w × w'] (so(3) per node; RKMK4)."""
+        out = np.zeros_like(r1)
+        out[:, 3:] = np.cross(r1[:, 3:], r2[:, 3:])
+        return out
+
+    def project(self, state: np.ndarray) -> np.ndarray:
+        """Re-orthonormalize every frame (nearest rotation); positions unchanged."""
+        return frames.orthonormalize(np.ascontiguousarray(state, dtype=float))
+
+    # ---- parameters and monitor ------------------------------------------------------------
+    @property
+    def params(self) -> dict[str, float]:
+        return {"epsilon": self.epsilon, "viscosity": self.viscosity, "bending": self.bending}
+
+    def with_params(self, **theta: float) -> RodSystem:
+        """A copy with some of ``epsilon``, ``viscosity``, ``bending`` (= a1 = a2 = a3) changed."""
+        return _replace_params(self, theta)
+
+    @property
+    def monitor_limit(self) -> float:
+        return 0.01
+
+    def monitor(self, state: np.ndarray) -> float:
+        """Largest relative change of a rod's length Σ|X_{k+1} - X_k| from L (section 5.1)."""
+        lengths = rod.rod_lengths(state, self.n_rods)
+        return float(np.abs(lengths - self.length).max() / self.length)
+
+    # ---- coarse grid (Remark 4) ------------------------------------------------------------
+    def coarsened(self, factor: int) -> tuple[RodSystem, RodTransfer]:
+        """The same rods on nodes σ_c = factor·σ_f (same ε in absolute units) and the transfer.
+
+        ``factor`` must divide M - 1 (e.g. 6: 301 -> 51 nodes).
+        """
+        if not isinstance(factor, int | np.integer) or factor < 1:
+            raise ValueError(f"factor: must be a positive integer, got {factor!r}")
+        if (self.n_points - 1) % factor or (self.n_points - 1) // factor < 2:
+            raise ValueError(
+                f"factor: {factor} must divide n_points - 1 = {self.n_points - 1} "
+                "and leave at least 3 nodes"
+            )
+        m_c = (self.n_points - 1) // factor + 1
+        coarse = dataclasses.replace(self, n_points=m_c)
+        return coarse, RodTransfer(self.n_rods, self.n_points, m_c)
+
+
+@lru_cache(maxsize=8)
+def _spring_network(subdivisions: int) -> tuple[np.ndarray, np.ndarray, float]:
+    """Edges, rest lengths and area of the initial icosphere (cached, read-only)."""
+    verts, tris = geometry.icosphere(subdivisions)
+    edges = geometry.mesh_edges(tris)
+    rest = geometry.edge_lengths(verts, edges)
+    edges.setflags(write=False)
+    rest.setflags(write=False)
+    return edges, rest, geometry.surface_area(verts, tris)
+
+
+@dataclass(frozen=True)
+class VesicleSystem:
+    """Unit icosphere (``subdivisions`` levels) with springs on its edges in a shear flow.
+
+    Rest lengths are the initial edge lengths; ε is absolute (the paper quotes ε = 0.3 l_max, see
+    :func:`parastokes.models.vesicle`); κ = ``stiffness``; u∞ = (γ̇ z, 0, 0), γ̇ = ``shear_rate``.
+    """
+
+    subdivisions: int
+    epsilon: float
+    viscosity: float
+    stiffness: float
+    shear_rate: float
+    n_threads: int | None = None
+
+    def __post_init__(self) -> None:
+        geometry.icosphere(self.subdivisions)  # validates subdivisions
+        _require_positive(epsilon=self.epsilon, viscosity=self.viscosity, stiffness=self.stiffness)
+        if not math.isfinite(self.shear_rate):
+            raise ValueError(f"shear_rate: must be finite, got {self.shear_rate!r}")
+
+    @property
+    def mesh(self) -> tuple[np.ndarray, np.ndarray]:
+        """(vertices, triangles) of the initial sphere (cached, read-only)."""
+        return geometry.icosphere(self.subdivisions)
+
+    @property
+    def edges(self) -> np.ndarray:
+        return _spring_network(self.subdivisions)[0]
+
+    @property
+    def rest_lengths(self) -> np.ndarray:
+        return _spring_network(self.subdivisions)[1]
+
+    @property
+    def initial_area(self) -> float:
+        return _spring_network(self.subdivisions)[2]
+
+    def initial_state(self) -> np.ndarray:
+        return np.array(self.mesh[0])
+
+    def positions(self, state: np.ndarray) -> np.ndarray:
+        return np.array(state)
+
+    def forces(self, state: np.ndarray) -> np.ndarray:
+        """Spring forces on the fluid (physics.md (14))."""
+        return vesicle.spring_forces(state, self.edges, self.rest_lengths, self.stiffness)
+
+    def rates(self, t: float, state: np.ndarray) -> np.ndarray:
+        """u∞(X) + Stokeslet velocities (eq. 6) of the spring forces (physics.md (15))."""
+        u = mrs.velocity(
+            state,
+            state,
+            self.forces(state),
+            epsilon=self.epsilon,
+            mu=self.viscosity,
+            n_threads=self.n_threads,
+            check=False,
+        )
+        u[:, 0] += self.shear_rate * state[:, 2]
+        return u
+
+    def advance(self, state: np.ndarray, rates: np.ndarray, dt: float) -> np.ndarray:
+        return state + dt * rates
+
+    def project(self, state: np.ndarray) -> np.ndarray:
+        """The identity (no frames); returns ``state`` itself."""
+        return state
+
+    @property
+    def params(self) -> dict[str, float]:
+        return {"epsilon": self.epsilon, "viscosity": self.viscosity, "stiffness": self.stiffness}
+
+    def with_params(self, **theta: float) -> VesicleSystem:
+        """A copy with some of ``epsilon``, ``viscosity``, ``stiffness`` (κ) changed."""
+        return _replace_params(self, theta)
+
+    @property
+    def monitor_limit(self) -> float:
+        return 1e-4
+
+    def monitor(self, state: np.ndarray) -> float:
+        """Relative change of the surface area from the initial sphere's (section 5.2)."""
+        area = geometry.surface_area(state, self.mesh[1])
+        return abs(area - self.initial_area) / self.initial_area
