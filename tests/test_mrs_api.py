@@ -191,3 +191,17 @@ def test_bad_input_raises(case):
     kw = dict(targets=X, sources=X, forces=F, epsilon=0.1, mu=1.0) | changes
     with pytest.raises(ValueError, match=rf"^{name}\b"):
         mrs.velocity(kw.pop("targets"), kw.pop("sources"), kw.pop("forces"), **kw)
+
+
+def test_checked_and_unchecked_calls_share_one_compiled_signature():
+    """check=False must not hand numba a read-only ε array (a second compilation per kernel)."""
+    from parastokes.mrs import compiled
+
+    rng = np.random.default_rng(5)
+    x = rng.random((10, 3)) + [0.0, 0.0, 1.0]
+    f = rng.normal(size=(10, 3))
+    for check in (True, False):
+        mrs.velocity(x, x, f, epsilon=0.2, mu=1.0, check=check)
+        mrs.velocity(x, x, f, epsilon=0.2, mu=1.0, torques=f, wall=True, angular=True, check=check)
+    assert len(compiled.free_u_f.signatures) == 1
+    assert len(compiled.wall_full.signatures) == 1

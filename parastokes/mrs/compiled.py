@@ -1,6 +1,6 @@
 """Compiled (numba) regularized Stokeslet kernels: the fast path.
 
-Layout: structure of arrays, a leading batch axis ``b`` (B independent systems, each with its own ε),
+Layout: structure of arrays, a leading batch axis ``b`` (B independent systems, each with its ε),
 targets padded to a multiple of :data:`TILE` and processed in tiles, sources streamed one at a time
 with their constants hoisted, targets innermost so that the inner loop vectorizes. One square root
 and one division per distance. Work is split over ``(system, tile)`` pairs with ``prange``; each

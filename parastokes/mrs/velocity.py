@@ -20,7 +20,9 @@ def _points(name: str, value, batch: int | None = None) -> np.ndarray:
     if arr.ndim not in (2, 3) or arr.shape[-1] != 3:
         raise ValueError(f"{name}: expected shape (N, 3) or (B, N, 3), got {arr.shape}")
     if batch is not None and (arr.ndim == 3) != (batch > 0):
-        raise ValueError(f"{name}: all point arrays must be batched or all unbatched, got {arr.shape}")
+        raise ValueError(
+            f"{name}: all point arrays must be batched or all unbatched, got {arr.shape}"
+        )
     if not np.all(np.isfinite(arr)):
         raise ValueError(f"{name}: contains non-finite values")
     return arr
@@ -140,7 +142,7 @@ def velocity(
     padded = -(-m // TILE) * TILE
     tx, ty, tz = _soa(t3, padded)
     src = _soa(s3) + _soa(f3)
-    eps = np.ascontiguousarray(eps, dtype=np.float64)
+    eps = np.array(eps, dtype=np.float64)  # a fresh writable copy: one numba signature
     nb = t3.shape[0]
     out = np.empty((6, nb, padded))
     with _threads(n_threads):
