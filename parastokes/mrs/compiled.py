@@ -52,48 +52,51 @@ def _free_pair(rx, ry, rz, r2, e2, inv, fx, fy, fz, nx, ny, nz):
 
 @njit(inline="always", **_OPTS)
 def _image_pair(bx, by, b3, z, h, e2, fx, fy, fz, nx, ny, nz):
-    """8π × (u, w) image parts ([5]-[8]) at R = (bx, by, b3) = x - y*, R3 = z + h."""
+    """8π × (u, w) image parts ([5]-[8]) at R = (bx, by, b3) = x - y*, R3 = b3 = z + h.
+
+    The coefficients of physics.md (5)-(8) are regrouped with z = R3 - h (fewer operations, the
+    same terms): e.g. the f* and f coefficients of (5) combine into -(R² + 2ε² + 2hz)/R_ε³ +
+    6hε²z/R_ε⁵ for the x and y components.
+    """
     r2 = bx * bx + by * by + b3 * b3
     inv = 1.0 / np.sqrt(r2 + e2)
     inv2 = inv * inv
     inv3 = inv2 * inv
     inv5 = inv3 * inv2
-    inv7 = inv5 * inv2
-    # [5] force -> velocity. f* = (fx, fy, -fz).
+    he5 = 6.0 * h * e2 * inv5
+    kk = b3 * (2.0 * r2 + 7.0 * e2) - 5.0 * e2 * h
+    p7 = kk * inv5 * inv2
+    # [5] force -> velocity.
     rf = bx * fx + by * fy + b3 * fz
-    rfs = bx * fx + by * fy - b3 * fz
-    hh = 2.0 * h
-    c_f = -(r2 + 2.0 * e2) * inv3 + 6.0 * h * e2 * inv5 * b3  # coefficient of f
-    c_fs = 2.0 * h * h * (inv3 - 3.0 * e2 * inv5) - hh * b3 * inv3  # coefficient of f*
-    c_r = -rf * inv3 - 6.0 * h * h * rfs * inv5 + hh * (fz * inv3 + 3.0 * b3 * rfs * inv5)
-    c_e3 = hh * rfs * (r2 + 4.0 * e2) * inv5 - 6.0 * h * e2 * inv5 * rf
-    ux = (c_f + c_fs) * fx + c_r * bx
-    uy = (c_f + c_fs) * fy + c_r * by
-    uz = (c_f - c_fs) * fz + c_r * b3 + c_e3
-    # [6] force -> angular velocity.
-    k = b3 * (2.0 * r2 + 7.0 * e2)
-    aw = -(r2 + 2.5 * e2) * inv5 - (3.0 * h * k - 15.0 * e2 * h * h) * inv7
-    bw = -h * (4.0 * r2 + e2) * inv5 + h * (6.0 * b3 * k - 30.0 * e2 * h * b3) * inv7
+    rfs = rf - 2.0 * b3 * fz
+    c_xy = he5 * z - (r2 + 2.0 * e2 + 2.0 * h * z) * inv3
+    c_z = he5 * (z + 2.0 * h) - (r2 + 2.0 * e2 - 2.0 * h * z) * inv3
+    c_r = (2.0 * h * fz - rf) * inv3 + 6.0 * h * z * rfs * inv5
+    c_e3 = 2.0 * h * inv5 * (rfs * (r2 + 4.0 * e2) - 3.0 * e2 * rf)
+    ux = c_xy * fx + c_r * bx
+    uy = c_xy * fy + c_r * by
+    uz = c_z * fz + c_r * b3 + c_e3
+    # [6] force -> angular velocity, g = f2 R1 - f1 R2.
+    aw = -(r2 + 2.5 * e2) * inv5 - 3.0 * h * p7
+    bw = -h * (4.0 * r2 + e2) * inv5 + 6.0 * h * b3 * p7
     g = fy * bx - fx * by
     cg = 6.0 * h * inv5 * g
-    dg = -6.0 * h * (k - 5.0 * e2 * h) * inv7 * g
     wx = aw * (fy * b3 - fz * by) + bw * fy + cg * bx
     wy = aw * (fz * bx - fx * b3) - bw * fx + cg * by
-    wz = aw * (fx * by - fy * bx) + cg * b3 + dg
+    wz = cg * b3 - (aw + 6.0 * h * p7) * g
     # [7] torque -> velocity, b = n × e3 = (ny, -nx, 0).
     cb = (2.0 * h * (r2 - 2.0 * e2) + 6.0 * e2 * b3) * inv5
     crb = 6.0 * z * inv5 * (bx * ny - by * nx)
-    ux += -(ny * b3 - nz * by) * inv3 + cb * ny + crb * bx
-    uy += -(nz * bx - nx * b3) * inv3 - cb * nx + crb * by
-    uz += -(nx * by - ny * bx) * inv3 + crb * b3
+    ux += (nz * by - ny * b3) * inv3 + cb * ny + crb * bx
+    uy += (nx * b3 - nz * bx) * inv3 - cb * nx + crb * by
+    uz += (ny * bx - nx * by) * inv3 + crb * b3
     # [8] torque -> angular velocity.
-    kk = k - 5.0 * e2 * h
-    an = (3.5 * r2 + 2.0 * e2) * inv5 - 3.0 * b3 * kk * inv7
+    an = (3.5 * r2 + 2.0 * e2) * inv5 - 3.0 * b3 * p7
     nrr = nx * bx + ny * by + nz * b3
-    cr = -4.5 * inv5 * nrr + 3.0 * b3 * inv5 * nz
+    cr = 3.0 * inv5 * (b3 * nz - 1.5 * nrr)
     wx += an * nx + cr * bx
     wy += an * ny + cr * by
-    wz += an * nz + cr * b3 + 3.0 * kk * inv7 * nrr - 3.0 * inv3 * nz
+    wz += an * nz + cr * b3 + 3.0 * p7 * nrr - 3.0 * inv3 * nz
     return ux, uy, uz, wx, wy, wz
 
 
