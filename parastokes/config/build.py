@@ -1,0 +1,120 @@
+"""From a validated configuration to the objects of a run: system, F, G and the executor."""
+
+from __future__ import annotations
+
+from concurrent.futures import Executor
+from dataclasses import dataclass
+from typing import Any
+
+from .. import integrate, models, parallel, parareal
+from ..warmup import WarmUp
+from .checks import Resolved
+from .errors import ConfigError
+from .schema import Config, RodModel
+
+__all__ = ["Setup", "build", "build_system"]
+
+
+def build_system(cfg: Config, resolved: Resolved) -> Any:
+    """The system of ``cfg.model`` with the correct parameters Θ⁰ (absolute ε⁰)."""
+    model = cfg.model
+    threads = cfg.execution.threads
+    if isinstance(model, RodModel):
+        return models.rod_swimmer(
+            n_rods=model.n_rods,
+            n_points=model.n_points,
+            epsilon=resolved.epsilon,
+            length=model.length,
+            amplitude=model.amplitude,
+            frequency=model.frequency,
+            wavelength=model.wavelength,
+            bending=model.bending,
+            shear=tuple(model.shear),
+            viscosity=model.viscosity,
+            wall=model.wall,
+            height=model.height,
+            spacing=model.spacing,
+            n_threads=threads,
+        )
+    system = models.vesicle(
+        subdivisions=model.subdivisions,
+        stiffness=model.stiffness,
+        viscosity=model.viscosity,
+        shear_rate=model.shear_rate,
+        n_threads=threads,
+    )
+    return system.with_params(epsilon=resolved.epsilon)
+
+
+def build_coarse(cfg: Config, resolved: Resolved, system: Any) -> parareal.Extrapolated:
+    """G of eq. 30 with the base step τ = τ_c / r^m (``resolved.coarse_base_dt``)."""
+    coarse = cfg.coarse
+    richardson = coarse.richardson
+    return parareal.extrapolated(
+        system,
+        coarse.scheme,
+        resolved.coarse_base_dt,
+        lagrange=resolved.lagrange or None,
+        richardson={"m": richardson.m, "r": richardson.r} if richardson.m else None,
+        grid=coarse.grid_factor if coarse.grid_factor > 1 else None,
+    )
+
+
+@dataclass
+class Setup:
+    """Everything a run needs; a context manager that shuts the executor down on exit."""
+
+    config: Config
+    resolved: Resolved
+    system: Any
+    fine: integrate.Propagator
+    coarse: Any
+    executor: Executor | None
+
+    def __enter__(self) -> Setup:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Shut the executor down (idempotent)."""
+        if self.executor is not None:
+            self.executor.shutdown()
+            self.executor = None
+
+
+def build(cfg: Config, resolved: Resolved, *, executor: bool = True) -> Setup:
+    """Build system, fine propagator F, coarse propagator G and (with ``executor``) the executor.
+
+    The executor's workers are started and warmed up here (numba caches loaded), so timings that
+    follow measure work. Raises :class:`~.errors.ConfigError` when an MPI launch provides fewer
+    workers than the coarse solver needs and oversubscription is not allowed.
+    """
+    system = build_system(cfg, resolved)
+    fine = integrate.Propagator(system, cfg.fine.scheme, cfg.fine.dt)
+    coarse = build_coarse(cfg, resolved, system)
+    pool = None
+    if executor and cfg.run.mode != "serial":
+        ex = cfg.execution
+        options = {} if ex.executor == "serial" else {"threads_per_worker": ex.threads}
+        pool = parallel.make_executor(
+            ex.executor,
+            resolved.workers,
+            warmup=WarmUp(system),
+            **options,
+        )
+        n_aux = resolved.n_auxiliary
+        if resolved.workers is None and n_aux > pool.workers and not ex.allow_oversubscribe:
+            pool.shutdown()
+            raise ConfigError(
+                [
+                    (
+                        "execution.workers",
+                        f"the MPI launch provides {pool.workers} workers for N_G = {n_aux} "
+                        "auxiliary solvers; start more ranks or set "
+                        "execution.allow_oversubscribe = true",
+                    )
+                ]
+            )
+    return Setup(cfg, resolved, system, fine, coarse, pool)

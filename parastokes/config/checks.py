@@ -1,0 +1,252 @@
+"""Checks across keys and the values they resolve to (absolute ε, nodes, steps, workers).
+
+Everything here is cheap (no solver is built), so ``parastokes check`` and every run catch a bad
+configuration before any expensive work. The rules are the paper's:
+
+- Lagrange nodes (section 4.1): θ^1 < θ^2 < ... (condition 1) and θ⁰ outside [θ^1, θ^N]
+  (condition 2); all parameters are positive;
+- Richardson (eq. 26): integer m >= 0, r in (0, 1), and the steps r^q τ must give different step
+  counts on a slice (otherwise the weights of eq. 27 are undefined);
+- N_G = (Π_i N_θi)(m + 1) auxiliary solvers (eq. 31) run at once only with N_G workers: more is an
+  error unless ``execution.allow_oversubscribe`` (Algorithm 1 assumes N_G <= N_c).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+from .. import integrate
+from ..bodies import geometry
+from ..parallel import available_cores
+from .errors import ConfigError
+from .schema import Config, RodModel
+
+__all__ = ["Resolved", "resolve", "resolved_dict"]
+
+#: The physical parameters Θ that Lagrangian extrapolation may vary, per model kind.
+PARAMETERS = {
+    "rod": ("epsilon", "bending", "viscosity"),
+    "vesicle": ("epsilon", "stiffness", "viscosity"),
+}
+
+
+@dataclass(frozen=True)
+class Resolved:
+    """Values derived from a valid :class:`Config`, in absolute units.
+
+    ``coarse_dt`` is τ_c = r^m τ (the smallest auxiliary step, as the paper counts it) and
+    ``coarse_base_dt`` the τ of eq. 26; ``coarse_steps[q]`` is the number of steps of
+    G_{Θ, r^q τ} on one slice; ``grid_spacing`` is σ_f (rods) or l_max (vesicles).
+    """
+
+    epsilon: float
+    grid_spacing: float
+    n_points: int
+    theta0: dict[str, float]
+    slice_length: float
+    fine_dt: float
+    fine_steps: int
+    coarse_dt: float
+    coarse_base_dt: float
+    coarse_steps: list[int]
+    coarse_points: int
+    lagrange: dict[str, list[float]]
+    n_auxiliary: int
+    workers: int | None
+    warnings: list[str] = field(default_factory=list)
+
+
+def _vesicle_mesh(subdivisions: int) -> tuple[float, int]:
+    """(l_max, number of vertices) of the icosphere."""
+    verts, tris = geometry.icosphere(subdivisions)
+    return float(geometry.edge_lengths(verts, geometry.mesh_edges(tris)).max()), len(verts)
+
+
+def _node_values(
+    cfg: Config, name: str, theta0: float, scale: float, issues: list[tuple[str, str]]
+) -> list[float]:
+    """The absolute nodes of parameter ``name``; appends issues for bad units and orderings."""
+    path = f"coarse.lagrange.{name}"
+    spec = cfg.coarse.lagrange[name]
+    model_unit = cfg.model.epsilon_unit if name == "epsilon" else "absolute"
+    unit = spec.unit or model_unit
+    grid_unit = "sigma_f" if isinstance(cfg.model, RodModel) else "l_max"
+    if unit in ("sigma_f", "l_max") and (name != "epsilon" or unit != grid_unit):
+        issues.append((f"{path}.unit", f"{unit!r} applies to epsilon of a {grid_unit} model only"))
+        return []
+    factor = {"absolute": 1.0, "relative": theta0, "sigma_f": scale, "l_max": scale}[unit]
+    values = [v * factor for v in spec.nodes]
+    if min(spec.nodes) <= 0:
+        issues.append((path, f"nodes must be positive, got {spec.nodes}"))
+    elif any(b <= a for a, b in zip(spec.nodes, spec.nodes[1:], strict=False)):
+        issues.append((path, f"nodes must be strictly increasing, got {spec.nodes}"))
+    elif values[0] <= theta0 <= values[-1]:
+        issues.append(
+            (
+                path,
+                f"θ⁰ = {theta0:.6g} must lie outside the node interval [{values[0]:.6g}, "
+                f"{values[-1]:.6g}] (section 4.1, condition 2)",
+            )
+        )
+    return values
+
+
+def _steps(slice_length: float, dt: float, path: str, what: str, warnings: list[str] | None) -> int:
+    """Steps of size ~``dt`` on a slice; warns (unless ``warnings`` is None) when dt does not divide
+    it (Richardson steps r^q τ rarely do; eq. 27's weights are computed for the steps taken)."""
+    n = integrate.n_steps(0.0, slice_length, dt)
+    used = slice_length / n
+    if warnings is not None and abs(used - dt) > 1e-9 * dt:
+        warnings.append(
+            f"{path}: the slice length {slice_length:.6g} is not a multiple of {what} = {dt:.6g}; "
+            f"{n} steps of {used:.6g} are taken"
+        )
+    return n
+
+
+def _workers(cfg: Config, n_auxiliary: int, issues: list, warnings: list) -> int | None:
+    ex = cfg.execution
+    if ex.executor == "serial":
+        if ex.workers not in (None, 1):
+            issues.append(
+                ("execution.workers", f"the serial executor has 1 worker, not {ex.workers}")
+            )
+        return 1
+    workers = ex.workers
+    if workers is None and ex.executor == "processes":
+        workers = max(1, min(cfg.parareal.n_slices, available_cores() // ex.threads))
+    if workers is None:  # mpi: all ranks of the launch, known only when the executor exists
+        return None
+    if n_auxiliary > workers and not ex.allow_oversubscribe and cfg.run.mode != "serial":
+        issues.append(
+            (
+                "execution.workers",
+                f"the coarse solver has N_G = {n_auxiliary} auxiliary solvers but there are only "
+                f"{workers} workers, so they cannot all run at once (Algorithm 1 assumes "
+                "N_G <= N_c); raise workers or set execution.allow_oversubscribe = true",
+            )
+        )
+    if cfg.parareal.n_slices > workers and cfg.run.mode != "serial":
+        warnings.append(
+            f"parareal.n_slices: {cfg.parareal.n_slices} slices on {workers} workers: the "
+            "parallel sweep runs in waves, while eq. 14 assumes one core per slice"
+        )
+    return workers
+
+
+def resolve(cfg: Config, source: str = "") -> Resolved:
+    """Check ``cfg`` across keys and compute the derived values; raise :class:`ConfigError`."""
+    issues: list[tuple[str, str]] = []
+    warnings: list[str] = []
+    model = cfg.model
+    if isinstance(model, RodModel):
+        kind = "rod"
+        spacing = model.length / (model.n_points - 1)
+        n_points = model.n_rods * model.n_points
+        extra = {"bending": model.bending}
+    else:
+        kind = "vesicle"
+        spacing, n_points = _vesicle_mesh(model.subdivisions)
+        extra = {"stiffness": model.stiffness}
+    epsilon = model.epsilon * (spacing if model.epsilon_unit != "absolute" else 1.0)
+    theta0 = {"epsilon": epsilon, "viscosity": model.viscosity, **extra}
+
+    t0, t1 = cfg.time.t0, cfg.time.t1
+    if not t1 > t0:
+        issues.append(("time.t1", f"must exceed t0 = {t0}, got {t1}"))
+        raise ConfigError(issues, source)
+    slice_length = (t1 - t0) / cfg.parareal.n_slices
+    if cfg.fine.dt > slice_length * (1 + 1e-12):
+        issues.append(
+            ("fine.dt", f"exceeds the slice length (t1 - t0)/n_slices = {slice_length:.6g}")
+        )
+    fine_steps = _steps(slice_length, cfg.fine.dt, "fine.dt", "τ_f", warnings)
+
+    coarse = cfg.coarse
+    if (coarse.dt is None) == (coarse.dt_ratio is None):
+        issues.append(("coarse.dt", "give exactly one of coarse.dt and coarse.dt_ratio"))
+    coarse_dt = coarse.dt if coarse.dt is not None else (coarse.dt_ratio or 1.0) * cfg.fine.dt
+    m, r = coarse.richardson.m, coarse.richardson.r
+    if m >= 1 and r is None:
+        issues.append(("coarse.richardson.r", "required when m >= 1"))
+    base_dt = coarse_dt / (r or 1.0) ** m
+    coarse_steps = [
+        _steps(slice_length, base_dt * (r or 1.0) ** q, "coarse.dt", "τ_c", None if m else warnings)
+        for q in range(m + 1)
+    ]
+    if len(set(coarse_steps)) < len(coarse_steps):
+        issues.append(
+            (
+                "coarse.richardson.r",
+                f"the steps r^q τ give the step counts {coarse_steps} on a slice; they must all "
+                "differ (choose r farther from 1 or a smaller coarse step)",
+            )
+        )
+    if coarse_dt < cfg.fine.dt:
+        warnings.append(f"coarse.dt: τ_c = {coarse_dt:.6g} is smaller than τ_f = {cfg.fine.dt:.6g}")
+
+    lagrange = {}
+    for name in coarse.lagrange:
+        if name not in PARAMETERS[kind]:
+            issues.append(
+                (
+                    f"coarse.lagrange.{name}",
+                    f"unknown parameter; a {kind} model extrapolates in "
+                    f"{', '.join(PARAMETERS[kind])}",
+                )
+            )
+            continue
+        lagrange[name] = _node_values(cfg, name, theta0[name], spacing, issues)
+    n_auxiliary = math.prod(len(spec.nodes) for spec in coarse.lagrange.values()) * (m + 1)
+
+    coarse_points = n_points
+    if coarse.grid_factor > 1:
+        if not isinstance(model, RodModel):
+            issues.append(("coarse.grid_factor", "only rods have a coarser grid; use 1"))
+        elif (model.n_points - 1) % coarse.grid_factor or (
+            model.n_points - 1
+        ) // coarse.grid_factor < 2:
+            issues.append(
+                (
+                    "coarse.grid_factor",
+                    f"must divide n_points - 1 = {model.n_points - 1} and leave at least 3 nodes",
+                )
+            )
+        else:
+            coarse_points = model.n_rods * ((model.n_points - 1) // coarse.grid_factor + 1)
+
+    tracked = cfg.output.tracked_points
+    if tracked:
+        if isinstance(model, RodModel):
+            issues.append(("output.tracked_points", "applies to vesicles only"))
+        elif max(tracked) >= n_points:
+            issues.append(("output.tracked_points", f"indices must be below {n_points}"))
+
+    workers = _workers(cfg, n_auxiliary, issues, warnings)
+    if issues:
+        raise ConfigError(issues, source)
+    return Resolved(
+        epsilon=epsilon,
+        grid_spacing=spacing,
+        n_points=n_points,
+        theta0=theta0,
+        slice_length=slice_length,
+        fine_dt=cfg.fine.dt,
+        fine_steps=fine_steps,
+        coarse_dt=coarse_dt,
+        coarse_base_dt=base_dt,
+        coarse_steps=coarse_steps,
+        coarse_points=coarse_points,
+        lagrange=lagrange,
+        n_auxiliary=n_auxiliary,
+        workers=workers,
+        warnings=warnings,
+    )
+
+
+def resolved_dict(cfg: Config, resolved: Resolved) -> dict[str, Any]:
+    """The resolved configuration stored with every result: all keys with defaults filled in, plus
+    the derived absolute values under ``"resolved"``."""
+    return {**cfg.model_dump(mode="json"), "resolved": asdict(resolved)}

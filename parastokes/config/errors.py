@@ -1,0 +1,103 @@
+"""Configuration errors that name the key they are about, and the translation of pydantic's."""
+
+from __future__ import annotations
+
+import difflib
+from collections.abc import Iterable, Sequence
+from typing import Any
+
+from pydantic import BaseModel, ValidationError
+
+from . import schema
+
+__all__ = ["ConfigError", "from_validation_error", "key_path"]
+
+# The schema class of every section, by key path (the model section depends on its kind).
+_SECTIONS: dict[tuple[str, ...], type[BaseModel]] = {
+    (): schema.Config,
+    ("time",): schema.Time,
+    ("fine",): schema.Fine,
+    ("coarse",): schema.Coarse,
+    ("coarse", "richardson"): schema.Richardson,
+    ("parareal",): schema.Parareal,
+    ("execution",): schema.Execution,
+    ("output",): schema.Output,
+    ("run",): schema.RunSection,
+}
+_MODELS = {"rod": schema.RodModel, "vesicle": schema.VesicleModel}
+
+
+class ConfigError(ValueError):
+    """An invalid configuration; ``issues`` lists ``(key path, message)`` pairs.
+
+    ``str(error)`` has one line per issue, ``"coarse.lagrange.epsilon: nodes must be strictly
+    increasing"``, under a heading naming the source file.
+    """
+
+    def __init__(self, issues: Sequence[tuple[str, str]], source: str = "") -> None:
+        self.issues = list(issues)
+        self.source = source
+        where = f" in {source}" if source else ""
+        lines = [f"invalid configuration{where}:"]
+        lines += [f"  {path or '(top level)'}: {message}" for path, message in self.issues]
+        super().__init__("\n".join(lines))
+
+    @property
+    def paths(self) -> list[str]:
+        """The key paths of all issues."""
+        return [path for path, _ in self.issues]
+
+
+def key_path(loc: Iterable[Any]) -> str:
+    """The key path of a location: ``("coarse", "lagrange", "x")`` -> ``coarse.lagrange.x``."""
+    out = ""
+    for part in loc:
+        out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else str(part))
+    return out
+
+
+def _section_class(loc: tuple[Any, ...], data: Any) -> type[BaseModel] | None:
+    if loc == ("model",):
+        kind = data.get("model", {}).get("kind") if isinstance(data, dict) else None
+        return _MODELS.get(kind) if isinstance(kind, str) else None
+    if len(loc) == 3 and loc[:2] == ("coarse", "lagrange"):
+        return schema.LagrangeNodes
+    return _SECTIONS.get(loc)
+
+
+def _describe(value: Any) -> str:
+    text = repr(value)
+    return f"{text[:60]}..." if len(text) > 60 else text
+
+
+def _message(error: dict[str, Any], loc: tuple[Any, ...], data: Any) -> str:
+    kind = error["type"]
+    if kind == "extra_forbidden":
+        cls = _section_class(loc[:-1], data)
+        known = sorted(cls.model_fields) if cls is not None else []
+        close = difflib.get_close_matches(str(loc[-1]), known, n=1)
+        hint = f"did you mean {close[0]!r}?" if close else f"known keys: {', '.join(known)}"
+        return f"unknown key ({hint})"
+    if kind == "missing":
+        return "required key is missing"
+    message = error["msg"]
+    if kind.startswith("union_tag"):
+        return message
+    return f"{message} (got {_describe(error.get('input'))})"
+
+
+def from_validation_error(error: ValidationError, data: Any, source: str = "") -> ConfigError:
+    """A :class:`ConfigError` from pydantic's error, with key paths instead of pydantic's locations.
+
+    The discriminator tag that pydantic inserts after ``model`` (``model.rod.epsilon``) is dropped,
+    and unknown keys get a "did you mean" hint from the keys of their section.
+    """
+    issues = []
+    for item in error.errors():
+        loc = tuple(item["loc"])
+        if len(loc) > 1 and loc[0] == "model" and loc[1] in _MODELS:
+            loc = ("model", *loc[2:])
+        if item["type"].startswith("union_tag"):
+            loc = ("model", "kind")
+        issues.append((key_path(loc), _message(item, loc, data)))
+    return ConfigError(issues, source)

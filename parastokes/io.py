@@ -1,0 +1,382 @@
+"""Results on disk: ``summary.json``, ``trajectory.h5`` with its XDMF sidecar, atomic array files.
+
+``trajectory.h5`` (h5py) holds, for each run that was computed (``parareal`` and/or ``serial``):
+
+- ``/<run>/time``: the frame times, shape (F,);
+- ``/<run>/<body>/positions``: one extendible dataset per body, shape (F, M, 3), appended frame by
+  frame (a serial run writes as it goes); rods also ``D1``, ``D2``, ``D3`` (F, M, 3), the frames;
+
+and once per file:
+
+- ``/bodies/<body>/connectivity``: rods: the M - 1 segments (M - 1, 2); vesicles: the triangles;
+  ``/bodies/<body>/tracked`` (vesicles): the tracked points of Fig. 11 as a 0/1 mask;
+- ``/parareal_history``: per iteration k = 1..K the relative increment η̃^k and true error η^k
+  (eq. 34; NaN without a serial reference), the final positions X^k at T_N, the wall time elapsed
+  after the iteration, the serial and parallel sweep times, and the full timings as JSON;
+- root attributes: the resolved configuration as JSON (``config``) and every parameter as its own
+  attribute under its key path (``model.epsilon``, ``resolved.coarse_dt``, ...).
+
+``trajectory.xdmf`` describes the same data for ParaView/VisIt (XDMF 3): one temporal collection per
+run, a Polyline per rod and a Triangle mesh per vesicle, with the frames as node vectors.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import xml.etree.ElementTree as ET
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+
+__all__ = [
+    "HistoryRecord",
+    "TrajectoryWriter",
+    "load_arrays",
+    "read_history",
+    "read_summary",
+    "read_trajectory",
+    "save_arrays",
+    "write_summary",
+    "write_xdmf",
+]
+
+FORMAT = "parastokes.trajectory"
+VERSION = 1
+RUNS = ("parareal", "serial")
+
+
+# ---- JSON ------------------------------------------------------------------------------------
+def _plain(value: Any) -> Any:
+    """JSON-ready copy: numpy scalars and arrays to Python, non-finite floats to None."""
+    if isinstance(value, Mapping):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, np.ndarray):
+        return _plain(value.tolist())
+    if isinstance(value, list | tuple):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.generic):
+        return _plain(value.item())
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def write_summary(path: str | os.PathLike, summary: Mapping[str, Any]) -> None:
+    """Write ``summary`` as strict JSON (NaN and infinities become null), atomically."""
+    text = json.dumps(_plain(summary), indent=2, allow_nan=False)
+    _atomic_write(Path(path), text.encode())
+
+
+def read_summary(path: str | os.PathLike) -> dict[str, Any]:
+    """Read a ``summary.json``."""
+    return json.loads(Path(path).read_text(encoding="utf-8"))
+
+
+# ---- atomic array files ----------------------------------------------------------------------
+def _atomic_write(path: Path, data: bytes) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    with open(tmp, "wb") as handle:
+        handle.write(data)
+        handle.flush()
+        os.fsync(handle.fileno())
+    os.replace(tmp, path)
+
+
+def save_arrays(path: str | os.PathLike, meta: Mapping[str, Any], **arrays: np.ndarray) -> None:
+    """Write arrays and a JSON-ready ``meta`` dict to an ``.npz`` file atomically."""
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    with open(tmp, "wb") as handle:
+        np.savez(handle, meta=np.array(json.dumps(_plain(meta))), **arrays)
+        handle.flush()
+        os.fsync(handle.fileno())
+    os.replace(tmp, path)
+
+
+def load_arrays(path: str | os.PathLike) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """Read a file written by :func:`save_arrays`: ``(meta, arrays)``."""
+    with np.load(path, allow_pickle=False) as data:
+        meta = json.loads(str(data["meta"]))
+        return meta, {k: data[k] for k in data.files if k != "meta"}
+
+
+# ---- HDF5 trajectory -------------------------------------------------------------------------
+def _flat_attributes(prefix: str, value: Any, out: dict[str, Any]) -> None:
+    if isinstance(value, Mapping):
+        for key, item in value.items():
+            _flat_attributes(f"{prefix}.{key}" if prefix else str(key), item, out)
+    elif value is None:
+        out[prefix] = "none"
+    elif isinstance(value, list | tuple):
+        if all(isinstance(v, int | float) and not isinstance(v, bool) for v in value):
+            out[prefix] = np.asarray(value, dtype=float)
+        else:
+            out[prefix] = json.dumps(_plain(value))
+    else:
+        out[prefix] = value
+
+
+def _bodies(kind: str, n_bodies: int, n_points: int) -> list[tuple[str, int, int]]:
+    """``(name, first row, rows)`` of every body in the state."""
+    return [(f"{kind}_{i}", i * n_points, n_points) for i in range(n_bodies)]
+
+
+class TrajectoryWriter:
+    """Writes ``trajectory.h5``: frames of one or more runs, the history, all parameters.
+
+    ``kind`` is ``"rod"`` or ``"vesicle"``; a rod state (n_rods M, 12) is split into ``n_bodies``
+    rods of M nodes, a vesicle state (N, 3) is one body. ``triangles`` is the vesicle mesh.
+    Datasets are created on first use and extended frame by frame; the file is flushed after
+    every frame, so an interrupted run leaves a readable file.
+    """
+
+    def __init__(
+        self,
+        path: str | os.PathLike,
+        *,
+        kind: str,
+        n_bodies: int,
+        n_points: int,
+        config: Mapping[str, Any],
+        frames: bool = True,
+        triangles: np.ndarray | None = None,
+        tracked: Sequence[int] = (),
+    ) -> None:
+        if kind not in ("rod", "vesicle"):
+            raise ValueError(f"kind must be 'rod' or 'vesicle', got {kind!r}")
+        self.path = Path(path)
+        self.kind = kind
+        self.bodies = _bodies(kind, n_bodies, n_points)
+        self.frames = frames and kind == "rod"
+        self.file = h5py.File(self.path, "w")
+        attrs = self.file.attrs
+        attrs["format"] = FORMAT
+        attrs["version"] = VERSION
+        attrs["kind"] = kind
+        attrs["config"] = json.dumps(_plain(config))
+        flat: dict[str, Any] = {}
+        _flat_attributes("", config, flat)
+        for key, value in flat.items():
+            attrs[key] = value
+        for name, _, rows in self.bodies:
+            group = self.file.create_group(f"bodies/{name}")
+            group.attrs["kind"] = kind
+            group.attrs["n_points"] = rows
+            if kind == "rod":
+                segments = np.stack([np.arange(rows - 1), np.arange(1, rows)], axis=1)
+                group.create_dataset("connectivity", data=segments.astype(np.int64))
+            else:
+                group.create_dataset("connectivity", data=np.asarray(triangles, dtype=np.int64))
+                mask = np.zeros(rows, dtype=np.int32)
+                mask[list(tracked)] = 1
+                group.create_dataset("tracked", data=mask)
+
+    def __enter__(self) -> TrajectoryWriter:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        if self.file.id.valid:
+            self.file.close()
+
+    def _extend(self, group: h5py.Group, name: str, frame: np.ndarray) -> None:
+        if name not in group:
+            group.create_dataset(
+                name,
+                shape=(0, *frame.shape),
+                maxshape=(None, *frame.shape),
+                chunks=(1, *frame.shape),
+                dtype=frame.dtype,
+            )
+        data = group[name]
+        data.resize(data.shape[0] + 1, axis=0)
+        data[-1] = frame
+
+    def append(self, run: str, t: float, state: np.ndarray) -> None:
+        """Append the frame ``state`` at time ``t`` to run ``run`` (``"parareal"``/``"serial"``)."""
+        if run not in RUNS:
+            raise ValueError(f"run must be one of {RUNS}, got {run!r}")
+        state = np.asarray(state, dtype=float)
+        group = self.file.require_group(run)
+        self._extend(group, "time", np.asarray(float(t)))
+        for name, first, rows in self.bodies:
+            body = group.require_group(name)
+            part = state[first : first + rows]
+            self._extend(body, "positions", np.ascontiguousarray(part[:, :3]))
+            if self.frames:
+                for i, label in enumerate(("D1", "D2", "D3")):
+                    columns = slice(3 + 3 * i, 6 + 3 * i)
+                    self._extend(body, label, np.ascontiguousarray(part[:, columns]))
+        self.file.flush()
+
+    def write_history(self, history: HistoryRecord) -> None:
+        """Store the Parareal history in ``/parareal_history`` (replacing an earlier one)."""
+        if "parareal_history" in self.file:
+            del self.file["parareal_history"]
+        group = self.file.create_group("parareal_history")
+        k = len(history.increments)
+        errors = history.errors
+        group.create_dataset("iteration", data=np.arange(1, k + 1))
+        group.create_dataset("increments", data=np.asarray(history.increments, dtype=float))
+        group.create_dataset(
+            "errors", data=np.full(k, np.nan) if errors is None else np.asarray(errors, float)
+        )
+        group.attrs["has_errors"] = errors is not None
+        positions = np.asarray(history.final_positions, dtype=float).reshape(k, -1, 3)
+        group.create_dataset("final_positions", data=positions)
+        group.create_dataset("elapsed", data=np.asarray(history.elapsed, dtype=float))
+        for key in ("serial_sweeps", "parallel_sweeps"):
+            group.create_dataset(key, data=np.asarray(history.timings.get(key, []), dtype=float))
+        group.attrs["timings"] = json.dumps(_plain(history.timings))
+        self.file.flush()
+
+
+@dataclass
+class HistoryRecord:
+    """The per-iteration record of a Parareal run (k = 1..K), as stored in ``/parareal_history``.
+
+    ``final_positions[k-1]`` are the positions of X^k at T_N; ``elapsed[k-1]`` the wall time from
+    the start of the run to the end of iteration k; ``timings`` is ``Timings.to_dict()``.
+    """
+
+    increments: Sequence[float]
+    errors: Sequence[float] | None
+    final_positions: Sequence[np.ndarray]
+    elapsed: Sequence[float]
+    timings: Mapping[str, Any]
+
+
+def read_history(path: str | os.PathLike) -> dict[str, Any] | None:
+    """The Parareal history of a ``trajectory.h5`` as a dict of arrays (None if there is none)."""
+    with h5py.File(path, "r") as f:
+        if "parareal_history" not in f:
+            return None
+        group = f["parareal_history"]
+        out: dict[str, Any] = {key: group[key][()] for key in group}
+        out["has_errors"] = bool(group.attrs["has_errors"])
+        out["timings"] = json.loads(group.attrs["timings"])
+        return out
+
+
+def read_trajectory(path: str | os.PathLike, run: str | None = None) -> dict[str, Any]:
+    """Frames of one run of a ``trajectory.h5``: ``{"run", "kind", "time", "bodies": {name:
+    {"positions", "connectivity", ["tracked"], ["D1", "D2", "D3"]}}, "config"}``.
+
+    ``run`` defaults to ``"parareal"`` when present, else ``"serial"``.
+    """
+    with h5py.File(path, "r") as f:
+        if f.attrs.get("format") != FORMAT:
+            raise ValueError(f"{path} is not a parastokes trajectory file")
+        available = [r for r in RUNS if r in f]
+        if not available:
+            raise ValueError(f"{path} holds no frames")
+        run = run or available[0]
+        if run not in f:
+            raise ValueError(f"{path} has no run {run!r}; it has {available}")
+        bodies = {}
+        for name, static in f["bodies"].items():
+            body = {key: value[()] for key, value in f[run][name].items()}
+            body.update({key: value[()] for key, value in static.items()})
+            bodies[name] = body
+        return {
+            "run": run,
+            "kind": str(f.attrs["kind"]),
+            "time": f[run]["time"][()],
+            "bodies": bodies,
+            "config": json.loads(f.attrs["config"]),
+        }
+
+
+# ---- XDMF ------------------------------------------------------------------------------------
+def _data_item(parent: ET.Element, h5name: str, dataset: h5py.Dataset) -> ET.Element:
+    """A DataItem referring to ``dataset`` of the HDF5 file ``h5name``."""
+    item = ET.SubElement(
+        parent,
+        "DataItem",
+        Dimensions=" ".join(map(str, dataset.shape)),
+        NumberType="Float" if dataset.dtype.kind == "f" else "Int",
+        Precision=str(dataset.dtype.itemsize),
+        Format="HDF",
+    )
+    item.text = f"{h5name}:{dataset.name}"
+    return item
+
+
+def _slab(parent: ET.Element, h5name: str, dataset: h5py.Dataset, frame: int) -> None:
+    """The frame ``frame`` of an (F, M, 3) dataset as an (M, 3) hyperslab."""
+    _, rows, cols = dataset.shape
+    slab = ET.SubElement(
+        parent, "DataItem", ItemType="HyperSlab", Dimensions=f"{rows} {cols}", Type="HyperSlab"
+    )
+    select = ET.SubElement(slab, "DataItem", Dimensions="3 3", Format="XML")
+    select.text = f"{frame} 0 0 1 1 1 1 {rows} {cols}"
+    _data_item(slab, h5name, dataset)
+
+
+def write_xdmf(h5_path: str | os.PathLike, xdmf_path: str | os.PathLike | None = None) -> Path:
+    """Write the XDMF sidecar of a ``trajectory.h5`` (default: same name, ``.xdmf``).
+
+    The sidecar refers to the HDF5 file by its name, so keep the two files side by side.
+    """
+    h5_path = Path(h5_path)
+    xdmf_path = Path(xdmf_path) if xdmf_path is not None else h5_path.with_suffix(".xdmf")
+    root = ET.Element("Xdmf", Version="3.0")
+    domain = ET.SubElement(root, "Domain")
+    h5name = h5_path.name
+    with h5py.File(h5_path, "r") as f:
+        for run in (r for r in RUNS if r in f):
+            series = ET.SubElement(
+                domain, "Grid", Name=run, GridType="Collection", CollectionType="Temporal"
+            )
+            for i, t in enumerate(f[run]["time"][()]):
+                step = ET.SubElement(
+                    series,
+                    "Grid",
+                    Name=f"{run}_{i}",
+                    GridType="Collection",
+                    CollectionType="Spatial",
+                )
+                ET.SubElement(step, "Time", Value=repr(float(t)))
+                for name, static in f["bodies"].items():
+                    _body_grid(step, h5name, name, static, f[run][name], i)
+    ET.indent(root)
+    text = '<?xml version="1.0" ?>\n<!DOCTYPE Xdmf SYSTEM "Xdmf.dtd" []>\n'
+    xdmf_path.write_text(text + ET.tostring(root, encoding="unicode") + "\n", encoding="utf-8")
+    return xdmf_path
+
+
+def _body_grid(
+    parent: ET.Element, h5name: str, name: str, static: h5py.Group, frames: h5py.Group, i: int
+) -> None:
+    grid = ET.SubElement(parent, "Grid", Name=name, GridType="Uniform")
+    cells = static["connectivity"]
+    rod = static.attrs["kind"] == "rod"
+    topology = ET.SubElement(
+        grid,
+        "Topology",
+        TopologyType="Polyline" if rod else "Triangle",
+        NumberOfElements=str(cells.shape[0]),
+        NodesPerElement=str(cells.shape[1]),
+    )
+    _data_item(topology, h5name, cells)
+    geometry = ET.SubElement(grid, "Geometry", GeometryType="XYZ")
+    _slab(geometry, h5name, frames["positions"], i)
+    for label in ("D1", "D2", "D3"):
+        if label in frames:
+            attribute = ET.SubElement(
+                grid, "Attribute", Name=label, AttributeType="Vector", Center="Node"
+            )
+            _slab(attribute, h5name, frames[label], i)
+    if "tracked" in static:
+        attribute = ET.SubElement(
+            grid, "Attribute", Name="tracked", AttributeType="Scalar", Center="Node"
+        )
+        _data_item(attribute, h5name, static["tracked"])

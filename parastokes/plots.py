@@ -1,0 +1,269 @@
+"""Figures from saved results (matplotlib's object API with the Agg canvas, so no display and no
+global pyplot state is involved; every figure as PNG and/or PDF).
+
+From one run directory (:func:`draw_run`):
+
+- ``error_decay``: η^k and η̃^k (eq. 34) against the iteration k (Figs. 4, 6a, 7a, 8a, 12a, 13a);
+- ``speedup_vs_error``: the measured speedup reached for a desired error, a staircase because the
+  iteration count is an integer (Figs. 6b, 7b, 12b, 13b); at least one iteration is assumed;
+- ``speedup_by_iteration``: measured and theoretical speedup (eq. 14) after k iterations, with the
+  bound of eq. 15 (Figs. 6c, 7c, 8b, 12c, 13c);
+- ``structure``: rods in the x-y plane over time; the vesicle projected on the x-z plane at the
+  first and last frame with its tracked points (Fig. 11).
+
+From several run directories (:func:`draw_comparison`): the same error and speedup figures with one
+curve per run (e.g. the coarse solvers G^1..G^4 of one table), and, when the runs differ in the
+number of slices, ``scaling``: speedup against N_c (strong scaling, Fig. 9c) and the runtime and
+parallel-sweep time against N_c (weak scaling when T grows with N_c, Fig. 9d).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from matplotlib import colormaps
+from matplotlib.cm import ScalarMappable
+from matplotlib.collections import LineCollection
+from matplotlib.colors import Normalize
+from matplotlib.figure import Figure
+
+from . import io
+
+__all__ = [
+    "RunData",
+    "draw_comparison",
+    "draw_run",
+    "error_decay",
+    "load_run",
+    "scaling",
+    "speedup_by_iteration",
+    "speedup_vs_error",
+    "staircase",
+    "structure",
+]
+
+FORMATS = ("png", "pdf")
+
+
+@dataclass
+class RunData:
+    """What the figures need from one run directory."""
+
+    label: str
+    summary: dict[str, Any]
+    trajectory: Path | None
+
+    @property
+    def has_parareal(self) -> bool:
+        return bool(self.summary.get("speedup"))
+
+    def accuracy(self) -> tuple[np.ndarray, str]:
+        """η^k when a serial reference was computed, else η̃^k; and the symbol's name."""
+        errors = self.summary.get("errors")
+        if errors:
+            return np.asarray(errors, dtype=float), "relative error η"
+        return np.asarray(self.summary["increments"], dtype=float), "relative increment η̃"
+
+
+def load_run(directory: str | Path, label: str | None = None) -> RunData:
+    """Read ``summary.json`` (and locate ``trajectory.h5``) of a run directory."""
+    directory = Path(directory)
+    summary = io.read_summary(directory / "summary.json")
+    trajectory = directory / "trajectory.h5"
+    return RunData(
+        label=label or summary.get("title") or directory.name,
+        summary=summary,
+        trajectory=trajectory if trajectory.exists() else None,
+    )
+
+
+def _save(fig: Figure, stem: Path, formats: Sequence[str]) -> list[Path]:
+    paths = []
+    for fmt in formats:
+        path = stem.with_suffix(f".{fmt}")
+        fig.savefig(path, dpi=150, bbox_inches="tight")
+        paths.append(path)
+    return paths
+
+
+# ---- accuracy and speedup --------------------------------------------------------------------
+def error_decay(runs: Sequence[RunData], stem: Path, formats: Sequence[str] = FORMATS):
+    """η^k (solid) and η̃^k (dashed) against k, one colour per run."""
+    fig = Figure(figsize=(5.5, 4))
+    ax = fig.subplots()
+    for i, run in enumerate(runs):
+        k = np.arange(1, len(run.summary["increments"]) + 1)
+        color = f"C{i}"
+        if run.summary.get("errors"):
+            ax.semilogy(k, run.summary["errors"], "o-", color=color, label=f"{run.label}: η^k")
+        ax.semilogy(
+            k, run.summary["increments"], "s--", color=color, alpha=0.7, label=f"{run.label}: η̃^k"
+        )
+    ax.set_xlabel("iteration k")
+    ax.set_ylabel("relative error / increment (eq. 34)")
+    ax.xaxis.get_major_locator().set_params(integer=True)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    return _save(fig, stem, formats)
+
+
+def staircase(accuracy: Sequence[float], measured: Sequence[float], desired: np.ndarray):
+    """Speedup for each desired error: the measured speedup after the first k >= 1 with
+    accuracy[k-1] <= desired (NaN where no iteration reaches it)."""
+    out = np.full(len(desired), np.nan)
+    for i, target in enumerate(desired):
+        reached = [k for k, value in enumerate(accuracy) if value <= target]
+        if reached:
+            out[i] = measured[reached[0]]
+    return out
+
+
+def speedup_vs_error(runs: Sequence[RunData], stem: Path, formats: Sequence[str] = FORMATS):
+    """The staircase of Fig. 6b: speedup against the desired error, one curve per run."""
+    fig = Figure(figsize=(5.5, 4))
+    ax = fig.subplots()
+    finite = [v for run in runs for v in run.accuracy()[0] if np.isfinite(v) and v > 0]
+    low = 10 ** np.floor(np.log10(min(finite))) if finite else 1e-12
+    desired = np.logspace(np.log10(low) - 0.5, -1, 400)
+    for i, run in enumerate(runs):
+        accuracy, name = run.accuracy()
+        measured = run.summary["speedup"]["by_iteration"]["measured"]
+        ax.semilogx(desired, staircase(accuracy, measured, desired), color=f"C{i}", label=run.label)
+    ax.set_xlabel(f"desired {name}" if len(runs) == 1 else "desired error")
+    ax.set_ylabel("measured speedup (eq. 14)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    return _save(fig, stem, formats)
+
+
+def speedup_by_iteration(runs: Sequence[RunData], stem: Path, formats: Sequence[str] = FORMATS):
+    """Measured (bars) and theoretical (hatched) speedup after k iterations; eq. 15 as dots."""
+    fig = Figure(figsize=(5.5, 4))
+    ax = fig.subplots()
+    width = 0.8 / (2 * len(runs))
+    for i, run in enumerate(runs):
+        data = run.summary["speedup"]["by_iteration"]
+        k = np.asarray(data["iterations"], dtype=float)
+        offset = (2 * i - len(runs) + 0.5) * width
+        ax.bar(k + offset, data["measured"], width, color=f"C{i}", label=f"{run.label}: measured")
+        ax.bar(
+            k + offset + width,
+            data["theoretical"],
+            width,
+            color=f"C{i}",
+            alpha=0.4,
+            hatch="//",
+            label=f"{run.label}: theoretical",
+        )
+        ax.plot(
+            k + offset + width / 2, data["bound"], "k.", label="bound (eq. 15)" if i == 0 else None
+        )
+    ax.set_xlabel("iterations N_it")
+    ax.set_ylabel("speedup")
+    ax.xaxis.get_major_locator().set_params(integer=True)
+    ax.grid(True, axis="y", alpha=0.3)
+    ax.legend(fontsize=7)
+    return _save(fig, stem, formats)
+
+
+def scaling(runs: Sequence[RunData], stem: Path, formats: Sequence[str] = FORMATS):
+    """Speedup against N_c (measured solid, theoretical dashed, per iteration count; Fig. 9c) and
+    the runtime and parallel-sweep time of the first iteration against N_c (Fig. 9d)."""
+    runs = sorted(runs, key=lambda r: r.summary["speedup"]["n_slices"])
+    cores = np.array([r.summary["speedup"]["n_slices"] for r in runs])
+    fig = Figure(figsize=(10, 4))
+    left, right = fig.subplots(1, 2)
+    depth = min(len(r.summary["speedup"]["by_iteration"]["iterations"]) for r in runs)
+    for j in range(depth):
+        measured = [r.summary["speedup"]["by_iteration"]["measured"][j] for r in runs]
+        theory = [r.summary["speedup"]["by_iteration"]["theoretical"][j] for r in runs]
+        left.plot(cores, measured, "o-", color=f"C{j}", label=f"N_it = {j + 1}: measured")
+        left.plot(cores, theory, "s--", color=f"C{j}", label=f"N_it = {j + 1}: theoretical")
+    left.set_xlabel("N_c (slices)")
+    left.set_ylabel("speedup")
+    left.legend(fontsize=7)
+    left.grid(True, alpha=0.3)
+    total = [r.summary["timings"]["elapsed_by_iteration"][0] for r in runs]
+    sweep = [r.summary["timings"]["parallel_sweeps"][0] for r in runs]
+    right.plot(cores, total, "o-", label="Parareal, N_it = 1")
+    right.plot(cores, sweep, "s-", label="parallel sweep")
+    right.set_xlabel("N_c (slices)")
+    right.set_ylabel("wall time (s)")
+    right.legend(fontsize=7)
+    right.grid(True, alpha=0.3)
+    return _save(fig, stem, formats)
+
+
+# ---- structures ------------------------------------------------------------------------------
+def structure(
+    trajectory: Path, stem: Path, formats: Sequence[str] = FORMATS, run: str | None = None
+):
+    """Rods: every frame in the x-y plane, coloured by time. Vesicle: x-z projection at the first
+    and the last frame, tracked points marked (Fig. 11)."""
+    data = io.read_trajectory(trajectory, run)
+    times = data["time"]
+    if data["kind"] == "rod":
+        fig = Figure(figsize=(7, 3.5))
+        ax = fig.subplots()
+        colors = colormaps["viridis"](np.linspace(0, 1, len(times)))
+        for body in data["bodies"].values():
+            for color, frame in zip(colors, body["positions"], strict=True):
+                ax.plot(frame[:, 0], frame[:, 1], color=color, lw=1)
+        mappable = ScalarMappable(cmap="viridis", norm=Normalize(times[0], times[-1]))
+        fig.colorbar(mappable, ax=ax, label="t (s)")
+        ax.set_xlabel("x (μm)")
+        ax.set_ylabel("y (μm)")
+        ax.set_title(f"rods in the x-y plane ({data['run']}; y exaggerated)")
+    else:
+        body = next(iter(data["bodies"].values()))
+        tracked = np.flatnonzero(body["tracked"])
+        fig = Figure(figsize=(8, 4))
+        axes = fig.subplots(1, 2, sharex=True, sharey=True)
+        for ax, index in zip(axes, (0, -1), strict=True):
+            points = body["positions"][index][:, [0, 2]]
+            edges = points[body["connectivity"][:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)]
+            ax.add_collection(LineCollection(edges, colors="0.6", linewidths=0.3))
+            for j, p in enumerate(tracked):
+                ax.plot(*points[p], "o", color=f"C{j + 1}", ms=7)
+            ax.set_title(f"t = {times[index]:g}")
+            ax.set_xlabel("x")
+            ax.set_aspect("equal")
+            ax.autoscale_view()
+        axes[0].set_ylabel("z")
+    return _save(fig, stem, formats)
+
+
+# ---- entry points ----------------------------------------------------------------------------
+def draw_run(directory: str | Path, formats: Sequence[str] = FORMATS) -> list[Path]:
+    """All figures of one run directory, written into it; returns the files written."""
+    directory = Path(directory)
+    run = load_run(directory)
+    written = []
+    if run.has_parareal:
+        written += error_decay([run], directory / "error_decay", formats)
+        written += speedup_vs_error([run], directory / "speedup_vs_error", formats)
+        written += speedup_by_iteration([run], directory / "speedup_by_iteration", formats)
+    if run.trajectory is not None:
+        written += structure(run.trajectory, directory / "structure", formats)
+    return written
+
+
+def draw_comparison(
+    directories: Sequence[str | Path], out: str | Path, formats: Sequence[str] = FORMATS
+) -> list[Path]:
+    """Comparison figures of several runs (one curve each) in ``out``; returns the files."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    runs = [r for r in (load_run(d) for d in directories) if r.has_parareal]
+    if not runs:
+        return []
+    written = error_decay(runs, out / "error_decay", formats)
+    written += speedup_vs_error(runs, out / "speedup_vs_error", formats)
+    written += speedup_by_iteration(runs, out / "speedup_by_iteration", formats)
+    if len({r.summary["speedup"]["n_slices"] for r in runs}) > 1:
+        written += scaling(runs, out / "scaling", formats)
+    return written

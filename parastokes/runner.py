@@ -1,0 +1,378 @@
+"""One run of a configuration: the serial fine solution, Parareal (Algorithm 1), or both, with all
+outputs (summary.json, trajectory.h5 + .xdmf, figures) in one directory. Used by the CLI.
+
+Parareal is driven one iteration at a time through its checkpoint: ``parareal.run`` is called with
+``max_iterations = k`` for k = 1, 2, ..., and each call resumes from the checkpoint written by the
+previous one. This gives the final positions X^k at T_N of every iteration (so η^k and η̃^k of eq.
+34 can be recomputed from the saved file), a live per-iteration report, and ``--resume`` after an
+interruption with the same mechanism. Files in the output directory while a run is in progress:
+
+- ``checkpoint.npz``: Parareal's checkpoint (removed at the end when ``parareal.checkpoint`` is
+  false);
+- ``reference.npz``: the serial fine solution at T_0..T_N and its wall time (mode ``both``);
+- ``history.npz``: X^k at T_N and the elapsed wall time after every iteration.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import platform
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from . import __version__, io, parareal
+from .config import Config, ConfigError, Resolved, Setup, build, resolved_dict
+from .config.schema import RodModel
+
+__all__ = ["CHECKPOINT", "HISTORY", "REFERENCE", "Reporter", "execute", "speedup_table"]
+
+logger = logging.getLogger(__name__)
+
+CHECKPOINT = "checkpoint.npz"
+REFERENCE = "reference.npz"
+HISTORY = "history.npz"
+SUMMARY = "summary.json"
+TRAJECTORY = "trajectory.h5"
+
+
+class Reporter:
+    """Receives progress from :func:`execute`; this base class stays silent (see the CLI's)."""
+
+    def note(self, text: str) -> None:
+        """A line of information."""
+
+    def start(self, what: str, total: int) -> None:
+        """A phase of ``total`` steps begins: ``"serial"`` slices or ``"parareal"`` iterations."""
+
+    def advance(self) -> None:
+        """One step of the current phase is done."""
+
+    def finish(self) -> None:
+        """The current phase is over."""
+
+    def iteration(self, k: int, increment: float, error: float | None, elapsed: float) -> None:
+        """Iteration k of Parareal finished: η̃^k, η^k (None without reference), wall time so far."""
+
+
+class _Once(logging.Filter):
+    """Lets each distinct message through once: the engine is called once per iteration and would
+    repeat its set-up warnings every time."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.seen: set[str] = set()
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        message = record.getMessage()
+        if message in self.seen:
+            return False
+        self.seen.add(message)
+        return True
+
+
+def _digest(data: Any) -> str:
+    return hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()
+
+
+def _keys(cfg: Config) -> tuple[str, str]:
+    """Digests of what determines the serial fine solution, and of the whole Parareal problem."""
+    dumped = cfg.model_dump(mode="json")
+    fine = {k: dumped[k] for k in ("model", "time", "fine")} | {"n": cfg.parareal.n_slices}
+    return _digest(fine), _digest(fine | {"coarse": dumped["coarse"]})
+
+
+def _frame_indices(n_slices: int, every: int) -> list[int]:
+    """Slice boundaries written as frames: every ``every``-th, and always the last."""
+    return sorted(set(range(0, n_slices + 1, every)) | {n_slices})
+
+
+# ---- the serial fine run ---------------------------------------------------------------------
+def _serial(
+    setup: Setup, x0: np.ndarray, times: np.ndarray, path: Path, key: str, reporter: Reporter
+) -> tuple[np.ndarray, float]:
+    """The serial fine solution F(T_n, T_0, x0) at every T_n (as ``parareal.serial_solution``) and
+    its wall time; reloaded from ``path`` when that holds the same problem (``key``)."""
+    if path.exists():
+        meta, arrays = io.load_arrays(path)
+        if meta.get("key") == key:
+            reporter.note(f"serial fine solution reloaded from {path.name}")
+            return arrays["states"], float(meta["wall_time"])
+    n_slices = len(times) - 1
+    states = np.empty((n_slices + 1, *x0.shape))
+    states[0] = x0
+    reporter.start("serial", n_slices)
+    start = time.perf_counter()
+    for n in range(1, n_slices + 1):
+        states[n] = setup.fine(times[n - 1], times[n], states[n - 1])
+        reporter.advance()
+    wall = time.perf_counter() - start
+    reporter.finish()
+    io.save_arrays(path, {"key": key, "wall_time": wall}, states=states)
+    return states, wall
+
+
+# ---- Parareal, one iteration per call --------------------------------------------------------
+def _parareal(
+    setup: Setup,
+    x0: np.ndarray,
+    times: np.ndarray,
+    reference: np.ndarray | None,
+    out: Path,
+    key: str,
+    reporter: Reporter,
+) -> tuple[parareal.PararealResult, io.HistoryRecord]:
+    """Parareal with the history of an interrupted run in ``out`` (if any) carried on."""
+    history_path = out / HISTORY
+    finals: list[np.ndarray] = []
+    elapsed: list[float] = []
+    if history_path.exists():
+        meta, arrays = io.load_arrays(history_path)
+        if meta.get("key") != key:
+            raise ConfigError(
+                [("", f"{out} holds a run of another configuration; use a new --out directory")]
+            )
+        finals, elapsed = list(arrays["final_positions"]), list(arrays["elapsed"])
+    engine_log = logging.getLogger(parareal.run.__module__)
+    once = _Once()
+    engine_log.addFilter(once)
+    try:
+        return _iterate(setup, x0, times, reference, out, key, reporter, finals, elapsed)
+    finally:
+        engine_log.removeFilter(once)
+
+
+def _iterate(
+    setup: Setup,
+    x0: np.ndarray,
+    times: np.ndarray,
+    reference: np.ndarray | None,
+    out: Path,
+    key: str,
+    reporter: Reporter,
+    finals: list[np.ndarray],
+    elapsed: list[float],
+) -> tuple[parareal.PararealResult, io.HistoryRecord]:
+    """Call ``parareal.run`` with max_iterations = k, k + 1, ... (see the module docstring)."""
+    cfg, system = setup.config, setup.system
+    history_path = out / HISTORY
+    p = cfg.parareal
+    reporter.start("parareal", p.max_iterations)
+    k = len(finals) + 1
+    while True:
+        result = parareal.run(
+            setup.fine,
+            setup.coarse,
+            x0,
+            times[0],
+            times[-1],
+            p.n_slices,
+            p.tol,
+            max_iterations=k,
+            executor=setup.executor,
+            reference=reference,
+            project=system.project,
+            positions=system.positions,
+            checkpoint=out / CHECKPOINT,
+            allow_oversubscribe=cfg.execution.allow_oversubscribe
+            or cfg.execution.executor == "serial",
+        )
+        new = result.iterations - len(finals)  # > 1 only if the history fell behind: pad
+        if new > 0:
+            finals += [np.full_like(system.positions(x0), np.nan)] * (new - 1)
+            finals.append(system.positions(result.states[-1]))
+            elapsed += [np.nan] * (new - 1) + [result.timings.total]
+            io.save_arrays(
+                history_path,
+                {"key": key},
+                final_positions=np.asarray(finals),
+                elapsed=np.asarray(elapsed),
+            )
+        for j in range(result.iterations - max(new, 0), result.iterations):
+            error = None if result.errors is None else result.errors[j]
+            reporter.iteration(j + 1, result.increments[j], error, elapsed[j])
+            reporter.advance()
+        if result.stop_reason != "max_iterations" or result.iterations >= p.max_iterations:
+            break
+        k = result.iterations + 1
+    reporter.finish()
+    record = io.HistoryRecord(
+        increments=result.increments,
+        errors=result.errors,
+        final_positions=finals,
+        elapsed=elapsed,
+        timings=result.timings.to_dict(),
+    )
+    return result, record
+
+
+# ---- summary ---------------------------------------------------------------------------------
+def _speedups(
+    result: parareal.PararealResult, elapsed: list[float], serial_time: float | None
+) -> dict[str, Any]:
+    """Eq. 14 measured and theoretical and eq. 15, for the run and after each iteration k."""
+    values = result.speedup(serial_time)
+    n = result.n_slices
+    g, f = values["gamma_G"], values["gamma_F"]
+    ks = list(range(1, result.iterations + 1))
+    values["by_iteration"] = {
+        "iterations": ks,
+        "measured": [values["serial_time"] / t for t in elapsed],
+        "theoretical": [parareal.speedup(g, f, k, n) for k in ks],
+        "bound": [parareal.speedup_bound(g / f, k, n) for k in ks],
+    }
+    values["n_slices"] = n
+    return values
+
+
+def _monitor(system: Any, states: np.ndarray) -> dict[str, float]:
+    """The stability monitor (rod length / vesicle area change) over the slice boundaries."""
+    values = [system.monitor(state) for state in states]
+    return {"max": float(max(values)), "final": float(values[-1]), "limit": system.monitor_limit}
+
+
+def _tracked_points(cfg: Config, system: Any) -> list[int]:
+    """Vesicle points highlighted in pictures: the configured ones, else three on the x-z circle."""
+    if isinstance(cfg.model, RodModel):
+        return []
+    if cfg.output.tracked_points is not None:
+        return list(cfg.output.tracked_points)
+    x0 = system.initial_state()
+    targets = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [-0.6, 0.0, -0.8]])
+    return [int(np.argmin(np.linalg.norm(x0 - t, axis=1))) for t in targets]
+
+
+def _writer(cfg: Config, setup: Setup, conf: dict[str, Any], out: Path) -> io.TrajectoryWriter:
+    model = cfg.model
+    if isinstance(model, RodModel):
+        return io.TrajectoryWriter(
+            out / TRAJECTORY,
+            kind="rod",
+            n_bodies=model.n_rods,
+            n_points=model.n_points,
+            config=conf,
+            frames=cfg.output.frames,
+        )
+    return io.TrajectoryWriter(
+        out / TRAJECTORY,
+        kind="vesicle",
+        n_bodies=1,
+        n_points=setup.resolved.n_points,
+        config=conf,
+        triangles=setup.system.mesh[1],
+        tracked=_tracked_points(cfg, setup.system),
+    )
+
+
+def execute(
+    cfg: Config,
+    resolved: Resolved,
+    out: str | Path,
+    *,
+    resume: bool = False,
+    reporter: Reporter | None = None,
+) -> dict[str, Any]:
+    """Run ``cfg`` into the directory ``out``; returns the summary (also written to summary.json).
+
+    Without ``resume`` earlier run files in ``out`` are removed first; with it the serial solution
+    and the Parareal checkpoint found there are reused. Figures are drawn last
+    (``output.figures``). Raises ``integrate.BlowUpError`` on a numerical blow-up and
+    :class:`ConfigError` when ``out`` holds another problem's checkpoint.
+    """
+    from . import plots
+
+    reporter = reporter or Reporter()
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    if not resume:
+        for name in (CHECKPOINT, REFERENCE, HISTORY):
+            (out / name).unlink(missing_ok=True)
+    conf = resolved_dict(cfg, resolved)
+    fine_key, parareal_key = _keys(cfg)
+    mode = cfg.run.mode
+    start = time.perf_counter()
+    with build(cfg, resolved) as setup:
+        system = setup.system
+        x0 = system.initial_state()
+        times = parareal.time_points(cfg.time.t0, cfg.time.t1, cfg.parareal.n_slices)
+        frames = _frame_indices(cfg.parareal.n_slices, cfg.output.every)
+        writer = _writer(cfg, setup, conf, out) if cfg.output.trajectory else None
+        try:
+            reference = serial_time = result = record = None
+            if mode in ("serial", "both"):
+                reference, serial_time = _serial(
+                    setup, x0, times, out / REFERENCE, fine_key, reporter
+                )
+                if writer is not None:
+                    for n in frames:
+                        writer.append("serial", times[n], reference[n])
+            if mode in ("parareal", "both"):
+                result, record = _parareal(setup, x0, times, reference, out, parareal_key, reporter)
+                if writer is not None:
+                    for n in frames:
+                        writer.append("parareal", times[n], result.states[n])
+                    writer.write_history(record)
+        finally:
+            if writer is not None:
+                writer.close()
+        final_states = result.states if result is not None else reference
+        summary = {
+            "title": cfg.title,
+            "mode": mode,
+            "config": conf,
+            "iterations": 0 if result is None else result.iterations,
+            "stop_reason": None if result is None else result.stop_reason,
+            "converged": None if result is None else result.converged,
+            "increments": [] if result is None else result.increments,
+            "errors": None if result is None else result.errors,
+            "timings": {
+                "serial_fine": serial_time,
+                **({} if result is None else result.timings.to_dict()),
+                "elapsed_by_iteration": [] if record is None else record.elapsed,
+            },
+            "speedup": None
+            if result is None
+            else _speedups(result, list(record.elapsed), serial_time),
+            "workers": None if setup.executor is None else setup.executor.workers,
+            "monitor": _monitor(system, final_states),
+            "final_time": float(times[-1]),
+            "final_positions": system.positions(final_states[-1]),
+            "warnings": resolved.warnings,
+            "versions": {
+                "parastokes": __version__,
+                "numpy": np.__version__,
+                "python": platform.python_version(),
+            },
+        }
+    if result is not None and not cfg.parareal.checkpoint:
+        (out / CHECKPOINT).unlink(missing_ok=True)
+    summary["wall_time"] = time.perf_counter() - start
+    io.write_summary(out / SUMMARY, summary)
+    if writer is not None:
+        io.write_xdmf(out / TRAJECTORY)
+    if cfg.output.figures:
+        written = plots.draw_run(out, formats=cfg.output.formats)
+        reporter.note(f"figures: {', '.join(sorted({p.stem for p in written}))}")
+    return summary
+
+
+def speedup_table(summary: dict[str, Any]) -> str:
+    """The speedup report of a summary (eqs. 14-15), as printed after a run."""
+    s = summary["speedup"]
+    if s is None:
+        return "speedup: no Parareal run"
+    source = "estimated as N_c γ_F" if s["serial_time_estimated"] else "measured serial fine run"
+    lines = [
+        f"speedup after K = {summary['iterations']} iterations, N_c = {s['n_slices']} slices, "
+        f"{summary['workers']} workers:",
+        f"  measured     {s['measured']:8.3f}   (Υ_F = {s['serial_time']:.3f} s, {source}; "
+        f"Parareal {summary['timings']['total']:.3f} s)",
+        f"  theoretical  {s['theoretical']:8.3f}   (eq. 14 without overhead; "
+        f"γ_G/γ_F = {s['gamma_ratio']:.4f})",
+        f"  bound        {s['bound']:8.3f}   (eq. 15)",
+    ]
+    return "\n".join(lines)

@@ -1,0 +1,28 @@
+"""A worker warm-up that can be unpickled without importing numba.
+
+A process or MPI worker unpickles its warm-up before it sets its thread limits
+(``parallel.worker.configure_worker`` exports ``NUMBA_NUM_THREADS``); a warm-up holding a system
+would import numba first, with the default thread count, and numba then refuses to compile
+("Cannot set NUMBA_NUM_THREADS to a different value once the threads have been launched") when its
+cache is cold, e.g. on a fresh checkout. This module imports only the standard library, and the
+system is unpickled when the warm-up runs, after the limits are set.
+"""
+
+from __future__ import annotations
+
+import pickle
+from typing import Any
+
+__all__ = ["WarmUp"]
+
+
+class WarmUp:
+    """Evaluate ``system.rates`` once, so that a worker loads (or compiles) the kernels before
+    timing starts."""
+
+    def __init__(self, system: Any) -> None:
+        self.system = pickle.dumps(system)
+
+    def __call__(self) -> None:
+        system = pickle.loads(self.system)
+        system.rates(0.0, system.initial_state())

@@ -1,0 +1,270 @@
+"""The ``parastokes`` command: run, demo, check, predict, plot, resume, exit codes."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from parastokes import cli, config, io, parareal, runner
+from parastokes.parallel import TaskError
+
+ROOT = Path(__file__).resolve().parents[1]
+FIXED_KEYS = {
+    "config",
+    "iterations",
+    "increments",
+    "errors",
+    "timings",
+    "speedup",
+    "final_positions",
+}
+FIGURES = ("error_decay", "speedup_vs_error", "speedup_by_iteration", "structure")
+
+# A small rod problem run in-process (serial executor): a few seconds.
+TINY = """
+title = "tiny rod"
+[model]
+kind = "rod"
+n_points = 21
+length = 4.0
+[time]
+t1 = 0.002
+[fine]
+dt = 1e-6
+[coarse]
+dt_ratio = 10
+lagrange = { epsilon = [5.6, 5.65] }
+richardson = { m = 1, r = 0.83 }
+[parareal]
+n_slices = 4
+max_iterations = 3
+[execution]
+executor = "serial"
+[output]
+formats = ["png"]
+"""
+
+
+def relative(x: np.ndarray, base: np.ndarray) -> float:
+    """Eq. 34, written out independently of parastokes.parareal.metrics."""
+    return float(np.max(np.linalg.norm(x - base, axis=1) / np.linalg.norm(base, axis=1)))
+
+
+@pytest.fixture(scope="module")
+def tiny_runs(tmp_path_factory):
+    """Two runs of TINY (4 and 2 slices), serial + Parareal."""
+    root = tmp_path_factory.mktemp("tiny")
+    path = root / "tiny.toml"
+    path.write_text(TINY)
+    outs = []
+    for n in (4, 2):
+        out = root / f"n{n}"
+        assert (
+            cli.main(["run", str(path), "--out", str(out), "-q", "--set", f"parareal.n_slices={n}"])
+            == 0
+        )
+        outs.append(out)
+    return path, outs
+
+
+def test_run_both_reports_errors_that_match_the_saved_states(tiny_runs):
+    _, (out, _) = tiny_runs
+    summary = io.read_summary(out / "summary.json")
+    assert FIXED_KEYS <= set(summary)
+    assert summary["iterations"] == 3
+    with h5py.File(out / "trajectory.h5", "r") as f:
+        serial_final = f["serial/rod_0/positions"][-1]
+        parareal_final = f["parareal/rod_0/positions"][-1]
+        finals = f["parareal_history/final_positions"][()]
+        saved_errors = f["parareal_history/errors"][()]
+        saved_increments = f["parareal_history/increments"][()]
+    errors = [relative(x, serial_final) for x in finals]
+    np.testing.assert_allclose(summary["errors"], errors, rtol=1e-12)
+    np.testing.assert_allclose(saved_errors, errors, rtol=1e-12)
+    increments = [relative(finals[k - 1], finals[k]) for k in (1, 2)]  # eta~^2, eta~^3
+    np.testing.assert_allclose(summary["increments"][1:], increments, rtol=1e-12)
+    np.testing.assert_array_equal(saved_increments, summary["increments"])
+    np.testing.assert_array_equal(np.asarray(summary["final_positions"]), parareal_final)
+    np.testing.assert_array_equal(finals[-1], parareal_final)
+    assert summary["errors"][-1] < summary["errors"][0]  # Parareal converges to F
+
+
+def test_run_reports_the_speedup_model(tiny_runs):
+    _, (out, _) = tiny_runs
+    summary = io.read_summary(out / "summary.json")
+    s = summary["speedup"]
+    assert s["serial_time_estimated"] is False
+    assert s["serial_time"] == summary["timings"]["serial_fine"] > 0
+    assert s["measured"] == pytest.approx(s["serial_time"] / summary["timings"]["total"])
+    assert s["theoretical"] == pytest.approx(parareal.speedup(s["gamma_G"], s["gamma_F"], 3, 4))
+    assert s["bound"] == pytest.approx(parareal.speedup_bound(s["gamma_ratio"], 3, 4))
+    assert s["by_iteration"]["iterations"] == [1, 2, 3]
+    assert summary["config"]["resolved"]["n_auxiliary"] == 4
+    assert summary["monitor"]["max"] < summary["monitor"]["limit"]
+
+
+def test_plot_redraws_and_compares_runs(tiny_runs, tmp_path):
+    _, (first, second) = tiny_runs
+    for name in FIGURES:
+        (first / f"{name}.png").unlink()
+    assert cli.main(["plot", str(first), "--formats", "png", "-q"]) == 0
+    assert all((first / f"{name}.png").exists() for name in FIGURES)
+    assert cli.main(["plot", str(first), str(second), "--out", str(tmp_path), "-q"]) == 0
+    for name in ("error_decay", "speedup_vs_error", "speedup_by_iteration", "scaling"):
+        assert (tmp_path / f"{name}.png").exists() and (tmp_path / f"{name}.pdf").exists()
+
+
+def check_demo_output(out: Path, n_frames: int) -> dict:
+    summary = io.read_summary(out / "summary.json")
+    assert FIXED_KEYS <= set(summary)
+    assert {"measured", "theoretical", "bound"} <= set(summary["speedup"])
+    assert np.asarray(summary["final_positions"]).shape == (61, 3)
+    assert len(summary["errors"]) == summary["iterations"] == len(summary["increments"])
+    with h5py.File(out / "trajectory.h5", "r") as f:
+        for run in ("serial", "parareal"):
+            assert f[f"{run}/rod_0/positions"].shape == (n_frames, 61, 3)
+            assert f[f"{run}/time"][-1] == pytest.approx(summary["final_time"])
+        history = f["parareal_history"]
+        np.testing.assert_array_equal(history["increments"][()], summary["increments"])
+        np.testing.assert_array_equal(f["parareal/rod_0/positions"][-1], summary["final_positions"])
+        assert f.attrs["execution.workers"] == 2
+    assert (out / "trajectory.xdmf").read_text().count("trajectory.h5:/") > 0
+    for name in FIGURES:
+        for fmt in ("png", "pdf"):
+            assert (out / f"{name}.{fmt}").stat().st_size > 1000
+    cfg, _ = config.load(out / "config.toml")
+    assert cfg.model.n_points == 61
+    return summary
+
+
+def test_demo_writes_summary_trajectory_and_figures(tmp_path, capsys):
+    """The demo as shipped, over a shorter time (same code paths, 2 process workers)."""
+    out = tmp_path / "demo"
+    status = cli.main(
+        ["demo", "--out", str(out), "--set", "time.t1=0.004", "--set", "parareal.max_iterations=2"]
+    )
+    assert status == 0
+    printed = capsys.readouterr().out
+    assert "increment η̃^k" in printed and "theoretical" in printed  # table and speedup report
+    summary = check_demo_output(out, n_frames=5)
+    assert summary["workers"] == 2
+    assert summary["iterations"] == 2
+
+
+@pytest.mark.slow
+def test_full_demo(tmp_path):
+    out = tmp_path / "demo"
+    assert cli.main(["demo", "--out", str(out), "-q"]) == 0
+    summary = check_demo_output(out, n_frames=5)
+    assert summary["errors"][-1] < 1e-5
+
+
+RESUMABLE = TINY.replace("n_points = 21\nlength = 4.0", "n_points = 41\nlength = 8.0").replace(
+    "t1 = 0.002", "t1 = 0.004"
+)
+
+
+def test_interrupted_run_resumes_from_its_checkpoint(tmp_path):
+    path = tmp_path / "run.toml"
+    path.write_text(RESUMABLE)
+    out = tmp_path / "out"
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    command = [sys.executable, "-m", "parastokes", "run", str(path), "--out", str(out), "-q"]
+    process = subprocess.Popen(command, env=env, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 300
+    while not (out / runner.HISTORY).exists() and process.poll() is None:
+        assert time.monotonic() < deadline
+        time.sleep(0.02)
+    process.send_signal(signal.SIGINT)
+    _, stderr = process.communicate(timeout=300)
+    assert process.returncode == cli.ExitCode.INTERRUPTED, stderr
+    assert "--resume" in stderr
+    assert (out / runner.CHECKPOINT).exists() and not (out / "summary.json").exists()
+
+    assert cli.main(["run", str(path), "--out", str(out), "--resume", "-q"]) == 0
+    resumed = io.read_summary(out / "summary.json")
+    assert cli.main(["run", str(path), "--out", str(tmp_path / "again"), "-q"]) == 0
+    fresh = io.read_summary(tmp_path / "again" / "summary.json")
+    assert resumed["iterations"] == fresh["iterations"] == 3
+    assert resumed["final_positions"] == fresh["final_positions"]  # bit for bit
+    assert resumed["errors"] == fresh["errors"]
+    assert resumed["increments"] == fresh["increments"]
+
+
+def test_resume_refuses_another_configuration(tiny_runs):
+    path, (out, _) = tiny_runs
+    status = cli.main(
+        ["run", str(path), "--out", str(out), "--resume", "--set", "coarse.dt_ratio=5"]
+    )
+    assert status == cli.ExitCode.CONFIG
+
+
+def test_bad_configuration_exits_2_naming_the_key(tmp_path, capsys):
+    path = tmp_path / "bad.toml"
+    path.write_text(TINY.replace("n_slices = 4", "n_slices = 4\ntoll = 1e-8"))
+    assert cli.main(["run", str(path), "--out", str(tmp_path / "o")]) == cli.ExitCode.CONFIG
+    assert "parareal.toll: unknown key (did you mean 'tol'?)" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()  # nothing ran
+    good = tmp_path / "good.toml"
+    good.write_text(TINY)
+    assert cli.main(["check", str(good)]) == 0
+    assert cli.main(["check", str(good), str(path)]) == cli.ExitCode.CONFIG
+
+
+def test_blow_up_exits_3(tmp_path, capsys):
+    path = tmp_path / "blow.toml"
+    text = TINY.replace("dt = 1e-6", 'dt = 5e-4\nscheme = "euler"').replace(
+        "t1 = 0.002", "t1 = 0.01"
+    )
+    path.write_text(text.replace("dt_ratio = 10", "dt_ratio = 1") + '[run]\nmode = "serial"\n')
+    assert cli.main(["run", str(path), "--out", str(tmp_path / "o")]) == cli.ExitCode.BLOWUP
+    assert "blow-up at t=" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("error", "code"),
+    [
+        (TaskError("fine solve of slice 2 in iteration 1", RuntimeError("boom")), 4),
+        (KeyboardInterrupt(), 130),
+        (ZeroDivisionError(), 1),
+    ],
+)
+def test_failures_map_to_documented_exit_codes(tiny_runs, tmp_path, monkeypatch, error, code):
+    def fail(*args, **kwargs):
+        raise error
+
+    monkeypatch.setattr(runner, "execute", fail)
+    path, _ = tiny_runs
+    assert cli.main(["run", str(path), "--out", str(tmp_path), "-q"]) == code
+
+
+def test_predict_prints_eq_14_for_each_core_count(tiny_runs, capsys):
+    path, (out, _) = tiny_runs
+    assert (
+        cli.main(
+            ["predict", str(path), "--cores", "4", "40", "--ratio", "0.05", "--iterations", "2"]
+        )
+        == 0
+    )
+    rows = [line.split() for line in capsys.readouterr().out.splitlines()[2:]]
+    for (n, theory, bound), row in zip(parareal.predict(0.05, 2, [4, 40]), rows, strict=True):
+        assert [int(row[0]), float(row[3]), float(row[4])] == [n, round(theory, 3), round(bound, 3)]
+    assert cli.main(["predict", str(path), "--cores", "8", "--measured", str(out)]) == 0
+    ratio = io.read_summary(out / "summary.json")["speedup"]["gamma_ratio"]
+    assert f"{ratio:.4f}" in capsys.readouterr().out
+    assert cli.main(["predict", str(path), "--cores", "8"]) == 0
+    assert "estimated" in capsys.readouterr().out
+
+
+def test_usage_errors_exit_2():
+    with pytest.raises(SystemExit) as info:
+        cli.main(["run"])
+    assert info.value.code == 2

@@ -1,0 +1,270 @@
+"""The configuration schema: validation with key paths, units, base files, overrides, building."""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+from pathlib import Path
+
+import pytest
+
+from parastokes import config, parareal
+from parastokes.config import ConfigError
+
+ROOT = Path(__file__).resolve().parents[1]
+
+# A small valid rod configuration; tests change one thing at a time.
+BASE = """
+[model]
+kind = "rod"
+n_points = 21
+length = 4.0
+epsilon = 5
+[time]
+t1 = 0.002
+[fine]
+dt = 1e-6
+[coarse]
+dt_ratio = 10
+lagrange = { epsilon = [5.6, 5.65] }
+richardson = { m = 1, r = 0.83 }
+[parareal]
+n_slices = 4
+[execution]
+executor = "processes"
+workers = 4
+"""
+
+VESICLE = """
+[model]
+kind = "vesicle"
+subdivisions = 2
+[time]
+t1 = 1
+[fine]
+dt = 0.01
+[coarse]
+dt_ratio = 2
+[parareal]
+n_slices = 2
+[execution]
+executor = "serial"
+"""
+
+
+def issues_of(text: str, *overrides: str) -> dict[str, str]:
+    with pytest.raises(ConfigError) as info:
+        config.loads(text, overrides=overrides)
+    return dict(info.value.issues)
+
+
+def test_base_configuration_is_valid_and_resolves_units():
+    cfg, r = config.loads(BASE)
+    assert cfg.model.kind == "rod"
+    assert r.grid_spacing == pytest.approx(0.2)
+    assert r.epsilon == pytest.approx(1.0)  # 5 sigma_f
+    assert r.lagrange["epsilon"] == pytest.approx([1.12, 1.13])  # plain list: the model's unit
+    assert r.coarse_dt == pytest.approx(1e-5)  # tau_c = 10 tau_f
+    assert r.coarse_base_dt == pytest.approx(1e-5 / 0.83)  # tau = tau_c / r^m
+    assert r.coarse_steps == [42, 50]  # round(0.0005 / (1e-5 / 0.83)), round(0.0005 / 1e-5)
+    assert r.n_auxiliary == 4
+    assert r.fine_steps == 500
+
+
+@pytest.mark.parametrize(
+    ("override", "path", "fragment"),
+    [
+        ("model.epsilonn=5", "model.epsilonn", "did you mean 'epsilon'"),
+        ("parareal.n_slicse=4", "parareal.n_slicse", "did you mean 'n_slices'"),
+        ("coarse.richardson.q=1", "coarse.richardson.q", "unknown key"),
+        ("outptu.every=2", "outptu", "did you mean 'output'"),
+        ("coarse.lagrange.epsilon.unitt='relative'", "coarse.lagrange.epsilon.unitt", "unit"),
+    ],
+)
+def test_typos_name_the_key(override, path, fragment):
+    issues = issues_of(BASE, override)
+    assert path in issues
+    assert fragment in issues[path]
+
+
+@pytest.mark.parametrize(
+    ("override", "path"),
+    [
+        ('parareal.n_slices="4"', "parareal.n_slices"),
+        ("parareal.n_slices=4.0", "parareal.n_slices"),
+        ('fine.dt="small"', "fine.dt"),
+        ("model.wall=1", "model.wall"),
+        ("model.shear=[0.6, 0.6]", "model.shear"),
+        ('coarse.lagrange.epsilon="5.6"', "coarse.lagrange.epsilon"),
+        ('fine.scheme="rk3"', "fine.scheme"),
+        ('execution.executor="threads"', "execution.executor"),
+        ('model.kind="sphere"', "model.kind"),
+    ],
+)
+def test_wrong_types_name_the_key(override, path):
+    assert path in issues_of(BASE, override)
+
+
+@pytest.mark.parametrize(
+    ("override", "path", "fragment"),
+    [
+        ("model.epsilon=-1", "model.epsilon", "greater than 0"),
+        ("coarse.richardson.r=1.2", "coarse.richardson.r", "less than 1"),
+        ("coarse.richardson.r=0", "coarse.richardson.r", "greater than 0"),
+        ("coarse.richardson.m=-1", "coarse.richardson.m", "greater than or equal to 0"),
+        ("coarse.lagrange.epsilon=[5.65, 5.6]", "coarse.lagrange.epsilon", "strictly increasing"),
+        ("coarse.lagrange.epsilon=[4.9, 5.6]", "coarse.lagrange.epsilon", "outside the node"),
+        ("coarse.lagrange.bending=[-1.0, 0.9]", "coarse.lagrange.bending", "positive"),
+        ("coarse.lagrange.stiffness=[0.8, 0.9]", "coarse.lagrange.stiffness", "bending"),
+        ("coarse.grid_factor=7", "coarse.grid_factor", "must divide"),
+        ("time.t1=0", "time.t1", "must exceed"),
+        ("fine.dt=0.01", "fine.dt", "slice length"),
+        ("coarse.dt=1e-5", "coarse.dt", "exactly one"),
+        ("coarse.richardson.r=0.999", "coarse.richardson.r", "must all differ"),
+        ("execution.workers=2", "execution.workers", "N_G = 4"),
+        ("output.tracked_points=[1]", "output.tracked_points", "vesicles only"),
+        ("parareal.max_iterations=0", "parareal.max_iterations", "greater than or equal to 1"),
+        (
+            'coarse.lagrange.epsilon={nodes=[1.1, 1.2], unit="l_max"}',
+            "coarse.lagrange.epsilon.unit",
+            "l_max",
+        ),
+    ],
+)
+def test_out_of_range_values_name_the_key(override, path, fragment):
+    issues = issues_of(BASE, override)
+    assert path in issues
+    assert fragment in issues[path]
+
+
+def test_richardson_needs_r_when_m_is_positive():
+    text = BASE.replace("richardson = { m = 1, r = 0.83 }", "richardson = { m = 2 }")
+    assert "coarse.richardson.r" in issues_of(text)
+
+
+def test_missing_required_keys_are_named():
+    text = BASE.replace("dt = 1e-6\n", "").replace('kind = "rod"\n', "")
+    issues = issues_of(text)
+    assert set(issues) == {"model.kind", "fine.dt"}
+
+
+def test_toml_syntax_errors_are_reported_as_config_errors():
+    with pytest.raises(ConfigError, match="TOML syntax error"):
+        config.loads("[model\nkind = 'rod'")
+
+
+def test_several_issues_are_reported_together():
+    issues = issues_of(BASE, "coarse.lagrange.epsilon=[5.7, 5.6]", "coarse.grid_factor=7")
+    assert {"coarse.lagrange.epsilon", "coarse.grid_factor"} <= set(issues)
+
+
+def test_oversubscription_is_allowed_when_asked_and_for_the_serial_executor():
+    config.loads(BASE, overrides=["execution.workers=2", "execution.allow_oversubscribe=true"])
+    _, r = config.loads(BASE, overrides=['execution.executor="serial"', "execution.workers=1"])
+    assert r.workers == 1
+    assert "execution.workers" in issues_of(BASE, 'execution.executor="serial"')
+
+
+def test_vesicle_units_and_rules():
+    _, r = config.loads(
+        VESICLE,
+        overrides=['coarse.lagrange.stiffness={nodes=[0.6, 0.7], unit="relative"}'],
+    )
+    assert r.epsilon == pytest.approx(0.3 * r.grid_spacing)  # 0.3 l_max
+    assert r.lagrange["stiffness"] == pytest.approx([0.06, 0.07])  # relative to kappa0 = 0.1
+    assert "coarse.grid_factor" in issues_of(VESICLE, "coarse.grid_factor=2")
+    assert "coarse.lagrange.bending" in issues_of(VESICLE, "coarse.lagrange.bending=[0.5, 0.6]")
+    assert "output.tracked_points" in issues_of(VESICLE, "output.tracked_points=[5000]")
+    assert "model.epsilon_unit" in issues_of(VESICLE, 'model.epsilon_unit="sigma_f"')
+
+
+def test_overrides_parse_toml_values():
+    cfg, _ = config.loads(BASE, overrides=["parareal.n_slices=2", 'fine.scheme="rk4"'])
+    assert cfg.parareal.n_slices == 2
+    assert cfg.fine.scheme == "rk4"
+    with pytest.raises(ConfigError, match="KEY=VALUE"):
+        config.loads(BASE, overrides=["parareal.n_slices"])
+
+
+def test_base_files_merge_and_cycles_are_caught(tmp_path):
+    (tmp_path / "full.toml").write_text(BASE)
+    (tmp_path / "variant.toml").write_text('base = "full.toml"\n[parareal]\nn_slices = 2\n')
+    cfg, _ = config.load(tmp_path / "variant.toml")
+    assert cfg.parareal.n_slices == 2
+    assert cfg.coarse.richardson.m == 1  # inherited
+    (tmp_path / "a.toml").write_text('base = "b.toml"\n')
+    (tmp_path / "b.toml").write_text('base = "a.toml"\n')
+    with pytest.raises(ConfigError, match="circular"):
+        config.load(tmp_path / "a.toml")
+    with pytest.raises(ConfigError, match="cannot read"):
+        config.load(tmp_path / "missing.toml")
+
+
+def test_resolved_dict_keeps_defaults_and_derived_values():
+    cfg, r = config.loads(BASE)
+    data = config.resolved_dict(cfg, r)
+    assert data["model"]["frequency"] == pytest.approx(40 * math.pi)  # Table 2 default
+    assert data["resolved"]["epsilon"] == pytest.approx(1.0)
+    assert data["resolved"]["n_auxiliary"] == 4
+
+
+def test_build_gives_the_configured_system_and_propagators():
+    cfg, r = config.loads(
+        BASE,
+        overrides=[
+            'coarse.lagrange.bending={nodes=[0.8, 0.9], unit="relative"}',
+            'execution.executor="serial"',
+            "execution.workers=1",
+        ],
+    )
+    with config.build(cfg, r, executor=False) as setup:
+        assert setup.executor is None
+        assert setup.system.params == pytest.approx(
+            {"epsilon": 1.0, "viscosity": 1e-6, "bending": 1.0}
+        )
+        assert setup.fine.dt == 1e-6
+        assert setup.fine.scheme == "rk2"
+        coarse = setup.coarse
+        assert isinstance(coarse, parareal.Extrapolated)
+        assert len(coarse.auxiliary) == 4  # 2 epsilon nodes x 2 bending nodes
+        assert [p.dt for p in coarse.auxiliary[0]] == pytest.approx([1e-5 / 0.83, 1e-5])
+        thetas = sorted((t["epsilon"], t["bending"]) for t in coarse.thetas)
+        expected = [(1.12, 0.8), (1.12, 0.9), (1.13, 0.8), (1.13, 0.9)]
+        assert [pytest.approx(t) for t in expected] == thetas
+
+
+def test_build_uses_the_coarse_grid_and_the_serial_executor():
+    cfg, r = config.loads(
+        BASE,
+        overrides=["coarse.grid_factor=4", 'execution.executor="serial"', "execution.workers=1"],
+    )
+    with config.build(cfg, r) as setup:
+        assert isinstance(setup.coarse, parareal.OnCoarseGrid)
+        assert setup.coarse.propagator.system.n_points == 6  # (21 - 1) / 4 + 1
+        assert setup.executor.workers == 1
+    assert setup.executor is None  # shut down on exit
+
+
+def test_vesicle_build_has_the_absolute_epsilon():
+    cfg, r = config.loads(VESICLE)
+    setup = config.build(cfg, r, executor=False)
+    assert setup.system.epsilon == r.epsilon
+    assert setup.system.stiffness == 0.1
+
+
+def test_demo_configuration_is_valid():
+    cfg, r = config.loads(config.DEMO)
+    assert cfg.run.mode == "both"
+    assert cfg.execution.workers == 2
+    assert cfg.parareal.n_slices == 4
+    assert r.n_auxiliary == 4
+
+
+def test_config_reference_is_up_to_date():
+    spec = importlib.util.spec_from_file_location(
+        "gen_config_reference", ROOT / "docs" / "gen_config_reference.py"
+    )
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    committed = (ROOT / "docs" / "config.md").read_text(encoding="utf-8")
+    assert committed == module.render(), "run: python docs/gen_config_reference.py"

@@ -1,0 +1,155 @@
+"""The shipped experiments: every configuration validates, matches the paper's tables, and every
+quick variant runs end to end (one rod and one vesicle by default, the rest marked slow)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from parastokes import cli, config, io
+
+EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
+FULL = sorted(EXPERIMENTS.glob("*.toml"))
+QUICK = sorted((EXPERIMENTS / "quick").glob("*.toml"))
+DEFAULT_RUNS = {"table6_eps3", "table7_g3"}  # a rod on a coarse grid; a vesicle with Richardson
+
+# N_G of Tables 3-8 (last column), and the coarse step ratio tau_c / tau_f.
+PAPER = {
+    "table3_g1": (4, 18),
+    "table3_g2": (36, 18),
+    **{f"table3_g3_n{n}": (n, 10) for n in range(2, 7)},
+    **{f"table3_g4_n{n}": (2 * n, 10) for n in range(2, 7)},
+    "table4_g1": (36, 20),
+    "table4_g2": (36, 15),
+    "table4_g3": (30, 10),
+    "table4_g4": (1, 10),
+    "table5_g1": (36, 70),
+    "table5_g2": (36, 50),
+    "table5_g3": (30, 35),
+    "table6_eps2": (2, 70),
+    "table6_eps3": (2, 7),
+    "table7_g1": (36, 20),
+    "table7_g2": (36, 10),
+    "table7_g3": (8, 5),
+    "table7_g4": (1, 3),
+    "table8_g1": (36, 35),
+    "table8_g2": (36, 22),
+    "table8_g3": (24, 14),
+}
+
+
+@pytest.mark.parametrize("path", FULL + QUICK, ids=lambda p: f"{p.parent.name}/{p.stem}")
+def test_every_shipped_configuration_validates(path):
+    cfg, resolved = config.load(path)
+    assert cfg.title
+    assert resolved.n_auxiliary >= 1
+
+
+def test_every_experiment_has_a_quick_variant():
+    assert [p.name for p in FULL] == [p.name for p in QUICK]
+    assert set(PAPER) <= {p.stem for p in FULL}
+
+
+@pytest.mark.parametrize("name", sorted(PAPER))
+def test_tables_match_the_paper(name):
+    cfg, resolved = config.load(EXPERIMENTS / f"{name}.toml")
+    n_auxiliary, ratio = PAPER[name]
+    assert resolved.n_auxiliary == n_auxiliary
+    assert resolved.coarse_dt / resolved.fine_dt == pytest.approx(ratio)
+    assert cfg.parareal.n_slices == 40  # N_c = 40
+    assert resolved.workers >= resolved.n_auxiliary  # N_G <= N_c
+    assert not cfg.execution.allow_oversubscribe
+    assert cfg.coarse.scheme == "euler"
+
+
+def test_table4_g3_in_detail():
+    cfg, r = config.load(EXPERIMENTS / "table4_g3.toml")
+    sigma_f = 0.2
+    assert r.grid_spacing == pytest.approx(sigma_f)
+    assert r.epsilon == pytest.approx(5 * sigma_f)
+    eps = np.array([5.02, 5.04, 5.06, 5.08, 5.10]) * sigma_f
+    np.testing.assert_allclose(r.lagrange["epsilon"], eps)
+    np.testing.assert_allclose(r.lagrange["bending"], [0.94, 0.96, 0.98])
+    assert (cfg.coarse.richardson.m, cfg.coarse.richardson.r) == (1, 0.83)
+    assert (cfg.fine.scheme, cfg.fine.dt, cfg.time.t1) == ("rk2", 1e-6, 1)
+
+
+def test_table6_and_8_in_detail():
+    cfg, r = config.load(EXPERIMENTS / "table6_eps2.toml")
+    assert (cfg.fine.dt, cfg.coarse.grid_factor, r.coarse_points) == (1e-7, 6, 51)
+    cfg, r = config.load(EXPERIMENTS / "table8_g2.toml")
+    assert (cfg.fine.scheme, cfg.fine.dt, cfg.coarse.richardson.r) == ("rk4", 0.002, 0.88)
+    assert r.epsilon == pytest.approx(0.5 * r.grid_spacing)  # 0.5 l_max
+    np.testing.assert_allclose(r.lagrange["stiffness"], [0.70 * 0.05, 0.85 * 0.05])
+
+
+def test_quick_variants_keep_the_solvers_of_the_full_experiment():
+    for full, quick in zip(FULL, QUICK, strict=True):
+        a, ra = config.load(full)
+        b, rb = config.load(quick)
+        assert a.fine == b.fine and a.coarse == b.coarse, quick.name
+        assert rb.grid_spacing == pytest.approx(ra.grid_spacing)  # the same step limits
+        assert rb.epsilon == pytest.approx(ra.epsilon)
+        assert a.model.kind == b.model.kind and a.run.mode == b.run.mode
+        assert b.time.t1 < a.time.t1
+
+
+def run_quick(name: str, tmp_path: Path) -> dict:
+    assert (
+        cli.main(["run", str(EXPERIMENTS / "quick" / f"{name}.toml"), "--out", str(tmp_path), "-q"])
+        == 0
+    )
+    summary = io.read_summary(tmp_path / "summary.json")
+    cfg, _ = config.load(EXPERIMENTS / "quick" / f"{name}.toml")
+    assert summary["monitor"]["max"] < summary["monitor"]["limit"]  # 1% length / 0.01% area
+    if cfg.run.mode != "serial":
+        assert 1 <= summary["iterations"] <= cfg.parareal.max_iterations
+        accuracy = summary["errors"] or summary["increments"]
+        assert np.all(np.isfinite(accuracy))
+        if summary["iterations"] > 1:
+            assert accuracy[-1] < accuracy[0]  # Parareal converges
+    assert (tmp_path / "trajectory.h5").exists() and (tmp_path / "structure.png").exists()
+    return summary
+
+
+@pytest.mark.parametrize("name", sorted(DEFAULT_RUNS))
+def test_quick_run(name, tmp_path):
+    summary = run_quick(name, tmp_path)
+    assert summary["errors"][-1] < 1e-4
+
+
+# Known failures of the current solvers, not of the configurations (their values are checked
+# against the tables above). Table 5's G^1 and G^2 (36 auxiliary solvers at 70 and 50 tau_f) blow
+# up in the initial coarse sweep near t = 0.002 (the full-length rod does the same). On the
+# vesicle, the extrapolations in two or three parameters (Table 7 G^1, G^2; Table 8 G^1-G^3)
+# blow up within the first slices or leave the 0.01% area limit by orders of magnitude; the
+# one-parameter ones (Table 7 G^3, G^4) are fine. strict: a fix turns these into failures to
+# remove from this set.
+BLOWING_UP = {
+    "table5_g1",
+    "table5_g2",
+    "table7_g1",
+    "table7_g2",
+    "table8_g1",
+    "table8_g2",
+    "table8_g3",
+}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "name",
+    [
+        pytest.param(
+            name,
+            marks=pytest.mark.xfail(
+                name in BLOWING_UP, reason="solver blow-up, see BLOWING_UP", strict=True
+            ),
+        )
+        for name in sorted({p.stem for p in QUICK} - DEFAULT_RUNS)
+    ],
+)
+def test_quick_run_slow(name, tmp_path):
+    run_quick(name, tmp_path)
