@@ -49,6 +49,9 @@ def _threads(n_threads: int | None) -> Iterator[None]:
         raise ValueError(f"n_threads: must be a positive integer, got {n_threads!r}")
     n = min(int(n), numba.config.NUMBA_NUM_THREADS)
     previous = numba.get_num_threads()
+    if n == previous:
+        yield
+        return
     numba.set_num_threads(n)
     try:
         yield
@@ -56,12 +59,13 @@ def _threads(n_threads: int | None) -> Iterator[None]:
         numba.set_num_threads(previous)
 
 
-def _soa(points: np.ndarray, padded: int | None = None) -> tuple[np.ndarray, ...]:
-    """(B, N, 3) -> three contiguous (B, N') arrays, padded by repeating the last point."""
-    if padded is not None and padded > points.shape[1]:
-        pad = np.repeat(points[:, -1:, :], padded - points.shape[1], axis=1)
-        points = np.concatenate([points, pad], axis=1)
-    return tuple(np.ascontiguousarray(points[:, :, k]) for k in range(3))
+def _soa(points: np.ndarray, padded: int | None = None) -> np.ndarray:
+    """(B, N, 3) -> one contiguous (3, B, N') array, padded by repeating the last point."""
+    nb, n, _ = points.shape
+    out = np.empty((3, nb, n if padded is None else max(padded, n)))
+    out[:, :, :n] = points.transpose(2, 0, 1)
+    out[:, :, n:] = points[:, -1, :].T[:, :, None]
+    return out
 
 
 def velocity(
@@ -132,8 +136,8 @@ def velocity(
     else:
         targets = np.asarray(targets)
         batch = targets.shape[0] if targets.ndim == 3 else 0
-        eps = np.broadcast_to(np.asarray(epsilon, dtype=np.float64), (max(batch, 1),))
-        visc = np.broadcast_to(np.asarray(mu, dtype=np.float64), (max(batch, 1),))
+        eps = np.full(max(batch, 1), epsilon, dtype=np.float64)
+        visc = np.full(max(batch, 1), mu, dtype=np.float64)
 
     t3 = targets if batch else targets[None]
     s3 = sources if batch else sources[None]
@@ -141,7 +145,7 @@ def velocity(
     m = t3.shape[1]
     padded = -(-m // TILE) * TILE
     tx, ty, tz = _soa(t3, padded)
-    src = _soa(s3) + _soa(f3)
+    src = (*_soa(s3), *_soa(f3))
     eps = np.array(eps, dtype=np.float64)  # a fresh writable copy: one numba signature
     nb = t3.shape[0]
     out = np.empty((6, nb, padded))
@@ -152,11 +156,9 @@ def velocity(
             n3 = np.zeros_like(s3) if torques is None else (torques if batch else torques[None])
             kernel = compiled.wall_full if wall else compiled.free_full
             kernel(tx, ty, tz, *src, *_soa(n3), eps, *out)
-    scale = (1.0 / (EIGHT_PI * visc))[:, None]
-    u = np.stack([out[k, :, :m] * scale for k in range(3)], axis=-1)
+    # (6, B, M) -> (B, M, 6) scaled by 1/(8πμ), then split into u and w.
+    res = np.ascontiguousarray(out[:, :, :m].transpose(1, 2, 0)) / (EIGHT_PI * visc)[:, None, None]
     if not batch:
-        u = u[0]
-    if not angular:
-        return u
-    w = np.stack([out[k, :, :m] * scale for k in range(3, 6)], axis=-1)
-    return u, (w if batch else w[0])
+        res = res[0]
+    u = np.ascontiguousarray(res[..., :3])
+    return (u, np.ascontiguousarray(res[..., 3:])) if angular else u
