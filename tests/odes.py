@@ -5,6 +5,10 @@ Everything here is a small picklable class (no lambdas, no closures), so it can 
 
 from __future__ import annotations
 
+import os
+import pathlib
+import time
+
 import numpy as np
 from scipy.linalg import expm
 
@@ -159,3 +163,84 @@ class EveryOther:
         fine = np.arange(self.n_fine)
         coarse = fine[:: self.factor]
         return np.stack([np.interp(fine, coarse, col) for col in x_coarse.T], axis=1)
+
+
+class FailsOnSlice:
+    """Wraps a propagator; fails on its ``call``-th solve of the slice that starts at ``t_start``.
+
+    ``mode`` is ``"raise"`` (RuntimeError), ``"interrupt"`` (KeyboardInterrupt, as Ctrl-C would) or
+    ``"exit"`` (the process dies with ``os._exit(3)``). Calls are counted by marker files in
+    ``marker_dir``, so the count is shared by worker processes: in Parareal iteration k the slices
+    n >= k are solved, so the slice n (n >= 2) is solved for the k-th time in iteration k.
+    """
+
+    def __init__(
+        self, propagator, t_start: float, call: int, marker_dir, mode: str = "raise"
+    ) -> None:
+        self.propagator, self.t_start, self.call = propagator, t_start, call
+        self.marker_dir, self.mode = str(marker_dir), mode
+
+    def __call__(self, t_start: float, t_end: float, x: np.ndarray) -> np.ndarray:
+        if t_start == self.t_start:
+            markers = pathlib.Path(self.marker_dir)
+            count = len(list(markers.iterdir())) + 1
+            (markers / f"call-{count}").touch()
+            if count == self.call:
+                if self.mode == "exit":
+                    os._exit(3)
+                if self.mode == "interrupt":
+                    raise KeyboardInterrupt
+                raise RuntimeError(f"injected fault at t={t_start}")
+        return self.propagator(t_start, t_end, x)
+
+
+class Sleeping:
+    """Wraps a propagator and sleeps ``seconds`` before each call (a slow task of known length)."""
+
+    def __init__(self, propagator, seconds: float) -> None:
+        self.propagator, self.seconds = propagator, seconds
+
+    def __call__(self, t_start: float, t_end: float, x: np.ndarray) -> np.ndarray:
+        time.sleep(self.seconds)
+        return self.propagator(t_start, t_end, x)
+
+
+class FaultyToySystem(ToySystem):
+    """A :class:`ToySystem` whose rates raise RuntimeError when ``a == fail_a`` and
+    ``t >= fail_after`` (an auxiliary coarse solver that fails on a chosen slice)."""
+
+    def __init__(self, fail_a: float, fail_after: float, **params: float) -> None:
+        super().__init__(**params)
+        self.fail_a, self.fail_after = fail_a, fail_after
+
+    def rates(self, t: float, state: np.ndarray) -> np.ndarray:
+        if self.params["a"] == self.fail_a and t >= self.fail_after:
+            raise RuntimeError(f"injected fault at t={t:.3g}")
+        return super().rates(t, state)
+
+    def with_params(self, **theta: float) -> FaultyToySystem:
+        unknown = set(theta) - set(self.params)
+        if unknown:
+            raise ValueError(f"unknown parameters {sorted(unknown)}")
+        return FaultyToySystem(
+            self.fail_a, self.fail_after, n_points=self.n_points, **{**self.params, **theta}
+        )
+
+
+class CompilesInWorker:
+    """A warm-up that imports numba when it is unpickled (as a warm-up holding a system does,
+    before the worker sets its thread limits) and compiles a fresh numba function when called."""
+
+    def __reduce__(self):
+        return (_compiles_in_worker, ())
+
+    def __call__(self) -> int:
+        import numba
+
+        return numba.njit(lambda x: x + 1)(1)
+
+
+def _compiles_in_worker() -> CompilesInWorker:
+    import numba  # noqa: F401  (loaded at unpickling time, on purpose)
+
+    return CompilesInWorker()

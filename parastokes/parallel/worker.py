@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import sys
 from collections.abc import Callable
 from typing import Any
 
@@ -27,11 +28,16 @@ def configure_worker(threads: int, warmup: Callable[[], Any] | None) -> None:
 
     The thread variables are set in the environment for the libraries that are not loaded yet;
     numba, whatever its state, is limited with :func:`numba.set_num_threads` (to at most the size of
-    its pool, fixed when numba was first imported). A BLAS that is already loaded keeps its pool:
-    set ``OMP_NUM_THREADS`` before starting Python to limit it too (see docs/parallel.md).
+    its pool, fixed when numba was first imported). ``NUMBA_NUM_THREADS`` is left alone when numba
+    is already loaded (e.g. by unpickling a warm-up that holds a system): numba re-reads it when it
+    compiles and refuses a value that differs from its running pool. A BLAS that is already loaded
+    keeps its pool: set ``OMP_NUM_THREADS`` before starting Python to limit it too (see
+    docs/parallel.md).
     """
+    numba_loaded = "numba" in sys.modules
     for name in THREAD_VARIABLES:
-        os.environ[name] = str(threads)
+        if not (numba_loaded and name == "NUMBA_NUM_THREADS"):
+            os.environ[name] = str(threads)
     import numba
 
     numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))

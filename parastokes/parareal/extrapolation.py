@@ -10,6 +10,12 @@ the nodes of every parameter named in ``lagrange``; the v_q the Richardson weigh
 propagator takes ``n_q = max(1, round(slice / (r^q dt)))`` equal steps, so it actually uses
 h_q = slice / n_q; the v_q are computed for those h_q (``weights.step_weights``), which cancels the
 error terms tau^alpha .. tau^(alpha+m-1) exactly even when r^q dt does not divide the slice.
+
+On an executor the N_G = N_theta1 N_theta2 N_theta3 (m + 1) auxiliary solvers of one call run
+concurrently (Algorithm 1, steps 4 and 15), one task each. Algorithm 1 requires N_G <= N_c
+(its input condition) so that they all run at once: `check_workers` enforces it, unless
+oversubscription is allowed explicitly; the solvers are then batched, one batch per worker, and
+each coarse step of the serial sweep takes ceil(N_G / N_c) rounds.
 """
 
 from __future__ import annotations
@@ -25,6 +31,8 @@ from typing import Any
 import numpy as np
 
 from .. import integrate
+from ..parallel import Task, run_tasks
+from .algorithm import check_workers
 from .transfer import OnCoarseGrid
 from .weights import check_nodes, lagrange_weights, step_weights, validate_richardson
 
@@ -33,13 +41,23 @@ __all__ = ["Extrapolated", "extrapolated"]
 logger = logging.getLogger(__name__)
 
 
+def _run_batch(
+    solvers: tuple[integrate.Propagator, ...], t_start: float, t_end: float, x: np.ndarray
+) -> list[np.ndarray]:
+    """Run several auxiliary solvers one after the other on one worker (oversubscription)."""
+    return [p(t_start, t_end, x) for p in solvers]
+
+
 class Extrapolated:
     """The propagator of eq. 30 (eq. 18/25 when m = 0, eq. 28 without Lagrange nodes).
 
     Build it with :func:`extrapolated`, which validates the inputs. ``auxiliary[j][q]`` is
     G_{Theta^j, r^q tau}; ``thetas[j]`` is Theta^j; ``lagrange_weights[j]`` is w_j. With an
     ``executor`` the auxiliary solvers of one call run concurrently on it (Algorithm 1, steps 4 and
-    15). The executor stays with the manager: it is dropped when the combinator is pickled.
+    15), one labelled task each (:func:`parastokes.parallel.run_tasks`: a failure names the
+    solver), or one batch per worker when there are more solvers than workers (see
+    `check_workers`). The executor stays with the manager: it is dropped when the combinator
+    is pickled.
     """
 
     def __init__(
@@ -65,6 +83,36 @@ class Extrapolated:
         #: The steps h_q actually taken in the most recent call (None before the first call).
         self.steps_used: tuple[float, ...] | None = None
 
+    @property
+    def n_auxiliary(self) -> int:
+        """N_G = N_theta1 N_theta2 N_theta3 (m + 1): the auxiliary solvers (Algorithm 1, 5.1.1)."""
+        return len(self.auxiliary) * len(self.auxiliary[0])
+
+    def _label(self, index: int) -> str:
+        j, q = divmod(index, len(self.auxiliary[0]))
+        theta = ", ".join(f"{name}={value:.6g}" for name, value in self.thetas[j].items())
+        step = self.auxiliary[j][q].dt
+        return f"auxiliary coarse solver {index} ({theta + ', ' if theta else ''}step {step:.6g})"
+
+    def _run_on_executor(self, t_start: float, t_end: float, x: np.ndarray) -> list[np.ndarray]:
+        """The auxiliary solvers' values, one task per solver, or one batch per worker when there
+        are more solvers than workers (oversubscription, see `check_workers`)."""
+        solvers = [p for row in self.auxiliary for p in row]
+        workers = getattr(self.executor, "workers", None)
+        if workers is None or workers == 1 or len(solvers) <= workers:
+            tasks = [Task(p, (t_start, t_end, x), self._label(i)) for i, p in enumerate(solvers)]
+            return run_tasks(self.executor, tasks)
+        batches = np.array_split(np.arange(len(solvers)), workers)
+        tasks = [
+            Task(
+                _run_batch,
+                (tuple(solvers[i] for i in batch), t_start, t_end, x),
+                f"batch of auxiliary coarse solvers {batch[0]}-{batch[-1]}",
+            )
+            for batch in batches
+        ]
+        return [value for batch in run_tasks(self.executor, tasks) for value in batch]
+
     def plan(self, t_start: float, t_end: float) -> tuple[np.ndarray, np.ndarray]:
         """The steps h_q = (t_end - t_start) / n_q actually taken on a slice, and their weights v_q.
 
@@ -83,17 +131,19 @@ class Extrapolated:
                 np.array2string(v, precision=6),
             )
             self.steps_used = tuple(steps)
-        solvers = [p for row in self.auxiliary for p in row]
         if self.executor is None:
-            values = [p(t_start, t_end, x) for p in solvers]
+            values = [p(t_start, t_end, x) for row in self.auxiliary for p in row]
         else:
-            futures = [self.executor.submit(p, t_start, t_end, x) for p in solvers]
-            values = [future.result() for future in futures]
+            values = self._run_on_executor(t_start, t_end, x)
         coefficients = np.multiply.outer(self.lagrange_weights, v).ravel()
         return self.system.project(sum(c * g for c, g in zip(coefficients, values, strict=True)))
 
     def with_executor(self, executor: Executor | None) -> Extrapolated:
-        """A copy whose auxiliary solvers run on ``executor``."""
+        """A copy whose auxiliary solvers run on ``executor``.
+
+        This only binds: the N_G <= N_c rule is checked by :func:`extrapolated` and by
+        :func:`parastokes.parareal.run`, whichever hands the executor over (`check_workers`).
+        """
         clone = copy.copy(self)
         clone.executor = executor
         return clone
@@ -131,6 +181,7 @@ def extrapolated(
     richardson: Mapping[str, float] | None = None,
     grid: int | None = None,
     executor: Executor | None = None,
+    allow_oversubscribe: bool = False,
 ) -> Extrapolated | OnCoarseGrid:
     """The extrapolated coarse solver G of eq. 30 (section 4), a picklable propagator.
 
@@ -142,6 +193,9 @@ def extrapolated(
       ``system.coarsened(grid)`` and is wrapped in :class:`OnCoarseGrid` (eqs. 32-33).
     - ``executor``: runs the auxiliary solvers of each call concurrently (Algorithm 1, steps 4, 15);
       :func:`parastokes.parareal.run` supplies its own when this is None.
+    - ``allow_oversubscribe``: with ``executor``, accept more auxiliary solvers N_G than workers
+      N_c (batched per worker, ceil(N_G / N_c) rounds per coarse step); by default that is a
+      ValueError (Algorithm 1 requires N_G <= N_c; see `check_workers`).
 
     Everything is validated before any solver is built; the message names the rule that failed.
     """
@@ -155,6 +209,7 @@ def extrapolated(
         raise ValueError(f"richardson takes the keys 'm' and 'r', got {sorted(richardson)}")
     m, r = richardson["m"], richardson.get("r")
     validate_richardson(m, r)
+    check_workers(len(thetas) * (m + 1), executor, allow_oversubscribe)
     if grid is not None:
         if isinstance(grid, bool) or not isinstance(grid, int) or grid < 2:
             raise ValueError(f"grid must be an integer coarsening factor >= 2, got {grid!r}")

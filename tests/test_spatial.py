@@ -1,0 +1,101 @@
+"""Spatial parallelization of F (Remark 1): threads and blocks of targets give the serial F.
+
+The kernels sum every target's contributions on one thread in a fixed order, and a block of
+targets sent to a worker is summed the same way, so both are bit-identical to the serial F.
+"""
+
+from __future__ import annotations
+
+import pickle
+
+import numpy as np
+import pytest
+from odes import ToySystem
+
+from parastokes import integrate, models, parallel, parareal, spatial
+
+# two interacting rods above the wall (forces, torques, images) and a small vesicle in shear
+CASES = {
+    "rods": (models.rod_swimmer(n_rods=2, n_points=41), 1e-6, 4e-6),
+    "vesicle": (models.vesicle(subdivisions=2), 1e-3, 4e-3),
+}
+
+
+@pytest.fixture(scope="module", params=sorted(CASES))
+def case(request):
+    system, dt, t1 = CASES[request.param]
+    x0 = system.initial_state()
+    return system, dt, t1, x0, integrate.propagate(system, x0, 0.0, t1, "rk2", dt)
+
+
+@pytest.fixture(scope="module")
+def pool():
+    with parallel.make_executor("processes", 2) as executor:
+        yield executor
+
+
+@pytest.mark.parametrize("n_threads", [1, 2, 3])
+def test_threaded_fine_solver_is_bit_identical(case, n_threads):
+    system, dt, t1, x0, serial = case
+    fine = spatial.fine_solver(system, "rk2", dt, n_threads=n_threads)
+    assert fine.system.n_threads == n_threads
+    np.testing.assert_array_equal(fine(0.0, t1, x0), serial)
+
+
+def test_target_blocks_on_processes_equal_serial_fine_solver(case, pool):
+    system, dt, t1, x0, serial = case
+    fine = spatial.fine_solver(system, "rk2", dt, executor=pool)
+    assert len(fine.system.blocks) == 2
+    np.testing.assert_array_equal(fine(0.0, t1, x0), serial)
+
+
+@pytest.mark.parametrize("n_blocks", [1, 3, 7])
+def test_target_blocks_rates_equal_system_rates(case, n_blocks):
+    system, _, _, _, moved = case
+    blocks = spatial.TargetBlocks(system, parallel.make_executor("serial"), n_blocks)
+    assert sum(b.stop - b.start for b in blocks.blocks) == len(moved)  # every target, once
+    np.testing.assert_array_equal(blocks.rates(2e-6, moved), system.rates(2e-6, moved))
+    assert blocks.params == system.params and blocks.monitor_limit == system.monitor_limit
+
+
+def test_measure_speedup_eq35(case):
+    system, dt, t1, x0, _ = case
+    serial = integrate.Propagator(system, "rk2", dt)
+    result = spatial.measure_speedup(
+        serial, spatial.fine_solver(system, "rk2", dt, n_threads=2), 0.0, t1, x0, repeats=2
+    )
+    assert result.difference == 0.0 and result.repeats == 2
+    assert result.serial_time > 0 and result.parallel_time > 0
+    assert result.speedup == result.serial_time / result.parallel_time
+
+
+def test_threaded_fine_solver_in_parareal_on_processes(pool):
+    # spatial and temporal together: the threaded F pickles and runs on the workers
+    system, dt, t1 = CASES["rods"]
+    x0 = system.initial_state()
+    coarse = integrate.Propagator(system, "euler", 2e-6)
+    serial = integrate.Propagator(system, "rk2", dt)
+    threaded = spatial.fine_solver(system, "rk2", dt, n_threads=2)
+    assert pickle.loads(pickle.dumps(threaded)) == threaded
+    reference = parareal.run(serial, coarse, x0, 0.0, t1, 2, 0.0, 2)
+    res = parareal.run(threaded, coarse, x0, 0.0, t1, 2, 0.0, 2, executor=pool)
+    np.testing.assert_array_equal(res.states, reference.states)
+
+
+def test_bad_arguments():
+    system = CASES["vesicle"][0]
+    executor = parallel.make_executor("serial")
+    with pytest.raises(ValueError, match="exactly one of n_threads"):
+        spatial.fine_solver(system, "rk2", 1e-3)
+    with pytest.raises(ValueError, match="exactly one of n_threads"):
+        spatial.fine_solver(system, "rk2", 1e-3, n_threads=2, executor=executor)
+    with pytest.raises(ValueError, match="n_threads must be an integer >= 1"):
+        spatial.threaded(system, 0)
+    with pytest.raises(ValueError, match="n_blocks must be an integer >= 1"):
+        spatial.TargetBlocks(system, executor, 0)
+    with pytest.raises(TypeError, match="supports RodSystem and VesicleSystem, not ToySystem"):
+        spatial.TargetBlocks(ToySystem(), executor)
+    with pytest.raises(TypeError, match="does not pickle"):
+        pickle.dumps(spatial.TargetBlocks(system, executor))
+    with pytest.raises(ValueError, match="repeats"):
+        spatial.measure_speedup(None, None, 0.0, 1.0, np.zeros(3), repeats=0)
