@@ -1,11 +1,10 @@
 """One run of a configuration: the serial fine solution, Parareal (Algorithm 1), or both, with all
 outputs (summary.json, trajectory.h5 + .xdmf, figures) in one directory. Used by the CLI.
 
-Parareal is driven one iteration at a time through its checkpoint: ``parareal.run`` is called with
-``max_iterations = k`` for k = 1, 2, ..., and each call resumes from the checkpoint written by the
-previous one. This gives the final positions X^k at T_N of every iteration (so η^k and η̃^k of eq.
-34 can be recomputed from the saved file), a live per-iteration report, and ``--resume`` after an
-interruption with the same mechanism. Files in the output directory while a run is in progress:
+Parareal reports every iteration through ``parareal.run``'s ``on_iteration`` hook: the final
+positions X^k at T_N of every iteration are saved (so η^k and η̃^k of eq. 34 can be recomputed from
+the saved file) and reported live; ``--resume`` after an interruption continues from Parareal's
+checkpoint. Files in the output directory while a run is in progress:
 
 - ``checkpoint.npz``: Parareal's checkpoint (removed at the end when ``parareal.checkpoint`` is
   false);
@@ -59,22 +58,6 @@ class Reporter:
         """Iteration k of Parareal finished: η̃^k, η^k (None without reference), wall time so far."""
 
 
-class _Once(logging.Filter):
-    """Lets each distinct message through once: the engine is called once per iteration and would
-    repeat its set-up warnings every time."""
-
-    def __init__(self) -> None:
-        super().__init__()
-        self.seen: set[str] = set()
-
-    def filter(self, record: logging.LogRecord) -> bool:
-        message = record.getMessage()
-        if message in self.seen:
-            return False
-        self.seen.add(message)
-        return True
-
-
 def _digest(data: Any) -> str:
     return hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()
 
@@ -116,7 +99,7 @@ def _serial(
     return states, wall
 
 
-# ---- Parareal, one iteration per call --------------------------------------------------------
+# ---- Parareal --------------------------------------------------------------------------------
 def _parareal(
     setup: Setup,
     x0: np.ndarray,
@@ -126,7 +109,13 @@ def _parareal(
     key: str,
     reporter: Reporter,
 ) -> tuple[parareal.PararealResult, io.HistoryRecord]:
-    """Parareal with the history of an interrupted run in ``out`` (if any) carried on."""
+    """Parareal with the history of an interrupted run in ``out`` (if any) carried on.
+
+    After every iteration (``parareal.run``'s ``on_iteration``) the final positions X^k at T_N and
+    the elapsed time are appended to ``history.npz`` and reported; the checkpoint in ``out`` lets
+    an interrupted run resume where it stopped.
+    """
+    cfg, system = setup.config, setup.system
     history_path = out / HISTORY
     finals: list[np.ndarray] = []
     elapsed: list[float] = []
@@ -137,77 +126,53 @@ def _parareal(
                 [("", f"{out} holds a run of another configuration; use a new --out directory")]
             )
         finals, elapsed = list(arrays["final_positions"]), list(arrays["elapsed"])
-    engine_log = logging.getLogger(parareal.run.__module__)
-    once = _Once()
-    engine_log.addFilter(once)
-    try:
-        return _iterate(setup, x0, times, reference, out, key, reporter, finals, elapsed)
-    finally:
-        engine_log.removeFilter(once)
 
+    def record(report: parareal.IterationReport) -> None:
+        k = report.iteration
+        del finals[k - 1 :], elapsed[k - 1 :]
+        missing = k - 1 - len(finals)  # > 0 only if an interrupt fell between checkpoint and here
+        finals.extend([np.full_like(system.positions(x0), np.nan)] * missing)
+        elapsed.extend([np.nan] * missing)
+        finals.append(system.positions(report.final_state))
+        elapsed.append(report.elapsed)
+        io.save_arrays(
+            history_path,
+            {"key": key},
+            final_positions=np.asarray(finals),
+            elapsed=np.asarray(elapsed),
+        )
+        reporter.iteration(report.iteration, report.increment, report.error, report.elapsed)
+        reporter.advance()
 
-def _iterate(
-    setup: Setup,
-    x0: np.ndarray,
-    times: np.ndarray,
-    reference: np.ndarray | None,
-    out: Path,
-    key: str,
-    reporter: Reporter,
-    finals: list[np.ndarray],
-    elapsed: list[float],
-) -> tuple[parareal.PararealResult, io.HistoryRecord]:
-    """Call ``parareal.run`` with max_iterations = k, k + 1, ... (see the module docstring)."""
-    cfg, system = setup.config, setup.system
-    history_path = out / HISTORY
     p = cfg.parareal
     reporter.start("parareal", p.max_iterations)
-    k = len(finals) + 1
-    while True:
-        result = parareal.run(
-            setup.fine,
-            setup.coarse,
-            x0,
-            times[0],
-            times[-1],
-            p.n_slices,
-            p.tol,
-            max_iterations=k,
-            executor=setup.executor,
-            reference=reference,
-            project=system.project,
-            positions=system.positions,
-            checkpoint=out / CHECKPOINT,
-            allow_oversubscribe=cfg.execution.allow_oversubscribe
-            or cfg.execution.executor == "serial",
-        )
-        new = result.iterations - len(finals)  # > 1 only if the history fell behind: pad
-        if new > 0:
-            finals += [np.full_like(system.positions(x0), np.nan)] * (new - 1)
-            finals.append(system.positions(result.states[-1]))
-            elapsed += [np.nan] * (new - 1) + [result.timings.total]
-            io.save_arrays(
-                history_path,
-                {"key": key},
-                final_positions=np.asarray(finals),
-                elapsed=np.asarray(elapsed),
-            )
-        for j in range(result.iterations - max(new, 0), result.iterations):
-            error = None if result.errors is None else result.errors[j]
-            reporter.iteration(j + 1, result.increments[j], error, elapsed[j])
-            reporter.advance()
-        if result.stop_reason != "max_iterations" or result.iterations >= p.max_iterations:
-            break
-        k = result.iterations + 1
+    result = parareal.run(
+        setup.fine,
+        setup.coarse,
+        x0,
+        times[0],
+        times[-1],
+        p.n_slices,
+        p.tol,
+        max_iterations=p.max_iterations,
+        executor=setup.executor,
+        reference=reference,
+        project=system.project,
+        positions=system.positions,
+        checkpoint=out / CHECKPOINT,
+        allow_oversubscribe=cfg.execution.allow_oversubscribe
+        or cfg.execution.executor == "serial",
+        on_iteration=record,
+    )
     reporter.finish()
-    record = io.HistoryRecord(
+    history = io.HistoryRecord(
         increments=result.increments,
         errors=result.errors,
-        final_positions=finals,
-        elapsed=elapsed,
+        final_positions=finals[: result.iterations],
+        elapsed=elapsed[: result.iterations],
         timings=result.timings.to_dict(),
     )
-    return result, record
+    return result, history
 
 
 # ---- summary ---------------------------------------------------------------------------------

@@ -1,5 +1,6 @@
 """Algorithm 1 on simple ODEs with known solutions."""
 
+import itertools
 import logging
 from concurrent.futures import Future, ThreadPoolExecutor
 
@@ -221,3 +222,19 @@ def test_result_shape_and_time_points():
     assert res.times[0] == 1.0 and res.times[-1] == 3.0
     np.testing.assert_allclose(np.diff(res.times), 0.4)
     assert res.n_slices == 5
+
+
+def test_on_iteration_reports_every_iteration_as_the_result_records_it():
+    problem, x0 = PROBLEMS["oscillator"]
+    fine, coarse = _solvers(problem)
+    serial = parareal.serial_solution(fine, x0, T0, T1, 5)
+    reports = []
+    res = parareal.run(
+        fine, coarse, x0, T0, T1, 5, tol=0.0, max_iterations=3, reference=serial,
+        on_iteration=reports.append,
+    )
+    assert [r.iteration for r in reports] == [1, 2, 3]
+    assert [r.increment for r in reports] == res.increments
+    assert [r.error for r in reports] == res.errors
+    np.testing.assert_array_equal(reports[-1].final_state, res.states[-1])
+    assert all(a.elapsed <= b.elapsed for a, b in itertools.pairwise(reports))

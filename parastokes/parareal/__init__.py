@@ -4,7 +4,7 @@ The engine works on any propagators ``P(t_start, t_end, x) -> x`` over numpy arr
 ``docs/parareal.md``.
 """
 
-from .algorithm import run, serial_solution, time_points
+from .algorithm import IterationReport, run, serial_solution, time_points
 from .extrapolation import Extrapolated, extrapolated
 from .metrics import relative_change
 from .result import PararealResult
@@ -15,6 +15,7 @@ from .weights import lagrange_weights, richardson_weights, step_weights
 
 __all__ = [
     "Extrapolated",
+    "IterationReport",
     "OnCoarseGrid",
     "PararealResult",
     "Timings",

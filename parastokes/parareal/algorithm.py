@@ -21,6 +21,7 @@ import time
 import warnings
 from collections.abc import Callable
 from concurrent.futures import Executor, Future
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -31,11 +32,33 @@ from .metrics import Positions, relative_change
 from .result import PararealResult
 from .timings import Timings, queued_durations
 
-__all__ = ["PropagatorLike", "check_workers", "run", "serial_solution", "time_points"]
+__all__ = [
+    "IterationReport",
+    "PropagatorLike",
+    "check_workers",
+    "run",
+    "serial_solution",
+    "time_points",
+]
 
 logger = logging.getLogger(__name__)
 
 PropagatorLike = Callable[[float, float, np.ndarray], np.ndarray]
+
+
+@dataclass(frozen=True)
+class IterationReport:
+    """What :func:`run` passes to ``on_iteration`` after iteration k.
+
+    ``increment`` is η̃^k and ``error`` η^k (eq. 34; None without a reference), ``final_state`` the
+    iterate X_N^k at T_N, ``elapsed`` the wall time of the whole run so far (resumed runs included).
+    """
+
+    iteration: int
+    increment: float
+    error: float | None
+    final_state: np.ndarray
+    elapsed: float
 
 
 def time_points(t0: float, t1: float, n_slices: int) -> np.ndarray:
@@ -334,6 +357,7 @@ def run(
     checkpoint: str | os.PathLike | None = None,
     wall_time_limit: float | None = None,
     allow_oversubscribe: bool = False,
+    on_iteration: Callable[[IterationReport], None] | None = None,
 ) -> PararealResult:
     """Parareal (Algorithm 1): initial serial sweep eq. 9, then iterations of eqs. 10-11.
 
@@ -360,6 +384,9 @@ def run(
     ``"fine solve of slice n in iteration k"`` or ``"coarse solve of slice n in iteration k"``
     (k = 0: the initial sweep); the checkpoint then holds iteration k - 1 and a rerun with the same
     checkpoint resumes from there (so does a rerun after ``KeyboardInterrupt``).
+
+    ``on_iteration``, if given, is called after every iteration (once its checkpoint is written)
+    with an :class:`IterationReport`: for live progress reports and per-iteration output.
     """
     session_start = time.perf_counter()
     x0 = np.array(x0, dtype=float)
@@ -406,6 +433,16 @@ def run(
             if checkpoint is not None:
                 ckpt.save(checkpoint, progress, key)
                 saved = progress.iteration
+            if on_iteration is not None:
+                on_iteration(
+                    IterationReport(
+                        iteration=progress.iteration,
+                        increment=progress.increments[-1],
+                        error=progress.errors[-1] if reference is not None else None,
+                        final_state=final,
+                        elapsed=progress.timings.total,
+                    )
+                )
             reason = _stop_reason(progress, tol, max_iterations)
             if reason is None and wall_time_limit is not None and elapsed >= wall_time_limit:
                 reason = "wall_time"
