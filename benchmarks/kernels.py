@@ -39,7 +39,7 @@ SIZES = (301, 642, 1505, 5000)
 ORACLE_SIZES = (301, 642)
 THREADS = (1, 2)
 #: Conventional flop counts per pair (the issue's): ~20 for the free force kernel, ~200 for the full
-#: wall kernel (free u, w from f, n plus the four image parts). docs/benchmarks_kernels.md details
+#: wall kernel (free u, w from f, n plus the four image parts). docs/benchmarks.md details
 #: the operation counts of the compiled code.
 FLOPS_PER_PAIR = {"free": 20, "wall": 200}
 #: Issue 2 targets: G pairs/s per core on 1 thread, on 2 threads (total), and the speed-up over
