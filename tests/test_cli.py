@@ -149,22 +149,26 @@ def test_demo_writes_summary_trajectory_and_figures(tmp_path, capsys):
     """The demo as shipped, over a shorter time (same code paths, 2 process workers)."""
     out = tmp_path / "demo"
     status = cli.main(
-        ["demo", "--out", str(out), "--set", "time.t1=0.004", "--set", "parareal.max_iterations=2"]
+        ["demo", "--out", str(out), "--set", "time.t1=0.004", "--set", "parareal.tol=0"]
     )
     assert status == 0
     printed = capsys.readouterr().out
     assert "increment η̃^k" in printed and "theoretical" in printed  # table and speedup report
-    summary = check_demo_output(out, n_frames=5)
+    summary = check_demo_output(out, n_frames=3)
     assert summary["workers"] == 2
     assert summary["iterations"] == 2
+    assert summary["errors"][-1] == 0.0  # k = N: Parareal equals the serial fine solution
 
 
 @pytest.mark.slow
 def test_full_demo(tmp_path):
     out = tmp_path / "demo"
     assert cli.main(["demo", "--out", str(out), "-q"]) == 0
-    summary = check_demo_output(out, n_frames=5)
-    assert summary["errors"][-1] < 1e-5
+    summary = check_demo_output(out, n_frames=3)
+    # one iteration reaches the tolerance, with a speedup > 1 possible on two cores (eq. 14)
+    assert summary["iterations"] == 1
+    assert summary["errors"][-1] < 1e-4
+    assert summary["speedup"]["theoretical"] > 1.5
 
 
 RESUMABLE = TINY.replace("n_points = 21\nlength = 4.0", "n_points = 41\nlength = 8.0").replace(
