@@ -204,4 +204,4 @@ def test_checked_and_unchecked_calls_share_one_compiled_signature():
         mrs.velocity(x, x, f, epsilon=0.2, mu=1.0, check=check)
         mrs.velocity(x, x, f, epsilon=0.2, mu=1.0, torques=f, wall=True, angular=True, check=check)
     assert len(compiled.free_u_f.signatures) == 1
-    assert len(compiled.wall_full.signatures) == 1
+    assert len(compiled.full.signatures) == 1

@@ -13,8 +13,8 @@ Formulas: ``shared/physics.md`` (1)-(8), the paper's eqs. 3-6.
 Kernels:
 
 - :func:`free_u_f`: force -> velocity in free space (eq. 6), the vesicle's hot path;
-- :func:`free_full`: u and w from forces and torques in free space ([1]-[4]);
-- :func:`wall_full`: u and w from forces and torques above the wall z = 0 ([1]-[8]), the rod's.
+- :func:`full`: u and w from forces and torques in free space ([1]-[4]) or, with ``wall``, above
+  the wall z = 0 ([1]-[8]), the rod's.
 """
 
 from __future__ import annotations
@@ -138,53 +138,9 @@ def free_u_f(tx, ty, tz, sx, sy, sz, fx, fy, fz, eps, ux, uy, uz):
 
 
 @njit(parallel=True, **_OPTS)
-def free_full(tx, ty, tz, sx, sy, sz, fx, fy, fz, nx, ny, nz, eps, ux, uy, uz, wx, wy, wz):
-    """8π μ (u, w) from forces and torques in free space ([1]-[4])."""
-    nb, mp = tx.shape
-    ns = sx.shape[1]
-    ntiles = mp // TILE
-    for job in prange(nb * ntiles):
-        b = job // ntiles
-        t0 = (job % ntiles) * TILE
-        e2 = eps[b] * eps[b]
-        a0 = np.zeros(TILE)
-        a1 = np.zeros(TILE)
-        a2 = np.zeros(TILE)
-        a3 = np.zeros(TILE)
-        a4 = np.zeros(TILE)
-        a5 = np.zeros(TILE)
-        px = tx[b, t0 : t0 + TILE]
-        py = ty[b, t0 : t0 + TILE]
-        pz = tz[b, t0 : t0 + TILE]
-        for j in range(ns):
-            yx, yy, yz = sx[b, j], sy[b, j], sz[b, j]
-            gx, gy, gz = fx[b, j], fy[b, j], fz[b, j]
-            mx, my, mz = nx[b, j], ny[b, j], nz[b, j]
-            for i in range(TILE):
-                rx = px[i] - yx
-                ry = py[i] - yy
-                rz = pz[i] - yz
-                r2 = rx * rx + ry * ry + rz * rz
-                inv = 1.0 / np.sqrt(r2 + e2)
-                v0, v1, v2, v3, v4, v5 = _free_pair(rx, ry, rz, r2, e2, inv,
-                                                    gx, gy, gz, mx, my, mz)
-                a0[i] += v0
-                a1[i] += v1
-                a2[i] += v2
-                a3[i] += v3
-                a4[i] += v4
-                a5[i] += v5
-        ux[b, t0 : t0 + TILE] = a0
-        uy[b, t0 : t0 + TILE] = a1
-        uz[b, t0 : t0 + TILE] = a2
-        wx[b, t0 : t0 + TILE] = a3
-        wy[b, t0 : t0 + TILE] = a4
-        wz[b, t0 : t0 + TILE] = a5
-
-
-@njit(parallel=True, **_OPTS)
-def wall_full(tx, ty, tz, sx, sy, sz, fx, fy, fz, nx, ny, nz, eps, ux, uy, uz, wx, wy, wz):
-    """8π μ (u, w) from forces and torques above the plane wall z = 0 ([1]-[8])."""
+def full(tx, ty, tz, sx, sy, sz, fx, fy, fz, nx, ny, nz, eps, wall, ux, uy, uz, wx, wy, wz):
+    """8π μ (u, w) from forces and torques: free space ([1]-[4]), plus the images ([5]-[8]) of
+    the plane wall z = 0 when ``wall`` (a loop-invariant test: LLVM unswitches the loops)."""
     nb, mp = tx.shape
     ns = sx.shape[1]
     ntiles = mp // TILE
@@ -214,14 +170,21 @@ def wall_full(tx, ty, tz, sx, sy, sz, fx, fy, fz, nx, ny, nz, eps, ux, uy, uz, w
                 inv = 1.0 / np.sqrt(r2 + e2)
                 v0, v1, v2, v3, v4, v5 = _free_pair(rx, ry, rz, r2, e2, inv,
                                                     gx, gy, gz, mx, my, mz)
-                i0, i1, i2, i3, i4, i5 = _image_pair(rx, ry, z + h, z, h, e2,
-                                                     gx, gy, gz, mx, my, mz)
-                a0[i] += v0 + i0
-                a1[i] += v1 + i1
-                a2[i] += v2 + i2
-                a3[i] += v3 + i3
-                a4[i] += v4 + i4
-                a5[i] += v5 + i5
+                if wall:
+                    i0, i1, i2, i3, i4, i5 = _image_pair(rx, ry, z + h, z, h, e2,
+                                                         gx, gy, gz, mx, my, mz)
+                    v0 += i0
+                    v1 += i1
+                    v2 += i2
+                    v3 += i3
+                    v4 += i4
+                    v5 += i5
+                a0[i] += v0
+                a1[i] += v1
+                a2[i] += v2
+                a3[i] += v3
+                a4[i] += v4
+                a5[i] += v5
         ux[b, t0 : t0 + TILE] = a0
         uy[b, t0 : t0 + TILE] = a1
         uz[b, t0 : t0 + TILE] = a2

@@ -154,8 +154,7 @@ def velocity(
             compiled.free_u_f(tx, ty, tz, *src, eps, out[0], out[1], out[2])
         else:
             n3 = np.zeros_like(s3) if torques is None else (torques if batch else torques[None])
-            kernel = compiled.wall_full if wall else compiled.free_full
-            kernel(tx, ty, tz, *src, *_soa(n3), eps, *out)
+            compiled.full(tx, ty, tz, *src, *_soa(n3), eps, bool(wall), *out)
     # (6, B, M) -> (B, M, 6) scaled by 1/(8πμ), then split into u and w.
     res = np.ascontiguousarray(out[:, :, :m].transpose(1, 2, 0)) / (EIGHT_PI * visc)[:, None, None]
     if not batch:
