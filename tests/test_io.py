@@ -161,3 +161,42 @@ def test_vesicle_trajectory_and_xdmf(tmp_path):
     assert grid.find("Topology").get("TopologyType") == "Triangle"
     assert grid.find("Topology").get("NumberOfElements") == "3"
     assert grid.find("Attribute").get("Name") == "tracked"
+
+
+def _read_with_vtk(xdmf_path):
+    """Every time step of the XDMF file as read by VTK's XDMF reader (the one ParaView uses for
+    XDMF 2 files): a list of (time, [(points, n_cells, point-array names) per body])."""
+    xdmf2 = pytest.importorskip("vtkmodules.vtkIOXdmf2", reason="VTK (pip install vtk) not found")
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    from vtkmodules.vtkCommonExecutionModel import vtkStreamingDemandDrivenPipeline
+
+    reader = xdmf2.vtkXdmfReader()
+    reader.SetFileName(str(xdmf_path))
+    reader.UpdateInformation()
+    times = reader.GetOutputInformation(0).Get(vtkStreamingDemandDrivenPipeline.TIME_STEPS())
+    frames = []
+    for t in times:
+        reader.UpdateTimeStep(t)
+        series = reader.GetOutputDataObject(0).GetBlock(0)  # the first temporal collection
+        bodies = []
+        for i in range(series.GetNumberOfBlocks()):
+            grid = series.GetBlock(i)
+            data = grid.GetPointData()
+            names = {data.GetArrayName(k) for k in range(data.GetNumberOfArrays())}
+            points = vtk_to_numpy(grid.GetPoints().GetData())
+            bodies.append((points, grid.GetNumberOfCells(), names))
+        frames.append((t, bodies))
+    return frames
+
+
+def test_vtk_reads_the_xdmf_sidecar_as_paraview_would(tmp_path):
+    path = tmp_path / "trajectory.h5"
+    states = write_rods(path)
+    frames = _read_with_vtk(io.write_xdmf(path))
+    assert [t for t, _ in frames] == pytest.approx([0.0, 0.1, 0.2])
+    for (_, bodies), state in zip(frames, states, strict=True):
+        assert len(bodies) == 2
+        for rod, (points, n_cells, names) in enumerate(bodies):
+            np.testing.assert_array_equal(points, state[rod * 5 : (rod + 1) * 5, :3] + 1)
+            assert n_cells == 4  # a polyline of 5 nodes
+            assert names == {"D1", "D2", "D3"}
