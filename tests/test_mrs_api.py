@@ -6,6 +6,8 @@
 - every bad input raises ValueError naming the argument, and nothing is silently broadcast.
 """
 
+import warnings
+
 import numba
 import numpy as np
 import pytest
@@ -205,3 +207,15 @@ def test_checked_and_unchecked_calls_share_one_compiled_signature():
         mrs.velocity(x, x, f, epsilon=0.2, mu=1.0, torques=f, wall=True, angular=True, check=check)
     assert len(compiled.free_u_f.signatures) == 1
     assert len(compiled.full.signatures) == 1
+
+
+def test_fast_path_reads_no_uninitialized_memory():
+    """The u-only path must not touch (and divide) rows the kernel never wrote: no warnings."""
+    rng = np.random.default_rng(9)
+    x = rng.random((70, 3))
+    f = rng.normal(size=(70, 3))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for _ in range(50):
+            u = mrs.velocity(x, x, f, epsilon=0.1, mu=1e-3)
+    assert u.shape == (70, 3) and np.isfinite(u).all()

@@ -148,14 +148,15 @@ def velocity(
     src = (*_soa(s3), *_soa(f3))
     eps = np.array(eps, dtype=np.float64)  # a fresh writable copy: one numba signature
     nb = t3.shape[0]
-    out = np.empty((6, nb, padded))
+    fast = torques is None and not wall and not angular
+    out = np.empty((3 if fast else 6, nb, padded))  # every row is written by the kernel
     with _threads(n_threads):
-        if torques is None and not wall and not angular:
-            compiled.free_u_f(tx, ty, tz, *src, eps, out[0], out[1], out[2])
+        if fast:
+            compiled.free_u_f(tx, ty, tz, *src, eps, *out)
         else:
             n3 = np.zeros_like(s3) if torques is None else (torques if batch else torques[None])
             compiled.full(tx, ty, tz, *src, *_soa(n3), eps, bool(wall), *out)
-    # (6, B, M) -> (B, M, 6) scaled by 1/(8πμ), then split into u and w.
+    # (3 or 6, B, M) -> (B, M, 3 or 6) scaled by 1/(8πμ), then split into u and w.
     res = np.ascontiguousarray(out[:, :, :m].transpose(1, 2, 0)) / (EIGHT_PI * visc)[:, None, None]
     if not batch:
         res = res[0]
