@@ -136,7 +136,40 @@ class Extrapolated:
         else:
             values = self._run_on_executor(t_start, t_end, x)
         coefficients = np.multiply.outer(self.lagrange_weights, v).ravel()
-        return self.system.project(sum(c * g for c, g in zip(coefficients, values, strict=True)))
+        combined = sum(c * g for c, g in zip(coefficients, values, strict=True))
+        self._check_combination(t_start, t_end, x, combined, coefficients)
+        return self.system.project(combined)
+
+    def _check_combination(
+        self,
+        t_start: float,
+        t_end: float,
+        x: np.ndarray,
+        combined: np.ndarray,
+        coefficients: np.ndarray,
+    ) -> None:
+        """The blow-up test of the auxiliary solvers, applied to their weighted sum (eq. 30).
+
+        Each auxiliary solver checks its own steps; the combination can still be far off when
+        the slice holds too few coarse steps for the auxiliaries' barely damped stiff modes to
+        decay (the Lagrange weights amplify them, docs/validation.md): say so, instead of letting
+        the next slice's auxiliaries fail on a state they never produced.
+        """
+        limit = integrate.BLOWUP_FACTOR * self.system.monitor_limit
+        value = self.system.monitor(combined) if np.isfinite(combined).all() else math.nan
+        if not value <= limit:
+            steps = self.auxiliary[0][0].n_steps(t_start, t_end)
+            raise integrate.BlowUpError(
+                t_end,
+                steps - 1,
+                value,
+                x,
+                f"the extrapolated combination of {len(coefficients)} auxiliary solvers "
+                f"(sum |w_j v_q| = {np.abs(coefficients).sum():.3g}) is beyond "
+                f"{integrate.BLOWUP_FACTOR:g} x the monitor limit although each auxiliary "
+                f"stayed within it: too few coarse steps per slice ({steps} here; "
+                "see docs/validation.md)",
+            )
 
     def with_executor(self, executor: Executor | None) -> Extrapolated:
         """A copy whose auxiliary solvers run on ``executor``.
