@@ -6,24 +6,12 @@ import pickle
 
 import numpy as np
 import pytest
+from rods import helix_rod
 
 from parastokes import integrate, models
 from parastokes.integrate import SCHEMES, BlowUpError, Propagator
 
 ORDERS = {"euler": 1, "rk2": 2, "rk4": 4}
-
-
-def helix_rod():
-    """A short free rod relaxing toward a helix: fully 3D frame dynamics (w changes direction)."""
-    return models.rod(
-        n_points=21,
-        length=4.0,
-        epsilon=0.4,
-        preferred=(1.0, 0.0, 0.5),
-        wall=False,
-        viscosity=1.0,
-        shear=(10.0, 10.0, 10.0),
-    )
 
 
 @pytest.fixture(scope="module")

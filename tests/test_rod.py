@@ -6,25 +6,13 @@ import pickle
 
 import numpy as np
 import pytest
+from rods import helix_rod
 from scipy.spatial.transform import Rotation
 
 from parastokes import integrate, models, mrs
 from parastokes.bodies import frames, reference
 from parastokes.bodies.rod import rod_loads
 from parastokes.system import RodSystem
-
-
-def helix_rod(**kw):
-    args = dict(
-        n_points=21,
-        length=4.0,
-        epsilon=0.4,
-        preferred=(1.0, 0.0, 0.5),
-        wall=False,
-        viscosity=1.0,
-        shear=(10.0, 10.0, 10.0),
-    )
-    return models.rod(**(args | kw))
 
 
 def bent_state(system, seed=0, size=0.05):
