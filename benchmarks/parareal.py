@@ -2,7 +2,8 @@
 
 Run from the repository root::
 
-    PYTHONPATH=. python benchmarks/parareal.py [--quick] [--sections ...] [--cores C] [--out PATH]
+    PYTHONPATH=. python benchmarks/parareal.py [--quick] [--sections ...] [--cores C] \\
+        [--out PATH] [--json PATH]
     PYTHONPATH=. mpiexec -n 3 python -m mpi4py.futures benchmarks/parareal.py --executor mpi \\
         --sections overhead speedup
 
@@ -27,6 +28,9 @@ worker ranks, the other sections need pools of several sizes and use processes):
   speedup (eq. 35) of the spatially parallel F (threads; blocks of targets on processes), of
   Parareal (temporal) and of both (N_c / 2 workers of 2 threads each, when N_c >= 4).
 
+``--out`` writes the tables as Markdown; ``--json`` writes the same numbers as a plain dict
+(:func:`benchmark_json`), which ``parastokes plot --benchmark FILE.json`` draws (Figs. 9 and 10).
+
 Serial fine times are measured in this process with one kernel thread; workers run one thread
 each (``threads_per_worker``). The load average is printed with every section: other work on the
 machine shows up there, and in the measured speedups.
@@ -37,6 +41,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import functools
+import json
 import math
 import os
 import platform
@@ -120,6 +125,90 @@ def table(headers: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
     lines = ["| " + " | ".join(headers) + " |", "|" + "---|" * len(headers)]
     lines += ["| " + " | ".join(cell(v) for v in row) + " |" for row in rows]
     return "\n".join(lines)
+
+
+# Keys of the JSON records of each section, in the order of the rows' columns.
+RECORD_KEYS: dict[str, tuple[str, ...]] = {
+    "overhead": ("executor", "workers", "ms_per_task_batch", "ms_per_task_sequential"),
+    "speedup": (
+        "case",
+        "iterations",
+        "gamma_f",
+        "gamma_ratio",
+        "increment",
+        "error",
+        "overhead",
+        "theoretical",
+        "measured",
+        "ratio",
+        "vs_serial",
+        "ratio_vs_serial",
+    ),
+    "strong": (
+        "cores",
+        "iterations",
+        "error",
+        "serial_sweeps",
+        "parallel_sweeps",
+        "serial_share",
+        "theoretical",
+        "measured",
+        "vs_serial",
+    ),
+    "weak": ("cores", "t1", "runtime", "parallel_sweep", "serial_sweeps", "model"),
+    "fig10": (
+        "cores",
+        "spatial_threads",
+        "spatial_blocks",
+        "parareal",
+        "iterations",
+        "increment",
+        "both",
+        "both_iterations",
+        "spatial_difference",
+    ),
+}
+
+
+def _plain(value: Any) -> Any:
+    """A JSON value: numpy scalars as Python numbers, placeholders ("n/a ...", "-") as None."""
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, str) and (value == "-" or value.startswith("n/a")):
+        return None
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def records(kind: str, rows: Sequence[Sequence[Any]]) -> list[dict[str, Any]]:
+    """The rows of a section's table as dicts keyed by ``RECORD_KEYS[kind]``."""
+    keys = RECORD_KEYS[kind]
+    return [{k: _plain(v) for k, v in zip(keys, row, strict=True)} for row in rows]
+
+
+def benchmark_json(
+    machine: dict[str, Any], sections: dict[str, Any], total_time: float | None = None
+) -> dict[str, Any]:
+    """The ``--json`` document: machine, one entry per section that ran, total time.
+
+    ``sections`` maps a section name to the raw rows it returned: ``overhead``, ``speedup`` and
+    ``fig10`` a list of rows, ``scaling`` a dict ``{"strong": rows, "weak": rows, ...}``.
+    """
+    out: dict[str, Any] = {"machine": dict(machine)}
+    for name, data in sections.items():
+        if name == "scaling":
+            extra = {k: _plain(v) for k, v in data.items() if k not in ("strong", "weak")}
+            out[name] = {
+                "strong": records("strong", data["strong"]),
+                "weak": records("weak", data["weak"]),
+                **extra,
+            }
+        else:
+            out[name] = records(name, data)
+    if total_time is not None:
+        out["total_time"] = total_time
+    return out
 
 
 def core_counts(cores: int) -> list[int]:
@@ -219,7 +308,7 @@ def cumulative_runs(
 # ---- sections ---------------------------------------------------------------------------------
 
 
-def overhead(args: argparse.Namespace, pools: Pools) -> str:
+def overhead(args: argparse.Namespace, pools: Pools) -> tuple[str, Any]:
     state = models.rod_swimmer().initial_state()
     warmup = functools.partial(np.copy, state)
     executors = {
@@ -239,7 +328,7 @@ def overhead(args: argparse.Namespace, pools: Pools) -> str:
             latency = (time.perf_counter() - start) / len(sequential)
             rows.append((kind, ex.workers, 1e3 * batch / len(tasks), 1e3 * latency))
         print(f"overhead {rows[-1]}", flush=True)
-    return "\n".join(
+    text = "\n".join(
         [
             f"Round trip of a 301 x 12 float64 state through a worker ({len(tasks)} tasks all "
             f"submitted at once, then {len(sequential)} one at a time; {load()}):",
@@ -249,9 +338,10 @@ def overhead(args: argparse.Namespace, pools: Pools) -> str:
             ),
         ]
     )
+    return text, rows
 
 
-def speedup(args: argparse.Namespace, pools: Pools) -> str:
+def speedup(args: argparse.Namespace, pools: Pools) -> tuple[str, Any]:
     n_c = args.cores
     iterations = max(1, min(2, n_c - 1))  # N_it = N_c is the serial cost: not worth timing
     rows = []
@@ -319,10 +409,10 @@ def speedup(args: argparse.Namespace, pools: Pools) -> str:
                 f"Target {name} >= {TARGET:.0%} of theoretical on 2 workers: {verdict} "
                 f"(lowest ratio {worst:.3f}).",
             ]
-    return "\n".join(lines)
+    return "\n".join(lines), rows
 
 
-def scaling(args: argparse.Namespace, pools: Pools) -> str:
+def scaling(args: argparse.Namespace, pools: Pools) -> tuple[str, Any]:
     case = rod_case(1, args.rod_slice)
     counts = core_counts(args.cores)
     t_strong = counts[-1] * case.slice_length
@@ -356,7 +446,7 @@ def scaling(args: argparse.Namespace, pools: Pools) -> str:
             model = 2 * n_c * t.gamma_g + t.gamma_f  # eq. 37 with N_it = 1
             weak.append((n_c, t_weak, t.total, t.parallel_sweeps[0], sum(t.serial_sweeps), model))
             print(f"weak {weak[-1]}", flush=True)
-    return "\n".join(
+    text = "\n".join(
         [
             f"Strong scaling (Fig. 9a-c): rod, T = {t_strong:g} fixed ({load()}):",
             "",
@@ -390,9 +480,11 @@ def scaling(args: argparse.Namespace, pools: Pools) -> str:
             ),
         ]
     )
+    data = {"strong": strong, "weak": weak, "t_strong": t_strong, "slice": case.slice_length}
+    return text, data
 
 
-def fig10(args: argparse.Namespace, pools: Pools) -> str:
+def fig10(args: argparse.Namespace, pools: Pools) -> tuple[str, Any]:
     case = rod_case(5, 0.0)
     counts = [c for c in core_counts(args.cores) if c >= 2]
     total_steps = args.fig10_steps * counts[-1]
@@ -433,7 +525,7 @@ def fig10(args: argparse.Namespace, pools: Pools) -> str:
             )
         )
         print(f"fig10 {rows[-1]}", flush=True)
-    return "\n".join(
+    text = "\n".join(
         [
             f"Five rods (N_sigma = 1505), T = {t1:g} ({total_steps} fine steps, serial F "
             f"{serial_time:.2f} s), Parareal stops at eta~ < 1e-5 ({load()}). Speedup = serial "
@@ -455,6 +547,7 @@ def fig10(args: argparse.Namespace, pools: Pools) -> str:
             ),
         ]
     )
+    return text, rows
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -469,6 +562,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     parser.add_argument("--quick", action="store_true", help="short slices: a smoke run")
     parser.add_argument("--out", help="write the tables as markdown here")
+    parser.add_argument(
+        "--json", help="write the numbers as JSON here (for parastokes plot --benchmark)"
+    )
     args = parser.parse_args(argv)
     if args.executor == "mpi":
         args.sections = [s for s in args.sections if s in ("overhead", "speedup")]
@@ -488,13 +584,26 @@ def main(argv: Sequence[str] | None = None) -> int:
         f"({numba.config.NUMBA_NUM_THREADS} threads), Python {platform.python_version()}; "
         f"{load()} at the start.",
     ]
+    machine = {
+        "command": command,
+        "processor": platform.processor() or platform.machine(),
+        "available_cores": parallel.available_cores(),
+        "cores": args.cores,
+        "executor": args.executor,
+        "quick": args.quick,
+        "numba": numba.__version__,
+        "numba_threads": numba.config.NUMBA_NUM_THREADS,
+        "python": platform.python_version(),
+        "load_start": os.getloadavg()[:2],
+    }
     print("\n".join(header), flush=True)
     pools = Pools(args.executor)
     parts = []
+    results: dict[str, Any] = {}
     start = time.perf_counter()
     try:
         for name in args.sections:
-            text = globals()[name](args, pools)
+            text, results[name] = globals()[name](args, pools)
             parts += ["", f"## {name}", "", text]
             print(f"\n## {name}\n\n{text}\n", flush=True)
     finally:
@@ -502,6 +611,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     parts += ["", f"Total benchmark time {time.perf_counter() - start:.0f} s; {load()} at the end."]
     if args.out:
         Path(args.out).write_text("\n".join(header + parts) + "\n", encoding="utf-8")
+    if args.json:
+        document = benchmark_json(machine, results, time.perf_counter() - start)
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.json).write_text(json.dumps(document, indent=1) + "\n", encoding="utf-8")
     return 0
 
 

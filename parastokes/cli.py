@@ -5,6 +5,7 @@
     parastokes run CONFIG.toml --out DIR [--resume] [--set KEY=VALUE ...]
     parastokes demo --out DIR [--resume] [--set KEY=VALUE ...]
     parastokes plot DIR [DIR ...] [--out FIGDIR] [--formats png pdf]
+    parastokes plot --benchmark FILE.json [--out FIGDIR] [--formats png pdf]
     parastokes check CONFIG.toml [CONFIG.toml ...] [--set KEY=VALUE ...]
     parastokes predict CONFIG.toml --cores N [N ...] [--ratio R | --measured DIR] [--iterations K]
 
@@ -244,7 +245,14 @@ def cmd_plot(args: argparse.Namespace, console: Console) -> ExitCode:
     from . import plots
 
     formats = args.formats
-    if len(args.dirs) == 1 and args.out is None:
+    if args.benchmark is not None:
+        if args.dirs:
+            raise ValueError("plot: give run directories or --benchmark FILE.json, not both")
+        out = args.out if args.out is not None else Path(args.benchmark).parent
+        written = plots.draw_benchmark(args.benchmark, out, formats)
+    elif not args.dirs:
+        raise ValueError("plot: give run directories or --benchmark FILE.json")
+    elif len(args.dirs) == 1 and args.out is None:
         written = plots.draw_run(args.dirs[0], formats)
     else:
         written = plots.draw_comparison(args.dirs, args.out or "comparison", formats)
@@ -308,8 +316,17 @@ def _parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_predict)
 
     p = sub.add_parser("plot", parents=[common], help="figures from run directories")
-    p.add_argument("dirs", nargs="+", help="run directories (several: comparison figures)")
-    p.add_argument("--out", help="directory for comparison figures (default: ./comparison)")
+    p.add_argument("dirs", nargs="*", help="run directories (several: comparison figures)")
+    p.add_argument(
+        "--benchmark",
+        metavar="FILE.json",
+        help="figures of Figs. 9 and 10 from benchmarks/parareal.py --json",
+    )
+    p.add_argument(
+        "--out",
+        help="directory for comparison figures (default: ./comparison) or benchmark figures "
+        "(default: the JSON file's directory)",
+    )
     p.add_argument("--formats", nargs="+", choices=["png", "pdf"], default=["png", "pdf"])
     p.set_defaults(func=cmd_plot)
     return parser

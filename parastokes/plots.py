@@ -15,10 +15,18 @@ From several run directories (:func:`draw_comparison`): the same error and speed
 curve per run (e.g. the coarse solvers G^1..G^4 of one table), and, when the runs differ in the
 number of slices, ``scaling``: speedup against N_c (strong scaling, Fig. 9c) and the runtime and
 parallel-sweep time against N_c (weak scaling when T grows with N_c, Fig. 9d).
+
+From the JSON of ``benchmarks/parareal.py --json`` (:func:`draw_benchmark`):
+
+- ``scaling_benchmark``: strong scaling, measured and theoretical speedup against the cores per
+  iteration count (Fig. 9c), and weak scaling, the runtime against the cores with eq. 37 (Fig. 9d);
+- ``spatial_vs_temporal``: the speedup of the spatially parallel F (threads; process blocks), of
+  Parareal and of both against the cores, with a dashed line at 1 (Fig. 10).
 """
 
 from __future__ import annotations
 
+import json
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -35,11 +43,14 @@ from . import io
 
 __all__ = [
     "RunData",
+    "draw_benchmark",
     "draw_comparison",
     "draw_run",
     "error_decay",
     "load_run",
     "scaling",
+    "scaling_from_benchmark",
+    "spatial_vs_temporal",
     "speedup_by_iteration",
     "speedup_vs_error",
     "staircase",
@@ -196,6 +207,134 @@ def scaling(runs: Sequence[RunData], stem: Path, formats: Sequence[str] = FORMAT
     right.legend(fontsize=7)
     right.grid(True, alpha=0.3)
     return _save(fig, stem, formats)
+
+
+# ---- benchmark figures (benchmarks/parareal.py --json) --------------------------------------
+def _column(rows: Sequence[dict[str, Any]], key: str) -> tuple[np.ndarray, np.ndarray]:
+    """Cores and ``key`` of the rows where ``key`` is a number (None: not measured)."""
+    pairs = [(row["cores"], row[key]) for row in rows if row.get(key) is not None]
+    cores = np.array([c for c, _ in pairs], dtype=float)
+    return cores, np.array([v for _, v in pairs], dtype=float)
+
+
+def _core_axis(ax: Any, rows: Sequence[dict[str, Any]]) -> None:
+    """Ticks at the measured core counts, from 0.5 to half a core past the largest."""
+    cores = sorted({row["cores"] for row in rows})
+    if cores:
+        ax.set_xticks(cores)
+        ax.set_xlim(0.5, cores[-1] + 0.5)
+
+
+def scaling_from_benchmark(data: dict[str, Any], stem: Path, formats: Sequence[str] = FORMATS):
+    """Fig. 9 from the benchmark's ``scaling`` section: strong scaling speedup against the cores
+    (measured solid, theoretical dashed, one colour per N_it; the speedup against an actual serial
+    run dotted) and weak scaling runtime against the cores, with eq. 37 dashed."""
+    section = data["scaling"]
+    fig = Figure(figsize=(10, 4))
+    left, right = fig.subplots(1, 2)
+    strong = section["strong"]
+    for j, n_it in enumerate(sorted({row["iterations"] for row in strong})):
+        rows = sorted((r for r in strong if r["iterations"] == n_it), key=lambda r: r["cores"])
+        color = f"C{j}"
+        left.plot(*_column(rows, "measured"), "o-", color=color, label=f"N_it = {n_it}: measured")
+        left.plot(
+            *_column(rows, "theoretical"), "s--", color=color, label=f"N_it = {n_it}: theoretical"
+        )
+        if any(r.get("vs_serial") is not None for r in rows):
+            left.plot(
+                *_column(rows, "vs_serial"),
+                "^:",
+                color=color,
+                alpha=0.7,
+                label=f"N_it = {n_it}: vs serial run",
+            )
+    left.set_xlabel("cores N_c")
+    left.set_ylabel("speedup")
+    left.set_title("strong scaling (T fixed)")
+    left.legend(fontsize=7)
+    left.grid(True, alpha=0.3)
+    weak = sorted(section["weak"], key=lambda r: r["cores"])
+    right.plot(*_column(weak, "runtime"), "o-", label="Parareal, N_it = 1")
+    if any(r.get("parallel_sweep") is not None for r in weak):
+        right.plot(*_column(weak, "parallel_sweep"), "s-", label="parallel sweep")
+    if any(r.get("model") is not None for r in weak):
+        right.plot(*_column(weak, "model"), "k--", label="2 N_c γ_G + γ_F (eq. 37)")
+    right.set_xlabel("cores N_c")
+    right.set_ylabel("wall time (s)")
+    right.set_title("weak scaling (T / N_c fixed)")
+    right.set_ylim(bottom=0)
+    right.legend(fontsize=7)
+    right.grid(True, alpha=0.3)
+    _core_axis(left, strong)
+    _core_axis(right, weak)
+    return _save(fig, stem, formats)
+
+
+#: The strategies of Fig. 10: key in the benchmark's ``fig10`` rows, label, marker.
+STRATEGIES = (
+    ("spatial_threads", "spatial F, threads", "o-"),
+    ("spatial_blocks", "spatial F, process blocks", "s-"),
+    ("parareal", "temporal (Parareal)", "^-"),
+    ("both", "both (N_c/2 workers x 2 threads)", "D-"),
+)
+
+
+def spatial_vs_temporal(data: dict[str, Any], stem: Path, formats: Sequence[str] = FORMATS):
+    """Fig. 10 from the benchmark's ``fig10`` section: speedup against the cores for each
+    strategy (a strategy not measured at a core count, e.g. "both" below 4 cores, is left out),
+    with a dashed line at 1 (no speedup)."""
+    rows = sorted(data["fig10"], key=lambda r: r["cores"])
+    fig = Figure(figsize=(5.5, 4))
+    ax = fig.subplots()
+    for i, (key, label, style) in enumerate(STRATEGIES):
+        cores, values = _column(rows, key)
+        if len(cores):
+            ax.plot(cores, values, style, color=f"C{i}", label=label)
+    ax.axhline(1.0, color="k", ls="--", lw=1, label="no speedup")
+    ax.set_xlabel("cores N_c")
+    ax.set_ylabel("speedup over serial F (eq. 35)")
+    ax.set_ylim(bottom=0)
+    _core_axis(ax, rows)
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7)
+    return _save(fig, stem, formats)
+
+
+def draw_benchmark(
+    json_path: str | Path, out_dir: str | Path, formats: Sequence[str] = FORMATS
+) -> list[Path]:
+    """The figures of a ``benchmarks/parareal.py --json`` file in ``out_dir``: ``scaling_benchmark``
+    when it has a ``scaling`` section, ``spatial_vs_temporal`` when it has ``fig10``. Returns the
+    files written; a missing file or one without either section raises (FileNotFoundError,
+    ValueError)."""
+    json_path = Path(json_path)
+    if not json_path.is_file():
+        raise FileNotFoundError(f"benchmark file {json_path} not found")
+    try:
+        data = json.loads(json_path.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise ValueError(f"{json_path}: not a JSON file ({error})") from error
+    if not isinstance(data, dict) or (not data.get("scaling") and not data.get("fig10")):
+        raise ValueError(
+            f"{json_path}: no 'scaling' or 'fig10' section (write it with "
+            "benchmarks/parareal.py --sections scaling fig10 --json FILE)"
+        )
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    written: list[Path] = []
+    figures = (("scaling", scaling_from_benchmark), ("fig10", spatial_vs_temporal))
+    for section, draw in figures:
+        if not data.get(section):
+            continue
+        name = "scaling_benchmark" if section == "scaling" else "spatial_vs_temporal"
+        try:
+            written += draw(data, out / name, formats)
+        except (KeyError, TypeError, AttributeError) as error:
+            raise ValueError(
+                f"{json_path}: section '{section}' is not in the format of "
+                f"benchmarks/parareal.py --json ({type(error).__name__}: {error})"
+            ) from error
+    return written
 
 
 # ---- structures ------------------------------------------------------------------------------
