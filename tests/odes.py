@@ -8,6 +8,7 @@ from __future__ import annotations
 import os
 import pathlib
 import time
+from concurrent.futures import Future
 
 import numpy as np
 from scipy.linalg import expm
@@ -244,3 +245,18 @@ def _compiles_in_worker() -> CompilesInWorker:
     import numba  # noqa: F401  (loaded at unpickling time, on purpose)
 
     return CompilesInWorker()
+
+
+class RecordingExecutor:
+    """An in-process executor that runs each submission at once and records what it was given."""
+
+    workers = 1
+
+    def __init__(self) -> None:
+        self.submitted = []
+
+    def submit(self, fn, *args):
+        self.submitted.append(fn)
+        future = Future()
+        future.set_result(fn(*args))
+        return future

@@ -2,30 +2,15 @@
 
 import itertools
 import logging
-from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import pytest
-from odes import Exact, Logistic, Recording, Stepper, decay, oscillator
+from odes import Exact, Logistic, Recording, RecordingExecutor, Stepper, decay, oscillator
 
 from parastokes import parareal
 
 T0, T1 = 0.0, 2.0
-
-
-class SerialExecutor:
-    """A tiny in-process executor that records what it is given."""
-
-    workers = 1
-
-    def __init__(self) -> None:
-        self.submitted = []
-
-    def submit(self, fn, *args):
-        self.submitted.append(fn)
-        future = Future()
-        future.set_result(fn(*args))
-        return future
 
 
 PROBLEMS = {
@@ -148,7 +133,7 @@ def test_executor_gives_identical_numbers_and_gets_fine_unwrapped():
     problem, x0 = PROBLEMS["logistic"]
     fine, coarse = _solvers(problem)
     serial = parareal.run(fine, coarse, x0, T0, T1, 6, tol=0.0, max_iterations=3)
-    recorder = SerialExecutor()
+    recorder = RecordingExecutor()
     with ThreadPoolExecutor(3) as pool:
         for executor in (recorder, pool):
             res = parareal.run(

@@ -2,28 +2,13 @@
 
 import logging
 import pickle
-from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import pytest
-from odes import Stepper, ToySystem
+from odes import RecordingExecutor, Stepper, ToySystem
 
 from parastokes import integrate, parareal
-
-
-class RecordingExecutor:
-    """Runs submissions in-process and records them."""
-
-    workers = 1
-
-    def __init__(self):
-        self.submitted = []
-
-    def submit(self, fn, *args):
-        self.submitted.append(fn)
-        future = Future()
-        future.set_result(fn(*args))
-        return future
 
 
 def _fitted_order(system, m, r, dts, t1=1.0):
