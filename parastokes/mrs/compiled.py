@@ -2,10 +2,12 @@
 
 Layout: structure of arrays, a leading batch axis ``b`` (B independent systems, each with its ε),
 targets padded to a multiple of :data:`TILE` and processed in tiles, sources streamed one at a time
-with their constants hoisted, targets innermost so that the inner loop vectorizes. One square root
-and one division per distance. Work is split over ``(system, tile)`` pairs with ``prange``; each
-target's sum runs over the sources in the same order whatever the number of threads, so results
-are bit-identical for any thread count.
+with their constants hoisted, targets innermost so that the inner loop vectorizes, with 512-bit
+vectors where the CPU has them (:func:`_wide_vectors`). One inverse square root per distance,
+computed without the (slow, unpipelined) double-precision divider: a single-precision estimate
+refined to double round-off (:func:`_rsqrt`). Work is split over ``(system, tile)`` pairs with
+``prange``; each target's sum runs over the sources in the same order whatever the number of
+threads, so results are bit-identical for any thread count.
 
 All kernels return the velocity times 8πμ; :mod:`parastokes.mrs.velocity` applies 1/(8πμ).
 Formulas: ``shared/physics.md`` (1)-(8), the paper's eqs. 3-6.
@@ -14,13 +16,16 @@ Kernels:
 
 - :func:`free_u_f`: force -> velocity in free space (eq. 6), the vesicle's hot path;
 - :func:`full`: u and w from forces and torques in free space ([1]-[4]) or, with ``wall``, above
-  the wall z = 0 ([1]-[8]), the rod's.
+  the wall z = 0 ([1]-[8] folded into one set of coefficients, :func:`_wall_pair`), the rod's.
+
+Why each choice, with the figures: ``docs/kernels.md`` and ``docs/benchmarks.md``.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit, prange, types
+from numba.extending import intrinsic
 
 #: Targets per tile (a multiple of 8 so that the inner loop vectorizes without remainder).
 TILE = 64
@@ -29,10 +34,56 @@ TILE = 64
 # numpy oracle to 1e-12 relative (in practice ~1e-15). No reassociation: sums keep their order.
 _OPTS = dict(cache=True, error_model="numpy", fastmath={"contract"}, boundscheck=False)
 
+#: LLVM function attribute set on the kernels' loop bodies (see :func:`_wide_vectors`).
+VECTOR_WIDTH_ATTRIBUTE = '"prefer-vector-width"="512"'
+
+
+@intrinsic
+def _wide_vectors(typingctx):
+    """Let LLVM vectorize the calling function with 512-bit vectors where the CPU has them.
+
+    LLVM's tuning for the Intel AVX-512 cores prefers 256-bit vectors by default (numba follows
+    it). The per-function attribute ``prefer-vector-width`` overrides that for this function
+    only: nothing else compiled in the process changes (unlike numba's process-wide
+    ``CPU_FEATURES``). Where the CPU has no 512-bit vectors the attribute has no effect.
+    Called at the top of each ``prange`` body, whose loops numba outlines into their own function.
+    """
+
+    def codegen(context, builder, signature, args):
+        # llvmlite's FunctionAttributes only accepts a fixed list of keyword attributes; a
+        # string attribute "key"="value" is written through the underlying set.
+        set.add(builder.function.attributes, VECTOR_WIDTH_ATTRIBUTE)
+        return context.get_dummy_value()
+
+    return types.none(), codegen
+
+
+@njit(cache=True, error_model="numpy", fastmath=True)
+def _rsqrt_seed(d):
+    """1/sqrt(d) to ~22 bits, computed in single precision.
+
+    ``fastmath`` here (and only here) lets LLVM use the hardware estimate ``rsqrtps`` plus one
+    single-precision Newton step. Needs d within float32's normal range: guaranteed by
+    :func:`parastokes.mrs.velocity` (ε and coordinates bounded, see ``FLOAT32_SAFE``).
+    """
+    return np.float64(np.float32(1.0) / np.sqrt(np.float32(d)))
+
 
 @njit(inline="always", **_OPTS)
-def _free_pair(rx, ry, rz, r2, e2, inv, fx, fy, fz, nx, ny, nz):
+def _rsqrt(d):
+    """1/sqrt(d) in double precision without the divider: the single-precision seed x (relative
+    error e0 ~ 3e-7) and one third-order (Halley) correction x(1 + e/2 + 3e²/8), e = 1 - d x²,
+    whose truncation error (5/16) e³ ~ 1e-19 is below double-precision round-off."""
+    x = _rsqrt_seed(d)
+    e = 1.0 - d * x * x
+    return x + x * e * (0.5 + 0.375 * e)
+
+
+@njit(inline="always", **_OPTS)
+def _free_pair(rx, ry, rz, e2, fx, fy, fz, nx, ny, nz):
     """8π × (u, w) at r from a force f and a torque n in free space ([1]-[4])."""
+    r2 = rx * rx + ry * ry + rz * rz
+    inv = _rsqrt(r2 + e2)
     inv2 = inv * inv
     inv3 = inv2 * inv
     inv5 = inv3 * inv2
@@ -51,52 +102,72 @@ def _free_pair(rx, ry, rz, r2, e2, inv, fx, fy, fz, nx, ny, nz):
 
 
 @njit(inline="always", **_OPTS)
-def _image_pair(bx, by, b3, z, h, e2, fx, fy, fz, nx, ny, nz):
-    """8π × (u, w) image parts ([5]-[8]) at R = (bx, by, b3) = x - y*, R3 = b3 = z + h.
+def _wall_pair(rx, ry, z, h, e2, fx, fy, fz, nx, ny, nz):
+    """8π × (u, w) at the target (x, y-offsets rx, ry; height z) from a force f and a torque n at
+    height h above the wall: the free parts [1]-[4] plus the images [5]-[8], summed.
 
-    The coefficients of physics.md (5)-(8) are regrouped with z = R3 - h (fewer operations, the
-    same terms): e.g. the f* and f coefficients of (5) combine into -(R² + 2ε² + 2hz)/R_ε³ +
-    6hε²z/R_ε⁵ for the x and y components.
+    The image point's offset is R = r + 2h e3 (so |R|² = r² + 4hz, R3 = z + h), which folds every
+    image term onto the free terms' vectors: with f × R = f × r + 2h f × e3, f*·R = f·r - 2 fz z,
+    g(f) = R·(f × e3) = -(f × r)_3 and R·(n × e3) = -(n × r)_3,
+
+        u = A1 f + A2 r + A3 (n × r) + A4 (n × e3) + A5 e3,
+        w = B1 (f × r) + B2 (f × e3) + B3 n + B4 r + B5 e3,
+
+    so each pair costs one contraction per output component instead of one per formula (about
+    150 operations instead of 220). The scalar coefficients are those of physics.md (1)-(8)
+    regrouped; the tests compare every part with :mod:`parastokes.mrs.reference`.
     """
-    r2 = bx * bx + by * by + b3 * b3
-    inv = 1.0 / np.sqrt(r2 + e2)
-    inv2 = inv * inv
-    inv3 = inv2 * inv
-    inv5 = inv3 * inv2
-    he5 = 6.0 * h * e2 * inv5
-    kk = b3 * (2.0 * r2 + 7.0 * e2) - 5.0 * e2 * h
-    p7 = kk * inv5 * inv2
-    # [5] force -> velocity.
-    rf = bx * fx + by * fy + b3 * fz
-    rfs = rf - 2.0 * b3 * fz
-    c_xy = he5 * z - (r2 + 2.0 * e2 + 2.0 * h * z) * inv3
-    c_z = he5 * (z + 2.0 * h) - (r2 + 2.0 * e2 - 2.0 * h * z) * inv3
-    c_r = (2.0 * h * fz - rf) * inv3 + 6.0 * h * z * rfs * inv5
-    c_e3 = 2.0 * h * inv5 * (rfs * (r2 + 4.0 * e2) - 3.0 * e2 * rf)
-    ux = c_xy * fx + c_r * bx
-    uy = c_xy * fy + c_r * by
-    uz = c_z * fz + c_r * b3 + c_e3
-    # [6] force -> angular velocity, g = f2 R1 - f1 R2.
-    aw = -(r2 + 2.5 * e2) * inv5 - 3.0 * h * p7
-    bw = -h * (4.0 * r2 + e2) * inv5 + 6.0 * h * b3 * p7
-    g = fy * bx - fx * by
-    cg = 6.0 * h * inv5 * g
-    wx = aw * (fy * b3 - fz * by) + bw * fy + cg * bx
-    wy = aw * (fz * bx - fx * b3) - bw * fx + cg * by
-    wz = cg * b3 - (aw + 6.0 * h * p7) * g
-    # [7] torque -> velocity, b = n × e3 = (ny, -nx, 0).
-    cb = (2.0 * h * (r2 - 2.0 * e2) + 6.0 * e2 * b3) * inv5
-    crb = 6.0 * z * inv5 * (bx * ny - by * nx)
-    ux += (nz * by - ny * b3) * inv3 + cb * ny + crb * bx
-    uy += (nx * b3 - nz * bx) * inv3 - cb * nx + crb * by
-    uz += (ny * bx - nx * by) * inv3 + crb * b3
-    # [8] torque -> angular velocity.
-    an = (3.5 * r2 + 2.0 * e2) * inv5 - 3.0 * b3 * p7
-    nrr = nx * bx + ny * by + nz * b3
-    cr = 3.0 * inv5 * (b3 * nz - 1.5 * nrr)
-    wx += an * nx + cr * bx
-    wy += an * ny + cr * by
-    wz += an * nz + cr * b3 + 3.0 * p7 * nrr - 3.0 * inv3 * nz
+    rz = z - h
+    r2 = rx * rx + ry * ry + rz * rz
+    hz4 = 4.0 * h * z
+    q2 = r2 + hz4  # |R|²
+    q3 = z + h  # R3
+    inv = _rsqrt(r2 + e2)
+    d2 = inv * inv
+    d3 = d2 * inv
+    d5 = d3 * d2
+    jnv = _rsqrt(q2 + e2)
+    j2 = jnv * jnv
+    j3 = j2 * jnv
+    j5 = j3 * j2
+    j7 = j5 * j2
+    h2 = 2.0 * h
+    fr = fx * rx + fy * ry + fz * rz
+    nr = nx * rx + ny * ry + nz * rz
+    cfx = fy * rz - fz * ry  # f × r
+    cfy = fz * rx - fx * rz
+    cfz = fx * ry - fy * rx
+    cnx = ny * rz - nz * ry  # n × r
+    cny = nz * rx - nx * rz
+    cnz = nx * ry - ny * rx
+    fs = fr - 2.0 * fz * z  # f*·R
+    nq = nr + h2 * nz  # n·R
+    he5 = 6.0 * h * e2 * j5
+    p7 = (q3 * (2.0 * q2 + 7.0 * e2) - 5.0 * e2 * h) * j7  # K / R_ε⁷ of (6) and (8)
+    p7q = q3 * p7
+    # Velocity: (1) + (3) + (5) + (7).
+    a1 = (r2 + 2.0 * e2) * d3 + he5 * z - (q2 + 2.0 * e2 + h2 * z) * j3
+    a3 = d3 - j3
+    q6 = 6.0 * z * j5 * (h * fs - cnz)
+    a2 = fr * a3 + q6
+    a4 = (h2 * (q2 - 2.0 * e2) + 6.0 * e2 * q3) * j5 - h2 * j3
+    ce3 = h2 * j5 * (fs * (q2 + 4.0 * e2) - 3.0 * e2 * (fr + h2 * fz))
+    a5 = (h2 * he5 + hz4 * j3) * fz + h2 * (q6 - fr * j3) + ce3
+    # Angular velocity: (2) + (4) + (6) + (8).
+    aw = -(q2 + 2.5 * e2) * j5 - 3.0 * h * p7
+    b1 = (r2 + 2.5 * e2) * d5 + aw
+    b2 = h * (6.0 * p7q - (4.0 * q2 + e2) * j5) + h2 * aw
+    b3 = (3.5 * q2 + 2.0 * e2) * j5 - 3.0 * p7q - 0.5 * (r2 - 2.0 * e2) * d5
+    cg = -6.0 * h * j5 * cfz
+    cr = 3.0 * j5 * (q3 * nz - 1.5 * nq)
+    b4 = 1.5 * nr * d5 + cg + cr
+    b5 = h2 * (cg + cr) + p7 * (6.0 * h * cfz + 3.0 * nq) - 3.0 * j3 * nz
+    ux = a1 * fx + a2 * rx + a3 * cnx + a4 * ny
+    uy = a1 * fy + a2 * ry + a3 * cny - a4 * nx
+    uz = a1 * fz + a2 * rz + a3 * cnz + a5
+    wx = b1 * cfx + b2 * fy + b3 * nx + b4 * rx
+    wy = b1 * cfy - b2 * fx + b3 * ny + b4 * ry
+    wz = b1 * cfz + b3 * nz + b4 * rz + b5
     return ux, uy, uz, wx, wy, wz
 
 
@@ -107,6 +178,7 @@ def free_u_f(tx, ty, tz, sx, sy, sz, fx, fy, fz, eps, ux, uy, uz):
     ns = sx.shape[1]
     ntiles = mp // TILE
     for job in prange(nb * ntiles):
+        _wide_vectors()
         b = job // ntiles
         t0 = (job % ntiles) * TILE
         e2 = eps[b] * eps[b]
@@ -125,7 +197,7 @@ def free_u_f(tx, ty, tz, sx, sy, sz, fx, fy, fz, eps, ux, uy, uz):
                 ry = py[i] - yy
                 rz = pz[i] - yz
                 r2 = rx * rx + ry * ry + rz * rz
-                inv = 1.0 / np.sqrt(r2 + e2)
+                inv = _rsqrt(r2 + e2)
                 inv3 = inv * inv * inv
                 h1 = (r2 + e22) * inv3
                 fr = (gx * rx + gy * ry + gz * rz) * inv3
@@ -145,6 +217,7 @@ def full(tx, ty, tz, sx, sy, sz, fx, fy, fz, nx, ny, nz, eps, wall, ux, uy, uz, 
     ns = sx.shape[1]
     ntiles = mp // TILE
     for job in prange(nb * ntiles):
+        _wide_vectors()
         b = job // ntiles
         t0 = (job % ntiles) * TILE
         e2 = eps[b] * eps[b]
@@ -164,21 +237,12 @@ def full(tx, ty, tz, sx, sy, sz, fx, fy, fz, nx, ny, nz, eps, wall, ux, uy, uz, 
             for i in range(TILE):
                 rx = px[i] - yx
                 ry = py[i] - yy
-                z = pz[i]
-                rz = z - h
-                r2 = rx * rx + ry * ry + rz * rz
-                inv = 1.0 / np.sqrt(r2 + e2)
-                v0, v1, v2, v3, v4, v5 = _free_pair(rx, ry, rz, r2, e2, inv,
-                                                    gx, gy, gz, mx, my, mz)
                 if wall:
-                    i0, i1, i2, i3, i4, i5 = _image_pair(rx, ry, z + h, z, h, e2,
-                                                         gx, gy, gz, mx, my, mz)
-                    v0 += i0
-                    v1 += i1
-                    v2 += i2
-                    v3 += i3
-                    v4 += i4
-                    v5 += i5
+                    v0, v1, v2, v3, v4, v5 = _wall_pair(rx, ry, pz[i], h, e2,
+                                                        gx, gy, gz, mx, my, mz)
+                else:
+                    v0, v1, v2, v3, v4, v5 = _free_pair(rx, ry, pz[i] - h, e2,
+                                                        gx, gy, gz, mx, my, mz)
                 a0[i] += v0
                 a1[i] += v1
                 a2[i] += v2

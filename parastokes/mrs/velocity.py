@@ -14,6 +14,11 @@ from .compiled import TILE
 
 EIGHT_PI = 8.0 * math.pi
 
+#: Largest magnitude allowed for ε, 1/ε and the coordinates: the kernels seed 1/sqrt(r² + ε²) in
+#: single precision (:func:`parastokes.mrs.compiled._rsqrt`), so r² + ε² must stay inside
+#: float32's normal range (about 1e-38 to 3e38). Any physical unit system is far inside.
+SCALE_LIMIT = 1e18
+
 
 def _points(name: str, value, batch: int | None = None) -> np.ndarray:
     arr = np.asarray(value, dtype=np.float64)
@@ -40,6 +45,15 @@ def _positive(name: str, value, batch: int) -> np.ndarray:
     if not np.all(np.isfinite(arr)) or np.any(arr <= 0):
         raise ValueError(f"{name}: must be finite and > 0, got {value!r}")
     return arr
+
+
+def _epsilon(value, batch: int) -> np.ndarray:
+    eps = _positive("epsilon", value, batch)
+    if np.any(eps < 1.0 / SCALE_LIMIT) or np.any(eps > SCALE_LIMIT):
+        raise ValueError(
+            f"epsilon: must lie in [{1.0 / SCALE_LIMIT:g}, {SCALE_LIMIT:g}], got {value!r}"
+        )
+    return eps
 
 
 @contextmanager
@@ -127,7 +141,10 @@ def velocity(
                 raise ValueError(
                     f"torques: shape {torques.shape} differs from sources {sources.shape}"
                 )
-        eps = _positive("epsilon", epsilon, batch)
+        for name, arr in (("targets", targets), ("sources", sources)):
+            if arr.size and np.max(np.abs(arr)) > SCALE_LIMIT:
+                raise ValueError(f"{name}: coordinates beyond ±{SCALE_LIMIT:g} are not supported")
+        eps = _epsilon(epsilon, batch)
         visc = _positive("mu", mu, batch)
         if wall:
             for name, arr in (("targets", targets), ("sources", sources)):
