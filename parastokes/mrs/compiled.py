@@ -201,9 +201,9 @@ def free_u_f(tx, ty, tz, sx, sy, sz, fx, fy, fz, eps, ux, uy, uz):
                 inv3 = inv * inv * inv
                 h1 = (r2 + e22) * inv3
                 fr = (gx * rx + gy * ry + gz * rz) * inv3
-                ax[i] += h1 * gx + fr * rx
-                ay[i] += h1 * gy + fr * ry
-                az[i] += h1 * gz + fr * rz
+                ax[i] = ax[i] + fr * rx + h1 * gx  # two fused multiply-adds
+                ay[i] = ay[i] + fr * ry + h1 * gy
+                az[i] = az[i] + fr * rz + h1 * gz
         ux[b, t0 : t0 + TILE] = ax
         uy[b, t0 : t0 + TILE] = ay
         uz[b, t0 : t0 + TILE] = az
