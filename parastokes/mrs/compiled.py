@@ -80,6 +80,18 @@ def _rsqrt(d):
 
 
 @njit(inline="always", **_OPTS)
+def _rsqrt3(d):
+    """d^(-3/2) to double round-off, for kernels that need only 1/r_ε³: from the seed x of
+    :func:`_rsqrt`, x³ (1 + 3e/2 + 15e²/8) with e = 1 - d x² (the series of (1 - e)^(-3/2);
+    truncation error (35/16) e³ ~ 1e-18), one operation fewer than cubing :func:`_rsqrt`."""
+    x = _rsqrt_seed(d)
+    x2 = x * x
+    e = 1.0 - d * x2
+    x3 = x2 * x
+    return x3 + x3 * (e * (1.5 + 1.875 * e))
+
+
+@njit(inline="always", **_OPTS)
 def _free_pair(rx, ry, rz, e2, fx, fy, fz, nx, ny, nz):
     """8π × (u, w) at r from a force f and a torque n in free space ([1]-[4])."""
     r2 = rx * rx + ry * ry + rz * rz
@@ -197,8 +209,7 @@ def free_u_f(tx, ty, tz, sx, sy, sz, fx, fy, fz, eps, ux, uy, uz):
                 ry = py[i] - yy
                 rz = pz[i] - yz
                 r2 = rx * rx + ry * ry + rz * rz
-                inv = _rsqrt(r2 + e2)
-                inv3 = inv * inv * inv
+                inv3 = _rsqrt3(r2 + e2)
                 h1 = (r2 + e22) * inv3
                 fr = (gx * rx + gy * ry + gz * rz) * inv3
                 ax[i] = ax[i] + fr * rx + h1 * gx  # two fused multiply-adds
