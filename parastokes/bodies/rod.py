@@ -6,8 +6,8 @@ exert on the fluid. For each half point k+½ (k = 0..M-2) of each rod it forms
 
 - the half-point frame D_i^{k+½} = sqrt(A_k) D_i^k, A_k = Σ_i D_i^{k+1} (D_i^k)^T, as the rotation
   by half the angle of A_k about its axis (physics.md (9)); the axis-angle of A_k comes from
-  v = ½ Σ_i D_i^k × D_i^{k+1} = sin θ e and tr A_k = 1 + 2 cos θ, and the half rotation is applied
-  with Rodrigues' formula;
+  v = ½ Σ_i D_i^k × D_i^{k+1} = sin θ e and tr A_k = 1 + 2 cos θ, and the half rotation (cosine
+  ½ sqrt(tr A_k + 1), sine |v| over twice that) is applied with Rodrigues' formula;
 - the strains Ω_i (paper eq. 10; physics.md (10));
 - the moment N and force F (paper eq. 11; physics.md (11)) with the preferred strain Ω̂ (eq. 36);
 
@@ -70,9 +70,10 @@ def rod_loads(state, n_rods, ds, a, b, omega_hat):
             ch = 1.0
             sh = 0.0
             if vn > 0.0:
-                half = 0.5 * np.arctan2(vn, 0.5 * (tr - 1.0))
-                ch = np.cos(half)
-                sh = np.sin(half)
+                # cos(θ/2) = sqrt((1 + cos θ)/2) = ½ sqrt(tr + 1), sin(θ/2) = sin θ / (2 cos(θ/2)):
+                # no transcendental functions (θ < π: adjacent frames are close).
+                ch = 0.5 * np.sqrt(tr + 1.0)
+                sh = 0.5 * vn / ch
                 vx /= vn
                 vy /= vn
                 vz /= vn
