@@ -1,7 +1,8 @@
 """Compiled (numba) regularized Stokeslet kernels: the fast path.
 
 Layout: structure of arrays, a leading batch axis ``b`` (B independent systems, each with its ε),
-targets padded to a multiple of :data:`TILE` and processed in tiles, sources streamed one at a time
+targets padded to a multiple of :data:`LANES` and processed in tiles of up to :data:`TILE`, sources
+streamed one at a time
 with their constants hoisted, targets innermost so that the inner loop vectorizes, with 512-bit
 vectors where the CPU has them (:func:`_wide_vectors`). One inverse square root per distance,
 computed without the (slow, unpipelined) double-precision divider: a single-precision estimate
@@ -27,8 +28,11 @@ import numpy as np
 from numba import njit, prange, types
 from numba.extending import intrinsic
 
-#: Targets per tile (a multiple of 8 so that the inner loop vectorizes without remainder).
+#: Targets per tile. The kernels take targets padded to a multiple of :data:`LANES`; the last
+#: tile of each system may be shorter than TILE.
 TILE = 64
+#: Doubles per vector at the widest width used (512 bits): targets are padded to a multiple of it.
+LANES = 8
 
 # fastmath: "contract" lets LLVM fuse multiply-adds; the tests check the results agree with the
 # numpy oracle to 1e-12 relative (in practice ~1e-15). No reassociation: sums keep their order.
@@ -185,26 +189,27 @@ def _wall_pair(rx, ry, z, h, e2, fx, fy, fz, nx, ny, nz):
 
 @njit(parallel=True, **_OPTS)
 def free_u_f(tx, ty, tz, sx, sy, sz, fx, fy, fz, eps, ux, uy, uz):
-    """8π μ u from forces in free space (eq. 6). Targets (B, Mp) with Mp % TILE == 0."""
+    """8π μ u from forces in free space (eq. 6). Targets (B, Mp) with Mp % LANES == 0."""
     nb, mp = tx.shape
     ns = sx.shape[1]
-    ntiles = mp // TILE
+    ntiles = -(-mp // TILE)
     for job in prange(nb * ntiles):
         _wide_vectors()
         b = job // ntiles
         t0 = (job % ntiles) * TILE
+        nt = min(TILE, mp - t0)
         e2 = eps[b] * eps[b]
         e22 = 2.0 * e2
-        ax = np.zeros(TILE)
-        ay = np.zeros(TILE)
-        az = np.zeros(TILE)
-        px = tx[b, t0 : t0 + TILE]
-        py = ty[b, t0 : t0 + TILE]
-        pz = tz[b, t0 : t0 + TILE]
+        ax = np.zeros(nt)
+        ay = np.zeros(nt)
+        az = np.zeros(nt)
+        px = tx[b, t0 : t0 + nt]
+        py = ty[b, t0 : t0 + nt]
+        pz = tz[b, t0 : t0 + nt]
         for j in range(ns):
             yx, yy, yz = sx[b, j], sy[b, j], sz[b, j]
             gx, gy, gz = fx[b, j], fy[b, j], fz[b, j]
-            for i in range(TILE):
+            for i in range(nt):
                 rx = px[i] - yx
                 ry = py[i] - yy
                 rz = pz[i] - yz
@@ -215,9 +220,9 @@ def free_u_f(tx, ty, tz, sx, sy, sz, fx, fy, fz, eps, ux, uy, uz):
                 ax[i] = ax[i] + fr * rx + h1 * gx  # two fused multiply-adds
                 ay[i] = ay[i] + fr * ry + h1 * gy
                 az[i] = az[i] + fr * rz + h1 * gz
-        ux[b, t0 : t0 + TILE] = ax
-        uy[b, t0 : t0 + TILE] = ay
-        uz[b, t0 : t0 + TILE] = az
+        ux[b, t0 : t0 + nt] = ax
+        uy[b, t0 : t0 + nt] = ay
+        uz[b, t0 : t0 + nt] = az
 
 
 @njit(parallel=True, **_OPTS)
@@ -226,26 +231,27 @@ def full(tx, ty, tz, sx, sy, sz, fx, fy, fz, nx, ny, nz, eps, wall, ux, uy, uz, 
     the plane wall z = 0 when ``wall`` (a loop-invariant test: LLVM unswitches the loops)."""
     nb, mp = tx.shape
     ns = sx.shape[1]
-    ntiles = mp // TILE
+    ntiles = -(-mp // TILE)
     for job in prange(nb * ntiles):
         _wide_vectors()
         b = job // ntiles
         t0 = (job % ntiles) * TILE
+        nt = min(TILE, mp - t0)
         e2 = eps[b] * eps[b]
-        a0 = np.zeros(TILE)
-        a1 = np.zeros(TILE)
-        a2 = np.zeros(TILE)
-        a3 = np.zeros(TILE)
-        a4 = np.zeros(TILE)
-        a5 = np.zeros(TILE)
-        px = tx[b, t0 : t0 + TILE]
-        py = ty[b, t0 : t0 + TILE]
-        pz = tz[b, t0 : t0 + TILE]
+        a0 = np.zeros(nt)
+        a1 = np.zeros(nt)
+        a2 = np.zeros(nt)
+        a3 = np.zeros(nt)
+        a4 = np.zeros(nt)
+        a5 = np.zeros(nt)
+        px = tx[b, t0 : t0 + nt]
+        py = ty[b, t0 : t0 + nt]
+        pz = tz[b, t0 : t0 + nt]
         for j in range(ns):
             yx, yy, h = sx[b, j], sy[b, j], sz[b, j]
             gx, gy, gz = fx[b, j], fy[b, j], fz[b, j]
             mx, my, mz = nx[b, j], ny[b, j], nz[b, j]
-            for i in range(TILE):
+            for i in range(nt):
                 rx = px[i] - yx
                 ry = py[i] - yy
                 if wall:
@@ -260,9 +266,9 @@ def full(tx, ty, tz, sx, sy, sz, fx, fy, fz, nx, ny, nz, eps, wall, ux, uy, uz, 
                 a3[i] += v3
                 a4[i] += v4
                 a5[i] += v5
-        ux[b, t0 : t0 + TILE] = a0
-        uy[b, t0 : t0 + TILE] = a1
-        uz[b, t0 : t0 + TILE] = a2
-        wx[b, t0 : t0 + TILE] = a3
-        wy[b, t0 : t0 + TILE] = a4
-        wz[b, t0 : t0 + TILE] = a5
+        ux[b, t0 : t0 + nt] = a0
+        uy[b, t0 : t0 + nt] = a1
+        uz[b, t0 : t0 + nt] = a2
+        wx[b, t0 : t0 + nt] = a3
+        wy[b, t0 : t0 + nt] = a4
+        wz[b, t0 : t0 + nt] = a5

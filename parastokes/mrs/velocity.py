@@ -10,7 +10,7 @@ import numba
 import numpy as np
 
 from . import compiled
-from .compiled import TILE
+from .compiled import LANES
 
 EIGHT_PI = 8.0 * math.pi
 
@@ -160,7 +160,7 @@ def velocity(
     s3 = sources if batch else sources[None]
     f3 = forces if batch else forces[None]
     m = t3.shape[1]
-    padded = -(-m // TILE) * TILE
+    padded = -(-m // LANES) * LANES
     tx, ty, tz = _soa(t3, padded)
     src = (*_soa(s3), *_soa(f3))
     eps = np.array(eps, dtype=np.float64)  # a fresh writable copy: one numba signature
