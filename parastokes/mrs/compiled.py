@@ -1,10 +1,9 @@
 """Compiled (numba) regularized Stokeslet kernels: the fast path.
 
 Layout: structure of arrays, a leading batch axis ``b`` (B independent systems, each with its ε),
-targets padded to a multiple of :data:`LANES` and processed in tiles of up to :data:`TILE`, sources
-streamed one at a time
-with their constants hoisted, targets innermost so that the inner loop vectorizes, with 512-bit
-vectors where the CPU has them (:func:`_wide_vectors`). One inverse square root per distance,
+targets padded to a multiple of :data:`LANES` and processed in tiles of up to :data:`TILE`,
+sources streamed one at a time with their constants hoisted, targets innermost so that the inner
+loop vectorizes, with 512-bit vectors where the CPU has them (:func:`_wide_vectors`). One inverse square root per distance,
 computed without the (slow, unpipelined) double-precision divider: a single-precision estimate
 refined to double round-off (:func:`_rsqrt`). Work is split over ``(system, tile)`` pairs with
 ``prange``; each target's sum runs over the sources in the same order whatever the number of
