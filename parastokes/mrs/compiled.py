@@ -189,6 +189,16 @@ def _wall_pair(rx, ry, z, h, e2, fx, fy, fz, nx, ny, nz):
     return ux, uy, uz, wx, wy, wz
 
 
+@njit(inline="always", **_OPTS)
+def _tile(job, ntiles, tx, ty, tz):
+    """The ``job``-th (system, tile) pair: system b, first target t0, number of targets nt (TILE,
+    the last tile of each system shorter) and the tile's target coordinates."""
+    b = job // ntiles
+    t0 = (job % ntiles) * TILE
+    nt = min(TILE, tx.shape[1] - t0)
+    return b, t0, nt, tx[b, t0 : t0 + nt], ty[b, t0 : t0 + nt], tz[b, t0 : t0 + nt]
+
+
 @njit(parallel=True, **_OPTS)
 def free_u_f(tx, ty, tz, sx, sy, sz, fx, fy, fz, eps, ux, uy, uz):
     """8π μ u from forces in free space (eq. 6). Targets (B, Mp) with Mp % LANES == 0."""
@@ -197,17 +207,12 @@ def free_u_f(tx, ty, tz, sx, sy, sz, fx, fy, fz, eps, ux, uy, uz):
     ntiles = -(-mp // TILE)
     for job in prange(nb * ntiles):
         _wide_vectors()
-        b = job // ntiles
-        t0 = (job % ntiles) * TILE
-        nt = min(TILE, mp - t0)
+        b, t0, nt, px, py, pz = _tile(job, ntiles, tx, ty, tz)
         e2 = eps[b] * eps[b]
         e22 = 2.0 * e2
         ax = np.zeros(nt)
         ay = np.zeros(nt)
         az = np.zeros(nt)
-        px = tx[b, t0 : t0 + nt]
-        py = ty[b, t0 : t0 + nt]
-        pz = tz[b, t0 : t0 + nt]
         for j in range(ns):
             yx, yy, yz = sx[b, j], sy[b, j], sz[b, j]
             gx, gy, gz = fx[b, j], fy[b, j], fz[b, j]
@@ -236,9 +241,7 @@ def full(tx, ty, tz, sx, sy, sz, fx, fy, fz, nx, ny, nz, eps, wall, ux, uy, uz, 
     ntiles = -(-mp // TILE)
     for job in prange(nb * ntiles):
         _wide_vectors()
-        b = job // ntiles
-        t0 = (job % ntiles) * TILE
-        nt = min(TILE, mp - t0)
+        b, t0, nt, px, py, pz = _tile(job, ntiles, tx, ty, tz)
         e2 = eps[b] * eps[b]
         a0 = np.zeros(nt)
         a1 = np.zeros(nt)
@@ -246,9 +249,6 @@ def full(tx, ty, tz, sx, sy, sz, fx, fy, fz, nx, ny, nz, eps, wall, ux, uy, uz, 
         a3 = np.zeros(nt)
         a4 = np.zeros(nt)
         a5 = np.zeros(nt)
-        px = tx[b, t0 : t0 + nt]
-        py = ty[b, t0 : t0 + nt]
-        pz = tz[b, t0 : t0 + nt]
         for j in range(ns):
             yx, yy, h = sx[b, j], sy[b, j], sz[b, j]
             gx, gy, gz = fx[b, j], fy[b, j], fz[b, j]
