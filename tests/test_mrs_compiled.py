@@ -12,6 +12,7 @@ from parastokes.mrs.velocity import SCALE_LIMIT
 
 @njit(cache=False)
 def _rsqrt_all(d):
+    compiled._kernel_attributes()  # the kernels' settings for the single-precision seed
     out = np.empty_like(d)
     out3 = np.empty_like(d)
     for i in range(d.size):
@@ -55,18 +56,19 @@ def test_kernels_at_extreme_but_allowed_scales_match_the_oracle():
 
 
 def test_kernels_ask_llvm_for_wide_vectors():
-    """The kernels' loop bodies carry the per-function prefer-vector-width attribute, and on a CPU
-    with AVX-512 LLVM then uses 512-bit (zmm) registers in a vectorized loop."""
+    """The kernels' loop bodies carry the per-function attributes, and on a CPU with AVX-512 LLVM
+    then uses 512-bit (zmm) registers in a vectorized loop."""
 
     @njit(cache=False, error_model="numpy", fastmath={"contract"})
     def scale(a, c):
-        compiled._wide_vectors()
+        compiled._kernel_attributes()
         for i in range(a.size):
             a[i] = a[i] * c + 1.0
 
     scale(np.ones(64), 2.0)
     sig = scale.signatures[0]
-    assert compiled.VECTOR_WIDTH_ATTRIBUTE in scale.inspect_llvm(sig)
+    ir = scale.inspect_llvm(sig)
+    assert all(attribute in ir for attribute in compiled.KERNEL_ATTRIBUTES)
     features = numba.core.codegen.CPUCodegen._get_host_cpu_features(None)
     if "+avx512f" not in features.split(","):
         pytest.skip("no AVX-512 on this CPU: the attribute has nothing to widen")

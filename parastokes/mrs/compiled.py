@@ -3,11 +3,11 @@
 Layout: structure of arrays, a leading batch axis ``b`` (B independent systems, each with its ε),
 targets padded to a multiple of :data:`LANES` and processed in tiles of up to :data:`TILE`,
 sources streamed one at a time with their constants hoisted, targets innermost so that the inner
-loop vectorizes, with 512-bit vectors where the CPU has them (:func:`_wide_vectors`). One inverse
-square root per distance, computed without the (slow, unpipelined) double-precision divider: a
-single-precision estimate refined to double round-off (:func:`_rsqrt`). Work is split over
-``(system, tile)`` pairs with ``prange``; each target's sum runs over the sources in the same
-order whatever the number of threads, so results are bit-identical for any thread count.
+loop vectorizes, with 512-bit vectors where the CPU has them (:func:`_kernel_attributes`). One
+inverse square root per distance, computed without the (slow, unpipelined) double-precision
+divider: a single-precision estimate refined to double round-off (:func:`_rsqrt`). Work is split
+over ``(system, tile)`` pairs with ``prange``; each target's sum runs over the sources in the
+same order whatever the number of threads, so results are bit-identical for any thread count.
 
 All kernels return the velocity times 8πμ; :mod:`parastokes.mrs.velocity` applies 1/(8πμ).
 Formulas: ``shared/physics.md`` (1)-(8), the paper's eqs. 3-6.
@@ -23,6 +23,8 @@ Why each choice, with the figures: ``docs/kernels.md`` and ``docs/benchmarks.md`
 
 from __future__ import annotations
 
+import platform
+
 import numpy as np
 from numba import njit, prange, types
 from numba.extending import intrinsic
@@ -37,25 +39,41 @@ LANES = 8
 # numpy oracle to 1e-12 relative (in practice ~1e-15). No reassociation: sums keep their order.
 _OPTS = dict(cache=True, error_model="numpy", fastmath={"contract"}, boundscheck=False)
 
-#: LLVM function attribute set on the kernels' loop bodies (see :func:`_wide_vectors`).
-VECTOR_WIDTH_ATTRIBUTE = '"prefer-vector-width"="512"'
+#: LLVM function attributes set on the kernels' loop bodies by :func:`_kernel_attributes`: 512-bit
+#: vectors, and how ``_rsqrt_seed``'s single-precision 1/sqrt may be computed. On x86-64, the
+#: hardware estimate (``rsqrtps``, 12 bits) with exactly one Newton step (~22 bits), pinned rather
+#: than left to LLVM's default; elsewhere no estimate (an IEEE float32 sqrt and division), since
+#: other estimates (AArch64's 8-bit ``frsqrte``) would need more steps. Either way the seed has
+#: >= 22 bits, which the Halley step of :func:`_rsqrt` needs to reach double round-off.
+KERNEL_ATTRIBUTES = (
+    '"prefer-vector-width"="512"',
+    '"reciprocal-estimates"="vec-sqrtf:1,sqrtf:1"'
+    if platform.machine().lower() in ("x86_64", "amd64")
+    else '"reciprocal-estimates"="!vec-sqrtf,!sqrtf"',
+)
 
 
 @intrinsic
-def _wide_vectors(typingctx):
-    """Let LLVM vectorize the calling function with 512-bit vectors where the CPU has them.
+def _kernel_attributes(typingctx):
+    """Set :data:`KERNEL_ATTRIBUTES` on the calling function (no code is emitted).
 
     LLVM's tuning for the Intel AVX-512 cores prefers 256-bit vectors by default (numba follows
     it). The per-function attribute ``prefer-vector-width`` overrides that for this function
     only: nothing else compiled in the process changes (unlike numba's process-wide
-    ``CPU_FEATURES``). Where the CPU has no 512-bit vectors the attribute has no effect.
-    Called at the top of each ``prange`` body, whose loops numba outlines into their own function.
+    ``CPU_FEATURES``). Where the CPU has no 512-bit vectors it has no effect. Called at the top of
+    each ``prange`` body, whose loops numba outlines into their own function.
     """
 
     def codegen(context, builder, signature, args):
         # llvmlite's FunctionAttributes only accepts a fixed list of keyword attributes; a
-        # string attribute "key"="value" is written through the underlying set.
-        set.add(builder.function.attributes, VECTOR_WIDTH_ATTRIBUTE)
+        # string attribute "key"="value" is written through the underlying set. Should a future
+        # llvmlite refuse it, LLVM's defaults apply: 256-bit vectors, and a seed that is still
+        # accurate enough (x86-64: one Newton step by default; AArch64: no estimate by default).
+        try:
+            for attribute in KERNEL_ATTRIBUTES:
+                set.add(builder.function.attributes, attribute)
+        except (TypeError, AttributeError):
+            pass
         return context.get_dummy_value()
 
     return types.none(), codegen
@@ -66,8 +84,9 @@ def _rsqrt_seed(d):
     """1/sqrt(d) to ~22 bits, computed in single precision.
 
     ``fastmath`` here (and only here) lets LLVM use the hardware estimate ``rsqrtps`` plus one
-    single-precision Newton step. Needs d within float32's normal range: guaranteed by
-    :func:`parastokes.mrs.velocity` (ε and coordinates bounded, see ``FLOAT32_SAFE``).
+    single-precision Newton step (pinned by :data:`KERNEL_ATTRIBUTES`). Needs d within float32's
+    normal range: guaranteed by :func:`parastokes.mrs.velocity` (ε and coordinates bounded, see
+    ``SCALE_LIMIT`` there).
     """
     return np.float64(np.float32(1.0) / np.sqrt(np.float32(d)))
 
@@ -206,7 +225,7 @@ def free_u_f(tx, ty, tz, sx, sy, sz, fx, fy, fz, eps, ux, uy, uz):
     ns = sx.shape[1]
     ntiles = -(-mp // TILE)
     for job in prange(nb * ntiles):
-        _wide_vectors()
+        _kernel_attributes()
         b, t0, nt, px, py, pz = _tile(job, ntiles, tx, ty, tz)
         e2 = eps[b] * eps[b]
         e22 = 2.0 * e2
@@ -240,7 +259,7 @@ def full(tx, ty, tz, sx, sy, sz, fx, fy, fz, nx, ny, nz, eps, wall, ux, uy, uz, 
     ns = sx.shape[1]
     ntiles = -(-mp // TILE)
     for job in prange(nb * ntiles):
-        _wide_vectors()
+        _kernel_attributes()
         b, t0, nt, px, py, pz = _tile(job, ntiles, tx, ty, tz)
         e2 = eps[b] * eps[b]
         a0 = np.zeros(nt)
