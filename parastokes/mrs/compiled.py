@@ -1,16 +1,18 @@
 """Compiled (numba) regularized Stokeslet kernels: the fast path.
 
-Layout: structure of arrays, a leading batch axis ``b`` (B independent systems, each with its ε),
-targets padded to a multiple of :data:`LANES` and processed in tiles of up to :data:`TILE`,
-sources streamed one at a time with their constants hoisted, targets innermost so that the inner
-loop vectorizes, with 512-bit vectors where the CPU has them (:func:`_kernel_attributes`). One
-inverse square root per distance, computed without the (slow, unpipelined) double-precision
-divider: a single-precision estimate refined to double round-off (:func:`_rsqrt`). Work is split
-over ``(system, tile)`` pairs with ``prange``; each target's sum runs over the sources in the
-same order whatever the number of threads, so results are bit-identical for any thread count.
+Layout: a leading batch axis ``b`` (B independent systems, each with its ε), the targets as a
+structure of arrays, padded to a multiple of :data:`LANES` and processed in tiles of up to
+:data:`TILE`, sources streamed one at a time with their constants hoisted, targets innermost so
+that the inner loop vectorizes, with 512-bit vectors where the CPU has them
+(:func:`_kernel_attributes`). One inverse square root per distance, computed without the (slow,
+unpipelined) double-precision divider: a single-precision estimate refined to double round-off
+(:func:`_rsqrt`). Work is split over ``(system, tile)`` pairs with ``prange``; each target's sum
+runs over the sources in the same order whatever the number of threads, so results are
+bit-identical for any thread count.
 
-All kernels return the velocity times 8πμ; :mod:`parastokes.mrs.velocity` applies 1/(8πμ).
-Formulas: ``shared/physics.md`` (1)-(8), the paper's eqs. 3-6.
+The sources, forces and torques are read as they come, (B, N, 3) (one source at a time: no
+vector loads), and u and w are written as (B, M, 3), already divided by 8πμ: the caller packs only
+the targets. Formulas: ``shared/physics.md`` (1)-(8), the paper's eqs. 3-6.
 
 Kernels:
 
@@ -218,11 +220,26 @@ def _tile(job, ntiles, tx, ty, tz):
     return b, t0, nt, tx[b, t0 : t0 + nt], ty[b, t0 : t0 + nt], tz[b, t0 : t0 + nt]
 
 
+@njit(inline="always", **_OPTS)
+def _store(out, b, t0, nt, denom, ax, ay, az):
+    """out[b, t0 + i] = (ax, ay, az)[i] / denom for the tile's targets that are not padding."""
+    for i in range(min(nt, out.shape[1] - t0)):
+        out[b, t0 + i, 0] = ax[i] / denom
+        out[b, t0 + i, 1] = ay[i] / denom
+        out[b, t0 + i, 2] = az[i] / denom
+
+
 @njit(parallel=True, **_OPTS)
-def free_u_f(tx, ty, tz, sx, sy, sz, fx, fy, fz, eps, ux, uy, uz):
-    """8π μ u from forces in free space (eq. 6). Targets (B, Mp) with Mp % LANES == 0."""
+def free_u_f(t, s, f, eps, denom, u):
+    """u from forces in free space (eq. 6): u = (8π μ u) / denom with denom = 8π μ per system.
+
+    ``t`` (3, B, Mp): the targets' x, y, z, padded to Mp (a multiple of LANES) by repeating the
+    last target; ``s``, ``f`` (B, N, 3) sources and forces; ``eps``, ``denom`` (B,); ``u``
+    (B, M, 3), M <= Mp, is written (the padded targets' values are dropped).
+    """
+    tx, ty, tz = t[0], t[1], t[2]
     nb, mp = tx.shape
-    ns = sx.shape[1]
+    ns = s.shape[1]
     ntiles = -(-mp // TILE)
     for job in prange(nb * ntiles):
         _kernel_attributes()
@@ -233,8 +250,8 @@ def free_u_f(tx, ty, tz, sx, sy, sz, fx, fy, fz, eps, ux, uy, uz):
         ay = np.zeros(nt)
         az = np.zeros(nt)
         for j in range(ns):
-            yx, yy, yz = sx[b, j], sy[b, j], sz[b, j]
-            gx, gy, gz = fx[b, j], fy[b, j], fz[b, j]
+            yx, yy, yz = s[b, j, 0], s[b, j, 1], s[b, j, 2]
+            gx, gy, gz = f[b, j, 0], f[b, j, 1], f[b, j, 2]
             for i in range(nt):
                 rx = px[i] - yx
                 ry = py[i] - yy
@@ -246,17 +263,18 @@ def free_u_f(tx, ty, tz, sx, sy, sz, fx, fy, fz, eps, ux, uy, uz):
                 ax[i] = ax[i] + fr * rx + h1 * gx  # two fused multiply-adds
                 ay[i] = ay[i] + fr * ry + h1 * gy
                 az[i] = az[i] + fr * rz + h1 * gz
-        ux[b, t0 : t0 + nt] = ax
-        uy[b, t0 : t0 + nt] = ay
-        uz[b, t0 : t0 + nt] = az
+        _store(u, b, t0, nt, denom[b], ax, ay, az)
 
 
 @njit(parallel=True, **_OPTS)
-def full(tx, ty, tz, sx, sy, sz, fx, fy, fz, nx, ny, nz, eps, wall, ux, uy, uz, wx, wy, wz):
-    """8π μ (u, w) from forces and torques: free space ([1]-[4]), plus the images ([5]-[8]) of
-    the plane wall z = 0 when ``wall`` (a loop-invariant test: LLVM unswitches the loops)."""
+def full(t, s, f, n, eps, wall, denom, u, w):
+    """u and w from forces and torques: free space ([1]-[4]), plus the images ([5]-[8]) of the
+    plane wall z = 0 when ``wall`` (a loop-invariant test: LLVM unswitches the loops). Arguments
+    as in :func:`free_u_f`, with torques ``n`` (B, N, 3) and the angular velocity ``w``
+    (B, M, 3)."""
+    tx, ty, tz = t[0], t[1], t[2]
     nb, mp = tx.shape
-    ns = sx.shape[1]
+    ns = s.shape[1]
     ntiles = -(-mp // TILE)
     for job in prange(nb * ntiles):
         _kernel_attributes()
@@ -269,9 +287,9 @@ def full(tx, ty, tz, sx, sy, sz, fx, fy, fz, nx, ny, nz, eps, wall, ux, uy, uz, 
         a4 = np.zeros(nt)
         a5 = np.zeros(nt)
         for j in range(ns):
-            yx, yy, h = sx[b, j], sy[b, j], sz[b, j]
-            gx, gy, gz = fx[b, j], fy[b, j], fz[b, j]
-            mx, my, mz = nx[b, j], ny[b, j], nz[b, j]
+            yx, yy, h = s[b, j, 0], s[b, j, 1], s[b, j, 2]
+            gx, gy, gz = f[b, j, 0], f[b, j, 1], f[b, j, 2]
+            mx, my, mz = n[b, j, 0], n[b, j, 1], n[b, j, 2]
             for i in range(nt):
                 rx = px[i] - yx
                 ry = py[i] - yy
@@ -287,9 +305,5 @@ def full(tx, ty, tz, sx, sy, sz, fx, fy, fz, nx, ny, nz, eps, wall, ux, uy, uz, 
                 a3[i] += v3
                 a4[i] += v4
                 a5[i] += v5
-        ux[b, t0 : t0 + nt] = a0
-        uy[b, t0 : t0 + nt] = a1
-        uz[b, t0 : t0 + nt] = a2
-        wx[b, t0 : t0 + nt] = a3
-        wy[b, t0 : t0 + nt] = a4
-        wz[b, t0 : t0 + nt] = a5
+        _store(u, b, t0, nt, denom[b], a0, a1, a2)
+        _store(w, b, t0, nt, denom[b], a3, a4, a5)

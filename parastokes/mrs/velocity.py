@@ -73,10 +73,10 @@ def _threads(n_threads: int | None) -> Iterator[None]:
         numba.set_num_threads(previous)
 
 
-def _soa(points: np.ndarray, padded: int | None = None) -> np.ndarray:
-    """(B, N, 3) -> one contiguous (3, B, N') array, padded by repeating the last point."""
+def _soa(points: np.ndarray, padded: int) -> np.ndarray:
+    """(B, N, 3) -> one contiguous (3, B, padded) array, padded by repeating the last point."""
     nb, n, _ = points.shape
-    out = np.empty((3, nb, n if padded is None else max(padded, n)))
+    out = np.empty((3, nb, padded))
     out[:, :, :n] = points.transpose(2, 0, 1)
     out[:, :, n:] = points[:, -1, :].T[:, :, None]
     return out
@@ -157,25 +157,24 @@ def velocity(
         visc = np.full(max(batch, 1), mu, dtype=np.float64)
 
     t3 = targets if batch else targets[None]
-    s3 = sources if batch else sources[None]
-    f3 = forces if batch else forces[None]
-    m = t3.shape[1]
+    s3 = np.ascontiguousarray(sources if batch else sources[None], dtype=np.float64)
+    f3 = np.ascontiguousarray(forces if batch else forces[None], dtype=np.float64)
+    nb, m = t3.shape[:2]
     padded = -(-m // LANES) * LANES
-    tx, ty, tz = _soa(t3, padded)
-    src = (*_soa(s3), *_soa(f3))
+    tp = _soa(t3, padded)
     eps = np.array(eps, dtype=np.float64)  # a fresh writable copy: one numba signature
-    nb = t3.shape[0]
-    fast = torques is None and not wall and not angular
-    out = np.empty((3 if fast else 6, nb, padded))  # every row is written by the kernel
+    denom = EIGHT_PI * np.asarray(visc, dtype=np.float64)
+    u = np.empty((nb, m, 3))
     with _threads(n_threads):
-        if fast:
-            compiled.free_u_f(tx, ty, tz, *src, eps, *out)
+        if torques is None and not wall and not angular:
+            compiled.free_u_f(tp, s3, f3, eps, denom, u)
+            return u if batch else u[0]
+        w = np.empty((nb, m, 3))
+        if torques is None:
+            n3 = np.zeros_like(s3)
         else:
-            n3 = np.zeros_like(s3) if torques is None else (torques if batch else torques[None])
-            compiled.full(tx, ty, tz, *src, *_soa(n3), eps, bool(wall), *out)
-    # (3 or 6, B, M) -> (B, M, 3 or 6) scaled by 1/(8πμ), then split into u and w.
-    res = np.ascontiguousarray(out[:, :, :m].transpose(1, 2, 0)) / (EIGHT_PI * visc)[:, None, None]
+            n3 = np.ascontiguousarray(torques if batch else torques[None], dtype=np.float64)
+        compiled.full(tp, s3, f3, n3, eps, bool(wall), denom, u, w)
     if not batch:
-        res = res[0]
-    u = np.ascontiguousarray(res[..., :3])
-    return (u, np.ascontiguousarray(res[..., 3:])) if angular else u
+        u, w = u[0], w[0]
+    return (u, w) if angular else u
