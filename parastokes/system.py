@@ -100,12 +100,13 @@ class RodSystem:
     def preferred_strain(self, t: float) -> np.ndarray:
         """Ω̂ at the half points s_{k+½} at time t, shape (M - 1, 3) (eq. 36)."""
         return rod.preferred_strain(
-            (np.arange(self.n_points - 1) + 0.5) * self.ds,
+            self.n_points - 1,
+            self.ds,
             float(t),
-            np.asarray(self.preferred, dtype=float),
-            self.amplitude,
+            tuple(float(v) for v in self.preferred),
+            float(self.amplitude),
             2.0 * math.pi / self.wavelength,
-            self.frequency,
+            float(self.frequency),
         )
 
     def initial_state(self) -> np.ndarray:

@@ -138,18 +138,20 @@ def rod_lengths(state, n_rods):
 
 
 @njit(**_OPTS)
-def preferred_strain(s_half, t, constant, amplitude, wavenumber, frequency):
-    """Ω̂ at arclengths ``s_half`` and time ``t``: ``constant + (0, -k² A sin(k s + f t), 0)``.
+def preferred_strain(n_half, ds, t, constant, amplitude, wavenumber, frequency):
+    """Ω̂ at the ``n_half`` half points s_{k+½} = (k + ½) ds and time ``t``:
+    ``constant + (0, -k² A sin(k s + f t), 0)``.
 
     With ``constant = 0`` this is the swimmer's planar travelling wave (paper eq. 36); with
     ``amplitude = 0`` a constant strain-twist (κ, 0, τ) gives a helix, and 0 a straight rod.
-    ``constant`` is a length-3 array. Returns an (len(s_half), 3) array.
+    ``constant`` is a 3-tuple of floats. Returns an (n_half, 3) array.
     """
-    out = np.empty((s_half.size, 3))
-    for k in range(s_half.size):
+    out = np.empty((n_half, 3))
+    for k in range(n_half):
         out[k, 0] = constant[0]
         out[k, 1] = constant[1]
         out[k, 2] = constant[2]
         if amplitude != 0.0:
-            out[k, 1] -= wavenumber**2 * amplitude * np.sin(wavenumber * s_half[k] + frequency * t)
+            s = (k + 0.5) * ds
+            out[k, 1] -= wavenumber**2 * amplitude * np.sin(wavenumber * s + frequency * t)
     return out
