@@ -136,6 +136,7 @@ def _image(kernel, y, v, eps):
 CURL_PAIRS = {
     "stokeslet": (_free, ref.stokeslet, ref.stokeslet_curl),
     "rotlet": (_free, ref.rotlet, ref.rotlet_curl),
+    "rotlet_phi": (_free, ref.rotlet_phi, ref.rotlet_phi_curl),
     "blakelet_image": (_image, ref.blakelet_image, ref.blakelet_image_curl),
     "rotlet_image": (_image, ref.rotlet_image, ref.rotlet_image_curl),
 }
@@ -159,15 +160,20 @@ def test_angular_velocity_is_half_curl_per_part(part, eps):
     assert _relerr(fd, w) < 1e-7
 
 
-@pytest.mark.parametrize("wall", [False, True], ids=["free", "free+image"])
-@pytest.mark.parametrize("source", ["f", "n"])
+@pytest.mark.parametrize(
+    "wall, source",
+    [(False, "f"), (False, "n"), (False, "n, variant phi"), (True, "f"), (True, "n")],
+)
 def test_angular_velocity_is_half_curl_compiled(wall, source):
-    """The public kernels' w equals ½ curl of their u (free, and free + image), f and n apart."""
+    """The public kernels' w equals ½ curl of their u (free, and free + image), f and n apart,
+    and for the torques of variant Φ (free space)."""
     rng = np.random.default_rng(12)
     y = _cloud(rng, 6, zmin=0.2)
     vec = rng.normal(size=(6, 3))
     forces, torques = (vec, None) if source == "f" else (np.zeros_like(vec), vec)
     kw = dict(epsilon=0.2, mu=1.3, torques=torques, wall=wall)
+    if "phi" in source:
+        kw["torque_blob"] = "phi"
     x = _cloud(rng, 10, zmin=0.2)
     _, w = mrs.velocity(x, y, forces, angular=True, **kw)
     fd = _half_curl(lambda p: mrs.velocity(p, y, forces, **kw), x)

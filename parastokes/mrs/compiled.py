@@ -116,8 +116,10 @@ def _rsqrt3(d):
 
 
 @njit(inline="always", **_OPTS)
-def _free_pair(rx, ry, rz, e2, fx, fy, fz, nx, ny, nz):
-    """8π × (u, w) at r from a force f and a torque n in free space ([1]-[4])."""
+def _free_pair(rx, ry, rz, e2, fx, fy, fz, nx, ny, nz, phi):
+    """8π × (u, w) at r from a force f and a torque n in free space ([1]-[4]); with ``phi``, the
+    torque parts of variant Φ instead (the blob φ_ε for them too: u = ½ Q n × r,
+    w = ¼ [D1 n + D2 (n·r) r], physics.md section 1)."""
     r2 = rx * rx + ry * ry + rz * rz
     inv = _rsqrt(r2 + e2)
     inv2 = inv * inv
@@ -125,12 +127,19 @@ def _free_pair(rx, ry, rz, e2, fx, fy, fz, nx, ny, nz):
     inv5 = inv3 * inv2
     h1 = (r2 + 2.0 * e2) * inv3
     fr = (fx * rx + fy * ry + fz * rz) * inv3
-    nr = (nx * rx + ny * ry + nz * rz) * (1.5 * inv5)
     q = (r2 + 2.5 * e2) * inv5  # ½ Q · 8π
-    p1 = -0.5 * (r2 - 2.0 * e2) * inv5
-    ux = h1 * fx + fr * rx + (ny * rz - nz * ry) * inv3
-    uy = h1 * fy + fr * ry + (nz * rx - nx * rz) * inv3
-    uz = h1 * fz + fr * rz + (nx * ry - ny * rx) * inv3
+    if phi:
+        inv7 = inv5 * inv2
+        cn = q
+        p1 = 0.25 * (e2 * (10.0 * e2 - 7.0 * r2) - 2.0 * r2 * r2) * inv7  # ¼ D1 · 8π
+        nr = (nx * rx + ny * ry + nz * rz) * (0.25 * (21.0 * e2 + 6.0 * r2) * inv7)
+    else:
+        cn = inv3
+        p1 = -0.5 * (r2 - 2.0 * e2) * inv5
+        nr = (nx * rx + ny * ry + nz * rz) * (1.5 * inv5)
+    ux = h1 * fx + fr * rx + (ny * rz - nz * ry) * cn
+    uy = h1 * fy + fr * ry + (nz * rx - nx * rz) * cn
+    uz = h1 * fz + fr * rz + (nx * ry - ny * rx) * cn
     wx = q * (fy * rz - fz * ry) + p1 * nx + nr * rx
     wy = q * (fz * rx - fx * rz) + p1 * ny + nr * ry
     wz = q * (fx * ry - fy * rx) + p1 * nz + nr * rz
@@ -267,10 +276,11 @@ def free_u_f(t, s, f, eps, denom, u):
 
 
 @njit(parallel=True, **_OPTS)
-def full(t, s, f, n, eps, wall, denom, u, w):
+def full(t, s, f, n, eps, wall, phi, denom, u, w):
     """u and w from forces and torques: free space ([1]-[4]), plus the images ([5]-[8]) of the
-    plane wall z = 0 when ``wall`` (a loop-invariant test: LLVM unswitches the loops). Arguments
-    as in :func:`free_u_f`, with torques ``n`` (B, N, 3) and the angular velocity ``w``
+    plane wall z = 0 when ``wall``; in free space, ``phi`` selects the torque parts of variant Φ
+    (not defined with the wall). Both flags are loop-invariant tests: LLVM unswitches the loops.
+    Arguments as in :func:`free_u_f`, with torques ``n`` (B, N, 3) and the angular velocity ``w``
     (B, M, 3)."""
     tx, ty, tz = t[0], t[1], t[2]
     nb, mp = tx.shape
@@ -298,7 +308,7 @@ def full(t, s, f, n, eps, wall, denom, u, w):
                                                         gx, gy, gz, mx, my, mz)
                 else:
                     v0, v1, v2, v3, v4, v5 = _free_pair(rx, ry, pz[i] - h, e2,
-                                                        gx, gy, gz, mx, my, mz)
+                                                        gx, gy, gz, mx, my, mz, phi)
                 a0[i] += v0
                 a1[i] += v1
                 a2[i] += v2

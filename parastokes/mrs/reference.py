@@ -7,7 +7,8 @@ as ``(M, N, 3)`` arrays and returns the velocity contribution summed over source
 :mod:`parastokes.mrs.compiled` must agree with these to round-off; the tests check it.
 
 Blob: φ_ε(r) = 15 ε⁴ / (8π r_ε⁷) (eq. 3); torque parts regularized with ψ_ε(r) = 3ε²/(4π r_ε⁵)
-("variant L", the default of the paper's authors).
+("variant L", the default of the paper's authors), or with φ_ε too ("variant Φ", free space only:
+:func:`rotlet_phi`, :func:`rotlet_phi_curl`).
 """
 
 from __future__ import annotations
@@ -55,6 +56,24 @@ def rotlet_curl(r: np.ndarray, n: np.ndarray, eps: float) -> np.ndarray:
     p1 = (r2 - 2 * eps**2) / (4 * np.pi * re5)
     p2 = -3.0 / (4 * np.pi * re5)
     return np.sum(-0.25 * (p1[..., None] * n + (p2 * _dot(n, r))[..., None] * r), axis=1)
+
+
+def rotlet_phi(r: np.ndarray, n: np.ndarray, eps: float) -> np.ndarray:
+    """Torque -> velocity with the blob φ_ε (variant Φ of physics.md section 1): ½ Q n × r
+    (times μ)."""
+    r2 = _dot(r, r)
+    q = (2 * r2 + 5 * eps**2) / (EIGHT_PI * (r2 + eps**2) ** 2.5)
+    return np.sum(0.5 * q[..., None] * np.cross(n, r), axis=1)
+
+
+def rotlet_phi_curl(r: np.ndarray, n: np.ndarray, eps: float) -> np.ndarray:
+    """Torque -> angular velocity, variant Φ: ¼ [D1 n + D2 (n·r) r] (times μ)."""
+    r2 = _dot(r, r)
+    e2 = eps**2
+    re7 = EIGHT_PI * (r2 + e2) ** 3.5
+    d1 = (10 * e2**2 - 7 * e2 * r2 - 2 * r2**2) / re7
+    d2 = (21 * e2 + 6 * r2) / re7
+    return np.sum(0.25 * (d1[..., None] * n + (d2 * _dot(n, r))[..., None] * r), axis=1)
 
 
 def _image_geometry(targets: np.ndarray, sources: np.ndarray, eps: float):
@@ -159,6 +178,7 @@ def velocity(
     torques: np.ndarray | None = None,
     wall: bool = False,
     angular: bool = False,
+    torque_blob: str = "psi",
 ):
     """Oracle of :func:`parastokes.mrs.velocity` for one system (no validation, no batching).
 
@@ -177,8 +197,12 @@ def velocity(
     if torques is not None:
         torques = np.asarray(torques, dtype=float)
         nb = np.broadcast_to(torques[None], r.shape)
-        u = u + rotlet(r, nb, epsilon)
-        w = w + rotlet_curl(r, nb, epsilon)
+        if torque_blob == "phi":
+            u = u + rotlet_phi(r, nb, epsilon)
+            w = w + rotlet_phi_curl(r, nb, epsilon)
+        else:
+            u = u + rotlet(r, nb, epsilon)
+            w = w + rotlet_curl(r, nb, epsilon)
         if wall:
             u = u + rotlet_image(targets, sources, torques, epsilon)
             w = w + rotlet_image_curl(targets, sources, torques, epsilon)

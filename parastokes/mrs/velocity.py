@@ -92,6 +92,7 @@ def velocity(
     torques=None,
     wall: bool = False,
     angular: bool = False,
+    torque_blob: str = "psi",
     n_threads: int | None = None,
     check: bool = True,
 ):
@@ -116,6 +117,11 @@ def velocity(
         Plane wall at z = 0; every point must then have z >= 0.
     angular : bool
         Also return the angular velocity w = ½ curl u.
+    torque_blob : {"psi", "phi"}
+        The blob of the torque parts. ``"psi"`` (default, "variant L", the paper's authors'
+        choice): ψ_ε = 3ε²/(4π r_ε⁵), regularized rotlet [3] and potential dipole [4], free and
+        above the wall. ``"phi"`` ("variant Φ"): the force blob φ_ε for the torques too, u = ½ Q
+        n × r and w = ¼ [D1 n + D2 (n·r) r] (physics.md section 1); free space only.
     n_threads : int, optional
         Threads over target tiles (default 1). Results are bit-identical for any thread count.
     check : bool
@@ -126,6 +132,12 @@ def velocity(
     -------
     u, or (u, w) when ``angular``: arrays shaped like ``targets``.
     """
+    if torque_blob not in ("psi", "phi"):
+        raise ValueError(f"torque_blob: must be 'psi' or 'phi', got {torque_blob!r}")
+    if torque_blob == "phi" and wall:
+        raise ValueError(
+            "torque_blob: 'phi' (variant Φ) is defined in free space only; use 'psi' with wall=True"
+        )
     if check:
         targets = _points("targets", targets)
         batch = targets.shape[0] if targets.ndim == 3 else 0
@@ -174,7 +186,7 @@ def velocity(
             n3 = np.zeros_like(s3)
         else:
             n3 = np.ascontiguousarray(torques if batch else torques[None], dtype=np.float64)
-        compiled.full(tp, s3, f3, n3, eps, bool(wall), denom, u, w)
+        compiled.full(tp, s3, f3, n3, eps, bool(wall), torque_blob == "phi", denom, u, w)
     if not batch:
         u, w = u[0], w[0]
     return (u, w) if angular else u
