@@ -73,3 +73,47 @@ def test_kernels_ask_llvm_for_wide_vectors():
     if "+avx512f" not in features.split(","):
         pytest.skip("no AVX-512 on this CPU: the attribute has nothing to widen")
     assert "zmm" in scale.inspect_asm(sig)
+
+
+@pytest.mark.parametrize("padded", [8, 16, 64, 72, 304, 648, 1512, 5000])
+@pytest.mark.parametrize("parts", [1, 2, 3, 4])
+def test_tile_starts_cover_the_targets_in_vectors_and_balance_the_threads(padded, parts):
+    starts = compiled.tile_starts(padded, parts)
+    sizes = np.diff(starts)
+    assert starts[0] == 0 and starts[-1] == padded
+    assert np.all(sizes > 0) and np.all(sizes <= compiled.TILE)
+    assert np.all(starts % compiled.LANES == 0)
+    assert not starts.flags.writeable  # cached: one shared array
+    if padded // compiled.LANES >= parts:
+        # numba gives each thread an equal contiguous share of the jobs: equal target counts ±8.
+        assert sizes.size % parts == 0
+        shares = sizes.reshape(parts, -1).sum(axis=1)
+        assert shares.max() - shares.min() <= compiled.LANES
+
+
+def test_results_do_not_depend_on_the_tiling():
+    """Each target sums its sources in the same order in any tile: the same bits for any tiles."""
+    rng = np.random.default_rng(5)
+    nb, m, mp, ns = 2, 197, 200, 150
+    t = np.ascontiguousarray(rng.random((3, nb, mp)) + [[[0]], [[0]], [[0.5]]])
+    s = rng.random((nb, ns, 3)) + [0, 0, 0.5]
+    f = rng.standard_normal((nb, ns, 3))
+    n = rng.standard_normal((nb, ns, 3))
+    eps, denom = np.array([0.1, 0.3]), np.array([1.0, 2.0])
+    tilings = [
+        compiled.tile_starts(mp, 1),
+        compiled.tile_starts(mp, 3),
+        np.array([0, 8, 72, 80, 136, 200]),
+        np.arange(0, mp + 1, 8),
+    ]
+    results = []
+    for starts in tilings:
+        starts.flags.writeable = False  # as tile_starts gives them: no second compiled signature
+        u = np.empty((nb, m, 3))
+        uw = np.empty((2, nb, m, 3))
+        compiled.free_u_f(t, s, f, eps, denom, starts, u)
+        compiled.full(t, s, f, n, eps, True, False, denom, starts, *uw)
+        results.append((u, uw))
+    for u, uw in results[1:]:
+        assert np.array_equal(u, results[0][0])
+        assert np.array_equal(uw, results[0][1])

@@ -25,14 +25,14 @@ Why each choice, with the figures: ``docs/kernels.md`` and ``docs/benchmarks.md`
 
 from __future__ import annotations
 
+import functools
 import platform
 
 import numpy as np
 from numba import njit, prange, types
 from numba.extending import intrinsic
 
-#: Targets per tile. The kernels take targets padded to a multiple of :data:`LANES`; the last
-#: tile of each system may be shorter than TILE.
+#: Most targets per tile. Tiles are whole vectors of :data:`LANES` targets (:func:`tile_starts`).
 TILE = 64
 #: Doubles per vector at the widest width used (512 bits): targets are padded to a multiple of it.
 LANES = 8
@@ -219,13 +219,38 @@ def _wall_pair(rx, ry, z, h, e2, fx, fy, fz, nx, ny, nz):
     return ux, uy, uz, wx, wy, wz
 
 
+@functools.lru_cache(maxsize=256)
+def tile_starts(padded: int, parts: int) -> np.ndarray:
+    """Tile boundaries ``starts`` (tile k is targets ``starts[k]:starts[k+1]``) for ``padded``
+    targets (a multiple of :data:`LANES`) shared by ``parts`` threads.
+
+    The targets are cut into ``parts`` contiguous chunks as equal as whole vectors allow, and
+    every chunk into the same number of tiles of at most :data:`TILE` targets, again as equal as
+    possible. numba hands each thread an equal contiguous share of the (system, tile) jobs, so each
+    thread then gets the same number of targets, ±8: with fixed tiles of 64, the rod's 301 targets
+    (5 tiles) split 192 + 112 over 2 threads, which capped 2 threads at 1.58x. No result depends on
+    the tiling: each target sums over the sources in the same order in whichever tile it is (so
+    the results stay bit-identical for any thread count). Cached; the array is read-only.
+    """
+    groups = padded // LANES
+    per_chunk = -(-(-(-groups // parts) * LANES) // TILE)  # tiles per chunk, the same in all
+    bounds = {padded}
+    for p in range(parts):
+        lo, hi = groups * p // parts, groups * (p + 1) // parts
+        bounds.update((lo + (hi - lo) * q // per_chunk) * LANES for q in range(per_chunk))
+    starts = np.array(sorted(bounds), dtype=np.int64)  # merged repeats: chunks of < 1 vector
+    starts.flags.writeable = False
+    return starts
+
+
 @njit(inline="always", **_OPTS)
-def _tile(job, ntiles, tx, ty, tz):
-    """The ``job``-th (system, tile) pair: system b, first target t0, number of targets nt (TILE,
-    the last tile of each system shorter) and the tile's target coordinates."""
+def _tile(job, starts, tx, ty, tz):
+    """The ``job``-th (system, tile) pair: system b, first target t0, number of targets nt and the
+    tile's target coordinates."""
+    ntiles = starts.size - 1
     b = job // ntiles
-    t0 = (job % ntiles) * TILE
-    nt = min(TILE, tx.shape[1] - t0)
+    t0 = starts[job % ntiles]
+    nt = starts[job % ntiles + 1] - t0
     return b, t0, nt, tx[b, t0 : t0 + nt], ty[b, t0 : t0 + nt], tz[b, t0 : t0 + nt]
 
 
@@ -239,20 +264,19 @@ def _store(out, b, t0, nt, denom, ax, ay, az):
 
 
 @njit(parallel=True, **_OPTS)
-def free_u_f(t, s, f, eps, denom, u):
+def free_u_f(t, s, f, eps, denom, starts, u):
     """u from forces in free space (eq. 6): u = (8π μ u) / denom with denom = 8π μ per system.
 
     ``t`` (3, B, Mp): the targets' x, y, z, padded to Mp (a multiple of LANES) by repeating the
-    last target; ``s``, ``f`` (B, N, 3) sources and forces; ``eps``, ``denom`` (B,); ``u``
-    (B, M, 3), M <= Mp, is written (the padded targets' values are dropped).
+    last target; ``s``, ``f`` (B, N, 3) sources and forces; ``eps``, ``denom`` (B,); ``starts``
+    the tiles of every system (:func:`tile_starts`); ``u`` (B, M, 3), M <= Mp, is written (the
+    padded targets' values are dropped).
     """
     tx, ty, tz = t[0], t[1], t[2]
-    nb, mp = tx.shape
     ns = s.shape[1]
-    ntiles = -(-mp // TILE)
-    for job in prange(nb * ntiles):
+    for job in prange(tx.shape[0] * (starts.size - 1)):
         _kernel_attributes()
-        b, t0, nt, px, py, pz = _tile(job, ntiles, tx, ty, tz)
+        b, t0, nt, px, py, pz = _tile(job, starts, tx, ty, tz)
         e2 = eps[b] * eps[b]
         e22 = 2.0 * e2
         ax = np.zeros(nt)
@@ -276,19 +300,17 @@ def free_u_f(t, s, f, eps, denom, u):
 
 
 @njit(parallel=True, **_OPTS)
-def full(t, s, f, n, eps, wall, phi, denom, u, w):
+def full(t, s, f, n, eps, wall, phi, denom, starts, u, w):
     """u and w from forces and torques: free space ([1]-[4]), plus the images ([5]-[8]) of the
     plane wall z = 0 when ``wall``; in free space, ``phi`` selects the torque parts of variant Φ
     (not defined with the wall). Both flags are loop-invariant tests: LLVM unswitches the loops.
     Arguments as in :func:`free_u_f`, with torques ``n`` (B, N, 3) and the angular velocity ``w``
     (B, M, 3)."""
     tx, ty, tz = t[0], t[1], t[2]
-    nb, mp = tx.shape
     ns = s.shape[1]
-    ntiles = -(-mp // TILE)
-    for job in prange(nb * ntiles):
+    for job in prange(tx.shape[0] * (starts.size - 1)):
         _kernel_attributes()
-        b, t0, nt, px, py, pz = _tile(job, ntiles, tx, ty, tz)
+        b, t0, nt, px, py, pz = _tile(job, starts, tx, ty, tz)
         e2 = eps[b] * eps[b]
         a0 = np.zeros(nt)
         a1 = np.zeros(nt)

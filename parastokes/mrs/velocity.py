@@ -57,18 +57,19 @@ def _epsilon(value, batch: int) -> np.ndarray:
 
 
 @contextmanager
-def _threads(n_threads: int | None) -> Iterator[None]:
+def _threads(n_threads: int | None) -> Iterator[int]:
+    """Run the block with numba's thread count set to ``n_threads`` (default 1); yields it."""
     n = 1 if n_threads is None else n_threads
     if not isinstance(n, int | np.integer) or n < 1:
         raise ValueError(f"n_threads: must be a positive integer, got {n_threads!r}")
     n = min(int(n), numba.config.NUMBA_NUM_THREADS)
     previous = numba.get_num_threads()
     if n == previous:
-        yield
+        yield n
         return
     numba.set_num_threads(n)
     try:
-        yield
+        yield n
     finally:
         numba.set_num_threads(previous)
 
@@ -177,16 +178,17 @@ def velocity(
     eps = np.array(eps, dtype=np.float64)  # a fresh writable copy: one numba signature
     denom = EIGHT_PI * np.asarray(visc, dtype=np.float64)
     u = np.empty((nb, m, 3))
-    with _threads(n_threads):
+    with _threads(n_threads) as n:
+        starts = compiled.tile_starts(padded, n)
         if torques is None and not wall and not angular:
-            compiled.free_u_f(tp, s3, f3, eps, denom, u)
+            compiled.free_u_f(tp, s3, f3, eps, denom, starts, u)
             return u if batch else u[0]
         w = np.empty((nb, m, 3))
         if torques is None:
             n3 = np.zeros_like(s3)
         else:
             n3 = np.ascontiguousarray(torques if batch else torques[None], dtype=np.float64)
-        compiled.full(tp, s3, f3, n3, eps, bool(wall), torque_blob == "phi", denom, u, w)
+        compiled.full(tp, s3, f3, n3, eps, bool(wall), torque_blob == "phi", denom, starts, u, w)
     if not batch:
         u, w = u[0], w[0]
     return (u, w) if angular else u
