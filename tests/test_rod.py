@@ -70,6 +70,32 @@ def test_half_frame_strains_and_moments_analytic():
     np.testing.assert_allclose(f, [0.05 * h[:, 2], -0.05 * h[:, 2]], rtol=1e-13)
 
 
+@pytest.mark.parametrize("theta", [0.0, 1e-9, 2.5])
+def test_half_frame_at_zero_tiny_and_large_angles(theta):
+    """The branch-free half-angle formula holds at θ = 0 (identity), at tiny θ and at large θ."""
+    ds = 0.2
+    e = np.array([0.6, 0.0, -0.8])
+    r0 = Rotation.from_rotvec([0.2, -0.3, 0.5])
+    half = Rotation.from_rotvec(0.5 * theta * e) * r0
+    x = np.zeros((2, 12))
+    x[0, 3:] = r0.as_matrix().T.ravel()
+    x[1, 3:] = (Rotation.from_rotvec(theta * e) * r0).as_matrix().T.ravel()
+    h = half.as_matrix()
+    x[1, :3] = 1.1 * ds * h[:, 2]  # the stretch force lies along the half-point tangent H3
+    f, _ = rod_loads(x, 1, ds, np.ones(3), np.array([0.6, 0.6, 0.5]), np.zeros((1, 3)))
+    np.testing.assert_allclose(f, [0.05 * h[:, 2], -0.05 * h[:, 2]], rtol=1e-12, atol=1e-15)
+
+
+def test_half_turn_between_neighbours_gives_non_finite_loads():
+    """θ = π has no unique half rotation: the loads are not finite (the integrator then stops)."""
+    x = np.zeros((2, 12))
+    x[0, 3:] = np.eye(3)[[1, 2, 0]].ravel()  # D1 = e_y, D2 = e_z, D3 = e_x
+    x[1, 3:] = (np.eye(3)[[1, 2, 0]] * [[-1], [1], [-1]]).ravel()  # rotated by π about e_z
+    x[1, :3] = [0.2, 0.0, 0.0]
+    f, n = rod_loads(x, 1, 0.2, np.ones(3), np.full(3, 0.6), np.zeros((1, 3)))
+    assert not (np.isfinite(f).all() and np.isfinite(n).all())
+
+
 def test_loads_balance_force_and_torque():
     """Free ends: Σ f_k = 0 and Σ (n_k + X_k × f_k) = 0 (eq. 12 telescopes)."""
     rod = models.rod_swimmer(n_points=61)

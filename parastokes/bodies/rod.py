@@ -20,8 +20,6 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .frames import rotate
-
 _OPTS = dict(cache=True, error_model="numpy")
 
 
@@ -30,7 +28,19 @@ def _dot3(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
-@njit(**_OPTS)
+@njit(inline="always", **_OPTS)
+def _half_turn(dx, dy, dz, vx, vy, vz, ch, kq, sp):
+    """D rotated by half the angle of A_k: ch D + kq (v·D) v + sp v × D, with the unnormalized
+    axis v = sin θ e, kq = (1 - cos(θ/2))/|v|², sp = sin(θ/2)/|v| (Rodrigues; physics.md (9))."""
+    vd = kq * (vx * dx + vy * dy + vz * dz)
+    return (
+        ch * dx + vd * vx + sp * (vy * dz - vz * dy),
+        ch * dy + vd * vy + sp * (vz * dx - vx * dz),
+        ch * dz + vd * vz + sp * (vx * dy - vy * dx),
+    )
+
+
+@njit(**(_OPTS | dict(fastmath={"contract"})))
 def rod_loads(state, n_rods, ds, a, b, omega_hat):
     """Point forces and torques on the fluid of ``n_rods`` rods (paper eqs. 10-12).
 
@@ -38,85 +48,78 @@ def rod_loads(state, n_rods, ds, a, b, omega_hat):
     bending/twist moduli; ``b`` = (b1, b2, b3) the shear/stretch moduli; ``omega_hat`` (M - 1, 3)
     the preferred strains at the half points s_{k+½} (the same for every rod).
     Returns ``(f, n)``, two contiguous (n_rods * M, 3) arrays.
+
+    The half-angle rotation needs no axis normalization: with v = sin θ e and
+    cos(θ/2) = ½ sqrt(tr A_k + 1), sin(θ/2)/|v| = 1/(2 cos(θ/2)) and
+    (1 - cos(θ/2))/|v|² = 1/(4 cos²(θ/2) (1 + cos(θ/2))), both finite at θ = 0 (|v| = 0 gives
+    H = D^k). One square root and one division per segment, no branch. A half turn between
+    neighbouring frames (θ = π, no unique square root) gives non-finite loads, which the
+    integrator reports as a blow-up.
     """
     n = state.shape[0]
     m = n // n_rods
+    inv_ds = 1.0 / ds
     f = np.zeros((n, 3))
     tq = np.zeros((n, 3))
-    h = np.empty((3, 3))  # rows: half-point frame H1, H2, H3
-    dd = np.empty((3, 3))  # rows: D_i^{k+1} - D_i^k
-    dx = np.empty(3)
-    big_f = np.empty(3)
-    big_n = np.empty(3)
     for r in range(n_rods):
         for k in range(r * m, (r + 1) * m - 1):
-            # axis-angle of A_k: v = ½ Σ_i D_i^k × D_i^{k+1} = sin θ e, tr A_k = 1 + 2 cos θ
-            vx = 0.0
-            vy = 0.0
-            vz = 0.0
-            tr = 0.0
-            for i in range(3, 12, 3):
-                p0 = state[k, i]
-                p1 = state[k, i + 1]
-                p2 = state[k, i + 2]
-                q0 = state[k + 1, i]
-                q1 = state[k + 1, i + 1]
-                q2 = state[k + 1, i + 2]
-                vx += 0.5 * (p1 * q2 - p2 * q1)
-                vy += 0.5 * (p2 * q0 - p0 * q2)
-                vz += 0.5 * (p0 * q1 - p1 * q0)
-                tr += p0 * q0 + p1 * q1 + p2 * q2
-            vn = np.sqrt(vx * vx + vy * vy + vz * vz)
-            ch = 1.0
-            sh = 0.0
-            if vn > 0.0:
-                # cos(θ/2) = sqrt((1 + cos θ)/2) = ½ sqrt(tr + 1), sin(θ/2) = sin θ / (2 cos(θ/2)):
-                # no transcendental functions (θ < π: adjacent frames are close).
-                ch = 0.5 * np.sqrt(tr + 1.0)
-                sh = 0.5 * vn / ch
-                vx /= vn
-                vy /= vn
-                vz /= vn
-            for i in range(3):
-                c0 = 3 + 3 * i
-                if vn > 0.0:
-                    h[i, 0], h[i, 1], h[i, 2] = rotate(
-                        state[k, c0], state[k, c0 + 1], state[k, c0 + 2], vx, vy, vz, ch, sh
-                    )
-                else:
-                    h[i, 0] = state[k, c0]
-                    h[i, 1] = state[k, c0 + 1]
-                    h[i, 2] = state[k, c0 + 2]
-                for j in range(3):
-                    dd[i, j] = state[k + 1, c0 + j] - state[k, c0 + j]
-                dx[i] = state[k + 1, i] - state[k, i]
-            # strains (eq. 10): Ω1 = H3·ΔD2/Δs, Ω2 = H1·ΔD3/Δs, Ω3 = H2·ΔD1/Δs
+            p = state[k]
+            q = state[k + 1]
+            # v = ½ Σ_i D_i^k × D_i^{k+1} = sin θ e, tr A_k = Σ_i D_i^k·D_i^{k+1} = 1 + 2 cos θ
+            vx = 0.5 * (p[4] * q[5] - p[5] * q[4] + p[7] * q[8] - p[8] * q[7]
+                        + p[10] * q[11] - p[11] * q[10])
+            vy = 0.5 * (p[5] * q[3] - p[3] * q[5] + p[8] * q[6] - p[6] * q[8]
+                        + p[11] * q[9] - p[9] * q[11])
+            vz = 0.5 * (p[3] * q[4] - p[4] * q[3] + p[6] * q[7] - p[7] * q[6]
+                        + p[9] * q[10] - p[10] * q[9])
+            tr = (p[3] * q[3] + p[4] * q[4] + p[5] * q[5] + p[6] * q[6] + p[7] * q[7]
+                  + p[8] * q[8] + p[9] * q[9] + p[10] * q[10] + p[11] * q[11])
+            ch = 0.5 * np.sqrt(tr + 1.0)
+            rc = 1.0 / (ch * (1.0 + ch))
+            inv_ch = rc * (1.0 + ch)
+            sp = 0.5 * inv_ch
+            kq = 0.25 * inv_ch * rc
+            # half-point frame H_i (physics.md (9))
+            h1x, h1y, h1z = _half_turn(p[3], p[4], p[5], vx, vy, vz, ch, kq, sp)
+            h2x, h2y, h2z = _half_turn(p[6], p[7], p[8], vx, vy, vz, ch, kq, sp)
+            h3x, h3y, h3z = _half_turn(p[9], p[10], p[11], vx, vy, vz, ch, kq, sp)
+            dx0 = q[0] - p[0]
+            dx1 = q[1] - p[1]
+            dx2 = q[2] - p[2]
+            # strains (eq. 10): Ω1 = H3·ΔD2/Δs, Ω2 = H1·ΔD3/Δs, Ω3 = H2·ΔD1/Δs; moments a_i (Ω - Ω̂)
             kk = k - r * m
-            om0 = _dot3(h[2], dd[1]) / ds - omega_hat[kk, 0]
-            om1 = _dot3(h[0], dd[2]) / ds - omega_hat[kk, 1]
-            om2 = _dot3(h[1], dd[0]) / ds - omega_hat[kk, 2]
-            # moment and force at the half point (eq. 11)
-            c1 = b[0] * _dot3(h[0], dx) / ds
-            c2 = b[1] * _dot3(h[1], dx) / ds
-            c3 = b[2] * (_dot3(h[2], dx) / ds - 1.0)
-            for j in range(3):
-                big_n[j] = a[0] * om0 * h[0, j] + a[1] * om1 * h[1, j] + a[2] * om2 * h[2, j]
-                big_f[j] = c1 * h[0, j] + c2 * h[1, j] + c3 * h[2, j]
-            # ½ ΔX × F goes to both neighbours (eq. 12)
-            lx = 0.5 * (dx[1] * big_f[2] - dx[2] * big_f[1])
-            ly = 0.5 * (dx[2] * big_f[0] - dx[0] * big_f[2])
-            lz = 0.5 * (dx[0] * big_f[1] - dx[1] * big_f[0])
-            for j in range(3):
-                f[k, j] += big_f[j]
-                f[k + 1, j] -= big_f[j]
-                tq[k, j] += big_n[j]
-                tq[k + 1, j] -= big_n[j]
-            tq[k, 0] += lx
-            tq[k, 1] += ly
-            tq[k, 2] += lz
-            tq[k + 1, 0] += lx
-            tq[k + 1, 1] += ly
-            tq[k + 1, 2] += lz
+            om1 = (h3x * (q[6] - p[6]) + h3y * (q[7] - p[7]) + h3z * (q[8] - p[8])) * inv_ds
+            om2 = (h1x * (q[9] - p[9]) + h1y * (q[10] - p[10]) + h1z * (q[11] - p[11])) * inv_ds
+            om3 = (h2x * (q[3] - p[3]) + h2y * (q[4] - p[4]) + h2z * (q[5] - p[5])) * inv_ds
+            m1 = a[0] * (om1 - omega_hat[kk, 0])
+            m2 = a[1] * (om2 - omega_hat[kk, 1])
+            m3 = a[2] * (om3 - omega_hat[kk, 2])
+            # force at the half point (eq. 11)
+            c1 = b[0] * (h1x * dx0 + h1y * dx1 + h1z * dx2) * inv_ds
+            c2 = b[1] * (h2x * dx0 + h2y * dx1 + h2z * dx2) * inv_ds
+            c3 = b[2] * ((h3x * dx0 + h3y * dx1 + h3z * dx2) * inv_ds - 1.0)
+            fx = c1 * h1x + c2 * h2x + c3 * h3x
+            fy = c1 * h1y + c2 * h2y + c3 * h3y
+            fz = c1 * h1z + c2 * h2z + c3 * h3z
+            nx = m1 * h1x + m2 * h2x + m3 * h3x
+            ny = m1 * h1y + m2 * h2y + m3 * h3y
+            nz = m1 * h1z + m2 * h2z + m3 * h3z
+            # point values (eq. 12); ½ ΔX × F goes to both neighbours
+            lx = 0.5 * (dx1 * fz - dx2 * fy)
+            ly = 0.5 * (dx2 * fx - dx0 * fz)
+            lz = 0.5 * (dx0 * fy - dx1 * fx)
+            f[k, 0] += fx
+            f[k, 1] += fy
+            f[k, 2] += fz
+            f[k + 1, 0] -= fx
+            f[k + 1, 1] -= fy
+            f[k + 1, 2] -= fz
+            tq[k, 0] += nx + lx
+            tq[k, 1] += ny + ly
+            tq[k, 2] += nz + lz
+            tq[k + 1, 0] += lx - nx
+            tq[k + 1, 1] += ly - ny
+            tq[k + 1, 2] += lz - nz
     return f, tq
 
 
