@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
-from contextlib import contextmanager
 
 import numba
 import numpy as np
@@ -56,22 +54,12 @@ def _epsilon(value, batch: int) -> np.ndarray:
     return eps
 
 
-@contextmanager
-def _threads(n_threads: int | None) -> Iterator[int]:
-    """Run the block with numba's thread count set to ``n_threads`` (default 1); yields it."""
+def _thread_count(n_threads: int | None) -> int:
+    """The threads a call uses: ``n_threads`` (default 1), at most numba's thread pool."""
     n = 1 if n_threads is None else n_threads
     if not isinstance(n, int | np.integer) or n < 1:
         raise ValueError(f"n_threads: must be a positive integer, got {n_threads!r}")
-    n = min(int(n), numba.config.NUMBA_NUM_THREADS)
-    previous = numba.get_num_threads()
-    if n == previous:
-        yield n
-        return
-    numba.set_num_threads(n)
-    try:
-        yield n
-    finally:
-        numba.set_num_threads(previous)
+    return min(int(n), numba.config.NUMBA_NUM_THREADS)
 
 
 def _soa(points: np.ndarray, padded: int) -> np.ndarray:
@@ -157,7 +145,7 @@ def velocity(
         for name, arr in (("targets", targets), ("sources", sources)):
             if arr.size and np.max(np.abs(arr)) > SCALE_LIMIT:
                 raise ValueError(f"{name}: coordinates beyond ±{SCALE_LIMIT:g} are not supported")
-        eps = _epsilon(epsilon, batch)
+        eps = np.array(_epsilon(epsilon, batch))  # a fresh writable copy: one numba signature
         visc = _positive("mu", mu, batch)
         if wall:
             for name, arr in (("targets", targets), ("sources", sources)):
@@ -166,8 +154,10 @@ def velocity(
     else:
         targets = np.asarray(targets)
         batch = targets.shape[0] if targets.ndim == 3 else 0
-        eps = np.full(max(batch, 1), epsilon, dtype=np.float64)
-        visc = np.full(max(batch, 1), mu, dtype=np.float64)
+        eps = np.empty(max(batch, 1))
+        eps[:] = epsilon
+        visc = np.empty(max(batch, 1))
+        visc[:] = mu
 
     t3 = targets if batch else targets[None]
     s3 = np.ascontiguousarray(sources if batch else sources[None], dtype=np.float64)
@@ -175,20 +165,29 @@ def velocity(
     nb, m = t3.shape[:2]
     padded = -(-m // LANES) * LANES
     tp = _soa(t3, padded)
-    eps = np.array(eps, dtype=np.float64)  # a fresh writable copy: one numba signature
-    denom = EIGHT_PI * np.asarray(visc, dtype=np.float64)
+    denom = EIGHT_PI * visc
     u = np.empty((nb, m, 3))
-    with _threads(n_threads) as n:
-        starts = compiled.tile_starts(padded, n)
+    w = None
+    n = _thread_count(n_threads)
+    starts = compiled.tile_starts(padded, n)
+    previous = numba.get_num_threads()  # numba's thread count is set for this call only
+    if n != previous:
+        numba.set_num_threads(n)
+    try:
         if torques is None and not wall and not angular:
             compiled.free_u_f(tp, s3, f3, eps, denom, starts, u)
-            return u if batch else u[0]
-        w = np.empty((nb, m, 3))
-        if torques is None:
-            n3 = np.zeros_like(s3)
         else:
-            n3 = np.ascontiguousarray(torques if batch else torques[None], dtype=np.float64)
-        compiled.full(tp, s3, f3, n3, eps, bool(wall), torque_blob == "phi", denom, starts, u, w)
+            w = np.empty((nb, m, 3))
+            if torques is None:
+                n3 = np.zeros_like(s3)
+            else:
+                n3 = np.ascontiguousarray(torques if batch else torques[None], dtype=np.float64)
+            phi = torque_blob == "phi"
+            compiled.full(tp, s3, f3, n3, eps, bool(wall), phi, denom, starts, u, w)
+    finally:
+        if n != previous:
+            numba.set_num_threads(previous)
     if not batch:
-        u, w = u[0], w[0]
+        u = u[0]
+        w = None if w is None else w[0]
     return (u, w) if angular else u
