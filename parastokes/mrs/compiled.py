@@ -244,14 +244,15 @@ def tile_starts(padded: int, parts: int) -> np.ndarray:
 
 
 @njit(inline="always", **_OPTS)
-def _tile(job, starts, tx, ty, tz):
-    """The ``job``-th (system, tile) pair: system b, first target t0, number of targets nt and the
-    tile's target coordinates."""
+def _tile(job, starts, t, eps):
+    """The ``job``-th (system, tile) pair: system b, first target t0, number of targets nt, the
+    tile's target coordinates (from the (3, B, Mp) targets ``t``) and the system's ε²."""
     ntiles = starts.size - 1
     b = job // ntiles
     t0 = starts[job % ntiles]
     nt = starts[job % ntiles + 1] - t0
-    return b, t0, nt, tx[b, t0 : t0 + nt], ty[b, t0 : t0 + nt], tz[b, t0 : t0 + nt]
+    return (b, t0, nt, t[0, b, t0 : t0 + nt], t[1, b, t0 : t0 + nt], t[2, b, t0 : t0 + nt],
+            eps[b] * eps[b])
 
 
 @njit(inline="always", **_OPTS)
@@ -272,12 +273,10 @@ def free_u_f(t, s, f, eps, denom, starts, u):
     the tiles of every system (:func:`tile_starts`); ``u`` (B, M, 3), M <= Mp, is written (the
     padded targets' values are dropped).
     """
-    tx, ty, tz = t[0], t[1], t[2]
     ns = s.shape[1]
-    for job in prange(tx.shape[0] * (starts.size - 1)):
+    for job in prange(t.shape[1] * (starts.size - 1)):
         _kernel_attributes()
-        b, t0, nt, px, py, pz = _tile(job, starts, tx, ty, tz)
-        e2 = eps[b] * eps[b]
+        b, t0, nt, px, py, pz, e2 = _tile(job, starts, t, eps)
         e22 = 2.0 * e2
         ax = np.zeros(nt)
         ay = np.zeros(nt)
@@ -306,12 +305,10 @@ def full(t, s, f, n, eps, wall, phi, denom, starts, u, w):
     (not defined with the wall). Both flags are loop-invariant tests: LLVM unswitches the loops.
     Arguments as in :func:`free_u_f`, with torques ``n`` (B, N, 3) and the angular velocity ``w``
     (B, M, 3)."""
-    tx, ty, tz = t[0], t[1], t[2]
     ns = s.shape[1]
-    for job in prange(tx.shape[0] * (starts.size - 1)):
+    for job in prange(t.shape[1] * (starts.size - 1)):
         _kernel_attributes()
-        b, t0, nt, px, py, pz = _tile(job, starts, tx, ty, tz)
-        e2 = eps[b] * eps[b]
+        b, t0, nt, px, py, pz, e2 = _tile(job, starts, t, eps)
         a0 = np.zeros(nt)
         a1 = np.zeros(nt)
         a2 = np.zeros(nt)
