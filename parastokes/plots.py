@@ -92,6 +92,17 @@ def load_run(directory: str | Path, label: str | None = None) -> RunData:
     )
 
 
+def _finish(fig: Figure, ax, stem: Path, formats: Sequence[str], *, integer_x: bool = False,
+            **grid) -> list[Path]:
+    """Integer ticks on x (iteration counts) if asked, a light grid (``grid``: which/axis), the
+    legend, and the files."""
+    if integer_x:
+        ax.xaxis.get_major_locator().set_params(integer=True)
+    ax.grid(True, alpha=0.3, **grid)
+    ax.legend(fontsize=7)
+    return _save(fig, stem, formats)
+
+
 def _save(fig: Figure, stem: Path, formats: Sequence[str]) -> list[Path]:
     paths = []
     for fmt in formats:
@@ -116,10 +127,7 @@ def error_decay(runs: Sequence[RunData], stem: Path, formats: Sequence[str] = FO
         )
     ax.set_xlabel("iteration k")
     ax.set_ylabel("relative error / increment (eq. 34)")
-    ax.xaxis.get_major_locator().set_params(integer=True)
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7)
-    return _save(fig, stem, formats)
+    return _finish(fig, ax, stem, formats, integer_x=True, which="both")
 
 
 def staircase(accuracy: Sequence[float], measured: Sequence[float], desired: np.ndarray):
@@ -146,9 +154,7 @@ def speedup_vs_error(runs: Sequence[RunData], stem: Path, formats: Sequence[str]
         ax.semilogx(desired, staircase(accuracy, measured, desired), color=f"C{i}", label=run.label)
     ax.set_xlabel(f"desired {name}" if len(runs) == 1 else "desired error")
     ax.set_ylabel("measured speedup (eq. 14)")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7)
-    return _save(fig, stem, formats)
+    return _finish(fig, ax, stem, formats, which="both")
 
 
 def speedup_by_iteration(runs: Sequence[RunData], stem: Path, formats: Sequence[str] = FORMATS):
@@ -175,10 +181,7 @@ def speedup_by_iteration(runs: Sequence[RunData], stem: Path, formats: Sequence[
         )
     ax.set_xlabel("iterations N_it")
     ax.set_ylabel("speedup")
-    ax.xaxis.get_major_locator().set_params(integer=True)
-    ax.grid(True, axis="y", alpha=0.3)
-    ax.legend(fontsize=7)
-    return _save(fig, stem, formats)
+    return _finish(fig, ax, stem, formats, integer_x=True, axis="y")
 
 
 def scaling(runs: Sequence[RunData], stem: Path, formats: Sequence[str] = FORMATS):
@@ -295,9 +298,7 @@ def spatial_vs_temporal(data: dict[str, Any], stem: Path, formats: Sequence[str]
     ax.set_ylabel("speedup over serial F (eq. 35)")
     ax.set_ylim(bottom=0)
     _core_axis(ax, rows)
-    ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=7)
-    return _save(fig, stem, formats)
+    return _finish(fig, ax, stem, formats)
 
 
 def draw_benchmark(
