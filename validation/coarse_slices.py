@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import argparse
 import itertools
-import json
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -37,6 +36,7 @@ import numpy as np
 
 from parastokes import config, integrate, models, parareal
 from parastokes.config.build import build_coarse, build_system
+from validation.report import print_claims, write_results
 
 ROOT = Path(__file__).resolve().parents[1]
 EXPERIMENTS = ROOT / "experiments"
@@ -421,10 +421,8 @@ def main(argv: Sequence[str] | None = None) -> dict:
     parser.add_argument("--no-full-rod", action="store_true", help="skip the M = 301 sweeps")
     args = parser.parse_args(argv)
     results = run_all(full_rod=not args.no_full_rod)
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "coarse_slices.json").write_text(json.dumps(results, indent=1) + "\n")
-    for name, holds in results["claims"].items():
-        print(f"{'holds' if holds else 'FAILS'}: {name}")
+    write_results(results, args.out / "coarse_slices.json")
+    print_claims(results)
     print(f"total {results['runtime_s']:.0f}s; written to {args.out / 'coarse_slices.json'}")
     return results
 

@@ -32,7 +32,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import itertools
-import json
 import math
 import time
 from collections.abc import Sequence
@@ -43,6 +42,7 @@ import numpy as np
 
 from parastokes import integrate, models, parareal
 from parastokes.system import RodSystem
+from validation.report import print_claims, write_results
 
 __all__ = [
     "FULL",
@@ -495,13 +495,11 @@ def main(argv: Sequence[str] | None = None) -> dict:
     args = parser.parse_args(argv)
     setup, suffix = (QUICK, "_quick") if args.quick else (FULL, "")
     results = run_all(setup)
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / f"rod_extrapolation{suffix}.json").write_text(json.dumps(results, indent=1) + "\n")
+    write_results(results, args.out / f"rod_extrapolation{suffix}.json")
     plot_fig3(results, args.out / f"rod_fig3{suffix}.png")
     plot_fig5(results, args.out / f"rod_fig5{suffix}.png")
     print(markdown_tables(results))
-    for name, holds in results["claims"].items():
-        print(f"{'holds' if holds else 'FAILS'}: {name}")
+    print_claims(results)
     print(f"total {results['runtime_s']:.1f}s; written to {args.out}")
     return results
 
