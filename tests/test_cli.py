@@ -12,6 +12,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
+from configs import small_rod
 
 from parastokes import cli, config, io, parareal, runner
 from parastokes.parallel import TaskError
@@ -29,28 +30,10 @@ FIXED_KEYS = {
 FIGURES = ("error_decay", "speedup_vs_error", "speedup_by_iteration", "structure")
 
 # A small rod problem run in-process (serial executor): a few seconds.
-TINY = """
-title = "tiny rod"
-[model]
-kind = "rod"
-n_points = 21
-length = 4.0
-[time]
-t1 = 0.002
-[fine]
-dt = 1e-6
-[coarse]
-dt_ratio = 10
-lagrange = { epsilon = [5.6, 5.65] }
-richardson = { m = 1, r = 0.83 }
-[parareal]
-n_slices = 4
-max_iterations = 3
-[execution]
-executor = "serial"
-[output]
-formats = ["png"]
-"""
+TINY = 'title = "tiny rod"\n' + small_rod(
+    parareal="max_iterations = 3",
+    rest='[execution]\nexecutor = "serial"\n[output]\nformats = ["png"]\n',
+)
 
 
 def relative(x: np.ndarray, base: np.ndarray) -> float:

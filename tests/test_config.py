@@ -7,6 +7,7 @@ import math
 from pathlib import Path
 
 import pytest
+from configs import small_rod
 
 from parastokes import config, parareal
 from parastokes.config import ConfigError
@@ -14,26 +15,7 @@ from parastokes.config import ConfigError
 ROOT = Path(__file__).resolve().parents[1]
 
 # A small valid rod configuration; tests change one thing at a time.
-BASE = """
-[model]
-kind = "rod"
-n_points = 21
-length = 4.0
-epsilon = 5
-[time]
-t1 = 0.002
-[fine]
-dt = 1e-6
-[coarse]
-dt_ratio = 10
-lagrange = { epsilon = [5.6, 5.65] }
-richardson = { m = 1, r = 0.83 }
-[parareal]
-n_slices = 4
-[execution]
-executor = "processes"
-workers = 4
-"""
+BASE = small_rod(model="epsilon = 5", rest='[execution]\nexecutor = "processes"\nworkers = 4\n')
 
 VESICLE = """
 [model]
