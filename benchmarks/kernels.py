@@ -188,6 +188,22 @@ def validation_overhead(kind: str, n: int = 642, calls: int = 200) -> dict:
     )
 
 
+def call_overhead(calls: int = 2000, rounds: int = 7) -> dict:
+    """CPU seconds per ``mrs.velocity(check=False)`` call on 8 targets and 8 sources (wall, u and
+    w from f and n, one thread): 64 pairs, so what is measured is the call's fixed cost (packing,
+    thread setting, allocation, dispatch)."""
+    args, kw = _problem("wall", 8)
+    call = partial(mrs.velocity, *args, epsilon=EPSILON, mu=MU, n_threads=1, check=False, **kw)
+    call()
+    best = np.inf
+    for _ in range(rounds):
+        t0 = time.process_time()
+        for _ in range(calls):
+            call()
+        best = min(best, (time.process_time() - t0) / calls)
+    return dict(seconds=best)
+
+
 def run(rounds: int) -> dict:
     """All the measurements, as a JSON-ready dict."""
     load_before = os.getloadavg()
@@ -225,6 +241,7 @@ def run(rounds: int) -> dict:
             loadavg_after=os.getloadavg(),
         ),
         matmul_gflops_1thread=blas["gflops"],
+        call_overhead=call_overhead(),
         flops_per_pair=FLOPS_PER_PAIR,
         targets={
             k: dict(zip(("per_core_1t", "total_2t", "x_oracle"), v, strict=True))
@@ -292,6 +309,10 @@ def table(result: dict) -> str:
             f"x oracle >= {worst_x:.0f} (target {x_or:.0f})",
         ]
         lines.append(f"{kind}: best " + "; ".join(parts))
+    lines.append(
+        "per-call overhead of mrs.velocity(check=False), 8 targets x 8 sources, wall, u and w: "
+        f"{1e6 * result['call_overhead']['seconds']:.1f} us of CPU time"
+    )
     return "\n".join(lines)
 
 

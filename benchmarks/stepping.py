@@ -17,7 +17,8 @@ the vesicle (642 points, free-space Stokeslets), it times
 
 and reports ``step / (2 kernel)`` and ``1 + rest / (2 kernel)``, the overhead ratio of an RK2
 step over its two kernel evaluations (issue target: at most 1.3), and the projected wall time of
-the paper's serial fine solve (one rod, T = 1, τ_f = 1e-6: 10^6 RK2 steps). Each figure is the
+the paper's serial fine solve (one rod, T = 1, τ_f = 1e-6: 10^6 RK2 steps), and, for the rod, the
+per-call time of the two unthreaded parts of the rest (``loads``, ``advance``). Each figure is the
 minimum over ``--repeats`` blocks of interleaved measurements (robust against other load).
 With ``--out`` the table and the command are written as markdown.
 """
@@ -104,6 +105,16 @@ def measure(system, dt, repeats, calls):
     return min(steps), min(kernels), min(overheads)
 
 
+def rod_rest_parts(system, dt, repeats, calls=200):
+    """Seconds per call of the rod's unthreaded per-evaluation work: ``loads`` (mechanics and
+    preferred strain) and ``advance`` (positions and frame rotations); min over ``repeats``."""
+    x = integrate.propagate(system, system.initial_state(), 0.0, 5 * dt, "rk2", dt)
+    rates = system.rates(5 * dt, x)
+    loads = min(best_time(lambda: system.loads(5 * dt, x), calls) for _ in range(repeats))
+    advance = min(best_time(lambda: system.advance(x, rates, dt), calls) for _ in range(repeats))
+    return loads, advance
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=7)
@@ -125,6 +136,9 @@ def main(argv=None) -> int:
         print(f"{name:28s} step {step * 1e3:8.3f} ms   kernel {kernel * 1e3:8.3f} ms   "
               f"rest {overhead * 1e3:7.3f} ms   ratio {rows[-1][4]:5.2f} "
               f"(from the rest: {rows[-1][5]:5.3f})", flush=True)
+    loads, advance = rod_rest_parts(cases[0][1], cases[0][2], args.repeats)
+    print(f"one rod, per call: loads {loads * 1e6:.1f} us, advance {advance * 1e6:.1f} us "
+          "(twice each per RK2 step)")
     rod_step = rows[0][1]
     projected = FINE_STEPS * rod_step
     print(f"projected serial fine solve (rod, T = 1, 1e6 RK2 steps): {projected:.0f} s "
@@ -158,6 +172,10 @@ def main(argv=None) -> int:
             "The last column times the step with `mrs.velocity` answering from a cache: the work",
             "that is not the two kernel evaluations, measured directly (robust on a busy machine,",
             "where the difference of two noisy timings is not).",
+            "",
+            f"Of the rod's rest, per call (twice each per step): `loads` (mechanics, preferred "
+            f"strain) {loads * 1e6:.1f} µs, `advance` (positions, frame rotations) "
+            f"{advance * 1e6:.1f} µs.",
             "",
             f"Overhead target step / (2 kernels) <= {TARGET_RATIO}: {verdict}.",
             "",
