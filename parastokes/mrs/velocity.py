@@ -145,12 +145,10 @@ def velocity(
         for name, arr in (("targets", targets), ("sources", sources)):
             if arr.size and np.max(np.abs(arr)) > SCALE_LIMIT:
                 raise ValueError(f"{name}: coordinates beyond ±{SCALE_LIMIT:g} are not supported")
+            if wall and np.any(arr[..., 2] < 0):
+                raise ValueError(f"{name}: points below the wall z = 0 (wall=True)")
         eps = np.array(_epsilon(epsilon, batch))  # a fresh writable copy: one numba signature
         visc = _positive("mu", mu, batch)
-        if wall:
-            for name, arr in (("targets", targets), ("sources", sources)):
-                if np.any(arr[..., 2] < 0):
-                    raise ValueError(f"{name}: points below the wall z = 0 (wall=True)")
     else:
         targets = np.asarray(targets)
         batch = targets.shape[0] if targets.ndim == 3 else 0
@@ -166,18 +164,18 @@ def velocity(
     padded = -(-m // LANES) * LANES
     tp = _soa(t3, padded)
     denom = EIGHT_PI * visc
+    fast = torques is None and not wall and not angular  # u from f in free space only
     u = np.empty((nb, m, 3))
-    w = None
+    w = None if fast else np.empty((nb, m, 3))
     n = _thread_count(n_threads)
     starts = compiled.tile_starts(padded, n)
     previous = numba.get_num_threads()  # numba's thread count is set for this call only
     if n != previous:
         numba.set_num_threads(n)
     try:
-        if torques is None and not wall and not angular:
+        if fast:
             compiled.free_u_f(tp, s3, f3, eps, denom, starts, u)
         else:
-            w = np.empty((nb, m, 3))
             if torques is None:
                 n3 = np.zeros_like(s3)
             else:
@@ -189,5 +187,5 @@ def velocity(
             numba.set_num_threads(previous)
     if not batch:
         u = u[0]
-        w = None if w is None else w[0]
+        w = None if fast else w[0]
     return (u, w) if angular else u
