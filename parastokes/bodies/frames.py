@@ -3,7 +3,8 @@
 A rod state has one row per node, ``[X(3), D1(3), D2(3), D3(3)]`` (docs/contracts.md). Everything
 here is compiled with numba and loops over rows inside the compiled code.
 
-- :func:`rotate`: Rodrigues' formula, the exact rotation of a vector by an angle about a unit axis.
+- :func:`rodrigues`, :func:`rotate`: Rodrigues' formula, the exact rotation of a vector by an angle
+  about an axis (unit, for :func:`rotate`).
 - :func:`advance_rod`: the rod's ``advance`` (eq. 13): X + dt u, frames rotated by |w| dt about w.
 - :func:`orthonormalize`: the nearest rotation (polar factor) of every node's frame matrix, used by
   ``project`` after Parareal's linear combinations of states and after grid transfers.
@@ -22,17 +23,28 @@ _POLAR_MAX_ITER = 50
 
 
 @njit(inline="always", **_OPTS)
+def rodrigues(vx, vy, vz, ax, ay, az, c, k, s):
+    """Rodrigues' formula with the axis a as given: c v + k (a·v) a + s a × v.
+
+    For a unit axis a rotation by an angle of cosine c and sine s has k = 1 - c
+    (:func:`rotate`); for an axis of length L, k = (1 - c)/L² and s = sin/L (the rod's half-point
+    frames, which use the unnormalized axis).
+    """
+    ad = k * (ax * vx + ay * vy + az * vz)
+    return (
+        c * vx + ad * ax + s * (ay * vz - az * vy),
+        c * vy + ad * ay + s * (az * vx - ax * vz),
+        c * vz + ad * az + s * (ax * vy - ay * vx),
+    )
+
+
+@njit(inline="always", **_OPTS)
 def rotate(vx, vy, vz, ex, ey, ez, c, s):
     """Rotate v about the unit axis e by the angle with cosine c and sine s (Rodrigues, eq. 13).
 
     v <- c v + (1 - c)(e·v) e + s e × v.
     """
-    ed = (1.0 - c) * (ex * vx + ey * vy + ez * vz)
-    return (
-        c * vx + ed * ex + s * (ey * vz - ez * vy),
-        c * vy + ed * ey + s * (ez * vx - ex * vz),
-        c * vz + ed * ez + s * (ex * vy - ey * vx),
-    )
+    return rodrigues(vx, vy, vz, ex, ey, ez, c, 1.0 - c, s)
 
 
 @njit(**_OPTS)

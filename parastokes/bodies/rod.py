@@ -20,24 +20,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .frames import rodrigues
+
 _OPTS = dict(cache=True, error_model="numpy")
-
-
-@njit(inline="always", **_OPTS)
-def _dot3(a, b):
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-
-
-@njit(inline="always", **_OPTS)
-def _half_turn(dx, dy, dz, vx, vy, vz, ch, kq, sp):
-    """D rotated by half the angle of A_k: ch D + kq (v·D) v + sp v × D, with the unnormalized
-    axis v = sin θ e, kq = (1 - cos(θ/2))/|v|², sp = sin(θ/2)/|v| (Rodrigues; physics.md (9))."""
-    vd = kq * (vx * dx + vy * dy + vz * dz)
-    return (
-        ch * dx + vd * vx + sp * (vy * dz - vz * dy),
-        ch * dy + vd * vy + sp * (vz * dx - vx * dz),
-        ch * dz + vd * vz + sp * (vx * dy - vy * dx),
-    )
 
 
 @njit(**(_OPTS | dict(fastmath={"contract"})))
@@ -80,9 +65,9 @@ def rod_loads(state, n_rods, ds, a, b, omega_hat):
             sp = 0.5 * inv_ch
             kq = 0.25 * inv_ch * rc
             # half-point frame H_i (physics.md (9))
-            h1x, h1y, h1z = _half_turn(p[3], p[4], p[5], vx, vy, vz, ch, kq, sp)
-            h2x, h2y, h2z = _half_turn(p[6], p[7], p[8], vx, vy, vz, ch, kq, sp)
-            h3x, h3y, h3z = _half_turn(p[9], p[10], p[11], vx, vy, vz, ch, kq, sp)
+            h1x, h1y, h1z = rodrigues(p[3], p[4], p[5], vx, vy, vz, ch, kq, sp)
+            h2x, h2y, h2z = rodrigues(p[6], p[7], p[8], vx, vy, vz, ch, kq, sp)
+            h3x, h3y, h3z = rodrigues(p[9], p[10], p[11], vx, vy, vz, ch, kq, sp)
             dx0 = q[0] - p[0]
             dx1 = q[1] - p[1]
             dx2 = q[2] - p[2]
