@@ -28,6 +28,10 @@ RKMK step. Projecting the input makes a propagator safe on states that come stra
 combination (Parareal's correction, extrapolation); for orthonormal input it changes nothing beyond
 round-off.
 
+A system may also offer the whole loop of steps in compiled code, ``run_steps`` (rods:
+:mod:`parastokes.rod_stepping`): the same tableau, the same parts, the same checks, without a
+Python call per stage. :func:`run` uses it when present; ``run(..., compiled=False)`` does not.
+
 Blow-up is an error: after every step the state must be finite and ``system.monitor`` must stay
 below ``blowup_factor * system.monitor_limit``; otherwise :class:`BlowUpError` names the time, the
 step index and the monitor value and keeps the last good state.
@@ -35,6 +39,7 @@ step index and the monitor value and keeps the last good state.
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
 from dataclasses import dataclass
@@ -198,6 +203,42 @@ class RunResult:
     completed: bool = True
 
 
+#: Outcomes of a loop of steps (:func:`_python_steps`, ``system.run_steps``): all steps taken;
+#: stopped after a step whose monitor exceeded ``stop_above`` (kept); a non-finite state; a
+#: monitor beyond the blow-up limit (neither kept).
+DONE, ABOVE, NON_FINITE, BEYOND = 0, 1, 2, 3
+
+
+def _python_steps(
+    system: Any,
+    scheme: Scheme,
+    x: np.ndarray,
+    t0: float,
+    dt: float,
+    n: int,
+    limit: float,
+    stop_above: float,
+) -> tuple[np.ndarray, float, int, int, float]:
+    """``n`` steps through ``system.rates``/``system.advance``, checked after each step.
+
+    Returns ``(last state kept, worst monitor, steps kept, outcome, monitor that ended the run)``;
+    ``system.run_steps`` (optional, compiled) has the same signature and result.
+    """
+    worst = system.monitor(x)
+    for i in range(n):
+        x_new = step(system, scheme, t0 + i * dt, x, dt)
+        if not np.isfinite(x_new).all():
+            return x, worst, i, NON_FINITE, math.nan
+        m = system.monitor(x_new)
+        if not m <= limit:
+            return x, worst, i, BEYOND, m
+        worst = max(worst, m)
+        x = x_new
+        if m > stop_above:
+            return x, worst, i + 1, ABOVE, m
+    return x, worst, n, DONE, worst
+
+
 def _stepping(
     system: Any,
     scheme: Scheme,
@@ -207,26 +248,29 @@ def _stepping(
     n: int,
     blowup_factor: float,
     stop_above: float | None = None,
+    compiled: bool = True,
 ) -> RunResult:
-    """Take ``n`` steps of size ``dt``; stop early (``completed=False``) if monitor > stop_above."""
+    """Take ``n`` steps of size ``dt``; stop early (``completed=False``) if monitor > stop_above.
+
+    The steps run in ``system.run_steps`` when the system has it and ``compiled`` (rods:
+    :mod:`parastokes.rod_stepping`), else in :func:`_python_steps`; both return the same.
+    """
     limit = blowup_factor * system.monitor_limit
     x = system.project(x)
-    worst = system.monitor(x)
-    for i in range(n):
-        t = t0 + (i + 1) * dt
-        x_new = step(system, scheme, t0 + i * dt, x, dt)
-        if not np.isfinite(x_new).all():
-            raise BlowUpError(t, i, math.nan, x, "non-finite state")
-        m = system.monitor(x_new)
-        if not m <= limit:
-            raise BlowUpError(
-                t, i, m, x, f"monitor beyond {blowup_factor:g} x its limit {system.monitor_limit:g}"
-            )
-        worst = max(worst, m)
-        x = x_new
-        if stop_above is not None and m > stop_above:
-            return RunResult(system.project(x), worst, i + 1, dt, completed=False)
-    return RunResult(system.project(x), worst, n, dt)
+    loop = getattr(system, "run_steps", None) if compiled else None
+    if loop is None:
+        loop = functools.partial(_python_steps, system)
+    x, worst, taken, outcome, m = loop(
+        scheme, x, t0, dt, n, limit, math.inf if stop_above is None else stop_above
+    )
+    t = t0 + (taken + 1) * dt
+    if outcome == NON_FINITE:
+        raise BlowUpError(t, taken, math.nan, x, "non-finite state")
+    if outcome == BEYOND:
+        raise BlowUpError(
+            t, taken, m, x, f"monitor beyond {blowup_factor:g} x its limit {system.monitor_limit:g}"
+        )
+    return RunResult(system.project(x), worst, taken, dt, completed=outcome == DONE)
 
 
 def run(
@@ -238,12 +282,15 @@ def run(
     dt: float,
     *,
     blowup_factor: float = BLOWUP_FACTOR,
+    compiled: bool = True,
 ) -> RunResult:
     """Integrate from ``t0`` to ``t1`` with equal steps closest to ``dt``; report the worst monitor.
 
     The step actually used is ``(t1 - t0) / n_steps(t0, t1, dt)``; a change is logged (DEBUG).
     The initial and the final state are projected (``system.project``). Raises
-    :class:`BlowUpError` on blow-up.
+    :class:`BlowUpError` on blow-up. ``compiled=False`` takes the steps through the system's
+    ``rates`` and ``advance`` in Python even when it has a compiled loop (``run_steps``), e.g. to
+    check one against the other: both give the same result.
     """
     s = _scheme(scheme)
     n = n_steps(t0, t1, dt)
@@ -252,7 +299,9 @@ def run(
     h = (t1 - t0) / n
     if abs(h - dt) > 1e-12 * dt:
         log.debug("step adjusted from %.6g to %.6g: %d steps divide [%g, %g]", dt, h, n, t0, t1)
-    return _stepping(system, s, np.asarray(x, dtype=float), t0, h, n, blowup_factor)
+    return _stepping(
+        system, s, np.asarray(x, dtype=float), t0, h, n, blowup_factor, compiled=compiled
+    )
 
 
 def propagate(

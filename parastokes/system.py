@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from . import mrs
+from . import mrs, rod_stepping
 from .bodies import frames, geometry, rod, vesicle
 from .bodies.rod_transfer import RodTransfer
 
@@ -150,6 +150,14 @@ class RodSystem:
     def advance(self, state: np.ndarray, rates: np.ndarray, dt: float) -> np.ndarray:
         """X + dt u; frames rotated by |w| dt about w (Rodrigues, eq. 13)."""
         return frames.advance_rod(state, rates, dt)
+
+    def run_steps(
+        self, scheme: Any, x: np.ndarray, t0: float, dt: float, n: int, limit: float,
+        stop_above: float,
+    ) -> tuple[np.ndarray, float, int, int, float]:
+        """``n`` steps of ``scheme`` in one compiled call (:mod:`parastokes.rod_stepping`), the
+        loop ``integrate.run`` uses; the same result as stepping through ``rates``/``advance``."""
+        return rod_stepping.run_steps(self, scheme, x, t0, dt, n, limit, stop_above)
 
     @staticmethod
     def bracket(r1: np.ndarray, r2: np.ndarray) -> np.ndarray:

@@ -17,12 +17,17 @@ __all__ = ["WarmUp"]
 
 
 class WarmUp:
-    """Evaluate ``system.rates`` once, so that a worker loads (or compiles) the kernels before
-    timing starts."""
+    """Take one tiny step with ``integrate.run`` (the system's compiled loop, if it has one) and
+    evaluate ``system.rates`` once, so that a worker loads (or compiles) what its solvers call
+    before timing starts."""
 
     def __init__(self, system: Any) -> None:
         self.system = pickle.dumps(system)
 
     def __call__(self) -> None:
+        from .integrate import run  # numba is imported only now, after the thread limits
+
         system = pickle.loads(self.system)
-        system.rates(0.0, system.initial_state())
+        x = system.initial_state()
+        system.rates(0.0, x)
+        run(system, x, 0.0, 1e-12, "euler", 1e-12)

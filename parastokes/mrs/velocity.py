@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
+from collections.abc import Iterator
 
 import numba
 import numpy as np
@@ -60,6 +62,21 @@ def _thread_count(n_threads: int | None) -> int:
     if not isinstance(n, int | np.integer) or n < 1:
         raise ValueError(f"n_threads: must be a positive integer, got {n_threads!r}")
     return min(int(n), numba.config.NUMBA_NUM_THREADS)
+
+
+@contextlib.contextmanager
+def kernel_threads(n_threads: int | None) -> Iterator[int]:
+    """Run the enclosed kernels on ``n_threads`` threads (:func:`_thread_count`); numba's thread
+    count is restored on exit. Yields the count used (the kernels' tiling depends on it)."""
+    n = _thread_count(n_threads)
+    previous = numba.get_num_threads()
+    if n != previous:
+        numba.set_num_threads(n)
+    try:
+        yield n
+    finally:
+        if n != previous:
+            numba.set_num_threads(previous)
 
 
 def _soa(points: np.ndarray, padded: int) -> np.ndarray:
@@ -167,12 +184,8 @@ def velocity(
     fast = torques is None and not wall and not angular  # u from f in free space only
     u = np.empty((nb, m, 3))
     w = None if fast else np.empty((nb, m, 3))
-    n = _thread_count(n_threads)
-    starts = compiled.tile_starts(padded, n)
-    previous = numba.get_num_threads()  # numba's thread count is set for this call only
-    if n != previous:
-        numba.set_num_threads(n)
-    try:
+    with kernel_threads(n_threads) as n:
+        starts = compiled.tile_starts(padded, n)
         if fast:
             compiled.free_u_f(tp, s3, f3, eps, denom, starts, u)
         else:
@@ -182,9 +195,6 @@ def velocity(
                 n3 = np.ascontiguousarray(torques if batch else torques[None], dtype=np.float64)
             phi = torque_blob == "phi"
             compiled.full(tp, s3, f3, n3, eps, bool(wall), phi, denom, starts, u, w)
-    finally:
-        if n != previous:
-            numba.set_num_threads(previous)
     if not batch:
         u = u[0]
         w = None if fast else w[0]

@@ -1,0 +1,105 @@
+"""The rod's compiled loop of steps (parastokes.rod_stepping) against the Python loop of
+integrate: the same tableaux through the same parts, so the same numbers, outcomes and errors."""
+
+import dataclasses
+import math
+import pickle
+
+import numba
+import numpy as np
+import pytest
+from rods import helix_rod
+
+from parastokes import integrate, models
+from parastokes.integrate import SCHEMES, BlowUpError
+
+
+def swimmers(**kw):
+    """Two short swimmers side by side above the wall (travelling wave of eq. 36)."""
+    return models.rod_swimmer(2, 31, 1.0, length=6.0, wavelength=3.0, **kw)
+
+
+def both_loops(system, scheme, x, t0, dt, n, limit=1.0, stop_above=math.inf):
+    s = SCHEMES[scheme]
+    return (
+        system.run_steps(s, x, t0, dt, n, limit, stop_above),
+        integrate._python_steps(system, s, x, t0, dt, n, limit, stop_above),
+    )
+
+
+def assert_same(compiled, python):
+    np.testing.assert_array_equal(compiled[0], python[0])
+    assert compiled[1:4] == python[1:4]
+    assert compiled[4] == python[4] or (math.isnan(compiled[4]) and math.isnan(python[4]))
+
+
+@pytest.mark.parametrize("scheme", ["euler", "rk2", "rk4"])
+@pytest.mark.parametrize(
+    "system",
+    [swimmers(), swimmers(wall=False, frequency=-40.0), helix_rod()],
+    ids=["swimmers-wall", "swimmers-free", "helix"],
+)
+def test_compiled_loop_equals_the_python_loop(system, scheme):
+    x0 = system.initial_state()
+    dt = 1e-3 if system.n_points == 21 else 2e-6
+    compiled, python = both_loops(system, scheme, x0, 0.3, dt, 12)
+    assert compiled[3] == integrate.DONE and compiled[2] == 12
+    assert np.abs(compiled[0] - x0).max() > 1e-6  # it moved
+    assert_same(compiled, python)
+
+
+def test_run_uses_the_compiled_loop_and_threads_do_not_change_it():
+    system = swimmers()
+    x0 = system.initial_state()
+    plain = integrate.run(system, x0, 0.0, 2e-5, "rk2", 1e-6, compiled=False)
+    before = numba.get_num_threads()
+    for threads in (1, 2):
+        res = integrate.run(dataclasses.replace(system, n_threads=threads), x0, 0.0, 2e-5, "rk2",
+                            1e-6)
+        np.testing.assert_array_equal(res.state, plain.state)
+        assert (res.max_monitor, res.n_steps, res.completed) == (
+            plain.max_monitor, plain.n_steps, plain.completed)
+        assert numba.get_num_threads() == before  # the thread count is restored
+
+
+def test_stop_above_ends_both_loops_after_the_same_step():
+    system = helix_rod()
+    x0 = system.initial_state()
+    limit = integrate.BLOWUP_FACTOR * system.monitor_limit
+    compiled, python = both_loops(system, "euler", x0, 0.0, 0.2, 200, limit, 1e-3)
+    assert compiled[3] == integrate.ABOVE and 0 < compiled[2] < 200 and compiled[4] > 1e-3
+    assert_same(compiled, python)
+
+
+def test_monitor_blowup_is_the_same_error_from_both_loops():
+    system = helix_rod()
+    x0 = system.initial_state()
+    errors = []
+    for compiled in (True, False):
+        with pytest.raises(BlowUpError) as info:
+            integrate.run(system, x0, 0.0, 1000.0, "euler", 5.0, compiled=compiled)
+        errors.append(info.value)
+    a, b = errors
+    assert "monitor beyond" in str(a) and str(a) == str(b)
+    assert (a.t, a.step, a.monitor) == (b.t, b.step, b.monitor)
+    np.testing.assert_array_equal(a.last_state, b.last_state)
+
+
+def test_non_finite_state_is_the_same_error_from_both_loops():
+    system = swimmers()
+    x0 = system.initial_state()
+    x0[10, 3:12] = [0, -1, 0, 0, 0, -1, 1, 0, 0]  # D1, D2 turned by π about D3 = e_x
+    errors = []
+    for compiled in (True, False):
+        with np.errstate(invalid="ignore", divide="ignore"), pytest.raises(BlowUpError) as info:
+            integrate.run(system, x0, 0.0, 1e-5, "rk2", 1e-6, compiled=compiled)
+        errors.append(info.value)
+    a, b = errors
+    assert "non-finite" in str(a) and str(a) == str(b) and a.step == b.step == 0
+    assert math.isnan(a.monitor) and math.isnan(b.monitor)
+    np.testing.assert_array_equal(a.last_state, b.last_state)
+    assert np.isfinite(a.last_state).all()
+
+
+def test_rod_system_with_its_loop_still_pickles_small():
+    assert len(pickle.dumps(swimmers())) < 1000
