@@ -7,12 +7,13 @@ Run from the repository root::
 For one rod swimmer (M = 301, ε = 5 σ_f, wall kernels with torques), five rods (1505 points) and
 the vesicle (642 points, free-space Stokeslets), it times
 
-- ``run``: seconds per RK2 (Heun) step of :func:`parastokes.integrate.run` over ``--steps``
+- ``run``: seconds per RK2 (Heun) step of :func:`parastokes.integrate.run` over a block of
   steps, i.e. what ``propagate`` and the Parareal solvers do: for rods the compiled loop
   (:mod:`parastokes.rod_stepping`), for the vesicle the Python loop over ``rates``/``advance``;
 - ``python``: one step through :func:`parastokes.integrate.step` plus the per-step checks of the
   Python loop (finite state, monitor), for comparison;
-- ``kernel``: one ``mrs.velocity`` call with the same inputs and ``check=False`` (the O(N²) sum);
+- ``kernel``: one call of the compiled kernel with the same inputs, packed beforehand (the O(N²)
+  sum alone, without ``mrs.velocity``'s Python);
 - ``rest``: the Python step with ``mrs.velocity`` answering from a cache, i.e. the Python loop's
   work that is not the two kernel evaluations;
 
@@ -22,9 +23,10 @@ time of the paper's serial fine solve (one rod, T = 1, τ_f = 1e-6: 10^6 RK2 ste
 For the rod it also prints the per-call time of the two non-kernel parts of a stage (``loads``,
 ``advance``), and for the machine a reference rate measured in the same run (a 2000 x 2000
 float64 matmul on one thread, GFLOP/s), since this shared machine runs at different speeds at
-different moments. Each figure is the minimum over ``--repeats`` blocks of interleaved
-measurements (robust against other load). With ``--out`` the table and the command are written
-as markdown.
+different moments. The four measurements run in ``--repeats`` rounds of adjacent short blocks;
+times are medians over the rounds, and each ratio is taken within a round (blocks milliseconds
+apart, so at the same machine speed) before its median is taken. With ``--out`` the table and
+the command are written as markdown.
 """
 
 from __future__ import annotations
@@ -42,6 +44,8 @@ import numpy as np
 from kernels import matmul_rate
 
 from parastokes import integrate, models, mrs
+from parastokes.mrs import compiled
+from parastokes.mrs.velocity import kernel_threads
 
 FINE_STEPS = 1_000_000  # T = 1 with τ_f = 1e-6 (section 5.1)
 TARGET_RATIO = 1.3
@@ -58,19 +62,35 @@ def one_step(system, t, x, dt):
 
 
 def kernel_call(system, t, x):
-    """The O(N²) part of one ``rates`` evaluation, with the same inputs."""
+    """The O(N²) part of one ``rates`` evaluation: the compiled kernel that ``mrs.velocity`` and
+    the rods' compiled loop call, on the same inputs packed beforehand (so no Python overhead).
+    Returns the call and its result, as ``mrs.velocity`` would return it."""
+    pos = np.ascontiguousarray(x[:, :3] if hasattr(system, "loads") else x)
+    n = pos.shape[0]
+    padded = -(-n // compiled.LANES) * compiled.LANES
+    targets = np.empty((3, 1, padded))
+    targets[:, 0, :n] = pos.T
+    targets[:, 0, n:] = pos[-1][:, None]  # padding repeats the last point, as mrs.velocity does
+    eps = np.full(1, system.epsilon)
+    denom = np.full(1, 8.0 * math.pi * system.viscosity)
+    threads = 1 if system.n_threads is None else system.n_threads
+    starts = compiled.tile_starts(padded, threads)
+    u, w = np.empty((1, n, 3)), np.empty((1, n, 3))
     if hasattr(system, "loads"):
-        f, n = system.loads(t, x)
-        pos = x[:, :3]
-        return lambda: mrs.velocity(
-            pos, pos, f, epsilon=system.epsilon, mu=system.viscosity, torques=n, wall=system.wall,
-            angular=True, n_threads=system.n_threads, check=False,
-        )
-    f = system.forces(x)
-    return lambda: mrs.velocity(
-        x, x, f, epsilon=system.epsilon, mu=system.viscosity, n_threads=system.n_threads,
-        check=False,
-    )
+        f, torques = system.loads(t, x)
+        args = (targets, pos[None], f[None], torques[None], eps, system.wall, False, denom, starts,
+                u, w)
+        kernel = compiled.full
+    else:
+        args = (targets, pos[None], system.forces(x)[None], eps, denom, starts, u)
+        kernel = compiled.free_u_f
+
+    def call():
+        with kernel_threads(threads):
+            kernel(*args)
+
+    call()  # what mrs.velocity returns for these inputs
+    return call, ((u[0].copy(), w[0].copy()) if hasattr(system, "loads") else u[0].copy())
 
 
 def best_time(fn, n):
@@ -95,25 +115,35 @@ def kernel_replaced_by(result):
         mrs.velocity = real
 
 
-def measure(system, dt, repeats, calls, steps):
-    """Seconds per call, min over ``repeats`` interleaved blocks: run (per step), python step,
-    kernel, rest."""
+def measure(system, dt, repeats, steps):
+    """Seconds per step or call and the overhead ratios, from ``repeats`` rounds of four adjacent
+    blocks of ``steps`` steps each (kernels: ``2 steps`` calls): run, Python step, kernel, rest.
+
+    Times are medians over the rounds; each ratio is formed within a round (blocks milliseconds
+    apart, so at the same machine speed) and its median taken.
+    """
     # a state in motion: the swimmer a few steps in, the vesicle slightly deformed
     x = integrate.propagate(system, system.initial_state(), 0.0, 5 * dt, "rk2", dt)
     t = 5 * dt
-    kernel = kernel_call(system, t, x)
-    result = kernel()
+    kernel, result = kernel_call(system, t, x)
     one_step(system, t, x, dt)
+    integrate.run(system, x, t, t + steps * dt, "rk2", dt)
     times = {"run": [], "python": [], "kernel": [], "rest": []}
     for _ in range(repeats):
         start = time.perf_counter()
         integrate.run(system, x, t, t + steps * dt, "rk2", dt)
         times["run"].append((time.perf_counter() - start) / steps)
-        times["python"].append(best_time(lambda: one_step(system, t, x, dt), calls))
-        times["kernel"].append(best_time(kernel, 2 * calls))
+        times["python"].append(best_time(lambda: one_step(system, t, x, dt), steps))
+        times["kernel"].append(best_time(kernel, 2 * steps))
         with kernel_replaced_by(result):
-            times["rest"].append(best_time(lambda: one_step(system, t, x, dt), calls))
-    return {key: min(values) for key, values in times.items()}
+            times["rest"].append(best_time(lambda: one_step(system, t, x, dt), steps))
+    per_round = {key: np.array(values) for key, values in times.items()}
+    two_kernels = 2 * per_round["kernel"]
+    out = {key: float(np.median(values)) for key, values in per_round.items()}
+    out["ratio"] = float(np.median(per_round["run"] / two_kernels))
+    out["python_ratio"] = float(np.median(per_round["python"] / two_kernels))
+    out["rest_ratio"] = float(np.median(1 + per_round["rest"] / two_kernels))
+    return out
 
 
 def rod_rest_parts(system, dt, repeats, calls=200):
@@ -128,24 +158,22 @@ def rod_rest_parts(system, dt, repeats, calls=200):
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--repeats", type=int, default=7)
+    parser.add_argument("--repeats", type=int, default=31)
     parser.add_argument("--threads", type=int, default=1, help="kernel threads (n_threads)")
     parser.add_argument("--out", help="write a markdown report here")
     args = parser.parse_args(argv)
     load = os.getloadavg()
     reference = matmul_rate()["gflops"]
 
-    cases = [  # name, system, dt, Python calls per block, steps of run per block
-        ("one rod (M = 301, wall)", models.rod_swimmer(n_threads=args.threads), 1e-6, 20, 400),
-        ("five rods (5 x 301, wall)", models.rod_swimmer(5, n_threads=args.threads), 1e-6, 4, 20),
-        ("vesicle (642, free space)", models.vesicle(n_threads=args.threads), 1e-3, 10, 40),
+    cases = [  # name, system, dt, steps per block
+        ("one rod (M = 301, wall)", models.rod_swimmer(n_threads=args.threads), 1e-6, 10),
+        ("five rods (5 x 301, wall)", models.rod_swimmer(5, n_threads=args.threads), 1e-6, 2),
+        ("vesicle (642, free space)", models.vesicle(n_threads=args.threads), 1e-3, 10),
     ]
     rows = []
-    for name, system, dt, calls, steps in cases:
-        m = measure(system, dt, args.repeats, calls, steps)
-        row = dict(name=name, **m, ratio=m["run"] / (2 * m["kernel"]),
-                   python_ratio=m["python"] / (2 * m["kernel"]),
-                   rest_ratio=1 + m["rest"] / (2 * m["kernel"]))
+    for name, system, dt, steps in cases:
+        m = measure(system, dt, args.repeats, steps)
+        row = dict(name=name, **m)
         rows.append(row)
         print(f"{name:28s} run {m['run'] * 1e3:7.3f} ms/step   kernel {m['kernel'] * 1e3:7.3f} ms"
               f"   ratio {row['ratio']:5.2f}   | Python step {m['python'] * 1e3:7.3f} ms, "
@@ -170,7 +198,8 @@ def main(argv=None) -> int:
             "",
             f"Machine: {platform.processor() or platform.machine()}, "
             f"{numba.config.NUMBA_NUM_THREADS} hardware threads; kernel threads used: "
-            f"{args.threads}; minimum over {args.repeats} blocks of interleaved measurements; "
+            f"{args.threads}; medians over {args.repeats} rounds of adjacent blocks (ratios formed "
+            "within each round); "
             f"load average before the run {load[0]:.2f} (1 min); reference rate in this run "
             f"(2000 x 2000 float64 matmul, one thread) {reference:.1f} GFLOP/s.",
             "",

@@ -87,11 +87,10 @@ def _combine(coefs, k, brackets, stage, dt, out):
         c = coefs[j]
         if c == 0.0:
             continue
-        if first:
-            out[:] = c * k[j]
-            first = False
-        else:
-            out += c * k[j]
+        for i in range(out.shape[0]):
+            for q in range(6):
+                out[i, q] = c * k[j, i, q] if first else out[i, q] + c * k[j, i, q]
+        first = False
     for row in range(brackets.shape[0]):
         if stage >= 0 and brackets[row, 0] != stage:
             continue
