@@ -57,11 +57,11 @@ def tableau_arrays(scheme) -> tuple[np.ndarray, ...]:
 @njit(**_OPTS)
 def _rates(t, x, rod, kernel, buffers, out):
     """``RodSystem.rates(t, x)`` into ``out`` (n, 6), through the same compiled functions."""
-    n_rods, ds, a, b, constant, amplitude, wavenumber, frequency = rod
+    n_rods, ds, a, b, table, constant, amplitude, wavenumber, frequency = rod
     eps, denom, wall, starts = kernel
     tp, s3, u, w = buffers
     n = x.shape[0]
-    omega_hat = preferred_strain(n // n_rods - 1, ds, t, constant, amplitude, wavenumber, frequency)
+    omega_hat = preferred_strain(table, t, constant, amplitude, wavenumber, frequency)
     f, tq = rod_loads(x, n_rods, ds, a, b, omega_hat)
     for i in range(tp.shape[2]):
         src = min(i, n - 1)  # padding repeats the last point, as mrs.velocity does
@@ -164,6 +164,7 @@ def run_steps(system, scheme: Scheme, x: np.ndarray, t0: float, dt: float, n: in
         system.ds,
         np.full(3, float(system.bending)),
         np.asarray(system.shear, dtype=float),
+        system.wave_table,
         tuple(float(v) for v in system.preferred),
         float(system.amplitude),
         2.0 * math.pi / system.wavelength,

@@ -33,6 +33,13 @@ def _require_positive(**values: float) -> None:
             raise ValueError(f"{name}: must be a finite number > 0, got {value!r}")
 
 
+@lru_cache(maxsize=64)
+def _wave_table(n_half: int, ds: float, wavenumber: float) -> np.ndarray:
+    table = rod.wave_table(n_half, ds, wavenumber)
+    table.flags.writeable = False
+    return table
+
+
 def _replace_params(system: Any, theta: dict[str, float]) -> Any:
     """``dataclasses.replace`` restricted to the names of ``system.params``."""
     unknown = sorted(set(theta) - set(system.params))
@@ -97,11 +104,16 @@ class RodSystem:
         """Node spacing Δs = σ."""
         return self.length / (self.n_points - 1)
 
+    @property
+    def wave_table(self) -> np.ndarray:
+        """sin(k s), cos(k s) at the half points (:func:`parastokes.bodies.rod.wave_table`),
+        cached per process (read-only)."""
+        return _wave_table(self.n_points - 1, self.ds, 2.0 * math.pi / self.wavelength)
+
     def preferred_strain(self, t: float) -> np.ndarray:
         """Ω̂ at the half points s_{k+½} at time t, shape (M - 1, 3) (eq. 36)."""
         return rod.preferred_strain(
-            self.n_points - 1,
-            self.ds,
+            self.wave_table,
             float(t),
             tuple(float(v) for v in self.preferred),
             float(self.amplitude),

@@ -34,6 +34,19 @@ def frame_error(x):
 # ---- mechanics: eqs. (9)-(12) ---------------------------------------------------------------
 
 
+@pytest.mark.parametrize("frequency", [40.0 * np.pi, -40.0 * np.pi, 0.0])
+def test_preferred_strain_is_the_travelling_wave_of_eq_36(frequency):
+    """Ω̂ = constant + (0, -k² A sin(k s + f t), 0) at s = (k + ½) Δs, for times up to the
+    paper's T = 1 (the tabulated sin(k s), cos(k s) and the addition formula, to round-off)."""
+    rod = models.rod_swimmer(n_points=301, frequency=frequency, preferred=(0.3, 0.0, -0.2))
+    k = 2 * np.pi / rod.wavelength
+    s = (np.arange(300) + 0.5) * rod.ds
+    for t in (0.0, 1e-6, 0.37, 1.0):
+        expected = np.zeros((300, 3)) + [0.3, 0.0, -0.2]
+        expected[:, 1] -= k**2 * rod.amplitude * np.sin(k * s + frequency * t)
+        np.testing.assert_allclose(rod.preferred_strain(t), expected, rtol=0, atol=1e-14)
+
+
 def test_loads_match_plain_numpy_reference():
     rod = models.rod_swimmer(n_rods=3, n_points=41, epsilon=1.0)
     x = bent_state(rod, size=0.1)

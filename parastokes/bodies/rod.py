@@ -126,20 +126,36 @@ def rod_lengths(state, n_rods):
 
 
 @njit(**_OPTS)
-def preferred_strain(n_half, ds, t, constant, amplitude, wavenumber, frequency):
-    """Ω̂ at the ``n_half`` half points s_{k+½} = (k + ½) ds and time ``t``:
-    ``constant + (0, -k² A sin(k s + f t), 0)``.
+def wave_table(n_half, ds, wavenumber):
+    """sin(k s) and cos(k s) at the ``n_half`` half points s_{k+½} = (k + ½) ds: an (n_half, 2)
+    array, computed once per rod so that :func:`preferred_strain` needs no sine per point."""
+    out = np.empty((n_half, 2))
+    for k in range(n_half):
+        arg = wavenumber * ((k + 0.5) * ds)
+        out[k, 0] = np.sin(arg)
+        out[k, 1] = np.cos(arg)
+    return out
+
+
+@njit(**_OPTS)
+def preferred_strain(table, t, constant, amplitude, wavenumber, frequency):
+    """Ω̂ at the half points s_{k+½} at time ``t``: ``constant + (0, -k² A sin(k s + f t), 0)``.
 
     With ``constant = 0`` this is the swimmer's planar travelling wave (paper eq. 36); with
     ``amplitude = 0`` a constant strain-twist (κ, 0, τ) gives a helix, and 0 a straight rod.
-    ``constant`` is a 3-tuple of floats. Returns an (n_half, 3) array.
+    ``table`` is :func:`wave_table` of the half points (sin(k s), cos(k s)); the wave is
+    sin(k s) cos(f t) + cos(k s) sin(f t), one sine and one cosine per call. ``constant`` is a
+    3-tuple of floats. Returns an (n_half, 3) array.
     """
+    n_half = table.shape[0]
     out = np.empty((n_half, 3))
+    scale = -(wavenumber**2) * amplitude
+    sft = scale * np.sin(frequency * t)
+    cft = scale * np.cos(frequency * t)
     for k in range(n_half):
         out[k, 0] = constant[0]
         out[k, 1] = constant[1]
         out[k, 2] = constant[2]
         if amplitude != 0.0:
-            s = (k + 0.5) * ds
-            out[k, 1] -= wavenumber**2 * amplitude * np.sin(wavenumber * s + frequency * t)
+            out[k, 1] += table[k, 0] * cft + table[k, 1] * sft
     return out
