@@ -26,7 +26,7 @@ import numpy as np
 from numba import njit
 
 from .bodies.frames import advance_rod
-from .bodies.rod import preferred_strain, rod_lengths, rod_loads
+from .bodies.rod import length_change, preferred_strain, rod_loads
 from .integrate import ABOVE, BEYOND, DONE, NON_FINITE, Scheme
 from .mrs import compiled
 from .mrs.velocity import EIGHT_PI, kernel_threads
@@ -55,9 +55,10 @@ def tableau_arrays(scheme) -> tuple[np.ndarray, ...]:
 
 
 @njit(**_OPTS)
-def _rates(t, x, rod, kernel, buffers, out):
-    """``RodSystem.rates(t, x)`` into ``out`` (n, 6), through the same compiled functions."""
-    n_rods, ds, a, b, table, constant, amplitude, wavenumber, frequency = rod
+def _rates(t, x, mechanics, kernel, buffers, out):
+    """``RodSystem.rates(t, x)`` into ``out`` (n, 6), through the same compiled functions;
+    ``mechanics`` is ``RodSystem.mechanics``."""
+    n_rods, ds, a, b, table, constant, amplitude, wavenumber, frequency = mechanics
     eps, denom, wall, starts = kernel
     tp, s3, u, w = buffers
     n = x.shape[0]
@@ -105,12 +106,6 @@ def _combine(coefs, k, brackets, stage, dt, out):
 
 
 @njit(**_OPTS)
-def _monitor(x, n_rods, length):
-    """``RodSystem.monitor``: the largest relative length change over the rods."""
-    return np.abs(rod_lengths(x, n_rods) - length).max() / length
-
-
-@njit(**_OPTS)
 def _finite(x):
     for v in x.flat:
         if not np.isfinite(v):
@@ -119,26 +114,26 @@ def _finite(x):
 
 
 @njit(**_OPTS)
-def _run(x, t0, dt, n_steps, tableau, rod, kernel, padded, length, limit, stop_above):
+def _run(x, t0, dt, n_steps, tableau, mechanics, kernel, padded, length, limit, stop_above):
     c, a, b, stage_brackets, final_brackets = tableau
-    n_rods = rod[0]
+    n_rods = mechanics[0]
     n = x.shape[0]
     k = np.empty((b.size, n, 6))
     comb = np.empty((n, 6))
     buffers = (np.empty((3, 1, padded)), np.empty((1, n, 3)), np.empty((1, n, 3)),
                np.empty((1, n, 3)))
-    worst = _monitor(x, n_rods, length)
+    worst = length_change(x, n_rods, length)
     for i in range(n_steps):
         t = t0 + i * dt
-        _rates(t, x, rod, kernel, buffers, k[0])
+        _rates(t, x, mechanics, kernel, buffers, k[0])
         for st in range(1, b.size):
             _combine(a[st, :st], k, stage_brackets, st, dt, comb)
-            _rates(t + c[st] * dt, advance_rod(x, comb, dt), rod, kernel, buffers, k[st])
+            _rates(t + c[st] * dt, advance_rod(x, comb, dt), mechanics, kernel, buffers, k[st])
         _combine(b, k, final_brackets, -1, dt, comb)
         x_new = advance_rod(x, comb, dt)
         if not _finite(x_new):
             return x, worst, i, NON_FINITE, math.nan
-        m = _monitor(x_new, n_rods, length)
+        m = length_change(x_new, n_rods, length)
         if not m <= limit:
             return x, worst, i, BEYOND, m
         worst = max(worst, m)
@@ -157,19 +152,7 @@ def run_steps(system, scheme: Scheme, x: np.ndarray, t0: float, dt: float, n: in
     kept, outcome, monitor that ended the run)``, the outcome one of ``integrate.DONE``,
     ``ABOVE``, ``NON_FINITE``, ``BEYOND`` (``nan`` monitor for a non-finite state).
     """
-    m = system.n_points
-    padded = -(-(system.n_rods * m) // compiled.LANES) * compiled.LANES
-    rod = (
-        system.n_rods,
-        system.ds,
-        np.full(3, float(system.bending)),
-        np.asarray(system.shear, dtype=float),
-        system.wave_table,
-        tuple(float(v) for v in system.preferred),
-        float(system.amplitude),
-        2.0 * math.pi / system.wavelength,
-        float(system.frequency),
-    )
+    padded = -(-(system.n_rods * system.n_points) // compiled.LANES) * compiled.LANES
     with kernel_threads(system.n_threads) as n_threads:
         kernel = (
             np.full(1, float(system.epsilon)),
@@ -178,5 +161,5 @@ def run_steps(system, scheme: Scheme, x: np.ndarray, t0: float, dt: float, n: in
             compiled.tile_starts(padded, n_threads),
         )
         return _run(np.ascontiguousarray(x, dtype=float), float(t0), float(dt), int(n),
-                    tableau_arrays(scheme), rod, kernel, padded, float(system.length),
+                    tableau_arrays(scheme), system.mechanics, kernel, padded, float(system.length),
                     float(limit), float(stop_above))

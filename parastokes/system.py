@@ -105,21 +105,28 @@ class RodSystem:
         return self.length / (self.n_points - 1)
 
     @property
-    def wave_table(self) -> np.ndarray:
-        """sin(k s), cos(k s) at the half points (:func:`parastokes.bodies.rod.wave_table`),
-        cached per process (read-only)."""
-        return _wave_table(self.n_points - 1, self.ds, 2.0 * math.pi / self.wavelength)
+    def mechanics(self) -> tuple:
+        """The arguments of the compiled mechanics: ``(n_rods, ds, a, b, table, constant,
+        amplitude, wavenumber, frequency)``, with a = (a, a, a) and b the moduli, ``table`` the
+        cached (read-only) :func:`parastokes.bodies.rod.wave_table` of the half points and the
+        rest those of :func:`parastokes.bodies.rod.preferred_strain` (eq. 36)."""
+        wavenumber = 2.0 * math.pi / self.wavelength
+        return (
+            self.n_rods,
+            self.ds,
+            np.full(3, float(self.bending)),
+            np.asarray(self.shear, dtype=float),
+            _wave_table(self.n_points - 1, self.ds, wavenumber),
+            tuple(float(v) for v in self.preferred),
+            float(self.amplitude),
+            wavenumber,
+            float(self.frequency),
+        )
 
     def preferred_strain(self, t: float) -> np.ndarray:
         """Ω̂ at the half points s_{k+½} at time t, shape (M - 1, 3) (eq. 36)."""
-        return rod.preferred_strain(
-            self.wave_table,
-            float(t),
-            tuple(float(v) for v in self.preferred),
-            float(self.amplitude),
-            2.0 * math.pi / self.wavelength,
-            float(self.frequency),
-        )
+        table, *wave = self.mechanics[4:]
+        return rod.preferred_strain(table, float(t), *wave)
 
     def initial_state(self) -> np.ndarray:
         return geometry.straight_rods(
@@ -132,14 +139,8 @@ class RodSystem:
     # ---- physics ---------------------------------------------------------------------------
     def loads(self, t: float, state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Point forces and torques on the fluid (eq. 12), two (n, 3) arrays."""
-        return rod.rod_loads(
-            state,
-            self.n_rods,
-            self.ds,
-            np.full(3, self.bending, dtype=float),
-            np.asarray(self.shear, dtype=float),
-            self.preferred_strain(t),
-        )
+        n_rods, ds, a, b = self.mechanics[:4]
+        return rod.rod_loads(state, n_rods, ds, a, b, self.preferred_strain(t))
 
     def rates(self, t: float, state: np.ndarray) -> np.ndarray:
         """``[u, w]`` per node (physics.md (13)): velocities from all points of all rods."""
@@ -197,8 +198,7 @@ class RodSystem:
 
     def monitor(self, state: np.ndarray) -> float:
         """Largest relative change of a rod's length Σ|X_{k+1} - X_k| from L (section 5.1)."""
-        lengths = rod.rod_lengths(state, self.n_rods)
-        return float(np.abs(lengths - self.length).max() / self.length)
+        return float(rod.length_change(state, self.n_rods, self.length))
 
     # ---- coarse grid (Remark 4) ------------------------------------------------------------
     def coarsened(self, factor: int) -> tuple[RodSystem, RodTransfer]:

@@ -126,6 +126,12 @@ def rod_lengths(state, n_rods):
 
 
 @njit(**_OPTS)
+def length_change(state, n_rods, length):
+    """The rods' stability monitor (section 5.1): max over rods of |Σ_k |X_{k+1} - X_k| - L| / L."""
+    return np.abs(rod_lengths(state, n_rods) - length).max() / length
+
+
+@njit(**_OPTS)
 def wave_table(n_half, ds, wavenumber):
     """sin(k s) and cos(k s) at the ``n_half`` half points s_{k+½} = (k + ½) ds: an (n_half, 2)
     array, computed once per rod so that :func:`preferred_strain` needs no sine per point."""
