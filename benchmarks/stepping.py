@@ -8,8 +8,8 @@ For one rod swimmer (M = 301, ε = 5 σ_f, wall kernels with torques), five rods
 the vesicle (642 points, free-space Stokeslets), it times
 
 - ``run``: seconds per RK2 (Heun) step of :func:`parastokes.integrate.run` over a block of
-  steps, i.e. what ``propagate`` and the Parareal solvers do: for rods the compiled loop
-  (:mod:`parastokes.rod_stepping`), for the vesicle the Python loop over ``rates``/``advance``;
+  steps, i.e. what ``propagate`` and the Parareal solvers do: the compiled loop of
+  :mod:`parastokes.stepping`;
 - ``python``: one step through :func:`parastokes.integrate.step` plus the per-step checks of the
   Python loop (finite state, monitor), for comparison;
 - ``kernel``: one call of the compiled kernel with the same inputs, packed beforehand (the O(N²)
@@ -215,9 +215,9 @@ def main(argv=None) -> int:
         verdict = "met" if max(r["ratio"] for r in rows) <= TARGET_RATIO else "NOT met"
         lines += [
             "",
-            "`run` is `integrate.run` over many steps: the rods' compiled loop, the vesicle's "
-            "Python loop. The last column times the Python step with `mrs.velocity` answering "
-            "from a cache: its non-kernel work, measured directly.",
+            "`run` is `integrate.run` over many steps (the compiled loop of "
+            "`parastokes.stepping`). The last column times the Python step with `mrs.velocity` "
+            "answering from a cache: its non-kernel work, measured directly.",
             "",
             f"Of the rod's stage, per call: `loads` (mechanics, preferred strain) "
             f"{loads * 1e6:.1f} µs, `advance` (positions, frame rotations) {advance * 1e6:.1f} µs "

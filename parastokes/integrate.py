@@ -28,9 +28,9 @@ RKMK step. Projecting the input makes a propagator safe on states that come stra
 combination (Parareal's correction, extrapolation); for orthonormal input it changes nothing beyond
 round-off.
 
-A system may also offer the whole loop of steps in compiled code, ``run_steps`` (rods:
-:mod:`parastokes.rod_stepping`): the same tableau, the same parts, the same checks, without a
-Python call per stage. :func:`run` uses it when present; ``run(..., compiled=False)`` does not.
+A system may also offer the whole loop of steps in compiled code, ``run_steps`` (rods and
+vesicles: :mod:`parastokes.stepping`): the same tableau, the same parts, the same checks, without
+a Python call per stage. :func:`run` uses it when present; ``run(..., compiled=False)`` does not.
 
 Blow-up is an error: after every step the state must be finite and ``system.monitor`` must stay
 below ``blowup_factor * system.monitor_limit``; otherwise :class:`BlowUpError` names the time, the
@@ -253,7 +253,7 @@ def _stepping(
     """Take ``n`` steps of size ``dt``; stop early (``completed=False``) if monitor > stop_above.
 
     The steps run in ``system.run_steps`` when the system has it and ``compiled`` (rods:
-    :mod:`parastokes.rod_stepping`), else in :func:`_python_steps`; both return the same.
+    :mod:`parastokes.stepping`), else in :func:`_python_steps`; both return the same.
     """
     limit = blowup_factor * system.monitor_limit
     x = system.project(x)

@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from . import mrs, rod_stepping
+from . import mrs, stepping
 from .bodies import frames, geometry, rod, vesicle
 from .bodies.rod_transfer import RodTransfer
 
@@ -168,9 +168,11 @@ class RodSystem:
         self, scheme: Any, x: np.ndarray, t0: float, dt: float, n: int, limit: float,
         stop_above: float,
     ) -> tuple[np.ndarray, float, int, int, float]:
-        """``n`` steps of ``scheme`` in one compiled call (:mod:`parastokes.rod_stepping`), the
-        loop ``integrate.run`` uses; the same result as stepping through ``rates``/``advance``."""
-        return rod_stepping.run_steps(self, scheme, x, t0, dt, n, limit, stop_above)
+        """``n`` steps of ``scheme`` in one compiled call (:mod:`parastokes.stepping`), the loop
+        ``integrate.run`` uses; the same result as stepping through ``rates``/``advance``."""
+        return stepping.loop.run_steps(
+            self, stepping.rod.rod_data, scheme, x, t0, dt, n, limit, stop_above
+        )
 
     @staticmethod
     def bracket(r1: np.ndarray, r2: np.ndarray) -> np.ndarray:
@@ -293,6 +295,16 @@ class VesicleSystem:
 
     def advance(self, state: np.ndarray, rates: np.ndarray, dt: float) -> np.ndarray:
         return state + dt * rates
+
+    def run_steps(
+        self, scheme: Any, x: np.ndarray, t0: float, dt: float, n: int, limit: float,
+        stop_above: float,
+    ) -> tuple[np.ndarray, float, int, int, float]:
+        """``n`` steps of ``scheme`` in one compiled call (:mod:`parastokes.stepping`), the loop
+        ``integrate.run`` uses; the same result as stepping through ``rates``/``advance``."""
+        return stepping.loop.run_steps(
+            self, stepping.vesicle.vesicle_data, scheme, x, t0, dt, n, limit, stop_above
+        )
 
     def project(self, state: np.ndarray) -> np.ndarray:
         """The identity (no frames); returns ``state`` itself."""

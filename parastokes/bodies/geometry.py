@@ -101,7 +101,8 @@ def edge_lengths(points: np.ndarray, edges: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True, error_model="numpy")
-def _area(points, triangles):
+def mesh_area(points, triangles):
+    """Total area of the triangles (compiled; :func:`surface_area` is its Python entry)."""
     total = 0.0
     for t in range(triangles.shape[0]):
         i, j, k = triangles[t, 0], triangles[t, 1], triangles[t, 2]
@@ -120,4 +121,4 @@ def _area(points, triangles):
 
 def surface_area(points: np.ndarray, triangles: np.ndarray) -> float:
     """Total area of the triangulated surface (compiled: the vesicle's per-step monitor)."""
-    return float(_area(points, triangles))
+    return float(mesh_area(points, triangles))

@@ -1,5 +1,6 @@
-"""The rod's compiled loop of steps (parastokes.rod_stepping) against the Python loop of
-integrate: the same tableaux through the same parts, so the same numbers, outcomes and errors."""
+"""The compiled loop of steps (parastokes.stepping) against the Python loop of integrate, for
+rods and vesicles: the same tableaux through the same parts, so the same bits, outcomes and
+errors."""
 
 import dataclasses
 import math
@@ -35,13 +36,20 @@ def assert_same(compiled, python):
 
 @pytest.mark.parametrize("scheme", ["euler", "rk2", "rk4"])
 @pytest.mark.parametrize(
-    "system",
-    [swimmers(), swimmers(wall=False, frequency=-40.0), helix_rod()],
-    ids=["swimmers-wall", "swimmers-free", "helix"],
+    ("system", "dt"),
+    [
+        (swimmers(), 2e-6),
+        (swimmers(wall=False, frequency=-40.0), 2e-6),
+        (helix_rod(), 1e-3),
+        (models.vesicle(1), 5e-3),
+        (models.vesicle(2, shear_rate=-0.3, stiffness=0.2), 1e-3),
+    ],
+    ids=["swimmers-wall", "swimmers-free", "helix", "vesicle-1", "vesicle-2"],
 )
-def test_compiled_loop_equals_the_python_loop(system, scheme):
+def test_compiled_loop_equals_the_python_loop(system, dt, scheme):
     x0 = system.initial_state()
-    dt = 1e-3 if system.n_points == 21 else 2e-6
+    if isinstance(system, models.VesicleSystem):  # start deformed, so the springs pull
+        x0 = x0 * [1.1, 1.0, 0.9]
     compiled, python = both_loops(system, scheme, x0, 0.3, dt, 12)
     assert compiled[3] == integrate.DONE and compiled[2] == 12
     assert np.abs(compiled[0] - x0).max() > 1e-6  # it moved
@@ -101,5 +109,20 @@ def test_non_finite_state_is_the_same_error_from_both_loops():
     assert np.isfinite(a.last_state).all()
 
 
-def test_rod_system_with_its_loop_still_pickles_small():
-    assert len(pickle.dumps(swimmers())) < 1000
+def test_vesicle_monitor_blowup_is_the_same_error_from_both_loops():
+    system = models.vesicle(1, stiffness=50.0)
+    x0 = system.initial_state() * [1.2, 1.0, 0.8]
+    errors = []
+    for compiled in (True, False):
+        with pytest.raises(BlowUpError) as info:
+            integrate.run(system, x0, 0.0, 10.0, "euler", 0.5, compiled=compiled)
+        errors.append(info.value)
+    a, b = errors
+    assert "monitor beyond" in str(a) and str(a) == str(b)
+    assert (a.t, a.step, a.monitor) == (b.t, b.step, b.monitor)
+    np.testing.assert_array_equal(a.last_state, b.last_state)
+
+
+@pytest.mark.parametrize("system", [swimmers(), models.vesicle()], ids=["rods", "vesicle"])
+def test_systems_with_their_loops_still_pickle_small(system):
+    assert len(pickle.dumps(system)) < 1000

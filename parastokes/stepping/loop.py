@@ -1,0 +1,185 @@
+"""The loop of Runge-Kutta steps in compiled code, generic over the system.
+
+:func:`parastokes.integrate.run` takes its steps through ``system.rates`` and
+``system.advance``, one Python call each per stage. For the paper's rod fine solve (10^6 RK2
+steps of ~0.5 ms) that Python (packing the kernel's input, building the stage states, the
+per-step checks) cost 20-35% of the two kernel evaluations of a step. :func:`run_steps` runs the
+same tableau (including the RKMK commutator terms of RK4, see :mod:`parastokes.integrate`) in one
+compiled call, exactly as :func:`parastokes.integrate._python_steps` does:
+
+- stage ``i``'s state is ``advance(x, Σ_j a_ij k_j + brackets, dt)`` of the old state and its
+  rates ``k_i`` are evaluated at ``t + c_i dt``; the step ends with ``advance(x, Σ_j b_j k_j +
+  brackets, dt)``; the rates are combined as ``integrate`` combines them (zero coefficients
+  skipped, terms added in order, no fused multiply-add), so the results are the same bits;
+- after each step: the finiteness check and the monitor, stopping at the first failure with the
+  last good state kept (or after the step whose monitor exceeds ``stop_above``).
+
+What is specific to a system are four compiled parts, chosen by the type of the system's
+``data`` (a ``NamedTuple`` of arrays and numbers built once per call) through
+``numba.extending.overload``: :func:`rates_into`, :func:`advance`, :func:`monitor` and
+:func:`bracket_into`; and :func:`workspace`, the scratch arrays that ``rates_into`` reuses. A system
+registers them for its data type (:mod:`parastokes.stepping.rod`, :mod:`.vesicle`) and must run
+the same compiled functions as its Python ``rates``/``advance``/``monitor``, so that both loops
+agree bit for bit (tested).
+
+numba caches each compiled function keyed on its own source file only: after editing a system's
+parts (or anything they call) in another file, delete the ``__pycache__`` folders before timing
+or testing, or the cached loop still runs the old parts. A fresh checkout or install has no cache.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+from numba import njit
+
+from ..integrate import ABOVE, BEYOND, DONE, NON_FINITE, Scheme
+from ..mrs.velocity import kernel_threads
+
+__all__ = [
+    "advance",
+    "bracket_into",
+    "monitor",
+    "rates_into",
+    "run_steps",
+    "tableau_arrays",
+    "workspace",
+]
+
+_OPTS = dict(cache=True, error_model="numpy")
+
+
+# ---- the parts a system supplies (numba.extending.overload on its data type) ------------------
+def workspace(data, x):
+    """Scratch arrays for :func:`rates_into` (a tuple), allocated once per :func:`run_steps`."""
+    raise NotImplementedError("compiled only: register an overload for the system's data type")
+
+
+def rates_into(data, t, x, work, out):
+    """The system's ``rates(t, x)`` written into ``out`` (n, data.rate_columns)."""
+    raise NotImplementedError("compiled only: register an overload for the system's data type")
+
+
+def advance(data, x, rates, dt):
+    """The system's ``advance(x, rates, dt)``: a new state array."""
+    raise NotImplementedError("compiled only: register an overload for the system's data type")
+
+
+def monitor(data, x):
+    """The system's stability monitor ``monitor(x)`` (a float)."""
+    raise NotImplementedError("compiled only: register an overload for the system's data type")
+
+
+def bracket_into(data, out, kp, kq, h):
+    """Add ``h * bracket(kp, kq)`` to ``out`` (nothing for abelian systems)."""
+    raise NotImplementedError("compiled only: register an overload for the system's data type")
+
+
+def is_data(numba_type, cls: type) -> bool:
+    """Whether ``numba_type`` is the numba type of instances of the ``NamedTuple`` ``cls``: the
+    test each system's overloads use to claim their data type."""
+    return getattr(numba_type, "instance_class", None) is cls
+
+
+# ---- the generic loop -------------------------------------------------------------------------
+def tableau_arrays(scheme: Scheme) -> tuple[np.ndarray, ...]:
+    """A :class:`parastokes.integrate.Scheme` as arrays: ``c`` (s,), ``a`` (s, s), ``b`` (s,),
+    stage brackets (m, 4) rows ``(stage, coefficient, p, q)``, final brackets (m', 3) rows
+    ``(coefficient, p, q)``."""
+    s = scheme.stages
+    a = np.zeros((s, s))
+    for i, row in enumerate(scheme.a):
+        a[i, : len(row)] = row
+    stage = [(i, c, p, q) for i, terms in enumerate(scheme.stage_brackets) for c, p, q in terms]
+    return (
+        np.array(scheme.c, dtype=float),
+        a,
+        np.array(scheme.b, dtype=float),
+        np.array(stage, dtype=float).reshape(-1, 4),
+        np.array(scheme.final_brackets, dtype=float).reshape(-1, 3),
+    )
+
+
+@njit(**_OPTS)
+def _combine(data, coefs, k, brackets, stage, dt, out):
+    """``integrate._combine`` into ``out``: Σ_j coefs[j] k_j (non-zero terms, in order) plus
+    ``coefficient * dt * bracket(k_p, k_q)`` for the bracket rows of this ``stage`` (-1: the
+    final combination, whose rows have no stage column)."""
+    first = True
+    for j in range(coefs.size):
+        c = coefs[j]
+        if c == 0.0:
+            continue
+        for i in range(out.shape[0]):
+            for q in range(out.shape[1]):
+                out[i, q] = c * k[j, i, q] if first else out[i, q] + c * k[j, i, q]
+        first = False
+    off = 0 if stage < 0 else 1
+    for row in range(brackets.shape[0]):
+        if stage < 0 or brackets[row, 0] == stage:
+            p = int(brackets[row, off + 1])
+            q = int(brackets[row, off + 2])
+            bracket_into(data, out, k[p], k[q], brackets[row, off] * dt)
+
+
+@njit(**_OPTS)
+def _finite(x):
+    for v in x.flat:
+        if not np.isfinite(v):
+            return False
+    return True
+
+
+@njit(**_OPTS)
+def _run(x, t0, dt, n_steps, tableau, data, limit, stop_above):
+    c, a, b, stage_brackets, final_brackets = tableau
+    k = np.empty((b.size, x.shape[0], data.rate_columns))
+    comb = np.empty((x.shape[0], data.rate_columns))
+    work = workspace(data, x)
+    worst = monitor(data, x)
+    for i in range(n_steps):
+        t = t0 + i * dt
+        rates_into(data, t, x, work, k[0])
+        for st in range(1, b.size):
+            _combine(data, a[st, :st], k, stage_brackets, st, dt, comb)
+            rates_into(data, t + c[st] * dt, advance(data, x, comb, dt), work, k[st])
+        _combine(data, b, k, final_brackets, -1, dt, comb)
+        x_new = advance(data, x, comb, dt)
+        if not _finite(x_new):
+            return x, worst, i, NON_FINITE, math.nan
+        m = monitor(data, x_new)
+        if not m <= limit:
+            return x, worst, i, BEYOND, m
+        worst = max(worst, m)
+        x = x_new
+        if m > stop_above:
+            return x, worst, i + 1, ABOVE, m
+    return x, worst, n_steps, DONE, worst
+
+
+def run_steps(
+    system: Any,
+    make_data: Callable[[Any, int], tuple],
+    scheme: Scheme,
+    x: np.ndarray,
+    t0: float,
+    dt: float,
+    n: int,
+    limit: float,
+    stop_above: float,
+) -> tuple[np.ndarray, float, int, int, float]:
+    """``n`` steps of ``scheme`` from ``(t0, x)``, the kernels on ``system.n_threads`` threads;
+    ``make_data(system, threads)`` builds the system's compiled data.
+
+    Returns what :func:`parastokes.integrate._python_steps` returns: ``(last state kept, worst
+    monitor, steps kept, outcome, monitor that ended the run)``, the outcome one of
+    ``integrate.DONE``, ``ABOVE``, ``NON_FINITE``, ``BEYOND`` (``nan`` monitor for a non-finite
+    state).
+    """
+    with kernel_threads(system.n_threads) as threads:
+        return _run(np.ascontiguousarray(x, dtype=float), float(t0), float(dt), int(n),
+                    tableau_arrays(scheme), make_data(system, threads), float(limit),
+                    float(stop_above))

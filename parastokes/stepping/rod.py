@@ -1,0 +1,118 @@
+"""The rod system's compiled parts for the loop of :mod:`parastokes.stepping.loop`.
+
+The same compiled functions as :class:`parastokes.system.RodSystem`'s Python methods, in the
+same order, so both loops give the same bits:
+
+- rates: the preferred strain (eq. 36), the rod loads (eqs. 10-12), and ``u``, ``w`` from the
+  kernel :func:`parastokes.mrs.compiled.full` on the points padded as ``mrs.velocity`` pads them;
+- advance: ``advance_rod`` (eq. 13); bracket: ``[0, w_p × w_q]`` per node (RKMK4);
+- monitor: the largest relative length change over the rods.
+"""
+
+from __future__ import annotations
+
+from typing import Any, NamedTuple
+
+import numpy as np
+from numba.extending import overload
+
+from ..bodies.frames import advance_rod
+from ..bodies.rod import length_change, preferred_strain, rod_loads
+from ..mrs import compiled
+from ..mrs.velocity import EIGHT_PI
+from . import loop
+
+__all__ = ["RodData", "rod_data"]
+
+
+class RodData(NamedTuple):
+    """What the compiled parts of a :class:`parastokes.system.RodSystem` need."""
+
+    mechanics: tuple  # RodSystem.mechanics
+    eps: np.ndarray  # (1,)
+    denom: np.ndarray  # (1,) 8πμ
+    wall: bool
+    starts: np.ndarray  # the kernel's tiles (compiled.tile_starts)
+    padded: int  # targets padded to a multiple of compiled.LANES
+    length: float
+    n_rods: int
+    rate_columns: int = 6
+
+
+def rod_data(system: Any, threads: int) -> RodData:
+    """The :class:`RodData` of ``system`` for kernels on ``threads`` threads."""
+    padded = -(-(system.n_rods * system.n_points) // compiled.LANES) * compiled.LANES
+    return RodData(
+        system.mechanics,
+        np.full(1, float(system.epsilon)),
+        np.full(1, EIGHT_PI * system.viscosity),
+        bool(system.wall),
+        compiled.tile_starts(padded, threads),
+        padded,
+        float(system.length),
+        int(system.n_rods),
+    )
+
+
+@overload(loop.workspace)
+def _workspace(data, x):
+    if loop.is_data(data, RodData):
+
+        def impl(data, x):
+            n = x.shape[0]
+            return (np.empty((3, 1, data.padded)), np.empty((1, n, 3)), np.empty((1, n, 3)),
+                    np.empty((1, n, 3)))
+
+        return impl
+
+
+@overload(loop.rates_into)
+def _rates_into(data, t, x, work, out):
+    if loop.is_data(data, RodData):
+
+        def impl(data, t, x, work, out):
+            n_rods, ds, a, b, table, constant, amplitude, wavenumber, frequency = data.mechanics
+            tp, s3, u, w = work
+            n = x.shape[0]
+            omega_hat = preferred_strain(table, t, constant, amplitude, wavenumber, frequency)
+            f, tq = rod_loads(x, n_rods, ds, a, b, omega_hat)
+            for i in range(tp.shape[2]):
+                src = min(i, n - 1)  # padding repeats the last point, as mrs.velocity does
+                for j in range(3):
+                    tp[j, 0, i] = x[src, j]
+            for i in range(n):
+                for j in range(3):
+                    s3[0, i, j] = x[i, j]
+            compiled.full(tp, s3, f.reshape((1, n, 3)), tq.reshape((1, n, 3)), data.eps,
+                          data.wall, False, data.denom, data.starts, u, w)
+            for i in range(n):
+                for j in range(3):
+                    out[i, j] = u[0, i, j]
+                    out[i, 3 + j] = w[0, i, j]
+
+        return impl
+
+
+@overload(loop.advance)
+def _advance(data, x, rates, dt):
+    if loop.is_data(data, RodData):
+        return lambda data, x, rates, dt: advance_rod(x, rates, dt)
+
+
+@overload(loop.monitor)
+def _monitor(data, x):
+    if loop.is_data(data, RodData):
+        return lambda data, x: length_change(x, data.n_rods, data.length)
+
+
+@overload(loop.bracket_into)
+def _bracket_into(data, out, kp, kq, h):
+    if loop.is_data(data, RodData):
+
+        def impl(data, out, kp, kq, h):
+            for i in range(out.shape[0]):
+                out[i, 3] += h * (kp[i, 4] * kq[i, 5] - kp[i, 5] * kq[i, 4])
+                out[i, 4] += h * (kp[i, 5] * kq[i, 3] - kp[i, 3] * kq[i, 5])
+                out[i, 5] += h * (kp[i, 3] * kq[i, 4] - kp[i, 4] * kq[i, 3])
+
+        return impl
