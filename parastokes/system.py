@@ -40,6 +40,23 @@ def _wave_table(n_half: int, ds: float, wavenumber: float) -> np.ndarray:
     return table
 
 
+class _CompiledSteps:
+    """``run_steps`` for a system whose compiled parts are registered in
+    :mod:`parastokes.stepping` (its data builder is the class attribute ``_stepping_data``)."""
+
+    _stepping_data: Any
+
+    def run_steps(
+        self, scheme: Any, x: np.ndarray, t0: float, dt: float, n: int, limit: float,
+        stop_above: float,
+    ) -> tuple[np.ndarray, float, int, int, float]:
+        """``n`` steps of ``scheme`` in one compiled call (:mod:`parastokes.stepping`), the loop
+        ``integrate.run`` uses; the same result as stepping through ``rates``/``advance``."""
+        return stepping.loop.run_steps(
+            self, type(self)._stepping_data, scheme, x, t0, dt, n, limit, stop_above
+        )
+
+
 def _replace_params(system: Any, theta: dict[str, float]) -> Any:
     """``dataclasses.replace`` restricted to the names of ``system.params``."""
     unknown = sorted(set(theta) - set(system.params))
@@ -51,7 +68,7 @@ def _replace_params(system: Any, theta: dict[str, float]) -> Any:
 
 
 @dataclass(frozen=True)
-class RodSystem:
+class RodSystem(_CompiledSteps):
     """``n_rods`` Kirchhoff rods of ``n_points`` nodes each, interacting through the fluid.
 
     Rods start straight along x (geometry.straight_rods), side by side in y, at ``height`` above the
@@ -75,6 +92,8 @@ class RodSystem:
     height: float = 10.0
     spacing: float = 5.0
     n_threads: int | None = None
+
+    _stepping_data = staticmethod(stepping.rod.rod_data)
 
     def __post_init__(self) -> None:
         for name in ("n_rods", "n_points"):
@@ -164,16 +183,6 @@ class RodSystem:
         """X + dt u; frames rotated by |w| dt about w (Rodrigues, eq. 13)."""
         return frames.advance_rod(state, rates, dt)
 
-    def run_steps(
-        self, scheme: Any, x: np.ndarray, t0: float, dt: float, n: int, limit: float,
-        stop_above: float,
-    ) -> tuple[np.ndarray, float, int, int, float]:
-        """``n`` steps of ``scheme`` in one compiled call (:mod:`parastokes.stepping`), the loop
-        ``integrate.run`` uses; the same result as stepping through ``rates``/``advance``."""
-        return stepping.loop.run_steps(
-            self, stepping.rod.rod_data, scheme, x, t0, dt, n, limit, stop_above
-        )
-
     @staticmethod
     def bracket(r1: np.ndarray, r2: np.ndarray) -> np.ndarray:
         """Lie bracket of two rates: [u, w] x [u', w'] -> [0, w × w'] (so(3) per node; RKMK4)."""
@@ -232,7 +241,7 @@ def _spring_network(subdivisions: int) -> tuple[np.ndarray, np.ndarray, float]:
 
 
 @dataclass(frozen=True)
-class VesicleSystem:
+class VesicleSystem(_CompiledSteps):
     """Unit icosphere (``subdivisions`` levels) with springs on its edges in a shear flow.
 
     Rest lengths are the initial edge lengths; ε is absolute (the paper quotes ε = 0.3 l_max, see
@@ -245,6 +254,8 @@ class VesicleSystem:
     stiffness: float
     shear_rate: float
     n_threads: int | None = None
+
+    _stepping_data = staticmethod(stepping.vesicle.vesicle_data)
 
     def __post_init__(self) -> None:
         geometry.icosphere(self.subdivisions)  # validates subdivisions
@@ -295,16 +306,6 @@ class VesicleSystem:
 
     def advance(self, state: np.ndarray, rates: np.ndarray, dt: float) -> np.ndarray:
         return state + dt * rates
-
-    def run_steps(
-        self, scheme: Any, x: np.ndarray, t0: float, dt: float, n: int, limit: float,
-        stop_above: float,
-    ) -> tuple[np.ndarray, float, int, int, float]:
-        """``n`` steps of ``scheme`` in one compiled call (:mod:`parastokes.stepping`), the loop
-        ``integrate.run`` uses; the same result as stepping through ``rates``/``advance``."""
-        return stepping.loop.run_steps(
-            self, stepping.vesicle.vesicle_data, scheme, x, t0, dt, n, limit, stop_above
-        )
 
     def project(self, state: np.ndarray) -> np.ndarray:
         """The identity (no frames); returns ``state`` itself."""

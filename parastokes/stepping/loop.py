@@ -43,6 +43,7 @@ __all__ = [
     "advance",
     "bracket_into",
     "monitor",
+    "pack_points",
     "rates_into",
     "run_steps",
     "tableau_arrays",
@@ -82,6 +83,20 @@ def is_data(numba_type, cls: type) -> bool:
     """Whether ``numba_type`` is the numba type of instances of the ``NamedTuple`` ``cls``: the
     test each system's overloads use to claim their data type."""
     return getattr(numba_type, "instance_class", None) is cls
+
+
+@njit(**_OPTS)
+def pack_points(x, targets, sources):
+    """The positions ``x[:, :3]`` as ``mrs.velocity`` hands them to the kernels: ``targets``
+    (3, 1, padded), padded by repeating the last point, and ``sources`` (1, n, 3)."""
+    n = x.shape[0]
+    for i in range(targets.shape[2]):
+        src = min(i, n - 1)
+        for j in range(3):
+            targets[j, 0, i] = x[src, j]
+    for i in range(n):
+        for j in range(3):
+            sources[0, i, j] = x[i, j]
 
 
 # ---- the generic loop -------------------------------------------------------------------------

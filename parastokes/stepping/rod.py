@@ -76,13 +76,7 @@ def _rates_into(data, t, x, work, out):
             n = x.shape[0]
             omega_hat = preferred_strain(table, t, constant, amplitude, wavenumber, frequency)
             f, tq = rod_loads(x, n_rods, ds, a, b, omega_hat)
-            for i in range(tp.shape[2]):
-                src = min(i, n - 1)  # padding repeats the last point, as mrs.velocity does
-                for j in range(3):
-                    tp[j, 0, i] = x[src, j]
-            for i in range(n):
-                for j in range(3):
-                    s3[0, i, j] = x[i, j]
+            loop.pack_points(x, tp, s3)
             compiled.full(tp, s3, f.reshape((1, n, 3)), tq.reshape((1, n, 3)), data.eps,
                           data.wall, False, data.denom, data.starts, u, w)
             for i in range(n):

@@ -79,13 +79,7 @@ def _rates_into(data, t, x, work, out):
             tp, s3, u = work
             n = x.shape[0]
             f = spring_forces(x, data.edges, data.rest, data.stiffness)
-            for i in range(tp.shape[2]):
-                src = min(i, n - 1)  # padding repeats the last point, as mrs.velocity does
-                for j in range(3):
-                    tp[j, 0, i] = x[src, j]
-            for i in range(n):
-                for j in range(3):
-                    s3[0, i, j] = x[i, j]
+            loop.pack_points(x, tp, s3)
             compiled.free_u_f(tp, s3, f.reshape((1, n, 3)), data.eps, data.denom, data.starts, u)
             for i in range(n):
                 for j in range(3):
