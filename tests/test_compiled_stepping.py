@@ -4,7 +4,11 @@ errors."""
 
 import dataclasses
 import math
+import os
 import pickle
+import signal
+import threading
+import time
 
 import numba
 import numpy as np
@@ -13,6 +17,7 @@ from rods import helix_rod
 
 from parastokes import integrate, models
 from parastokes.integrate import SCHEMES, BlowUpError
+from parastokes.stepping import loop
 
 
 def swimmers(**kw):
@@ -54,6 +59,35 @@ def test_compiled_loop_equals_the_python_loop(system, dt, scheme):
     assert compiled[3] == integrate.DONE and compiled[2] == 12
     assert np.abs(compiled[0] - x0).max() > 1e-6  # it moved
     assert_same(compiled, python)
+
+
+@pytest.mark.parametrize("call_seconds", [0.0, 1e-4])
+def test_splitting_a_run_into_compiled_calls_changes_nothing(monkeypatch, call_seconds):
+    """A long run goes back to Python every ~CALL_SECONDS (Ctrl-C); one step per call, or a few,
+    gives the bits of the Python loop (step i starts at t0 + i dt in every call)."""
+    monkeypatch.setattr(loop, "CALL_SECONDS", call_seconds)
+    system = swimmers()
+    x0 = system.initial_state()
+    compiled, python = both_loops(system, "rk2", x0, 0.3, 1e-6, 40)
+    assert compiled[2] == 40 and compiled[3] == integrate.DONE
+    assert_same(compiled, python)
+
+
+def test_a_long_compiled_run_answers_ctrl_c_promptly():
+    """The compiled loop returns to Python about every CALL_SECONDS: a SIGINT 0.5 s into a run
+    of ~20 s raises KeyboardInterrupt (not a SystemError) well before the run would end."""
+    system = models.rod_swimmer()
+    x0 = system.initial_state()
+    integrate.propagate(system, x0, 0.0, 2e-6, "rk2", 1e-6)  # compiled and warm
+    timer = threading.Timer(0.5, os.kill, (os.getpid(), signal.SIGINT))
+    start = time.perf_counter()
+    timer.start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            integrate.propagate(system, x0, 0.0, 0.03, "rk2", 1e-6)
+    finally:
+        timer.cancel()
+    assert time.perf_counter() - start < 0.5 + 4 * loop.CALL_SECONDS + 1.0
 
 
 def test_run_uses_the_compiled_loop_and_threads_do_not_change_it():

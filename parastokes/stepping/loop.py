@@ -30,6 +30,7 @@ or testing, or the cached loop still runs the old parts. A fresh checkout or ins
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -149,30 +150,51 @@ def _finite(x):
 
 
 @njit(**_OPTS)
-def _run(x, t0, dt, n_steps, tableau, data, limit, stop_above):
+def _run(x, t0, dt, first, n_steps, tableau, data, limit, stop_above):
+    """Steps ``first .. first + n_steps - 1`` of a run from ``t0`` (step ``i`` starts at
+    ``t0 + i dt``, as in the Python loop), from the state ``x`` at step ``first``.
+
+    The last state kept is written into ``x``; returns ``(worst monitor, steps kept, outcome,
+    monitor that ended the call)``. (Returning only numbers keeps Python out of the call: boxing a
+    new array calls back into the interpreter, where a pending Ctrl-C would surface as a
+    SystemError instead of a KeyboardInterrupt.)
+    """
     c, a, b, stage_brackets, final_brackets = tableau
     k = np.empty((b.size, x.shape[0], data.rate_columns))
     comb = np.empty((x.shape[0], data.rate_columns))
     work = workspace(data, x)
-    worst = monitor(data, x)
+    state = x
+    worst = monitor(data, state)
+    taken, outcome, m = n_steps, DONE, worst
     for i in range(n_steps):
-        t = t0 + i * dt
-        rates_into(data, t, x, work, k[0])
+        t = t0 + (first + i) * dt
+        rates_into(data, t, state, work, k[0])
         for st in range(1, b.size):
             _combine(data, a[st, :st], k, stage_brackets, st, dt, comb)
-            rates_into(data, t + c[st] * dt, advance(data, x, comb, dt), work, k[st])
+            rates_into(data, t + c[st] * dt, advance(data, state, comb, dt), work, k[st])
         _combine(data, b, k, final_brackets, -1, dt, comb)
-        x_new = advance(data, x, comb, dt)
+        x_new = advance(data, state, comb, dt)
         if not _finite(x_new):
-            return x, worst, i, NON_FINITE, math.nan
+            taken, outcome, m = i, NON_FINITE, math.nan
+            break
         m = monitor(data, x_new)
         if not m <= limit:
-            return x, worst, i, BEYOND, m
+            taken, outcome = i, BEYOND
+            break
         worst = max(worst, m)
-        x = x_new
+        state = x_new
         if m > stop_above:
-            return x, worst, i + 1, ABOVE, m
-    return x, worst, n_steps, DONE, worst
+            taken, outcome = i + 1, ABOVE
+            break
+    if outcome == DONE:
+        m = worst
+    x[:] = state
+    return worst, taken, outcome, m
+
+
+#: Wall time aimed at per compiled call: the loop returns to Python this often, so that Ctrl-C
+#: (and any other signal) is handled within about a second during a long propagation.
+CALL_SECONDS = 0.25
 
 
 def run_steps(
@@ -192,9 +214,26 @@ def run_steps(
     Returns what :func:`parastokes.integrate._python_steps` returns: ``(last state kept, worst
     monitor, steps kept, outcome, monitor that ended the run)``, the outcome one of
     ``integrate.DONE``, ``ABOVE``, ``NON_FINITE``, ``BEYOND`` (``nan`` monitor for a non-finite
-    state).
+    state). The steps run in compiled calls of about :data:`CALL_SECONDS` each (the first ones
+    shorter, while the time per step is measured), so that a long run still answers Ctrl-C; the
+    result does not depend on how the steps are split.
     """
+    x = np.array(x, dtype=float, order="C")  # the compiled calls write the state into it
+    tableau = tableau_arrays(scheme)
+    done, worst, chunk = 0, -math.inf, 8
     with kernel_threads(system.n_threads) as threads:
-        return _run(np.ascontiguousarray(x, dtype=float), float(t0), float(dt), int(n),
-                    tableau_arrays(scheme), make_data(system, threads), float(limit),
-                    float(stop_above))
+        data = make_data(system, threads)
+        while True:  # calls of about CALL_SECONDS each, steps numbered from t0 throughout
+            start = time.perf_counter()
+            chunk_worst, taken, outcome, m = _run(
+                x, float(t0), float(dt), done, min(chunk, n - done), tableau, data,
+                float(limit), float(stop_above),
+            )
+            worst = max(worst, chunk_worst)
+            done += taken
+            if outcome != DONE:
+                return x, worst, done, outcome, m
+            if done == n:
+                return x, worst, done, DONE, worst
+            per_step = (time.perf_counter() - start) / max(taken, 1)
+            chunk = max(1, min(4 * chunk, int(CALL_SECONDS / max(per_step, 1e-9))))
