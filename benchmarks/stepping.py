@@ -165,10 +165,10 @@ def main(argv=None) -> int:
     load = os.getloadavg()
     reference = matmul_rate()["gflops"]
 
-    cases = [  # name, system, dt, steps per block
-        ("one rod (M = 301, wall)", models.rod_swimmer(n_threads=args.threads), 1e-6, 10),
+    cases = [  # name, system, dt, steps per block (a run's fixed costs, ~30 µs, spread thin)
+        ("one rod (M = 301, wall)", models.rod_swimmer(n_threads=args.threads), 1e-6, 40),
         ("five rods (5 x 301, wall)", models.rod_swimmer(5, n_threads=args.threads), 1e-6, 2),
-        ("vesicle (642, free space)", models.vesicle(n_threads=args.threads), 1e-3, 10),
+        ("vesicle (642, free space)", models.vesicle(n_threads=args.threads), 1e-3, 20),
     ]
     rows = []
     for name, system, dt, steps in cases:
