@@ -149,3 +149,20 @@ def test_non_finite_state_is_the_same_error_from_both_loops():
 @pytest.mark.parametrize("system", [swimmers(), models.vesicle()], ids=["rods", "vesicle"])
 def test_systems_with_their_loops_still_pickle_small(system):
     assert len(pickle.dumps(system)) < 1000
+
+
+def test_the_loops_call_the_kernels_mrs_velocity_calls():
+    """The compiled loop passes the kernels the same argument types as mrs.velocity (no literal
+    flags, no read-only copies), so each kernel is compiled once, not once per caller."""
+    from parastokes import mrs
+    from parastokes.mrs import compiled
+
+    rod, ves = swimmers(), models.vesicle(1)
+    for system, dt in ((rod, 1e-6), (ves, 1e-3)):
+        integrate.propagate(system, system.initial_state(), 0.0, 2 * dt, "rk2", dt)
+        integrate.run(system, system.initial_state(), 0.0, 2 * dt, "rk2", dt, compiled=False)
+    x = rod.initial_state()[:, :3]
+    mrs.velocity(x, x, x, epsilon=1.0, mu=1.0, torques=x, wall=True, angular=True)
+    mrs.velocity(x, x, x, epsilon=1.0, mu=1.0)
+    assert len(compiled.full.signatures) == 1
+    assert len(compiled.free_u_f.signatures) == 1

@@ -37,6 +37,8 @@ class RodData(NamedTuple):
     length: float
     n_rods: int
     rate_columns: int = 6
+    phi: bool = False  # the kernel's torque-blob flag, as RodSystem.rates passes it (a typed
+    # bool, not a literal False: the same compiled kernel as mrs.velocity's, not a second one)
 
 
 def rod_data(system: Any, threads: int) -> RodData:
@@ -78,7 +80,7 @@ def _rates_into(data, t, x, work, out):
             f, tq = rod_loads(x, n_rods, ds, a, b, omega_hat)
             loop.pack_points(x, tp, s3)
             compiled.full(tp, s3, f.reshape((1, n, 3)), tq.reshape((1, n, 3)), data.eps,
-                          data.wall, False, data.denom, data.starts, u, w)
+                          data.wall, data.phi, data.denom, data.starts, u, w)
             for i in range(n):
                 for j in range(3):
                     out[i, j] = u[0, i, j]
