@@ -87,8 +87,8 @@ class Setup:
 def build(cfg: Config, resolved: Resolved, *, executor: bool = True) -> Setup:
     """Build system, fine propagator F, coarse propagator G and (with ``executor``) the executor.
 
-    The executor's workers are started and warmed up here (numba caches loaded), so timings that
-    follow measure work. Raises :class:`~.errors.ConfigError` when an MPI launch provides fewer
+    The executor's workers and this process are warmed up here (numba caches loaded), so timings
+    that follow measure work. Raises :class:`~.errors.ConfigError` when an MPI launch provides fewer
     workers than the coarse solver needs and oversubscription is not allowed.
     """
     system = build_system(cfg, resolved)
@@ -117,4 +117,8 @@ def build(cfg: Config, resolved: Resolved, *, executor: bool = True) -> Setup:
                     )
                 ]
             )
+    if executor:
+        # this process too: its serial fine run is timed, and must not include loading (or, on
+        # a fresh install, compiling) the kernels and the compiled loop of steps
+        WarmUp(system)()
     return Setup(cfg, resolved, system, fine, coarse, pool)
