@@ -46,6 +46,7 @@ from kernels import matmul_rate
 from parastokes import integrate, models, mrs
 from parastokes.mrs import compiled
 from parastokes.mrs.velocity import kernel_threads
+from parastokes.stepping import loop
 
 FINE_STEPS = 1_000_000  # T = 1 with τ_f = 1e-6 (section 5.1)
 TARGET_RATIO = 1.3
@@ -63,30 +64,25 @@ def one_step(system, t, x, dt):
 
 def kernel_call(system, t, x):
     """The O(N²) part of one ``rates`` evaluation: the compiled kernel that ``mrs.velocity`` and
-    the rods' compiled loop call, on the same inputs packed beforehand (so no Python overhead).
-    Returns the call and its result, as ``mrs.velocity`` would return it."""
-    pos = np.ascontiguousarray(x[:, :3] if hasattr(system, "loads") else x)
-    n = pos.shape[0]
-    padded = -(-n // compiled.LANES) * compiled.LANES
-    targets = np.empty((3, 1, padded))
-    targets[:, 0, :n] = pos.T
-    targets[:, 0, n:] = pos[-1][:, None]  # padding repeats the last point, as mrs.velocity does
-    eps = np.full(1, system.epsilon)
-    denom = np.full(1, 8.0 * math.pi * system.viscosity)
-    threads = 1 if system.n_threads is None else system.n_threads
-    starts = compiled.tile_starts(padded, threads)
+    the compiled loop call, on the same inputs packed beforehand as the loop packs them (so no
+    Python overhead). Returns the call and its result, as ``mrs.velocity`` would return it."""
+    n = x.shape[0]
+    with kernel_threads(system.n_threads) as threads:  # the count the kernels will use
+        eps, denom, starts = loop.kernel_arguments(system, n, threads)
+    targets, sources = np.empty((3, 1, starts[-1])), np.empty((1, n, 3))
+    loop.pack_points(x, targets, sources)
     u, w = np.empty((1, n, 3)), np.empty((1, n, 3))
     if hasattr(system, "loads"):
         f, torques = system.loads(t, x)
-        args = (targets, pos[None], f[None], torques[None], eps, system.wall, False, denom, starts,
+        args = (targets, sources, f[None], torques[None], eps, system.wall, False, denom, starts,
                 u, w)
         kernel = compiled.full
     else:
-        args = (targets, pos[None], system.forces(x)[None], eps, denom, starts, u)
+        args = (targets, sources, system.forces(x)[None], eps, denom, starts, u)
         kernel = compiled.free_u_f
 
     def call():
-        with kernel_threads(threads):
+        with kernel_threads(system.n_threads):
             kernel(*args)
 
     call()  # what mrs.velocity returns for these inputs

@@ -158,8 +158,8 @@ class RodSystem(_CompiledSteps):
     # ---- physics ---------------------------------------------------------------------------
     def loads(self, t: float, state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Point forces and torques on the fluid (eq. 12), two (n, 3) arrays."""
-        n_rods, ds, a, b = self.mechanics[:4]
-        return rod.rod_loads(state, n_rods, ds, a, b, self.preferred_strain(t))
+        n_rods, ds, a, b, table, *wave = self.mechanics
+        return rod.rod_loads(state, n_rods, ds, a, b, rod.preferred_strain(table, float(t), *wave))
 
     def rates(self, t: float, state: np.ndarray) -> np.ndarray:
         """``[u, w]`` per node (physics.md (13)): velocities from all points of all rods."""

@@ -219,6 +219,11 @@ def _wall_pair(rx, ry, z, h, e2, fx, fy, fz, nx, ny, nz):
     return ux, uy, uz, wx, wy, wz
 
 
+def padded_size(n: int) -> int:
+    """``n`` targets rounded up to a whole number of vectors (:data:`LANES`)."""
+    return -(-n // LANES) * LANES
+
+
 @functools.lru_cache(maxsize=256)
 def tile_starts(padded: int, parts: int) -> np.ndarray:
     """Tile boundaries ``starts`` (tile k is targets ``starts[k]:starts[k+1]``) for ``padded``

@@ -10,7 +10,6 @@ import numba
 import numpy as np
 
 from . import compiled
-from .compiled import LANES
 
 EIGHT_PI = 8.0 * math.pi
 
@@ -178,7 +177,7 @@ def velocity(
     s3 = np.ascontiguousarray(sources if batch else sources[None], dtype=np.float64)
     f3 = np.ascontiguousarray(forces if batch else forces[None], dtype=np.float64)
     nb, m = t3.shape[:2]
-    padded = -(-m // LANES) * LANES
+    padded = compiled.padded_size(m)
     tp = _soa(t3, padded)
     denom = EIGHT_PI * visc
     fast = torques is None and not wall and not angular  # u from f in free space only

@@ -38,11 +38,13 @@ import numpy as np
 from numba import njit
 
 from ..integrate import ABOVE, BEYOND, DONE, NON_FINITE, Scheme
-from ..mrs.velocity import kernel_threads
+from ..mrs import compiled
+from ..mrs.velocity import EIGHT_PI, kernel_threads
 
 __all__ = [
     "advance",
     "bracket_into",
+    "kernel_arguments",
     "monitor",
     "pack_points",
     "rates_into",
@@ -98,6 +100,17 @@ def pack_points(x, targets, sources):
     for i in range(n):
         for j in range(3):
             sources[0, i, j] = x[i, j]
+
+
+def kernel_arguments(system: Any, n_points: int, threads: int) -> tuple:
+    """``(eps, denom, starts)`` as ``mrs.velocity`` passes them to the kernels for ``system``'s
+    ε and μ (one system: (1,) arrays, denom = 8πμ) and ``n_points`` targets on ``threads``
+    threads; ``starts[-1]`` is the padded target count."""
+    return (
+        np.full(1, float(system.epsilon)),
+        np.full(1, EIGHT_PI * system.viscosity),
+        compiled.tile_starts(compiled.padded_size(n_points), threads),
+    )
 
 
 # ---- the generic loop -------------------------------------------------------------------------

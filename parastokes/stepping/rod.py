@@ -19,7 +19,6 @@ from numba.extending import overload
 from ..bodies.frames import advance_rod
 from ..bodies.rod import length_change, preferred_strain, rod_loads
 from ..mrs import compiled
-from ..mrs.velocity import EIGHT_PI
 from . import loop
 
 __all__ = ["RodData", "rod_data"]
@@ -28,14 +27,12 @@ __all__ = ["RodData", "rod_data"]
 class RodData(NamedTuple):
     """What the compiled parts of a :class:`parastokes.system.RodSystem` need."""
 
-    mechanics: tuple  # RodSystem.mechanics
+    mechanics: tuple  # RodSystem.mechanics (n_rods first)
     eps: np.ndarray  # (1,)
     denom: np.ndarray  # (1,) 8πμ
+    starts: np.ndarray  # the kernel's tiles; starts[-1] = the padded target count
     wall: bool
-    starts: np.ndarray  # the kernel's tiles (compiled.tile_starts)
-    padded: int  # targets padded to a multiple of compiled.LANES
     length: float
-    n_rods: int
     rate_columns: int = 6
     phi: bool = False  # the kernel's torque-blob flag, as RodSystem.rates passes it (a typed
     # bool, not a literal False: the same compiled kernel as mrs.velocity's, not a second one)
@@ -43,16 +40,11 @@ class RodData(NamedTuple):
 
 def rod_data(system: Any, threads: int) -> RodData:
     """The :class:`RodData` of ``system`` for kernels on ``threads`` threads."""
-    padded = -(-(system.n_rods * system.n_points) // compiled.LANES) * compiled.LANES
     return RodData(
         system.mechanics,
-        np.full(1, float(system.epsilon)),
-        np.full(1, EIGHT_PI * system.viscosity),
+        *loop.kernel_arguments(system, system.n_rods * system.n_points, threads),
         bool(system.wall),
-        compiled.tile_starts(padded, threads),
-        padded,
         float(system.length),
-        int(system.n_rods),
     )
 
 
@@ -62,7 +54,7 @@ def _workspace(data, x):
 
         def impl(data, x):
             n = x.shape[0]
-            return (np.empty((3, 1, data.padded)), np.empty((1, n, 3)), np.empty((1, n, 3)),
+            return (np.empty((3, 1, data.starts[-1])), np.empty((1, n, 3)), np.empty((1, n, 3)),
                     np.empty((1, n, 3)))
 
         return impl
@@ -98,7 +90,7 @@ def _advance(data, x, rates, dt):
 @overload(loop.monitor)
 def _monitor(data, x):
     if loop.is_data(data, RodData):
-        return lambda data, x: length_change(x, data.n_rods, data.length)
+        return lambda data, x: length_change(x, data.mechanics[0], data.length)
 
 
 @overload(loop.bracket_into)

@@ -20,7 +20,6 @@ from numba.extending import overload
 from ..bodies.geometry import mesh_area
 from ..bodies.vesicle import spring_forces
 from ..mrs import compiled
-from ..mrs.velocity import EIGHT_PI
 from . import loop
 
 __all__ = ["VesicleData", "vesicle_data"]
@@ -37,15 +36,12 @@ class VesicleData(NamedTuple):
     area: float  # the initial sphere's
     eps: np.ndarray  # (1,)
     denom: np.ndarray  # (1,) 8πμ
-    starts: np.ndarray  # the kernel's tiles (compiled.tile_starts)
-    padded: int  # targets padded to a multiple of compiled.LANES
+    starts: np.ndarray  # the kernel's tiles; starts[-1] = the padded target count
     rate_columns: int = 3
 
 
 def vesicle_data(system: Any, threads: int) -> VesicleData:
     """The :class:`VesicleData` of ``system`` for kernels on ``threads`` threads."""
-    n = system.mesh[0].shape[0]
-    padded = -(-n // compiled.LANES) * compiled.LANES
     return VesicleData(
         system.edges,
         system.rest_lengths,
@@ -53,10 +49,7 @@ def vesicle_data(system: Any, threads: int) -> VesicleData:
         float(system.shear_rate),
         system.mesh[1],
         float(system.initial_area),
-        np.full(1, float(system.epsilon)),
-        np.full(1, EIGHT_PI * system.viscosity),
-        compiled.tile_starts(padded, threads),
-        padded,
+        *loop.kernel_arguments(system, system.mesh[0].shape[0], threads),
     )
 
 
@@ -66,7 +59,7 @@ def _workspace(data, x):
 
         def impl(data, x):
             n = x.shape[0]
-            return np.empty((3, 1, data.padded)), np.empty((1, n, 3)), np.empty((1, n, 3))
+            return np.empty((3, 1, data.starts[-1])), np.empty((1, n, 3)), np.empty((1, n, 3))
 
         return impl
 
