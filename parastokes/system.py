@@ -23,6 +23,7 @@ import numpy as np
 from . import mrs, stepping
 from .bodies import frames, geometry, rod, vesicle
 from .bodies.rod_transfer import RodTransfer
+from .mrs.velocity import thread_count
 
 __all__ = ["RodSystem", "VesicleSystem"]
 
@@ -116,6 +117,7 @@ class RodSystem(_CompiledSteps):
             raise ValueError(f"preferred: need three strains, got {self.preferred!r}")
         if self.wall:
             _require_positive(height=self.height)
+        thread_count(self.n_threads)  # ValueError now, not at the first step
 
     # ---- geometry --------------------------------------------------------------------------
     @property
@@ -262,6 +264,7 @@ class VesicleSystem(_CompiledSteps):
         _require_positive(epsilon=self.epsilon, viscosity=self.viscosity, stiffness=self.stiffness)
         if not math.isfinite(self.shear_rate):
             raise ValueError(f"shear_rate: must be finite, got {self.shear_rate!r}")
+        thread_count(self.n_threads)  # ValueError now, not at the first step
 
     @property
     def mesh(self) -> tuple[np.ndarray, np.ndarray]:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib
 import importlib.util
 import math
 from pathlib import Path
@@ -225,6 +226,27 @@ def test_build_uses_the_coarse_grid_and_the_serial_executor():
         assert setup.coarse.propagator.system.n_points == 6  # (21 - 1) / 4 + 1
         assert setup.executor.workers == 1
     assert setup.executor is None  # shut down on exit
+
+
+def test_build_warms_up_this_process_for_the_timed_serial_run(monkeypatch):
+    """The serial fine run is timed in this process: build loads its compiled code first."""
+    build_module = importlib.import_module("parastokes.config.build")  # not config.build()
+
+    warmed = []
+
+    class Recorder:
+        def __init__(self, system):
+            self.system = system
+
+        def __call__(self):
+            warmed.append(self.system)
+
+    monkeypatch.setattr(build_module, "WarmUp", Recorder)
+    cfg, r = config.loads(BASE, overrides=['run.mode="serial"'])
+    with config.build(cfg, r, executor=False):
+        assert warmed == []
+    with config.build(cfg, r) as setup:
+        assert setup.executor is None and warmed == [setup.system]
 
 
 def test_vesicle_build_has_the_absolute_epsilon():

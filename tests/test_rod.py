@@ -306,6 +306,8 @@ def test_with_params_changes_exactly_the_named_parameter():
         ({"viscosity": -1e-6}, "viscosity"),
         ({"bending": 0.0}, "bending"),
         ({"height": 0.0}, "height"),
+        ({"n_threads": 0}, "n_threads"),
+        ({"n_threads": "2"}, "n_threads"),
     ],
 )
 def test_bad_rod_input_raises_naming_the_argument(kwargs, name):

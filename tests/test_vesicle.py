@@ -136,6 +136,7 @@ def test_with_params_changes_exactly_the_named_parameter():
         ({"epsilon_factor": 0.0}, "epsilon_factor"),
         ({"stiffness": -0.1}, "stiffness"),
         ({"viscosity": 0.0}, "viscosity"),
+        ({"n_threads": 0}, "n_threads"),
     ],
 )
 def test_bad_vesicle_input_raises_naming_the_argument(kwargs, name):

@@ -55,7 +55,7 @@ def _epsilon(value, batch: int) -> np.ndarray:
     return eps
 
 
-def _thread_count(n_threads: int | None) -> int:
+def thread_count(n_threads: int | None) -> int:
     """The threads a call uses: ``n_threads`` (default 1), at most numba's thread pool."""
     n = 1 if n_threads is None else n_threads
     if not isinstance(n, int | np.integer) or n < 1:
@@ -65,9 +65,9 @@ def _thread_count(n_threads: int | None) -> int:
 
 @contextlib.contextmanager
 def kernel_threads(n_threads: int | None) -> Iterator[int]:
-    """Run the enclosed kernels on ``n_threads`` threads (:func:`_thread_count`); numba's thread
+    """Run the enclosed kernels on ``n_threads`` threads (:func:`thread_count`); numba's thread
     count is restored on exit. Yields the count used (the kernels' tiling depends on it)."""
-    n = _thread_count(n_threads)
+    n = thread_count(n_threads)
     previous = numba.get_num_threads()
     if n != previous:
         numba.set_num_threads(n)
