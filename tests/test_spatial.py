@@ -49,6 +49,25 @@ def test_target_blocks_on_processes_equal_serial_fine_solver(case, pool):
     np.testing.assert_array_equal(fine(0.0, t1, x0), serial)
 
 
+def test_target_blocks_fine_solver_evaluates_its_blocks(case, monkeypatch):
+    """The wrapped system's compiled loop must not bypass the blocks: every rate evaluation of
+    the fine solver goes through them (each block, twice per RK2 step)."""
+    system, dt, t1, x0, serial = case
+    calls = []
+
+    def counting(*args):
+        calls.append(len(args[0]))
+        return real(*args)
+
+    real = spatial._block_velocity
+    monkeypatch.setattr(spatial, "_block_velocity", counting)
+    fine = spatial.fine_solver(system, "rk2", dt, executor=parallel.make_executor("serial"))
+    np.testing.assert_array_equal(fine(0.0, t1, x0), serial)
+    evaluations = 2 * round(t1 / dt)
+    assert len(calls) == evaluations * len(fine.system.blocks)
+    assert sum(calls) == evaluations * len(x0)  # every target, once per evaluation
+
+
 @pytest.mark.parametrize("n_blocks", [1, 3, 7])
 def test_target_blocks_rates_equal_system_rates(case, n_blocks):
     system, _, _, _, moved = case
