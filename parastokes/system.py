@@ -13,7 +13,9 @@ rebuilt from them on demand, the mesh cached per process), so they pickle in a f
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any
@@ -41,21 +43,36 @@ def _wave_table(n_half: int, ds: float, wavenumber: float) -> np.ndarray:
     return table
 
 
+#: The methods whose physics the compiled parts of :mod:`parastokes.stepping` reproduce: a
+#: subclass that overrides one of them has its own physics, which the compiled loop would ignore.
+_MIRRORED = ("rates", "advance", "monitor", "bracket", "loads", "forces", "preferred_strain",
+             "mechanics")
+
+
 class _CompiledSteps:
     """``run_steps`` for a system whose compiled parts are registered in
-    :mod:`parastokes.stepping` (its data builder is the class attribute ``_stepping_data``)."""
+    :mod:`parastokes.stepping` (its data builder is the class attribute ``_stepping_data``).
 
-    _stepping_data: Any
+    A subclass that overrides a method of :data:`_MIRRORED` (and registers no parts of its own)
+    gets ``run_steps = None``, so ``integrate.run`` steps through its Python methods."""
 
-    def run_steps(
-        self, scheme: Any, x: np.ndarray, t0: float, dt: float, n: int, limit: float,
-        stop_above: float,
-    ) -> tuple[np.ndarray, float, int, int, float]:
-        """``n`` steps of ``scheme`` in one compiled call (:mod:`parastokes.stepping`), the loop
-        ``integrate.run`` uses; the same result as stepping through ``rates``/``advance``."""
-        return stepping.loop.run_steps(
-            self, type(self)._stepping_data, scheme, x, t0, dt, n, limit, stop_above
-        )
+    _stepping_data: Any = None
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if "_stepping_data" not in cls.__dict__ and any(m in cls.__dict__ for m in _MIRRORED):
+            cls._stepping_data = None
+
+    @property
+    def run_steps(self) -> Callable[..., tuple[np.ndarray, float, int, int, float]] | None:
+        """``run_steps(scheme, x, t0, dt, n, limit, stop_above)``: ``n`` steps of ``scheme`` in
+        compiled calls (:mod:`parastokes.stepping`), the loop ``integrate.run`` uses, with the
+        same result as stepping through ``rates``/``advance``; ``None`` where the compiled parts
+        do not reproduce this class's methods."""
+        make_data = type(self)._stepping_data
+        if make_data is None:
+            return None
+        return functools.partial(stepping.loop.run_steps, self, make_data)
 
 
 def _replace_params(system: Any, theta: dict[str, float]) -> Any:

@@ -61,6 +61,29 @@ def test_compiled_loop_equals_the_python_loop(system, dt, scheme):
     assert_same(compiled, python)
 
 
+@dataclasses.dataclass(frozen=True)
+class DriftingSwimmers(models.RodSystem):
+    """A user's model on top of the rod: the same rods carried by a uniform flow along y."""
+
+    def rates(self, t, state):
+        rates = super().rates(t, state)
+        rates[:, 1] += 50.0
+        return rates
+
+
+def test_a_subclass_with_its_own_rates_is_not_stepped_by_the_parent_loop():
+    base = swimmers()
+    drifting = DriftingSwimmers(**{f.name: getattr(base, f.name)
+                                   for f in dataclasses.fields(base)})
+    assert drifting.run_steps is None and base.run_steps is not None
+    x0 = base.initial_state()
+    moved = integrate.propagate(drifting, x0, 0.0, 1e-5, "rk2", 1e-6)
+    plain = integrate.run(drifting, x0, 0.0, 1e-5, "rk2", 1e-6, compiled=False).state
+    np.testing.assert_array_equal(moved, plain)
+    still = integrate.propagate(base, x0, 0.0, 1e-5, "rk2", 1e-6)
+    np.testing.assert_allclose(moved[:, 1] - still[:, 1], 50.0 * 1e-5, rtol=1e-9)
+
+
 @pytest.mark.parametrize("call_seconds", [0.0, 1e-4])
 def test_splitting_a_run_into_compiled_calls_changes_nothing(monkeypatch, call_seconds):
     """A long run goes back to Python every ~CALL_SECONDS (Ctrl-C); one step per call, or a few,
