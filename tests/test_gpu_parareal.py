@@ -60,6 +60,18 @@ def test_a_failed_fine_solve_names_its_slice():
     assert isinstance(error.value.original, integrate.BlowUpError)
 
 
+def test_map_runs_one_batch():
+    rods = small_rods()
+    fine = integrate.Propagator(rods, "rk2", 1e-2)
+    starts = [0.0, 0.02, 0.04]
+    x0 = rods.initial_state()
+    with parallel.make_executor("gpu") as executor:
+        values = list(executor.map(fine, starts, [t + 0.02 for t in starts], [x0] * 3))
+    assert executor.batches == [3]
+    for t, value in zip(starts, values, strict=True):
+        assert np.abs(value - fine(t, t + 0.02, x0)).max() <= 1e-15
+
+
 def test_make_executor_options_and_missing_gpu(monkeypatch):
     with pytest.raises(ValueError, match="threads_per_worker does not apply to kind='gpu'"):
         parallel.make_executor("gpu", threads_per_worker=2)

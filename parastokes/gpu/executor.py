@@ -89,6 +89,18 @@ class GPUExecutor(Executor):
                 self._run()
             return future
 
+    def map(
+        self,
+        fn: Callable[..., Any],
+        *iterables: Any,
+        timeout: float | None = None,
+        chunksize: int = 1,
+    ) -> Iterator[Any]:
+        """Like :func:`map`, all calls in one batch."""
+        with self.batch():
+            futures = [self.submit(fn, *args) for args in zip(*iterables, strict=False)]
+        return (future.result(timeout) for future in futures)
+
     @contextlib.contextmanager
     def batch(self) -> Iterator[GPUExecutor]:
         """Hold the calls submitted inside; run them as one batch when the block ends (and drop

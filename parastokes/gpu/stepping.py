@@ -473,22 +473,24 @@ def solve(
     wall = bool(getattr(first, "wall", False))
     shear = float(getattr(first, "shear_rate", 0.0))
 
+    # launch configurations made once (each is reused for every step)
+    begin, stage, finish = (kernel[nb, launch.threads] for kernel in (begin, stage, finish))
+    full, free_u_f = full[grid, block], free_u_f[grid, block]
+
     def velocity(positions, out):
         if body_kind == "rod":
-            full[grid, block](positions, positions, d_f, d_tq, d_mf, d_mi, wall, out)
+            full(positions, positions, d_f, d_tq, d_mf, d_mi, wall, out)
         else:
-            free_u_f[grid, block](positions, positions, d_f, d_mf, d_mi, shear, out)
+            free_u_f(positions, positions, d_f, d_mf, d_mi, shear, out)
 
-    begin[nb, launch.threads](d_x, d_mf, d_mi, body, d_f, d_tq)
+    begin(d_x, d_mf, d_mi, body, d_f, d_tq)
     limit = float(limit)
     for step in range(int(mi[:, NSTEPS].max())):
         velocity(d_x, k_views[0])
         for st in range(1, stages):
-            stage[nb, launch.threads](st, step, d_x, d_k, d_a, d_c, d_sb, d_mf, d_mi, body, d_xs,
-                                      d_f, d_tq)
+            stage(st, step, d_x, d_k, d_a, d_c, d_sb, d_mf, d_mi, body, d_xs, d_f, d_tq)
             velocity(d_xs, k_views[st])
-        finish[nb, launch.threads](step, d_x, d_k, d_w, d_fb, limit, d_mf, d_mi, body, d_xs,
-                                   d_f, d_tq)
+        finish(step, d_x, d_k, d_w, d_fb, limit, d_mf, d_mi, body, d_xs, d_f, d_tq)
         if (step + 1) % POLL_STEPS == 0 and not (d_mi.copy_to_host()[:, STATUS] == RUNNING).any():
             break
     x = d_x.copy_to_host()
