@@ -80,7 +80,8 @@ def test_a_member_does_not_depend_on_its_batch(batch):
         (dict(epsilon=np.array([0.3, 0.5])), "epsilon"),
         (dict(mu=-1.0), "mu"),
         (dict(forces=np.zeros((3, 6, 3))), "forces"),
-        (dict(wall=True, targets=-np.ones((3, 7, 3))), "below the wall"),
+        (dict(wall=True, targets=-np.ones((3, 7, 3))), "targets: points below the wall"),
+        (dict(targets=np.full((3, 7, 3), 1e19)), "targets: coordinates beyond"),
     ],
 )
 def test_bad_input_is_refused_naming_the_argument(batch, change, message):

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 from numba import cuda
 
-from ..mrs.velocity import EIGHT_PI, _epsilon, _points, _positive
+from ..mrs.velocity import EIGHT_PI, validated
 from . import device
 from .kernels import DENOM, EPS, RUNNING, launch_shape, velocity_kernels
 from .stepping import Launch
@@ -58,22 +58,10 @@ def velocity(targets, sources, forces, *, epsilon, mu, torques=None, wall: bool 
     """``mrs.velocity`` on the GPU, for (N, 3) or batched (B, N, 3) input with per-member ε and
     μ: the same arguments (validated the same way) and results to round-off (the torque blob is
     ψ, variant L, the default of ``mrs.velocity``). Returns u, or (u, w) with ``angular``."""
-    targets = _points("targets", targets)
+    targets, sources, forces, torques, eps, visc = validated(
+        targets, sources, forces, torques, epsilon, mu, wall
+    )
     batch = targets.shape[0] if targets.ndim == 3 else 0
-    sources = _points("sources", sources, batch)
-    forces = _points("forces", forces, batch)
-    if forces.shape != sources.shape:
-        raise ValueError(f"forces: shape {forces.shape} differs from sources {sources.shape}")
-    if batch and sources.shape[0] != batch:
-        raise ValueError(f"sources: batch size {sources.shape[0]} differs from targets {batch}")
-    if torques is not None:
-        torques = _points("torques", torques, batch)
-        if torques.shape != sources.shape:
-            raise ValueError(f"torques: shape {torques.shape} differs from sources {sources.shape}")
-    if wall and (np.any(targets[..., 2] < 0) or np.any(sources[..., 2] < 0)):
-        raise ValueError("targets, sources: points below the wall z = 0 (wall=True)")
-    eps = _epsilon(epsilon, batch)
-    visc = _positive("mu", mu, batch)
     if not batch:
         targets, sources, forces = targets[None], sources[None], forces[None]
         torques = None if torques is None else torques[None]
