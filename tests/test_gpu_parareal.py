@@ -72,6 +72,22 @@ def test_map_runs_one_batch():
         assert np.abs(value - fine(t, t + 0.02, x0)).max() <= 1e-15
 
 
+def test_batch_holds_calls_until_it_closes_and_drops_them_on_error():
+    with parallel.make_executor("gpu") as executor:
+        with executor.batch():
+            held = executor.submit(np.add, 1.0, 2.0)
+            assert not held.done()
+        assert held.result() == 3.0
+        with pytest.raises(KeyError), executor.batch():
+            dropped = executor.submit(np.add, 1.0, 2.0)
+            raise KeyError
+        assert dropped.cancelled()
+        with executor.batch():
+            asked = executor.submit(np.add, 2.0, 2.0)
+            assert asked.result() == 4.0  # asking inside the batch runs it: no deadlock
+    assert executor.batches == []  # none of these calls is a GPU solve
+
+
 def test_make_executor_options_and_missing_gpu(monkeypatch):
     with pytest.raises(ValueError, match="threads_per_worker does not apply to kind='gpu'"):
         parallel.make_executor("gpu", threads_per_worker=2)

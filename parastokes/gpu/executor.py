@@ -67,7 +67,7 @@ class GPUExecutor(Executor):
             raise ValueError(f"workers must be >= 1, got {workers}")
         self.workers = workers
         self.launch = launch
-        self.batches: list[int] = []  # the size of every GPU batch run so far
+        self.batches: list[int] = []  # how many GPU solves each batch held, so far
         self._held: list[tuple[_HeldFuture, Callable[..., Any], tuple, dict]] = []
         self._depth = 0
         self._lock = threading.RLock()
@@ -143,8 +143,9 @@ class GPUExecutor(Executor):
                 for h in held[start:]:
                     h[0].set_exception(exc)
                 raise
-            self.batches.append(sum(batch.batch_key(fn, args) is not None
-                                    for _, fn, args, _ in part))
+            gpu_calls = sum(batch.batch_key(fn, args) is not None for _, fn, args, _ in part)
+            if gpu_calls:
+                self.batches.append(gpu_calls)
             for (future, *_), (ok, value) in zip(part, outcomes, strict=True):
                 if ok:
                     future.set_result(value)
