@@ -6,6 +6,9 @@ simulator, max |GPU - CPU| = 8.7e-19 for states that move by 6.7e-4 (1.3e-15 rel
 tolerance is 1e-12 relative.
 """
 
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 from gpu_setup import fast_simulator, gpu, small_rods, small_vesicle  # noqa: F401 (an autouse fixture)
@@ -112,3 +115,23 @@ def test_config_gpu_executor_holds_every_solve_of_a_sweep():
     with config.build(cfg, resolved) as setup:
         assert isinstance(setup.executor, gpu.GPUExecutor)
         assert setup.executor.workers == 3
+
+
+def test_the_package_runs_without_importing_the_cuda_target():
+    code = (
+        "import sys; from parastokes import config, integrate, models, parallel, parareal; "
+        "rod = models.rod(n_points=5, length=4.0, viscosity=1.0); "
+        "f = integrate.Propagator(rod, 'rk2', 1e-2); "
+        "parareal.run(f, f, rod.initial_state(), 0.0, 0.02, 2, 0.0, 1, "
+        "executor=parallel.make_executor('serial')); "
+        "assert 'numba.cuda' not in sys.modules"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True, timeout=600)
+
+
+@pytest.mark.parametrize(("launch", "message"), [(dict(threads=6), "power of two"),
+                                                  (dict(tx=0), "tx: must be a positive")])
+def test_bad_launch_shapes_are_refused(launch, message):
+    with pytest.raises(ValueError, match=message):
+        gpu.Launch(**launch)
+

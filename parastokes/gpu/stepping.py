@@ -75,6 +75,15 @@ class Launch:
     sy: int = 8
     threads: int = 128
 
+    def __post_init__(self) -> None:
+        for name in ("tx", "sy", "threads"):
+            value = getattr(self, name)
+            if not isinstance(value, int) or value < 1:
+                raise ValueError(f"{name}: must be a positive integer, got {value!r}")
+        if self.threads & (self.threads - 1):
+            raise ValueError(f"threads: must be a power of two (a tree reduction), got "
+                             f"{self.threads}")
+
     @classmethod
     def default(cls) -> Launch:
         return cls(4, 2, 4) if device.simulated() else cls()
