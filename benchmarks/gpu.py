@@ -38,7 +38,7 @@ import numpy as np
 from numba import cuda
 
 from parastokes import config, integrate, models, mrs, parallel, parareal
-from parastokes.gpu import batch, device
+from parastokes.gpu import batch, device, stepping
 from parastokes.gpu.velocity import Evaluation
 from parastokes.warmup import WarmUp
 
@@ -84,13 +84,15 @@ def _problem(kind: str, b: int, n: int, seed: int = 0) -> dict:
                 mu=np.full(b, 1e-3) * (1.0 + 0.01 * np.arange(b)), wall=kind == "rod")
 
 
-def kernels_section(sizes: dict, batches: tuple, rounds: int, info: dict) -> list[dict]:
+def kernels_section(sizes: dict, batches: tuple, rounds: int, info: dict,
+                    shapes: list[stepping.Launch]) -> list[dict]:
     cores = len(os.sched_getaffinity(0))
     rows = []
     for kind, n in sizes.items():
-        for b in batches:
+        tuned = 40 if 40 in batches else batches[-1]  # the batch of the other block shapes
+        for b, shape in [(b, shapes[0]) for b in batches] + [(tuned, s) for s in shapes[1:]]:
             p = _problem(kind, b, n)
-            ev = Evaluation(p["x"], p["x"], p["f"], p["n"], p["eps"], p["mu"], p["wall"])
+            ev = Evaluation(p["x"], p["x"], p["f"], p["n"], p["eps"], p["mu"], p["wall"], shape)
             ev.launch()
             cuda.synchronize()  # compiled and warm
             repeats = max(3, min(200, int(2e9 / (b * n * n))))
@@ -120,7 +122,8 @@ def kernels_section(sizes: dict, batches: tuple, rounds: int, info: dict) -> lis
             rate = pairs / best / 1e9
             peak = info["fp64_peak_tflops"]
             row = {
-                "kind": kind, "n": n, "batch": b, "gpu_seconds": best,
+                "kind": kind, "n": n, "batch": b, "block": [shape.tx, shape.sy],
+                "gpu_seconds": best,
                 "gpu_gpairs_per_s": rate, "cpu_seconds": cpu_best, "cpu_threads": cores,
                 "cpu_gpairs_per_s": pairs / cpu_best / 1e9, "gpu_over_cpu": cpu_best / best,
                 "fraction_of_fp64_peak": None if peak is None else
@@ -128,7 +131,8 @@ def kernels_section(sizes: dict, batches: tuple, rounds: int, info: dict) -> lis
                 "max_rel_diff_vs_cpu": float(diff),
             }
             rows.append(row)
-            print(f"kernel {kind:7s} N={n:4d} B={b:3d}: GPU {rate:8.2f} G pairs/s, CPU "
+            print(f"kernel {kind:7s} N={n:4d} B={b:3d} block {shape.tx}x{shape.sy}: GPU "
+                  f"{rate:8.2f} G pairs/s, CPU "
                   f"{row['cpu_gpairs_per_s']:6.2f} ({cores} threads), x{row['gpu_over_cpu']:.1f}, "
                   f"diff {diff:.1e}", flush=True)
     return rows
@@ -219,6 +223,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", type=Path, default=None, help="write the results here")
     parser.add_argument("--rounds", type=int, default=5)
     parser.add_argument("--smoke", action="store_true", help="tiny sizes, to test the script")
+    parser.add_argument("--shapes", default=None,
+                        help="kernel blocks TXxSY: the first for all B, the others at B = 40 "
+                             "(e.g. 32x8,32x4,32x16,64x4); default: the package's (32x8)")
     args = parser.parse_args(argv)
     device.require()
     cores = len(os.sched_getaffinity(0))
@@ -252,7 +259,9 @@ def main(argv: list[str] | None = None) -> int:
 
     sections = args.sections.split(",")
     if "kernels" in sections:
-        report["kernels"] = kernels_section(sizes, batches, args.rounds, info)
+        shapes = [stepping.Launch.default()] if args.shapes is None else [
+            stepping.Launch(*map(int, text.split("x"))) for text in args.shapes.split(",")]
+        report["kernels"] = kernels_section(sizes, batches, args.rounds, info, shapes)
         save()
     if "sweep" in sections:
         report["sweep"] = sweep_section(*sweep, cpu_workers=cores)
