@@ -52,6 +52,20 @@ def test_vesicle_parareal_with_richardson_steps_in_one_batch():
     assert np.abs(result.states - cpu.states).max() <= 1e-12 * motion
 
 
+def test_coarse_grid_auxiliaries_are_batched_on_the_coarse_grid():
+    rods = small_rods(n_points=5, length=4.0)  # coarsened by 2: 3 points per rod
+    x0 = rods.initial_state()
+    fine = integrate.Propagator(rods, "rk2", 1e-2)
+    coarse = parareal.extrapolated(rods, "euler", 0.02, lagrange={"epsilon": [0.85, 0.9]}, grid=2)
+    kw = dict(tol=0.0, max_iterations=1, project=rods.project)
+    cpu = parareal.run(fine, coarse, x0, 0.0, 0.08, 2, executor=parallel.make_executor("serial"),
+                       **kw)
+    with parallel.make_executor("gpu") as executor:
+        result = parareal.run(fine, coarse, x0, 0.0, 0.08, 2, executor=executor, **kw)
+    assert executor.batches == [2, 2, 2, 2]
+    assert np.abs(result.states - cpu.states).max() <= 1e-12 * np.abs(cpu.states - x0).max()
+
+
 def test_a_failed_fine_solve_names_its_slice():
     x0 = small_rods().initial_state()
     wild = small_rods(viscosity=1e-4)  # blows up within the first slice's fine steps
