@@ -14,8 +14,9 @@ run that is stopped keeps what it measured):
   peak (SMs x 64 FP64 FMA units x 2 flops x clock, Hopper) at the conventional 200 (wall) and 20
   (free) flops per pair of benchmarks/kernels.py; and the largest difference from the CPU kernels.
 - ``sweep``: one whole parallel sweep of the paper's Table 4 problem (40 slices x 25,000 RK2 steps
-  of the swimmer, M = 301, tau_f = 1e-6) as one GPU batch, against the same 40 fine solves on a
-  process pool over this machine's cores; the largest difference of the 40 end states.
+  of the swimmer, M = 301, tau_f = 1e-6; slice n from T_{n-1}, every slice from the initial shape,
+  since the cost does not depend on the start state) as one GPU batch, against the same 40 fine
+  solves on a process pool over this machine's cores; the largest difference of the 40 end states.
 - ``parareal``: Parareal end to end on the GPU executor: short rod (Table 4 G^3 solver) and vesicle
   (Table 7 G^1) runs against the process-pool executor (iterates compared), then the full
   Table 4 G^3 and Table 7 G^1 runs (T = 1 and T = 100, 40 slices, 4 iterations) on the GPU alone
