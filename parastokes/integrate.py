@@ -58,6 +58,7 @@ __all__ = [
     "n_steps",
     "propagate",
     "run",
+    "run_result",
     "scheme_order",
     "step",
 ]
@@ -260,9 +261,21 @@ def _stepping(
     loop = getattr(system, "run_steps", None) if compiled else None
     if loop is None:
         loop = functools.partial(_python_steps, system)
-    x, worst, taken, outcome, m = loop(
-        scheme, x, t0, dt, n, limit, math.inf if stop_above is None else stop_above
-    )
+    steps = loop(scheme, x, t0, dt, n, limit, math.inf if stop_above is None else stop_above)
+    return run_result(system, t0, dt, steps, blowup_factor)
+
+
+def run_result(
+    system: Any,
+    t0: float,
+    dt: float,
+    steps: tuple[np.ndarray, float, int, int, float],
+    blowup_factor: float = BLOWUP_FACTOR,
+) -> RunResult:
+    """The :class:`RunResult` of a loop of steps from ``t0`` (``steps``: what ``run_steps``
+    returns), or the :class:`BlowUpError` it ended with. Also used by the GPU backend
+    (:mod:`parastokes.gpu`), whose batched loops return the same tuples."""
+    x, worst, taken, outcome, m = steps
     t = t0 + (taken + 1) * dt
     if outcome == NON_FINITE:
         raise BlowUpError(t, taken, math.nan, x, "non-finite state")

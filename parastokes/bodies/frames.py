@@ -12,6 +12,8 @@ here is compiled with numba and loops over rows inside the compiled code.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
@@ -47,35 +49,40 @@ def rotate(vx, vy, vz, ex, ey, ez, c, s):
     return rodrigues(vx, vy, vz, ex, ey, ez, c, 1.0 - c, s)
 
 
+@njit(inline="always", **_OPTS)
+def advance_node(x, u, dt, out):
+    """One node of :func:`advance_rod`: ``out`` = ``x`` (a row [X, D1, D2, D3]) advanced by the
+    rates ``u`` (a row [u, w]). Also compiled as a CUDA device function by :mod:`parastokes.gpu`
+    (hence ``math``)."""
+    for j in range(3):
+        out[j] = x[j] + dt * u[j]
+    wx = u[3]
+    wy = u[4]
+    wz = u[5]
+    wn = math.sqrt(wx * wx + wy * wy + wz * wz)
+    if wn == 0.0 or dt == 0.0:
+        for j in range(3, 12):
+            out[j] = x[j]
+        return
+    theta = wn * dt
+    c = math.cos(theta)
+    s = math.sin(theta)
+    ex = wx / wn
+    ey = wy / wn
+    ez = wz / wn
+    for i in range(3, 12, 3):
+        out[i], out[i + 1], out[i + 2] = rotate(x[i], x[i + 1], x[i + 2], ex, ey, ez, c, s)
+
+
 @njit(**_OPTS)
 def advance_rod(state, rates, dt):
     """New state: X + dt u and every frame vector rotated by the angle |w| dt about w (eq. 13).
 
     ``state`` is (n, 12) ``[X, D1, D2, D3]``, ``rates`` (n, 6) ``[u, w]``; |w| = 0 leaves the frame.
     """
-    n = state.shape[0]
     out = np.empty_like(state)
-    for k in range(n):
-        for j in range(3):
-            out[k, j] = state[k, j] + dt * rates[k, j]
-        wx = rates[k, 3]
-        wy = rates[k, 4]
-        wz = rates[k, 5]
-        wn = np.sqrt(wx * wx + wy * wy + wz * wz)
-        if wn == 0.0 or dt == 0.0:
-            for j in range(3, 12):
-                out[k, j] = state[k, j]
-            continue
-        theta = wn * dt
-        c = np.cos(theta)
-        s = np.sin(theta)
-        ex = wx / wn
-        ey = wy / wn
-        ez = wz / wn
-        for i in range(3, 12, 3):
-            out[k, i], out[k, i + 1], out[k, i + 2] = rotate(
-                state[k, i], state[k, i + 1], state[k, i + 2], ex, ey, ez, c, s
-            )
+    for k in range(state.shape[0]):
+        advance_node(state[k], rates[k], dt, out[k])
     return out
 
 

@@ -11,6 +11,7 @@
 
 from __future__ import annotations
 
+import math
 from functools import lru_cache
 
 import numpy as np
@@ -100,22 +101,28 @@ def edge_lengths(points: np.ndarray, edges: np.ndarray) -> np.ndarray:
     return np.linalg.norm(points[edges[:, 1]] - points[edges[:, 0]], axis=1)
 
 
+@njit(inline="always", cache=True, error_model="numpy")
+def triangle_area2(points, i, j, k):
+    """Twice the area of the triangle (X_i, X_j, X_k). Also compiled as a CUDA device function by
+    :mod:`parastokes.gpu` (hence ``math.sqrt``)."""
+    ux = points[j, 0] - points[i, 0]
+    uy = points[j, 1] - points[i, 1]
+    uz = points[j, 2] - points[i, 2]
+    vx = points[k, 0] - points[i, 0]
+    vy = points[k, 1] - points[i, 1]
+    vz = points[k, 2] - points[i, 2]
+    cx = uy * vz - uz * vy
+    cy = uz * vx - ux * vz
+    cz = ux * vy - uy * vx
+    return math.sqrt(cx * cx + cy * cy + cz * cz)
+
+
 @njit(cache=True, error_model="numpy")
 def mesh_area(points, triangles):
     """Total area of the triangles (compiled; :func:`surface_area` is its Python entry)."""
     total = 0.0
     for t in range(triangles.shape[0]):
-        i, j, k = triangles[t, 0], triangles[t, 1], triangles[t, 2]
-        ux = points[j, 0] - points[i, 0]
-        uy = points[j, 1] - points[i, 1]
-        uz = points[j, 2] - points[i, 2]
-        vx = points[k, 0] - points[i, 0]
-        vy = points[k, 1] - points[i, 1]
-        vz = points[k, 2] - points[i, 2]
-        cx = uy * vz - uz * vy
-        cy = uz * vx - ux * vz
-        cz = ux * vy - uy * vx
-        total += np.sqrt(cx * cx + cy * cy + cz * cz)
+        total += triangle_area2(points, triangles[t, 0], triangles[t, 1], triangles[t, 2])
     return 0.5 * total
 
 

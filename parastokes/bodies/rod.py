@@ -17,12 +17,65 @@ and accumulates the point values (paper eq. 12; physics.md (12)) with free ends
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
 from .frames import rodrigues
 
 _OPTS = dict(cache=True, error_model="numpy")
+
+
+@njit(inline="always", **(_OPTS | dict(fastmath={"contract"})))
+def segment_loads(p, q, inv_ds, a1, a2, a3, b1, b2, b3, o1, o2, o3):
+    """The moment N and force F at the half point between nodes p and q (rows [X, D1, D2, D3]),
+    and the lever ½ ΔX × F (eqs. 9-11): ``(F, N, ½ ΔX × F)`` as nine numbers. ``inv_ds`` = 1/Δs,
+    a_i, b_i the moduli, o_i = Ω̂_i at the half point. One segment of :func:`rod_loads`; also
+    compiled as a CUDA device function by :mod:`parastokes.gpu` (hence ``math.sqrt``)."""
+    # v = ½ Σ_i D_i^k × D_i^{k+1} = sin θ e, tr A_k = Σ_i D_i^k·D_i^{k+1} = 1 + 2 cos θ
+    vx = 0.5 * (p[4] * q[5] - p[5] * q[4] + p[7] * q[8] - p[8] * q[7]
+                + p[10] * q[11] - p[11] * q[10])
+    vy = 0.5 * (p[5] * q[3] - p[3] * q[5] + p[8] * q[6] - p[6] * q[8]
+                + p[11] * q[9] - p[9] * q[11])
+    vz = 0.5 * (p[3] * q[4] - p[4] * q[3] + p[6] * q[7] - p[7] * q[6]
+                + p[9] * q[10] - p[10] * q[9])
+    tr = (p[3] * q[3] + p[4] * q[4] + p[5] * q[5] + p[6] * q[6] + p[7] * q[7]
+          + p[8] * q[8] + p[9] * q[9] + p[10] * q[10] + p[11] * q[11])
+    ch = 0.5 * math.sqrt(tr + 1.0)
+    rc = 1.0 / (ch * (1.0 + ch))
+    inv_ch = rc * (1.0 + ch)
+    sp = 0.5 * inv_ch
+    kq = 0.25 * inv_ch * rc
+    # half-point frame H_i (physics.md (9))
+    h1x, h1y, h1z = rodrigues(p[3], p[4], p[5], vx, vy, vz, ch, kq, sp)
+    h2x, h2y, h2z = rodrigues(p[6], p[7], p[8], vx, vy, vz, ch, kq, sp)
+    h3x, h3y, h3z = rodrigues(p[9], p[10], p[11], vx, vy, vz, ch, kq, sp)
+    dx0 = q[0] - p[0]
+    dx1 = q[1] - p[1]
+    dx2 = q[2] - p[2]
+    # strains (eq. 10): Ω1 = H3·ΔD2/Δs, Ω2 = H1·ΔD3/Δs, Ω3 = H2·ΔD1/Δs; moments a_i (Ω - Ω̂)
+    om1 = (h3x * (q[6] - p[6]) + h3y * (q[7] - p[7]) + h3z * (q[8] - p[8])) * inv_ds
+    om2 = (h1x * (q[9] - p[9]) + h1y * (q[10] - p[10]) + h1z * (q[11] - p[11])) * inv_ds
+    om3 = (h2x * (q[3] - p[3]) + h2y * (q[4] - p[4]) + h2z * (q[5] - p[5])) * inv_ds
+    m1 = a1 * (om1 - o1)
+    m2 = a2 * (om2 - o2)
+    m3 = a3 * (om3 - o3)
+    # force at the half point (eq. 11)
+    c1 = b1 * (h1x * dx0 + h1y * dx1 + h1z * dx2) * inv_ds
+    c2 = b2 * (h2x * dx0 + h2y * dx1 + h2z * dx2) * inv_ds
+    c3 = b3 * ((h3x * dx0 + h3y * dx1 + h3z * dx2) * inv_ds - 1.0)
+    fx = c1 * h1x + c2 * h2x + c3 * h3x
+    fy = c1 * h1y + c2 * h2y + c3 * h3y
+    fz = c1 * h1z + c2 * h2z + c3 * h3z
+    nx = m1 * h1x + m2 * h2x + m3 * h3x
+    ny = m1 * h1y + m2 * h2y + m3 * h3y
+    nz = m1 * h1z + m2 * h2z + m3 * h3z
+    # point values (eq. 12); ½ ΔX × F goes to both neighbours
+    lx = 0.5 * (dx1 * fz - dx2 * fy)
+    ly = 0.5 * (dx2 * fx - dx0 * fz)
+    lz = 0.5 * (dx0 * fy - dx1 * fx)
+    return fx, fy, fz, nx, ny, nz, lx, ly, lz
 
 
 @njit(**(_OPTS | dict(fastmath={"contract"})))
@@ -48,51 +101,11 @@ def rod_loads(state, n_rods, ds, a, b, omega_hat):
     tq = np.zeros((n, 3))
     for r in range(n_rods):
         for k in range(r * m, (r + 1) * m - 1):
-            p = state[k]
-            q = state[k + 1]
-            # v = ½ Σ_i D_i^k × D_i^{k+1} = sin θ e, tr A_k = Σ_i D_i^k·D_i^{k+1} = 1 + 2 cos θ
-            vx = 0.5 * (p[4] * q[5] - p[5] * q[4] + p[7] * q[8] - p[8] * q[7]
-                        + p[10] * q[11] - p[11] * q[10])
-            vy = 0.5 * (p[5] * q[3] - p[3] * q[5] + p[8] * q[6] - p[6] * q[8]
-                        + p[11] * q[9] - p[9] * q[11])
-            vz = 0.5 * (p[3] * q[4] - p[4] * q[3] + p[6] * q[7] - p[7] * q[6]
-                        + p[9] * q[10] - p[10] * q[9])
-            tr = (p[3] * q[3] + p[4] * q[4] + p[5] * q[5] + p[6] * q[6] + p[7] * q[7]
-                  + p[8] * q[8] + p[9] * q[9] + p[10] * q[10] + p[11] * q[11])
-            ch = 0.5 * np.sqrt(tr + 1.0)
-            rc = 1.0 / (ch * (1.0 + ch))
-            inv_ch = rc * (1.0 + ch)
-            sp = 0.5 * inv_ch
-            kq = 0.25 * inv_ch * rc
-            # half-point frame H_i (physics.md (9))
-            h1x, h1y, h1z = rodrigues(p[3], p[4], p[5], vx, vy, vz, ch, kq, sp)
-            h2x, h2y, h2z = rodrigues(p[6], p[7], p[8], vx, vy, vz, ch, kq, sp)
-            h3x, h3y, h3z = rodrigues(p[9], p[10], p[11], vx, vy, vz, ch, kq, sp)
-            dx0 = q[0] - p[0]
-            dx1 = q[1] - p[1]
-            dx2 = q[2] - p[2]
-            # strains (eq. 10): Ω1 = H3·ΔD2/Δs, Ω2 = H1·ΔD3/Δs, Ω3 = H2·ΔD1/Δs; moments a_i (Ω - Ω̂)
             kk = k - r * m
-            om1 = (h3x * (q[6] - p[6]) + h3y * (q[7] - p[7]) + h3z * (q[8] - p[8])) * inv_ds
-            om2 = (h1x * (q[9] - p[9]) + h1y * (q[10] - p[10]) + h1z * (q[11] - p[11])) * inv_ds
-            om3 = (h2x * (q[3] - p[3]) + h2y * (q[4] - p[4]) + h2z * (q[5] - p[5])) * inv_ds
-            m1 = a[0] * (om1 - omega_hat[kk, 0])
-            m2 = a[1] * (om2 - omega_hat[kk, 1])
-            m3 = a[2] * (om3 - omega_hat[kk, 2])
-            # force at the half point (eq. 11)
-            c1 = b[0] * (h1x * dx0 + h1y * dx1 + h1z * dx2) * inv_ds
-            c2 = b[1] * (h2x * dx0 + h2y * dx1 + h2z * dx2) * inv_ds
-            c3 = b[2] * ((h3x * dx0 + h3y * dx1 + h3z * dx2) * inv_ds - 1.0)
-            fx = c1 * h1x + c2 * h2x + c3 * h3x
-            fy = c1 * h1y + c2 * h2y + c3 * h3y
-            fz = c1 * h1z + c2 * h2z + c3 * h3z
-            nx = m1 * h1x + m2 * h2x + m3 * h3x
-            ny = m1 * h1y + m2 * h2y + m3 * h3y
-            nz = m1 * h1z + m2 * h2z + m3 * h3z
-            # point values (eq. 12); ½ ΔX × F goes to both neighbours
-            lx = 0.5 * (dx1 * fz - dx2 * fy)
-            ly = 0.5 * (dx2 * fx - dx0 * fz)
-            lz = 0.5 * (dx0 * fy - dx1 * fx)
+            fx, fy, fz, nx, ny, nz, lx, ly, lz = segment_loads(
+                state[k], state[k + 1], inv_ds, a[0], a[1], a[2], b[0], b[1], b[2],
+                omega_hat[kk, 0], omega_hat[kk, 1], omega_hat[kk, 2],
+            )
             f[k, 0] += fx
             f[k, 1] += fy
             f[k, 2] += fz

@@ -10,8 +10,22 @@ along the line joining its ends).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
+
+
+@njit(inline="always", cache=True, error_model="numpy")
+def spring_pull(points, i, j, rest, stiffness):
+    """κ (d - ℓ⁰) (X_j - X_i)/d, d = |X_j - X_i|: the force of the spring (i, j) on the fluid at
+    X_i (minus it at X_j). Also compiled as a CUDA device function by :mod:`parastokes.gpu`."""
+    dx = points[j, 0] - points[i, 0]
+    dy = points[j, 1] - points[i, 1]
+    dz = points[j, 2] - points[i, 2]
+    d = math.sqrt(dx * dx + dy * dy + dz * dz)
+    c = stiffness * (d - rest) / d
+    return c * dx, c * dy, c * dz
 
 
 @njit(cache=True, error_model="numpy")
@@ -21,15 +35,11 @@ def spring_forces(points, edges, rest, stiffness):
     for e in range(edges.shape[0]):
         i = edges[e, 0]
         j = edges[e, 1]
-        dx = points[j, 0] - points[i, 0]
-        dy = points[j, 1] - points[i, 1]
-        dz = points[j, 2] - points[i, 2]
-        d = np.sqrt(dx * dx + dy * dy + dz * dz)
-        c = stiffness * (d - rest[e]) / d
-        out[i, 0] += c * dx
-        out[i, 1] += c * dy
-        out[i, 2] += c * dz
-        out[j, 0] -= c * dx
-        out[j, 1] -= c * dy
-        out[j, 2] -= c * dz
+        px, py, pz = spring_pull(points, i, j, rest[e], stiffness)
+        out[i, 0] += px
+        out[i, 1] += py
+        out[i, 2] += pz
+        out[j, 0] -= px
+        out[j, 1] -= py
+        out[j, 2] -= pz
     return out

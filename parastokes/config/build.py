@@ -97,7 +97,7 @@ def build(cfg: Config, resolved: Resolved, *, executor: bool = True) -> Setup:
     pool = None
     if executor and cfg.run.mode != "serial":
         ex = cfg.execution
-        options = {} if ex.executor == "serial" else {"threads_per_worker": ex.threads}
+        options = {} if ex.executor in ("serial", "gpu") else {"threads_per_worker": ex.threads}
         pool = parallel.make_executor(
             ex.executor,
             resolved.workers,

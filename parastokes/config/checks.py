@@ -115,6 +115,8 @@ def _workers(cfg: Config, n_auxiliary: int, issues: list, warnings: list) -> int
             )
         return 1
     workers = ex.workers
+    if workers is None and ex.executor == "gpu":  # one batch holds every solve of a sweep
+        workers = max(cfg.parareal.n_slices, n_auxiliary)
     if workers is None and ex.executor == "processes":
         workers = max(1, min(cfg.parareal.n_slices, available_cores() // ex.threads))
     if workers is None:  # mpi: all ranks of the launch, known only when the executor exists

@@ -177,11 +177,16 @@ class Parareal(_Section):
 class Execution(_Section):
     """Where the work runs: the executor of the sweeps and threads of the kernels."""
 
-    executor: Literal["serial", "processes", "mpi"] = Field(
-        "processes", description="serial (reference), processes (one machine) or mpi (clusters)."
+    executor: Literal["serial", "processes", "mpi", "gpu"] = Field(
+        "processes",
+        description="serial (reference), processes (one machine), mpi (clusters) or gpu (one "
+        "CUDA GPU: each parallel sweep and each coarse step runs as one batch; parastokes[gpu]).",
     )
     workers: int | None = Field(
-        None, ge=1, description="Workers; default: min(n_slices, available cores) (mpi: all ranks)."
+        None,
+        ge=1,
+        description="Workers; default: min(n_slices, available cores) (mpi: all ranks; gpu: the "
+        "most solves per batch, default max(n_slices, N_G)).",
     )
     threads: int = Field(1, ge=1, description="Kernel threads per worker (spatial parallelism).")
     allow_oversubscribe: bool = Field(

@@ -26,6 +26,7 @@ Why each choice, with the figures: ``docs/kernels.md`` and ``docs/benchmarks.md`
 from __future__ import annotations
 
 import functools
+import math
 import platform
 
 import numpy as np
@@ -90,7 +91,7 @@ def _rsqrt_seed(d):
     normal range: guaranteed by :func:`parastokes.mrs.velocity` (ε and coordinates bounded, see
     ``SCALE_LIMIT`` there).
     """
-    return np.float64(np.float32(1.0) / np.sqrt(np.float32(d)))
+    return np.float64(np.float32(1.0) / math.sqrt(np.float32(d)))
 
 
 @njit(inline="always", **_OPTS)

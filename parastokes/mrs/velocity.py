@@ -87,6 +87,34 @@ def _soa(points: np.ndarray, padded: int) -> np.ndarray:
     return out
 
 
+def validated(targets, sources, forces, torques, epsilon, mu, wall: bool) -> tuple:
+    """The arguments of :func:`velocity` checked (``ValueError`` naming the argument) and
+    converted: ``(targets, sources, forces, torques, eps, mu)``, ``eps`` and ``mu`` as arrays of
+    one value per system. Also used by the GPU kernels' entry, :func:`parastokes.gpu.velocity`."""
+    targets = _points("targets", targets)
+    batch = targets.shape[0] if targets.ndim == 3 else 0
+    sources = _points("sources", sources, batch)
+    forces = _points("forces", forces, batch)
+    if forces.shape != sources.shape:
+        raise ValueError(f"forces: shape {forces.shape} differs from sources {sources.shape}")
+    if batch and sources.shape[0] != batch:
+        raise ValueError(f"sources: batch size {sources.shape[0]} differs from targets {batch}")
+    if torques is not None:
+        torques = _points("torques", torques, batch)
+        if torques.shape != sources.shape:
+            raise ValueError(
+                f"torques: shape {torques.shape} differs from sources {sources.shape}"
+            )
+    for name, arr in (("targets", targets), ("sources", sources)):
+        if arr.size and np.max(np.abs(arr)) > SCALE_LIMIT:
+            raise ValueError(f"{name}: coordinates beyond ±{SCALE_LIMIT:g} are not supported")
+        if wall and np.any(arr[..., 2] < 0):
+            raise ValueError(f"{name}: points below the wall z = 0 (wall=True)")
+    eps = np.array(_epsilon(epsilon, batch))  # a fresh writable copy: one numba signature
+    visc = _positive("mu", mu, batch)
+    return targets, sources, forces, torques, eps, visc
+
+
 def velocity(
     targets,
     sources,
@@ -144,27 +172,10 @@ def velocity(
             "torque_blob: 'phi' (variant Φ) is defined in free space only; use 'psi' with wall=True"
         )
     if check:
-        targets = _points("targets", targets)
+        targets, sources, forces, torques, eps, visc = validated(
+            targets, sources, forces, torques, epsilon, mu, wall
+        )
         batch = targets.shape[0] if targets.ndim == 3 else 0
-        sources = _points("sources", sources, batch)
-        forces = _points("forces", forces, batch)
-        if forces.shape != sources.shape:
-            raise ValueError(f"forces: shape {forces.shape} differs from sources {sources.shape}")
-        if batch and sources.shape[0] != batch:
-            raise ValueError(f"sources: batch size {sources.shape[0]} differs from targets {batch}")
-        if torques is not None:
-            torques = _points("torques", torques, batch)
-            if torques.shape != sources.shape:
-                raise ValueError(
-                    f"torques: shape {torques.shape} differs from sources {sources.shape}"
-                )
-        for name, arr in (("targets", targets), ("sources", sources)):
-            if arr.size and np.max(np.abs(arr)) > SCALE_LIMIT:
-                raise ValueError(f"{name}: coordinates beyond ±{SCALE_LIMIT:g} are not supported")
-            if wall and np.any(arr[..., 2] < 0):
-                raise ValueError(f"{name}: points below the wall z = 0 (wall=True)")
-        eps = np.array(_epsilon(epsilon, batch))  # a fresh writable copy: one numba signature
-        visc = _positive("mu", mu, batch)
     else:
         targets = np.asarray(targets)
         batch = targets.shape[0] if targets.ndim == 3 else 0

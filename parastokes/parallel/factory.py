@@ -11,7 +11,7 @@ from .processes import ProcessExecutor
 from .serial import SerialExecutor
 
 #: The kinds accepted by :func:`make_executor`.
-KINDS = ("serial", "processes", "mpi")
+KINDS = ("serial", "processes", "mpi", "gpu")
 
 
 def make_executor(
@@ -27,10 +27,13 @@ def make_executor(
     """Make an executor with the ``concurrent.futures`` shape and a ``workers`` attribute.
 
     Args:
-        kind: ``"serial"`` (in-process reference), ``"processes"`` (one machine) or ``"mpi"``.
+        kind: ``"serial"`` (in-process reference), ``"processes"`` (one machine), ``"mpi"``, or
+            ``"gpu"`` (one CUDA GPU: the solves of a sweep run as one batch, see
+            :class:`parastokes.gpu.GPUExecutor`; needs ``parastokes[gpu]``).
         workers: number of workers. ``serial``: 1 (``None`` means 1). ``processes``: default the
             available cores // ``threads_per_worker``. ``mpi``: default all the launch provides;
-            more than it provides is an error.
+            more than it provides is an error. ``gpu``: the most solves per batch (``None``: no
+            limit).
         comm: ``mpi`` only: run an ``MPICommExecutor`` over this communicator (every rank calls
             ``make_executor``; the root gets the executor, the other ranks serve tasks and get
             ``None`` once the root shuts it down). ``None``: an ``MPIPoolExecutor``.
@@ -44,7 +47,9 @@ def make_executor(
     Raises:
         ValueError: unknown kind, ``workers`` < 1, an option that does not apply to ``kind``, or
             more MPI workers than the launch provides.
-        ImportError: ``mpi`` without mpi4py (the message names the ``parastokes[mpi]`` extra).
+        ImportError: ``mpi`` without mpi4py (the message names the ``parastokes[mpi]`` extra), or
+            ``gpu`` without numba's CUDA target (naming ``parastokes[gpu]``).
+        RuntimeError: ``gpu`` where no CUDA GPU is found (nor numba-cuda's simulator).
     """
     if kind not in KINDS:
         raise ValueError(f"unknown executor kind {kind!r}; valid kinds: {', '.join(KINDS)}")
@@ -60,6 +65,15 @@ def make_executor(
         if threads_per_worker != 1:
             raise ValueError("threads_per_worker does not apply to kind='serial'")
         return SerialExecutor(warmup)
+    if kind == "gpu":
+        if threads_per_worker != 1:
+            raise ValueError("threads_per_worker does not apply to kind='gpu'")
+        from ..gpu.device import cuda
+
+        cuda()  # ImportError naming the extra, before the backend is imported
+        from ..gpu import GPUExecutor
+
+        return GPUExecutor(workers, warmup)
     if threads_per_worker < 1:
         raise ValueError(f"threads_per_worker must be >= 1, got {threads_per_worker}")
     if kind == "processes":

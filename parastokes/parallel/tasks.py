@@ -7,6 +7,7 @@ naming the first failed task in submission order, so serial and parallel runs re
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import FIRST_EXCEPTION, BrokenExecutor, Executor, Future, wait
 from dataclasses import dataclass
@@ -35,15 +36,20 @@ def run_tasks(executor: Executor, tasks: Iterable[Task]) -> list[Any]:
     waited for, so the same task is named whatever the executor). When a worker process dies, the
     task it was running is named (its error is a :class:`WorkerDiedError`), not the tasks that
     merely lost their pool. On ``KeyboardInterrupt`` the tasks not yet started are cancelled.
+
+    An executor that can run many calls as one batch (``executor.batch()``, a context manager:
+    the GPU executor of :mod:`parastokes.gpu`) gets all the tasks inside one ``batch()``; it
+    runs them when the context closes.
     """
     tasks = list(tasks)
     futures: list[Future] = []
     try:
-        for task in tasks:
-            future = executor.submit(task.fn, *task.args)
-            futures.append(future)
-            if future.done() and future.exception() is not None:
-                break  # an in-process executor already failed: do not run the rest
+        with _batched(executor):
+            for task in tasks:
+                future = executor.submit(task.fn, *task.args)
+                futures.append(future)
+                if future.done() and future.exception() is not None:
+                    break  # an in-process executor already failed: do not run the rest
         index = _first_failure(futures)
     except BaseException:
         for future in futures:
@@ -71,6 +77,12 @@ def run_labelled(
         raise ValueError(f"{len(args_list)} argument tuples but {len(labels)} labels")
     tasks = [Task(fn, tuple(args), label) for args, label in zip(args_list, labels, strict=True)]
     return run_tasks(executor, tasks)
+
+
+def _batched(executor: Executor) -> contextlib.AbstractContextManager:
+    """``executor.batch()`` where the executor has it, else a context that does nothing."""
+    batch = getattr(executor, "batch", None)
+    return contextlib.nullcontext() if batch is None else batch()
 
 
 def _error(future: Future) -> BaseException | None:

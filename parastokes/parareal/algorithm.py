@@ -230,6 +230,10 @@ class _Clocked:
         self.completed: dict[int, float] = {}
         self._finished = threading.Condition()
 
+    def __getattr__(self, name: str) -> Any:
+        # anything else is the executor's (e.g. the batching context that run_tasks looks for)
+        return getattr(self.executor, name)
+
     def submit(self, fn: Callable[..., Any], /, *args: Any) -> Future:
         index = len(self.submitted)
         self.submitted.append(time.perf_counter())

@@ -1,0 +1,116 @@
+"""Group propagator calls into GPU batches: one batch per system structure, scheme and blow-up
+factor, Θ, start state, time span and step free per member.
+
+A call ``fn(*args)`` is batched when ``fn`` is an :class:`parastokes.integrate.Propagator` of a
+system that the GPU path reproduces (:func:`parastokes.gpu.stepping.kind_of`) called as
+``fn(t_start, t_end, x)``: the fine solves of a parallel sweep, the auxiliary solvers of an
+extrapolated coarse step (on the coarse grid too). Each member follows :func:`integrate.run`
+exactly: ``n_steps`` equal steps of ``(t_end - t_start)/n``, the start state projected, the result
+projected, :class:`integrate.BlowUpError` on a blow-up. Any other call runs here, on the CPU, as
+the serial executor would run it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+
+from .. import integrate
+from . import stepping
+
+__all__ = ["Outcome", "batch_key", "run_calls"]
+
+#: ``(True, value)`` or ``(False, exception)`` for one call.
+Outcome = tuple[bool, Any]
+
+
+def batch_key(fn: Any, args: tuple) -> tuple | None:
+    """What members of one batch share, or None when the call is not batched on the GPU."""
+    if not isinstance(fn, integrate.Propagator) or len(args) != 3:
+        return None
+    kind = stepping.kind_of(fn.system)
+    if kind is None:
+        return None
+    neutral = dict.fromkeys(fn.system.params, 1.0)
+    structure = dataclasses.replace(fn.system, n_threads=None, **neutral)
+    return structure, fn.scheme, fn.blowup_factor
+
+
+def _prepare(fn: integrate.Propagator, args: tuple) -> stepping.Member | Outcome:
+    """The member of a call, or its outcome when no step needs to be taken (or the call is bad)."""
+    t_start, t_end, x = args
+    try:
+        n = integrate.n_steps(t_start, t_end, fn.dt)
+        x = fn.system.project(np.array(x, dtype=float))
+    except Exception as exc:
+        return False, exc
+    if n == 0:
+        return True, x
+    return stepping.Member(fn.system, x, float(t_start), (t_end - t_start) / n, n)
+
+
+def _run_group(
+    calls: list[tuple[int, integrate.Propagator, tuple]],
+    outcomes: list[Outcome | None],
+    launch: stepping.Launch | None,
+) -> None:
+    members, where = [], []
+    for index, fn, args in calls:
+        prepared = _prepare(fn, args)
+        if isinstance(prepared, stepping.Member):
+            members.append(prepared)
+            where.append((index, fn))
+        else:
+            outcomes[index] = prepared
+    if not members:
+        return
+    first = where[0][1]
+    limit = first.blowup_factor * first.system.monitor_limit
+    try:
+        results = stepping.solve(integrate.SCHEMES[first.scheme], members, limit, launch)
+    except Exception as exc:
+        for index, _ in where:
+            outcomes[index] = False, exc
+        return
+    for (index, fn), member, steps in zip(where, members, results, strict=True):
+        try:
+            result = integrate.run_result(fn.system, member.t0, member.h, steps, fn.blowup_factor)
+        except Exception as exc:
+            outcomes[index] = False, exc
+        else:
+            outcomes[index] = True, result.state
+
+
+def run_calls(
+    calls: Sequence[tuple[Callable[..., Any], tuple, dict]],
+    launch: stepping.Launch | None = None,
+) -> list[Outcome]:
+    """Run ``fn(*args, **kwargs)`` for every call: batched on the GPU where possible (one batch
+    per :func:`batch_key`), the rest in order on the CPU. Returns the outcomes in call order."""
+    outcomes: list[Outcome | None] = [None] * len(calls)
+    groups: dict[tuple, list] = {}
+    for index, (fn, args, kwargs) in enumerate(calls):
+        key = None if kwargs else batch_key(fn, args)
+        if key is None:
+            try:
+                outcomes[index] = True, fn(*args, **kwargs)
+            except Exception as exc:
+                outcomes[index] = False, exc
+        else:
+            groups.setdefault(key, []).append((index, fn, args))
+    for group in groups.values():
+        _run_group(group, outcomes, launch)
+    return outcomes  # type: ignore[return-value]
+
+
+def warm_up(system: Any, launch: stepping.Launch | None = None) -> None:
+    """Compile the GPU kernels that solves of ``system`` use (one tiny RK2 step), so that timings
+    that follow measure work; nothing happens for a system without a GPU path."""
+    if stepping.kind_of(system) is None:
+        return
+    x = system.project(np.array(system.initial_state(), dtype=float))
+    stepping.solve(integrate.SCHEMES["rk2"], [stepping.Member(system, x, 0.0, 1e-12, 1)],
+                   integrate.BLOWUP_FACTOR * system.monitor_limit, launch)
