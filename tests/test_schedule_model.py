@@ -98,7 +98,8 @@ def test_more_workers_than_slices_helps_only_the_auxiliary_solves():
 
 
 def test_pipelined_never_slower_than_standard():
-    for n, k, w, alpha, n_aux in itertools.product([4, 16], [1, 3], [1, 4, 16], [0.02, 0.3], [1, 4]):
+    cases = itertools.product([4, 16], [1, 3], [1, 4, 16], [0.02, 0.3], [1, 4])
+    for n, k, w, alpha, n_aux in cases:
         std = simulate("standard", n, k, w, alpha, n_auxiliary=n_aux).wall
         pipe = simulate("pipelined", n, k, w, alpha, n_auxiliary=n_aux).wall
         assert pipe <= std + 1e-12, (n, k, w, alpha, n_aux)

@@ -521,7 +521,9 @@ def run(
     ``schedule="pipelined"`` runs the same iterates, bit for bit, as tasks that start as soon as
     their inputs exist and a worker is free (:mod:`parastokes.parareal.pipelined`): every fine
     solve, every coarse step and, for a coarse solver with ``split`` (an extrapolated one), every
-    auxiliary solve is a task on ``executor``, so ``coarse`` must pickle like ``fine``.
+    auxiliary solve is a task on ``executor``, so ``coarse`` must pickle like ``fine``. There the
+    N_G <= N_c rule does not apply (auxiliary solves wait for workers like any task) and a
+    coarse solver's own executor is not used.
 
     The run stops when the relative increment eta~^k (eq. 34 at T_N over the rows of
     ``positions(state)``, default the whole state) is below ``tol``, when k = N (then ``states``
@@ -547,7 +549,8 @@ def run(
     if schedule not in SCHEDULES:
         raise ValueError(f"schedule must be one of {SCHEDULES}, got {schedule!r}")
     times = time_points(t0, t1, n_slices)
-    coarse = _with_executor(coarse, executor, allow_oversubscribe)
+    if schedule == "standard":  # (pipelined: the auxiliary solves are tasks of its own)
+        coarse = _with_executor(coarse, executor, allow_oversubscribe)
     _warn_idle_workers(executor, n_slices)
     pool = SerialExecutor() if executor is None else executor
     key = ckpt.fingerprint(x0, t0, t1, n_slices, reference)
