@@ -12,6 +12,7 @@ from concurrent.futures import Future, ThreadPoolExecutor
 
 import numpy as np
 import pytest
+from configs import small_rod
 from mpi_scripts import parareal_rod
 from mpi_scripts.launch import POOL, SCRIPTS, SKIP_REASON, mpiexec
 from odes import (
@@ -25,8 +26,10 @@ from odes import (
     oscillator,
 )
 
-from parastokes import integrate, models, parallel, parareal
+from parastokes import cli, integrate, io, models, parallel, parareal
 from parastokes.parareal import checkpoint as ckpt
+from parastokes.parareal.timings import MANAGER
+from parastokes.plots_gantt import gantt
 
 T0, T1 = 0.0, 2.0
 PROBLEMS = {
@@ -414,3 +417,82 @@ def test_any_executor_with_submit_works():
     res = _pipelined(FINE, InstantExecutor())
     np.testing.assert_array_equal(res.states, CLEAN.states)
     assert res.increments == CLEAN.increments
+
+
+# ---- configuration, command line, Gantt chart --------------------------------------------------
+TINY = small_rod(
+    parareal="max_iterations = 2",
+    rest='[execution]\nexecutor = "serial"\n[output]\nformats = ["png"]\ntrajectory = false\n',
+)
+
+
+@pytest.fixture(scope="module")
+def tiny_runs(tmp_path_factory):
+    """The same small rod configuration run by both schedules (``parareal.schedule``)."""
+    root = tmp_path_factory.mktemp("schedules")
+    path = root / "tiny.toml"
+    path.write_text(TINY)
+    outs = {}
+    for schedule in ("standard", "pipelined"):
+        out = root / schedule
+        args = ["run", str(path), "--out", str(out), "-q", "--set"]
+        assert cli.main([*args, f'parareal.schedule="{schedule}"']) == 0
+        outs[schedule] = out
+    return path, outs
+
+
+def test_config_schedule_gives_the_same_run_and_a_gantt_chart(tiny_runs):
+    _, outs = tiny_runs
+    summaries = {s: io.read_summary(out / "summary.json") for s, out in outs.items()}
+    std, pipe = summaries["standard"], summaries["pipelined"]
+    assert pipe["config"]["parareal"]["schedule"] == "pipelined"
+    assert pipe["timings"]["schedule"] == "pipelined" and std["timings"]["schedule"] == "standard"
+    assert pipe["final_positions"] == std["final_positions"]
+    assert pipe["errors"] == std["errors"] and pipe["increments"] == std["increments"]
+    for schedule, summary in summaries.items():
+        tasks = summary["timings"]["tasks"]
+        kinds = {task[0] for task in tasks}
+        assert kinds == ({"fine", "coarse"} if schedule == "standard" else {"fine", "auxiliary"})
+        assert (outs[schedule] / "gantt.png").exists()  # drawn with the run's figures
+    # the standard schedule's coarse steps run on the manager
+    assert {t[5] for t in std["timings"]["tasks"] if t[0] == "coarse"} == {MANAGER}
+
+
+def test_plot_draws_the_gantt_chart_of_a_run_directory(tiny_runs, tmp_path):
+    _, outs = tiny_runs
+    (outs["pipelined"] / "gantt.png").unlink()
+    assert cli.main(["plot", str(outs["pipelined"]), "--formats", "png", "-q"]) == 0
+    assert (outs["pipelined"] / "gantt.png").exists()
+    # a simulated schedule draws the same way
+    sim = parareal.simulate("pipelined", 6, 2, 3, 0.2, n_auxiliary=2)
+    assert gantt(sim.tasks, tmp_path / "sim", ["png"]) == [tmp_path / "sim.png"]
+
+
+def test_predict_shows_both_schedules(tiny_runs, capsys):
+    path, _ = tiny_runs
+    args = ["predict", str(path), "--cores", "4", "40", "--ratio", "0.05", "--iterations", "2"]
+    assert cli.main(args) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert "std sim" in lines[1] and "pipe sim" in lines[1]
+    n_aux = 4  # (2 Lagrange nodes x Richardson m = 1)
+    for line, cores in zip(lines[2:], (4, 40), strict=True):
+        row = line.split()
+        (expected,) = parareal.predict_schedules(0.05, 2, [cores], n_aux)
+        assert int(row[0]) == cores
+        assert float(row[5]) == round(expected["standard_formula"], 3)
+        assert float(row[6]) == round(expected["standard"], 3)
+        assert float(row[7]) == round(expected["pipelined_formula"], 3)
+        assert float(row[8]) == round(expected["pipelined"], 3)
+    assert cli.main([*args, "--workers", "2"]) == 0
+    assert "W = 2 workers" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("bad", [["--cores", "0"], ["--cores", "4", "-2"], ["--workers", "0"]])
+def test_predict_rejects_bad_core_counts(tiny_runs, capsys, bad):
+    path, _ = tiny_runs
+    args = ["predict", str(path), *bad]
+    if bad[0] == "--workers":
+        args += ["--cores", "4"]
+    assert cli.main(args) == cli.ExitCode.CONFIG
+    err = capsys.readouterr().err
+    assert "must be" in err and ">= 1" in err
