@@ -203,8 +203,28 @@ def emulation_case(
     return row
 
 
+def gantt_figures(fine_s: float, out: Path) -> None:
+    """EMULATION Gantt charts of both schedules: W = P = 8, alpha = 0.2, K = 2."""
+    from parastokes.plots_gantt import gantt
+
+    out.mkdir(parents=True, exist_ok=True)
+    fine, coarse = SleepingStep(fine_s, True), SleepingStep(0.2 * fine_s, False)
+    with Pool(8) as pool:
+        for schedule in ("standard", "pipelined"):
+            res = parareal.run(
+                fine, coarse, np.ones(3), 0.0, 1.0, 8, 0.0, 2, executor=pool, schedule=schedule
+            )
+            title = (
+                f"EMULATION (sleeping tasks): {schedule} schedule, 8 slices, 8 workers, "
+                f"alpha = 0.2, K = 2, wall {res.timings.total:.2f} s"
+            )
+            gantt(res.timings.tasks, out / f"pipeline_gantt_{schedule}", ["png"], title)
+
+
 def emulation(args: argparse.Namespace) -> tuple[str, Any]:
     fine_s = args.fine_ms / 1000.0
+    if args.figures:
+        gantt_figures(fine_s, Path(args.figures))
     if args.quick:
         grid = [(8, a, k, 1) for a in (0.01, 0.3) for k in (1, 2)] + [(16, 0.1, 2, 4)]
     else:

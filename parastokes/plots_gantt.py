@@ -55,7 +55,8 @@ def gantt(
     kinds = [kind for kind in COLORS if any(task[0] == kind for task in tasks)]
     ax.legend(
         handles=[Patch(color=COLORS[kind], label=kind) for kind in kinds], fontsize=7,
-        loc="upper right", title="bars labelled with the iteration k", title_fontsize=6,
+        loc="upper left", bbox_to_anchor=(1.0, 1.0), title="bar label: iteration k",
+        title_fontsize=6,
     )
     if title:
         ax.set_title(title, fontsize=8)

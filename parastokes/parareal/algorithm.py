@@ -461,24 +461,31 @@ class Bookkeeping:
         return reason
 
 
+@dataclass(frozen=True)
+class Problem:
+    """What a schedule iterates: F, G (bound to its executor as ``run`` decides), x0, the time
+    points T_0..T_N, the executor of the tasks and the projection of corrected states."""
+
+    fine: PropagatorLike
+    coarse: PropagatorLike
+    x0: np.ndarray
+    times: np.ndarray
+    executor: Executor
+    project: Callable[[np.ndarray], np.ndarray] | None
+
+
 def _run_standard(
-    progress: ckpt.Progress | None,
-    fine: PropagatorLike,
-    coarse: PropagatorLike,
-    x0: np.ndarray,
-    times: np.ndarray,
-    executor: Executor,
-    project: Callable[[np.ndarray], np.ndarray] | None,
-    book: Bookkeeping,
+    progress: ckpt.Progress | None, problem: Problem, book: Bookkeeping
 ) -> tuple[ckpt.Progress, str]:
     """Algorithm 1: the initial sweep (unless resumed), then iterations until a stop reason."""
+    p = problem
     if progress is None:
-        progress = _initial_sweep(coarse, x0, times, book.reference is not None, book.origin)
+        progress = _initial_sweep(p.coarse, p.x0, p.times, book.reference is not None, book.origin)
         book.initial_sweep_done(progress)
     reason = stop_reason(progress, book.tol, book.max_iterations)
     while reason is None:
         previous_final = progress.states[-1]
-        _iterate(progress, fine, coarse, times, executor, project, book.origin)
+        _iterate(progress, p.fine, p.coarse, p.times, p.executor, p.project, book.origin)
         reason = book.iteration_done(progress, previous_final)
     return progress, reason
 
@@ -577,7 +584,8 @@ def run(
 
         strategy = run_pipelined
     try:
-        progress, reason = strategy(progress, fine, coarse, x0, times, pool, project, book)
+        problem = Problem(fine, coarse, x0, times, pool, project)
+        progress, reason = strategy(progress, problem, book)
     except (TaskError, KeyboardInterrupt) as exc:
         if book.saved is not None:
             exc.add_note(

@@ -41,7 +41,15 @@ import numpy as np
 
 from ..parallel import TaskError, WorkerDiedError
 from . import checkpoint as ckpt
-from .algorithm import Bookkeeping, PropagatorLike, coarse_error, correct, fine_label, stop_reason
+from .algorithm import (
+    Bookkeeping,
+    Problem,
+    PropagatorLike,
+    coarse_error,
+    correct,
+    fine_label,
+    stop_reason,
+)
 from .timings import Timings
 
 __all__ = ["AUXILIARY", "COARSE", "FINE", "priority", "run_pipelined"]
@@ -374,14 +382,7 @@ class _Pipeline:
 
 
 def run_pipelined(
-    progress: ckpt.Progress | None,
-    fine: PropagatorLike,
-    coarse: PropagatorLike,
-    x0: np.ndarray,
-    times: np.ndarray,
-    executor: Executor,
-    project: Callable[[np.ndarray], np.ndarray] | None,
-    book: Bookkeeping,
+    progress: ckpt.Progress | None, problem: Problem, book: Bookkeeping
 ) -> tuple[ckpt.Progress, str]:
     """Parareal's iterates by the pipelined schedule, from ``progress`` (a resumed run) or from
     the start; the counterpart of Algorithm 1's loop in :func:`parastokes.parareal.run`."""
@@ -389,10 +390,11 @@ def run_pipelined(
         reason = stop_reason(progress, book.tol, book.max_iterations)
         if reason is not None:
             return progress, reason
-    workers = _Workers(executor)
-    pipeline = _Pipeline(fine, coarse, times, project, book, workers)
+    workers = _Workers(problem.executor)
+    p = problem
+    pipeline = _Pipeline(p.fine, p.coarse, p.times, p.project, book, workers)
     try:
-        pipeline.start(progress, x0)
+        pipeline.start(progress, p.x0)
         reason = pipeline.run()
     finally:
         workers.cancel()
