@@ -354,6 +354,25 @@ def test_failing_fine_solve_is_labelled_and_resumes(kind, tmp_path, request):
         assert res.increments == CLEAN.increments
 
 
+def test_dead_worker_is_named_and_the_run_resumes(tmp_path):
+    markers = tmp_path / "markers"
+    markers.mkdir()
+    faulty = FailsOnSlice(FINE, TIMES[2], 2, markers, mode="exit")
+    path = tmp_path / "run.npz"
+    with parallel.make_executor("processes", 2) as executor:
+        with pytest.raises(parallel.TaskError) as info:
+            _pipelined(faulty, executor, path)
+    err = info.value
+    assert err.label in (
+        "fine solve of slice 3 in iteration 2",
+        "fine solve of slice 3 in iteration 3",
+    )
+    assert isinstance(err.original, parallel.WorkerDiedError) and err.original.exitcode == 3
+    res = _pipelined(FINE, None, path)  # the broken pool is gone: resume in-process
+    np.testing.assert_array_equal(res.states, CLEAN.states)
+    assert res.increments == CLEAN.increments
+
+
 def test_failing_auxiliary_solve_is_labelled():
     # (N_G = 3 auxiliary solves on 2 workers: no N_G <= N_c rule in the pipelined schedule)
     system = FaultyToySystem(fail_a=0.6, fail_after=0.8, decay=0.5, a=0.2, b=1.0)

@@ -117,7 +117,11 @@ class _Workers:
             else:
                 slot, self.slots = self.slots, self.slots + 1
             begin = time.perf_counter()
-            future = self.executor.submit(job.fn, *job.args)
+            try:
+                future = self.executor.submit(job.fn, *job.args)
+            except Exception as exc:  # e.g. a pool that a dead worker has broken
+                future = Future()
+                future.set_exception(exc)
             self.flight[future] = (job, slot, begin)
             future.add_done_callback(self._finished)
 
