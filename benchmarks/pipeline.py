@@ -3,7 +3,7 @@
 Run from the repository root::
 
     PYTHONPATH=. python benchmarks/pipeline.py [--sections emulation real p40] [--quick] \\
-        [--fine-ms 40] [--json PATH] [--out PATH] [--figures DIR]
+        [--fine-ms 150] [--json PATH] [--out PATH] [--figures DIR]
 
 Sections:
 
@@ -519,7 +519,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sections", nargs="+", choices=SECTIONS, default=list(SECTIONS))
     parser.add_argument("--quick", action="store_true", help="fewer and shorter cases")
-    parser.add_argument("--fine-ms", type=float, default=40.0, help="emulated gamma_F (ms)")
+    parser.add_argument("--fine-ms", type=float, default=150.0, help="emulated gamma_F (ms)")
     parser.add_argument("--errors", help="JSON {config name: [eta^1, eta^2, ...]} for p40")
     parser.add_argument("--json", help="write every number as JSON here")
     parser.add_argument("--out", help="write the tables as Markdown here")
