@@ -26,7 +26,7 @@ from odes import (
     oscillator,
 )
 
-from parastokes import cli, integrate, io, models, parallel, parareal
+from parastokes import cli, config, integrate, io, models, parallel, parareal
 from parastokes.parareal import checkpoint as ckpt
 from parastokes.parareal.timings import MANAGER
 from parastokes.plots_gantt import gantt
@@ -515,3 +515,41 @@ def test_predict_rejects_bad_core_counts(tiny_runs, capsys, bad):
     assert cli.main(args) == cli.ExitCode.CONFIG
     err = capsys.readouterr().err
     assert "must be" in err and ">= 1" in err
+
+
+def test_resume_after_max_iterations_and_wall_time_is_bit_identical(tmp_path):
+    path = tmp_path / "run.npz"
+    first = parareal.run(
+        FINE, COARSE, X0, T0, T1, N_SLICES, 0.0, 2, checkpoint=path, schedule="pipelined"
+    )
+    assert first.iterations == 2 and first.stop_reason == "max_iterations"
+    # wall_time_limit: one iteration per call at least, then a clean stop
+    res = parareal.run(
+        FINE,
+        COARSE,
+        X0,
+        T0,
+        T1,
+        N_SLICES,
+        0.0,
+        ITERATIONS,
+        checkpoint=path,
+        wall_time_limit=1e-9,
+        schedule="pipelined",
+    )
+    assert res.iterations == 3 and res.stop_reason == "wall_time"
+    res = _pipelined(FINE, Pool(2), path)
+    np.testing.assert_array_equal(res.states, CLEAN.states)
+    assert res.increments == CLEAN.increments
+    assert [len(f) for f in res.timings.fine] == [6, 5, 4, 3]
+    kinds = {(t[0], t[2]) for t in res.timings.tasks}  # tasks of every session are kept
+    assert {("coarse", 0), ("fine", 1), ("fine", 3), ("fine", 4)} <= kinds
+
+
+def test_check_accepts_more_auxiliary_solves_than_workers_when_pipelined(tmp_path):
+    path = tmp_path / "c.toml"
+    path.write_text(small_rod(rest="[execution]\nworkers = 2\n"))  # N_G = 4 > 2 workers
+    with pytest.raises(config.ConfigError, match="N_G = 4"):
+        config.load(path)
+    cfg, resolved = config.load(path, ['parareal.schedule="pipelined"'])
+    assert cfg.parareal.schedule == "pipelined" and resolved.n_auxiliary == 4
