@@ -294,20 +294,11 @@ TIMES = parareal.time_points(T0, T1, N_SLICES)
 CLEAN = parareal.run(FINE, COARSE, X0, T0, T1, N_SLICES, 0.0, ITERATIONS)
 
 
-def _pipelined(fine, executor=None, checkpoint=None, coarse=COARSE, **kw):
+def _pipelined(fine, executor=None, checkpoint=None, iterations=ITERATIONS, **kw):
+    """The logistic problem of CLEAN (tol 0), by the pipelined schedule unless ``schedule``."""
+    kw = {"schedule": "pipelined", **kw}
     return parareal.run(
-        fine,
-        coarse,
-        X0,
-        T0,
-        T1,
-        N_SLICES,
-        kw.pop("tol", 0.0),
-        ITERATIONS,
-        executor=executor,
-        checkpoint=checkpoint,
-        schedule="pipelined",
-        **kw,
+        fine, COARSE, X0, T0, T1, N_SLICES, 0.0, iterations, executor, checkpoint=checkpoint, **kw
     )
 
 
@@ -337,19 +328,7 @@ def test_failing_fine_solve_is_labelled_and_resumes(kind, tmp_path, request):
     for schedule in ("pipelined", "standard"):  # resume by either schedule
         copy = tmp_path / f"{schedule}.npz"
         copy.write_bytes(path.read_bytes())
-        res = parareal.run(
-            FINE,
-            COARSE,
-            X0,
-            T0,
-            T1,
-            N_SLICES,
-            0.0,
-            ITERATIONS,
-            executor=executor,
-            checkpoint=copy,
-            schedule=schedule,
-        )
+        res = _pipelined(FINE, executor, copy, schedule=schedule)
         np.testing.assert_array_equal(res.states, CLEAN.states)
         assert res.increments == CLEAN.increments
 
@@ -519,24 +498,10 @@ def test_predict_rejects_bad_core_counts(tiny_runs, capsys, bad):
 
 def test_resume_after_max_iterations_and_wall_time_is_bit_identical(tmp_path):
     path = tmp_path / "run.npz"
-    first = parareal.run(
-        FINE, COARSE, X0, T0, T1, N_SLICES, 0.0, 2, checkpoint=path, schedule="pipelined"
-    )
+    first = _pipelined(FINE, None, path, iterations=2)
     assert first.iterations == 2 and first.stop_reason == "max_iterations"
     # wall_time_limit: one iteration per call at least, then a clean stop
-    res = parareal.run(
-        FINE,
-        COARSE,
-        X0,
-        T0,
-        T1,
-        N_SLICES,
-        0.0,
-        ITERATIONS,
-        checkpoint=path,
-        wall_time_limit=1e-9,
-        schedule="pipelined",
-    )
+    res = _pipelined(FINE, None, path, wall_time_limit=1e-9)
     assert res.iterations == 3 and res.stop_reason == "wall_time"
     res = _pipelined(FINE, Pool(2), path)
     np.testing.assert_array_equal(res.states, CLEAN.states)
