@@ -83,6 +83,7 @@ class _Group:
     values: list
     remaining: int
     begin: float = math.inf
+    longest: float = 0.0  # the longest auxiliary solve
 
 
 class _Workers:
@@ -165,6 +166,7 @@ class _Pipeline:
     coarse_values: dict = field(default_factory=dict)  # (n, k) -> G_n^k
     groups: dict = field(default_factory=dict)  # (n, k) -> _Group
     runs: dict = field(default_factory=dict)  # (kind, n, k) -> (start, end)
+    coarse_times: dict = field(default_factory=dict)  # (n, k) -> the time of G_n^k (gamma_G)
     tasks: list = field(default_factory=list)  # this session's Timings.tasks entries
     finished: set = field(default_factory=set)  # iterations whose X_N^k exists
     failures: dict = field(default_factory=dict)  # iteration -> TaskError
@@ -230,8 +232,11 @@ class _Pipeline:
             )
             self.set_state(n, k, value)
 
-    def coarse_done(self, n: int, k: int, value: np.ndarray, begin: float, end: float) -> None:
+    def coarse_done(
+        self, n: int, k: int, value: np.ndarray, begin: float, end: float, duration: float
+    ) -> None:
         self.runs[COARSE, n, k] = (begin, end)
+        self.coarse_times[n, k] = duration
         self.coarse_values[n, k] = value
         if k == 0:
             self.set_state(n, 0, value)
@@ -254,20 +259,24 @@ class _Pipeline:
             else:
                 self.try_correct(n, k)
         elif job.kind == COARSE:
-            self.coarse_done(n, k, future.result(), begin, end)
+            self.coarse_done(n, k, future.result(), begin, end, end - begin)
         else:
             group = self.groups[n, k]
             group.values[job.index] = future.result()
             group.remaining -= 1
             group.begin = min(group.begin, begin)
+            group.longest = max(group.longest, end - begin)
             if group.remaining == 0:
                 del self.groups[n, k]
+                start = time.perf_counter()
                 try:
                     value = group.combine(group.values)
                 except Exception as error:
                     self.fail(k, coarse_error(error, n, k))
                     return
-                self.coarse_done(n, k, value, group.begin, time.perf_counter())
+                done = time.perf_counter()
+                # gamma_G as in Algorithm 1: as if the auxiliary solves had run at once
+                self.coarse_done(n, k, value, group.begin, done, group.longest + done - start)
 
     # ---- failures ------------------------------------------------------------------------
     def error_of(self, job: _Job, exc: BaseException) -> TaskError:
@@ -317,6 +326,8 @@ class _Pipeline:
         end; 0 when there are none)."""
         runs = [self.runs[kind, n, k] for n in slices]
         span = max((e for _, e in runs), default=0.0) - min((b for b, _ in runs), default=0.0)
+        if kind == COARSE:
+            return [self.coarse_times[n, k] for n in slices], span
         return [end - begin for begin, end in runs], span
 
     def close(self, k: int) -> str | None:
