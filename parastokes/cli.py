@@ -7,7 +7,8 @@
     parastokes plot DIR [DIR ...] [--out FIGDIR] [--formats png pdf]
     parastokes plot --benchmark FILE.json [--out FIGDIR] [--formats png pdf]
     parastokes check CONFIG.toml [CONFIG.toml ...] [--set KEY=VALUE ...]
-    parastokes predict CONFIG.toml --cores N [N ...] [--ratio R | --measured DIR] [--iterations K]
+    parastokes predict CONFIG.toml --cores N [N ...] [--workers W] [--ratio R | --measured DIR]
+                       [--iterations K]
 
 Exit codes (:class:`ExitCode`): 0 success; 1 unexpected error (a bug: please report the
 traceback); 2 bad configuration or usage; 3 numerical blow-up (a step too large for the problem:
@@ -214,6 +215,13 @@ def estimated_gamma_ratio(cfg, resolved, cores: int) -> float:
 def cmd_predict(args: argparse.Namespace, console: Console) -> ExitCode:
     from . import io, parareal
 
+    bad = [n for n in args.cores if n < 1]
+    if bad:
+        raise ValueError(f"predict: --cores must be core counts >= 1, got {bad}")
+    if args.workers is not None and args.workers < 1:
+        raise ValueError(f"predict: --workers must be >= 1, got {args.workers}")
+    if args.iterations is not None and args.iterations < 1:
+        raise ValueError(f"predict: --iterations must be >= 1, got {args.iterations}")
     cfg, resolved = _load(args.config, args.set)
     measured = io.read_summary(Path(args.measured) / "summary.json") if args.measured else None
     if measured is not None and not measured.get("speedup"):
@@ -221,23 +229,32 @@ def cmd_predict(args: argparse.Namespace, console: Console) -> ExitCode:
     iterations = args.iterations or (
         measured["iterations"] if measured else cfg.parareal.max_iterations
     )
+    n_aux = resolved.n_auxiliary
     if args.ratio is not None:
-        source = "given"
+        source, auxiliary = "given", args.ratio
     elif measured is not None:
-        source = f"measured in {args.measured}"
+        source, auxiliary = f"measured in {args.measured}", measured["speedup"]["gamma_ratio"]
     else:
-        source = "estimated from step counts and (points)², N_G in ceil(N_G/N_c) waves"
-    print(f"γ_G/γ_F {source}; N_it = {iterations}")
-    print(f"{'N_c':>6} {'N_it':>5} {'γ_G/γ_F':>9} {'speedup (eq. 14)':>17} {'bound (eq. 15)':>15}")
+        source = "estimated from step counts and (points)²"
+        auxiliary = estimated_gamma_ratio(cfg, resolved, n_aux)  # one auxiliary solve
+    workers = "W = N_c" if args.workers is None else f"W = {args.workers}"
+    print(
+        f"γ_G/γ_F {source} (one auxiliary solve: {auxiliary:.4g}; N_G = {n_aux} in ceil(N_G/W) "
+        f"rounds); N_it = {iterations}; {workers} workers; std/pipe: closed formulas, "
+        "sim: simulated schedules (docs/parareal.md)"
+    )
+    print(
+        f"{'N_c':>6} {'N_it':>5} {'γ_G/γ_F':>9} {'speedup (eq. 14)':>17} {'bound (eq. 15)':>15}"
+        f" {'std':>7} {'std sim':>8} {'pipe':>7} {'pipe sim':>9}"
+    )
     for n in args.cores:
-        if args.ratio is not None:
-            ratio = args.ratio
-        elif measured is not None:
-            ratio = measured["speedup"]["gamma_ratio"]
-        else:
-            ratio = estimated_gamma_ratio(cfg, resolved, n)
-        ((_, theory, bound),) = parareal.predict(ratio, iterations, [n])
-        print(f"{n:>6} {min(iterations, n):>5} {ratio:>9.4f} {theory:>17.3f} {bound:>15.3f}")
+        (row,) = parareal.predict_schedules(auxiliary, iterations, [n], n_aux, args.workers)
+        ((_, theory, bound),) = parareal.predict(row["alpha"], iterations, [n])
+        print(
+            f"{n:>6} {row['iterations']:>5} {row['alpha']:>9.4f} {theory:>17.3f} {bound:>15.3f}"
+            f" {row['standard_formula']:>7.3f} {row['standard']:>8.3f}"
+            f" {row['pipelined_formula']:>7.3f} {row['pipelined']:>9.3f}"
+        )
     return ExitCode.OK
 
 
@@ -305,10 +322,15 @@ def _parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_check)
 
     p = sub.add_parser(
-        "predict", parents=[common, overrides], help="predicted speedup for N cores (eq. 14)"
+        "predict",
+        parents=[common, overrides],
+        help="predicted speedup for N cores: eq. 14, both schedules (formula and simulation)",
     )
     p.add_argument("config", help="TOML configuration")
     p.add_argument("--cores", type=int, nargs="+", required=True, help="core counts N_c")
+    p.add_argument(
+        "--workers", type=int, help="workers W for the simulation (default: W = N_c, one per slice)"
+    )
     source = p.add_mutually_exclusive_group()
     source.add_argument("--ratio", type=float, help="γ_G/γ_F to use")
     source.add_argument("--measured", metavar="DIR", help="take γ_G/γ_F from a run directory")

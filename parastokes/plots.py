@@ -9,7 +9,9 @@ From one run directory (:func:`draw_run`):
 - ``speedup_by_iteration``: measured and theoretical speedup (eq. 14) after k iterations, with the
   bound of eq. 15 (Figs. 6c, 7c, 8b, 12c, 13c);
 - ``structure``: rods in the x-y plane over time; the vesicle projected on the x-z plane at the
-  first and last frame with its tracked points (Fig. 11).
+  first and last frame with its tracked points (Fig. 11);
+- ``gantt``: which worker ran which task when (:mod:`parastokes.plots_gantt`), when the summary
+  holds per-task timings.
 
 From several run directories (:func:`draw_comparison`): the same error and speedup figures with one
 curve per run (e.g. the coarse solvers G^1..G^4 of one table), and, when the runs differ in the
@@ -387,9 +389,22 @@ def draw_run(directory: str | Path, formats: Sequence[str] = FORMATS) -> list[Pa
         written += error_decay([run], directory / "error_decay", formats)
         written += speedup_vs_error([run], directory / "speedup_vs_error", formats)
         written += speedup_by_iteration([run], directory / "speedup_by_iteration", formats)
+        written += _gantt_of(run, directory / "gantt", formats)
     if run.trajectory is not None:
         written += structure(run.trajectory, directory / "structure", formats)
     return written
+
+
+def _gantt_of(run: RunData, stem: Path, formats: Sequence[str]) -> list[Path]:
+    """The Gantt chart of a run whose summary holds per-task timings (none for older runs)."""
+    from .plots_gantt import gantt
+
+    timings = run.summary.get("timings") or {}
+    if not timings.get("tasks"):
+        return []
+    schedule = timings.get("schedule", "standard")
+    title = f"{run.label}: {schedule} schedule, {run.summary.get('workers')} workers"
+    return gantt(timings["tasks"], stem, formats, title)
 
 
 def draw_comparison(

@@ -163,6 +163,7 @@ def _parareal(
         allow_oversubscribe=cfg.execution.allow_oversubscribe
         or cfg.execution.executor == "serial",
         on_iteration=record,
+        schedule=p.schedule,
     )
     reporter.finish()
     history = io.HistoryRecord(

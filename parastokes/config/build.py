@@ -105,7 +105,8 @@ def build(cfg: Config, resolved: Resolved, *, executor: bool = True) -> Setup:
             **options,
         )
         n_aux = resolved.n_auxiliary
-        if resolved.workers is None and n_aux > pool.workers and not ex.allow_oversubscribe:
+        queued = ex.allow_oversubscribe or cfg.parareal.schedule == "pipelined"
+        if resolved.workers is None and n_aux > pool.workers and not queued:
             pool.shutdown()
             raise ConfigError(
                 [

@@ -8,7 +8,8 @@ configuration before any expensive work. The rules are the paper's:
 - Richardson (eq. 26): integer m >= 0, r in (0, 1), and the steps r^q τ must give different step
   counts on a slice (otherwise the weights of eq. 27 are undefined);
 - N_G = (Π_i N_θi)(m + 1) auxiliary solvers (eq. 31) run at once only with N_G workers: more is an
-  error unless ``execution.allow_oversubscribe`` (Algorithm 1 assumes N_G <= N_c).
+  error unless ``execution.allow_oversubscribe`` (Algorithm 1 assumes N_G <= N_c), or with
+  ``parareal.schedule = "pipelined"`` (its auxiliary solves wait for workers like any task).
 """
 
 from __future__ import annotations
@@ -121,7 +122,8 @@ def _workers(cfg: Config, n_auxiliary: int, issues: list, warnings: list) -> int
         workers = max(1, min(cfg.parareal.n_slices, available_cores() // ex.threads))
     if workers is None:  # mpi: all ranks of the launch, known only when the executor exists
         return None
-    if n_auxiliary > workers and not ex.allow_oversubscribe and cfg.run.mode != "serial":
+    queued = ex.allow_oversubscribe or cfg.parareal.schedule == "pipelined"  # (as tasks)
+    if n_auxiliary > workers and not queued and cfg.run.mode != "serial":
         issues.append(
             (
                 "execution.workers",

@@ -172,6 +172,12 @@ class Parareal(_Section):
     checkpoint: bool = Field(
         True, description="Keep DIR/checkpoint.npz after every iteration (for --resume)."
     )
+    schedule: Literal["standard", "pipelined"] = Field(
+        "standard",
+        description="standard: Algorithm 1 (parallel sweep, then serial coarse sweep); pipelined: "
+        "every fine solve, coarse step and auxiliary solve starts as soon as its inputs exist "
+        "(same iterates bit for bit; docs/parareal.md).",
+    )
 
 
 class Execution(_Section):

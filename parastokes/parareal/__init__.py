@@ -4,32 +4,48 @@ The engine works on any propagators ``P(t_start, t_end, x) -> x`` over numpy arr
 ``docs/parareal.md``.
 """
 
-from .algorithm import IterationReport, run, serial_solution, time_points
+from .algorithm import SCHEDULES, IterationReport, run, serial_solution, time_points
 from .extrapolation import Extrapolated, extrapolated
 from .metrics import relative_change
 from .result import PararealResult
-from .speedup import parareal_runtime, predict, speedup, speedup_bound
+from .schedule_model import Simulation, predict_schedules, simulate
+from .speedup import (
+    parareal_runtime,
+    pipelined_runtime,
+    predict,
+    speedup,
+    speedup_bound,
+    speedup_pipelined,
+    speedup_standard,
+)
 from .timings import Timings
 from .transfer import OnCoarseGrid, Transfer
 from .weights import lagrange_weights, richardson_weights, step_weights
 
 __all__ = [
+    "SCHEDULES",
     "Extrapolated",
     "IterationReport",
     "OnCoarseGrid",
     "PararealResult",
+    "Simulation",
     "Timings",
     "Transfer",
     "extrapolated",
     "lagrange_weights",
     "parareal_runtime",
+    "pipelined_runtime",
     "predict",
+    "predict_schedules",
     "relative_change",
     "richardson_weights",
     "run",
     "serial_solution",
+    "simulate",
     "speedup",
     "speedup_bound",
+    "speedup_pipelined",
+    "speedup_standard",
     "step_weights",
     "time_points",
 ]

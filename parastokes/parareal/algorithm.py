@@ -30,7 +30,7 @@ from ..parallel import SerialExecutor, TaskError, run_labelled
 from . import checkpoint as ckpt
 from .metrics import Positions, relative_change
 from .result import PararealResult
-from .timings import Timings, queued_durations
+from .timings import MANAGER, Timings, queued_intervals
 
 __all__ = [
     "IterationReport",
@@ -193,35 +193,59 @@ def _warn_idle_workers(executor: Executor | None, n_slices: int) -> None:
         )
 
 
-def _timed(propagator: PropagatorLike, t_start: float, t_end: float, x: np.ndarray):
-    start = time.perf_counter()
-    value = propagator(t_start, t_end, x)
-    return value, time.perf_counter() - start
-
-
 def _coarse_step(
     coarse: PropagatorLike, times: np.ndarray, n: int, x: np.ndarray, k: int
-) -> tuple[np.ndarray, float]:
-    """G(T_n, T_{n-1}, x) and its wall time, in serial sweep k; a failure names slice and k.
+) -> tuple[np.ndarray, float, float]:
+    """G(T_n, T_{n-1}, x) in serial sweep k, with the clock before and after; a failure names
+    slice and k.
 
     Raises TaskError labelled ``"coarse solve of slice n in iteration k"`` (k = 0: the initial
     sweep), prefixed by the auxiliary solver's label when one of those failed on a worker.
     """
+    start = time.perf_counter()
     try:
-        return _timed(coarse, times[n - 1], times[n], x)
+        value = coarse(times[n - 1], times[n], x)
     except TaskError as exc:
-        label = f"{exc.label} in the coarse solve of slice {n} in iteration {k}"
-        raise TaskError(label, exc.original) from exc.original
+        raise coarse_error(exc, n, k) from exc.original
     except Exception as exc:
-        raise TaskError(f"coarse solve of slice {n} in iteration {k}", exc) from exc
+        raise coarse_error(exc, n, k) from exc
+    return value, start, time.perf_counter()
+
+
+def coarse_error(exc: Exception, n: int, k: int) -> TaskError:
+    """The TaskError of a failed coarse step G_n^k (``exc`` may be an auxiliary solve's)."""
+    label = f"coarse solve of slice {n} in iteration {k}"
+    if isinstance(exc, TaskError):
+        return TaskError(f"{exc.label} in the {label}", exc.original)
+    return TaskError(label, exc)
+
+
+def fine_label(n: int, k: int) -> str:
+    """The label of the fine solve F_n^k in errors."""
+    return f"fine solve of slice {n} in iteration {k}"
+
+
+def correct(
+    fine_value: np.ndarray,
+    coarse_value: np.ndarray,
+    previous_coarse: np.ndarray,
+    project: Callable[[np.ndarray], np.ndarray] | None,
+) -> np.ndarray:
+    """Eq. 11: X_n^k = F(X_{n-1}^{k-1}) + (G(X_{n-1}^k) - G(X_{n-1}^{k-1})), then ``project``.
+
+    Both schedules correct through this one function, so their iterates agree bit for bit.
+    """
+    corrected = fine_value + (coarse_value - previous_coarse)
+    return corrected if project is None else project(corrected)
 
 
 class _Clocked:
     """An executor proxy that records, on the manager, when each task is submitted and completed.
 
     The tasks reach ``executor`` as they are (``fine`` is never wrapped). Completion times come
-    from done-callbacks; :meth:`durations` waits for all of them and reconstructs every task's
-    run time on a first-in-first-out pool (:func:`~parastokes.parareal.timings.queued_durations`).
+    from done-callbacks; :meth:`intervals` waits for all of them and reconstructs every task's
+    start, end and worker slot on a first-in-first-out pool
+    (:func:`~parastokes.parareal.timings.queued_intervals`).
     """
 
     def __init__(self, executor: Executor) -> None:
@@ -246,28 +270,31 @@ class _Clocked:
             self.completed[index] = time.perf_counter()
             self._finished.notify_all()
 
-    def durations(self) -> list[float]:
-        """Run time of every task (all must have completed)."""
+    def intervals(self) -> list[tuple[float, float, int]]:
+        """(start, end, worker slot) of every task (all must have completed)."""
         n = len(self.submitted)
         with self._finished:
             self._finished.wait_for(lambda: len(self.completed) == n)
         completed = [self.completed[i] for i in range(n)]
-        return queued_durations(self.submitted, completed, getattr(self.executor, "workers", None))
+        return queued_intervals(
+            self.submitted, completed, getattr(self.executor, "workers", None)
+        )
 
 
 def _initial_sweep(
-    coarse: PropagatorLike, x0: np.ndarray, times: np.ndarray, with_errors: bool
+    coarse: PropagatorLike, x0: np.ndarray, times: np.ndarray, with_errors: bool, origin: float
 ) -> ckpt.Progress:
     """Eq. 9: X_n^0 = G(T_n, T_{n-1}, X_{n-1}^0), keeping the G values for the first correction."""
     n_slices = len(times) - 1
     states = np.empty((n_slices + 1, *x0.shape))
     states[0] = x0
     timings = Timings(coarse=[[]])
-    start = time.perf_counter()
+    sweep_start = time.perf_counter()
     for n in range(1, n_slices + 1):
-        states[n], elapsed = _coarse_step(coarse, times, n, states[n - 1], 0)
-        timings.coarse[0].append(elapsed)
-    timings.serial_sweeps.append(time.perf_counter() - start)
+        states[n], start, end = _coarse_step(coarse, times, n, states[n - 1], 0)
+        timings.coarse[0].append(end - start)
+        timings.add_task("coarse", n, 0, start, end, MANAGER, origin)
+    timings.serial_sweeps.append(time.perf_counter() - sweep_start)
     return ckpt.Progress(
         0, states, states[1:].copy(), errors=[] if with_errors else None, timings=timings
     )
@@ -275,8 +302,8 @@ def _initial_sweep(
 
 def _parallel_sweep(
     fine: PropagatorLike, times: np.ndarray, states: np.ndarray, k: int, executor: Executor
-) -> tuple[list[np.ndarray], list[float]]:
-    """Eq. 10: X_n^{k'} = F(T_n, T_{n-1}, X_{n-1}^{k-1}) for n = k..N, and the F call times.
+) -> tuple[list[np.ndarray], list[tuple[float, float, int]]]:
+    """Eq. 10: X_n^{k'} = F(T_n, T_{n-1}, X_{n-1}^{k-1}) for n = k..N, and when each F call ran.
 
     One labelled task per slice (``"fine solve of slice n in iteration k"``), submitted as
     ``executor.submit(fine, T_{n-1}, T_n, X_{n-1}^{k-1})``.
@@ -287,9 +314,9 @@ def _parallel_sweep(
         clock,
         fine,
         [(times[n - 1], times[n], states[n - 1]) for n in slices],
-        [f"fine solve of slice {n} in iteration {k}" for n in slices],
+        [fine_label(n, k) for n in slices],
     )
-    return values, clock.durations()
+    return values, clock.intervals()
 
 
 def _iterate(
@@ -299,6 +326,7 @@ def _iterate(
     times: np.ndarray,
     executor: Executor,
     project: Callable[[np.ndarray], np.ndarray] | None,
+    origin: float,
 ) -> None:
     """Iteration k = progress.iteration + 1 of Algorithm 1 (steps 9-18).
 
@@ -307,8 +335,11 @@ def _iterate(
     """
     k = progress.iteration + 1
     start = time.perf_counter()
-    fine_values, fine_times = _parallel_sweep(fine, times, progress.states, k, executor)
+    fine_values, fine_runs = _parallel_sweep(fine, times, progress.states, k, executor)
     parallel_time = time.perf_counter() - start
+    record = Timings()
+    for n, (begin, end, slot) in enumerate(fine_runs, start=k):
+        record.add_task("fine", n, k, begin, end, slot, origin)
 
     states = progress.states.copy()  # X_n^k = X_n^{k-1} for n < k
     coarse_values = progress.coarse_values.copy()
@@ -316,23 +347,26 @@ def _iterate(
     coarse_times = []
     start = time.perf_counter()
     for n in range(k + 1, len(times)):
-        value, elapsed = _coarse_step(coarse, times, n, states[n - 1], k)
-        coarse_times.append(elapsed)
-        corrected = fine_values[n - k] + (value - coarse_values[n - 1])  # eq. 11
-        states[n] = corrected if project is None else project(corrected)
+        value, begin, end = _coarse_step(coarse, times, n, states[n - 1], k)
+        coarse_times.append(end - begin)
+        record.add_task("coarse", n, k, begin, end, MANAGER, origin)
+        states[n] = correct(fine_values[n - k], value, coarse_values[n - 1], project)
         coarse_values[n - 1] = value
     serial_time = time.perf_counter() - start
 
     progress.timings.parallel_sweeps.append(parallel_time)
-    progress.timings.fine.append(fine_times)
+    progress.timings.fine.append([end - begin for begin, end, _ in fine_runs])
     progress.timings.serial_sweeps.append(serial_time)
     progress.timings.coarse.append(coarse_times)
+    progress.timings.tasks.extend(record.tasks)
     progress.states = states
     progress.coarse_values = coarse_values
     progress.iteration = k
 
 
-def _stop_reason(progress: ckpt.Progress, tol: float, max_iterations: int) -> str | None:
+def stop_reason(progress: ckpt.Progress, tol: float, max_iterations: int) -> str | None:
+    """Why the run stops after ``progress.iteration`` (see :data:`~.result.STOP_REASONS`), or
+    None; the wall-time limit is checked by :class:`Bookkeeping`."""
     k = progress.iteration
     if k == 0:
         return None
@@ -343,6 +377,125 @@ def _stop_reason(progress: ckpt.Progress, tol: float, max_iterations: int) -> st
     if k >= max_iterations:
         return "max_iterations"
     return None
+
+
+class Bookkeeping:
+    """What both schedules do once an iteration has completed: eta~^k and eta^k (eq. 34), the
+    run's total time, the log line, the checkpoint, ``on_iteration`` and the stopping rule.
+
+    ``origin`` is the clock reading at the start of the run (earlier sessions of a resumed run
+    included), so ``clock() - origin`` is the run's elapsed time.
+    """
+
+    def __init__(
+        self,
+        tol: float,
+        max_iterations: int,
+        reference: np.ndarray | None,
+        positions: Positions | None,
+        checkpoint: str | os.PathLike | None,
+        key: str,
+        wall_time_limit: float | None,
+        on_iteration: Callable[[IterationReport], None] | None,
+        session_start: float,
+    ) -> None:
+        self.tol = tol
+        self.max_iterations = max_iterations
+        self.reference = reference
+        self.positions = positions
+        self.checkpoint = checkpoint
+        self.key = key
+        self.wall_time_limit = wall_time_limit
+        self.on_iteration = on_iteration
+        self.session_start = session_start
+        self.earlier_total = 0.0
+        self.saved: int | None = None
+
+    @property
+    def origin(self) -> float:
+        """The clock reading at the start of the run."""
+        return self.session_start - self.earlier_total
+
+    def resume(self, progress: ckpt.Progress) -> None:
+        """Continue a run loaded from the checkpoint."""
+        self.earlier_total = progress.timings.total
+        self.saved = progress.iteration
+
+    def initial_sweep_done(self, progress: ckpt.Progress) -> None:
+        """Eq. 9 has completed: write the first checkpoint."""
+        progress.timings.total = time.perf_counter() - self.session_start
+        if self.checkpoint is not None:
+            ckpt.save(self.checkpoint, progress, self.key)
+            self.saved = 0
+
+    def iteration_done(self, progress: ckpt.Progress, previous_final: np.ndarray) -> str | None:
+        """Iteration ``progress.iteration`` has completed (X^{k-1}_N was ``previous_final``):
+        record, save, report; return why the run stops now, or None."""
+        final = progress.states[-1]
+        progress.increments.append(relative_change(previous_final, final, self.positions))
+        if self.reference is not None:
+            progress.errors.append(relative_change(final, self.reference[-1], self.positions))
+        elapsed = time.perf_counter() - self.session_start
+        progress.timings.total = self.earlier_total + elapsed
+        logger.info(
+            "parareal k=%d eta~=%.3e eta=%s parallel sweep %.3fs serial sweep %.3fs",
+            progress.iteration,
+            progress.increments[-1],
+            "n/a" if self.reference is None else f"{progress.errors[-1]:.3e}",
+            progress.timings.parallel_sweeps[-1],
+            progress.timings.serial_sweeps[-1],
+        )
+        if self.checkpoint is not None:
+            ckpt.save(self.checkpoint, progress, self.key)
+            self.saved = progress.iteration
+        if self.on_iteration is not None:
+            self.on_iteration(
+                IterationReport(
+                    iteration=progress.iteration,
+                    increment=progress.increments[-1],
+                    error=progress.errors[-1] if self.reference is not None else None,
+                    final_state=final,
+                    elapsed=progress.timings.total,
+                )
+            )
+        reason = stop_reason(progress, self.tol, self.max_iterations)
+        limit = self.wall_time_limit
+        if reason is None and limit is not None and elapsed >= limit:
+            reason = "wall_time"
+        return reason
+
+
+@dataclass(frozen=True)
+class Problem:
+    """What a schedule iterates: F, G (bound to its executor as ``run`` decides), x0, the time
+    points T_0..T_N, the executor of the tasks and the projection of corrected states."""
+
+    fine: PropagatorLike
+    coarse: PropagatorLike
+    x0: np.ndarray
+    times: np.ndarray
+    executor: Executor
+    project: Callable[[np.ndarray], np.ndarray] | None
+
+
+def _run_standard(
+    progress: ckpt.Progress | None, problem: Problem, book: Bookkeeping
+) -> tuple[ckpt.Progress, str]:
+    """Algorithm 1: the initial sweep (unless resumed), then iterations until a stop reason."""
+    p = problem
+    if progress is None:
+        progress = _initial_sweep(p.coarse, p.x0, p.times, book.reference is not None, book.origin)
+        book.initial_sweep_done(progress)
+    reason = stop_reason(progress, book.tol, book.max_iterations)
+    while reason is None:
+        previous_final = progress.states[-1]
+        _iterate(progress, p.fine, p.coarse, p.times, p.executor, p.project, book.origin)
+        reason = book.iteration_done(progress, previous_final)
+    return progress, reason
+
+
+#: The schedules of :func:`run`.
+SCHEDULES = ("standard", "pipelined")
 
 
 def run(
@@ -362,6 +515,7 @@ def run(
     wall_time_limit: float | None = None,
     allow_oversubscribe: bool = False,
     on_iteration: Callable[[IterationReport], None] | None = None,
+    schedule: str = "standard",
 ) -> PararealResult:
     """Parareal (Algorithm 1): initial serial sweep eq. 9, then iterations of eqs. 10-11.
 
@@ -374,6 +528,13 @@ def run(
     must not outnumber the executor's workers (Algorithm 1's N_G <= N_c) unless
     ``allow_oversubscribe`` (see :func:`check_workers`). More workers than slices gives a
     RuntimeWarning (the extra workers idle in the parallel sweeps).
+
+    ``schedule="pipelined"`` runs the same iterates, bit for bit, as tasks that start as soon as
+    their inputs exist and a worker is free (:mod:`parastokes.parareal.pipelined`): every fine
+    solve, every coarse step and, for a coarse solver with ``split`` (an extrapolated one), every
+    auxiliary solve is a task on ``executor``, so ``coarse`` must pickle like ``fine``. There the
+    N_G <= N_c rule does not apply (auxiliary solves wait for workers like any task) and a
+    coarse solver's own executor is not used.
 
     The run stops when the relative increment eta~^k (eq. 34 at T_N over the rows of
     ``positions(state)``, default the whole state) is below ``tol``, when k = N (then ``states``
@@ -396,69 +557,49 @@ def run(
     x0 = np.array(x0, dtype=float)
     reference = None if reference is None else np.asarray(reference, dtype=float)
     _validate(fine, coarse, x0, t0, t1, n_slices, tol, max_iterations, reference, wall_time_limit)
+    if schedule not in SCHEDULES:
+        raise ValueError(f"schedule must be one of {SCHEDULES}, got {schedule!r}")
     times = time_points(t0, t1, n_slices)
-    coarse = _with_executor(coarse, executor, allow_oversubscribe)
+    if schedule == "standard":  # (pipelined: the auxiliary solves are tasks of its own)
+        coarse = _with_executor(coarse, executor, allow_oversubscribe)
     _warn_idle_workers(executor, n_slices)
     pool = SerialExecutor() if executor is None else executor
     key = ckpt.fingerprint(x0, t0, t1, n_slices, reference)
+    book = Bookkeeping(
+        tol,
+        max_iterations,
+        reference,
+        positions,
+        checkpoint,
+        key,
+        wall_time_limit,
+        on_iteration,
+        session_start,
+    )
 
     progress = None if checkpoint is None else ckpt.load(checkpoint, key)
-    saved = None if progress is None else progress.iteration
-    try:
-        if progress is None:
-            earlier_total = 0.0
-            progress = _initial_sweep(coarse, x0, times, reference is not None)
-            progress.timings.total = time.perf_counter() - session_start
-            if checkpoint is not None:
-                ckpt.save(checkpoint, progress, key)
-                saved = 0
-        else:
-            earlier_total = progress.timings.total
-            logger.info("parareal: resuming from %s after iteration %d", checkpoint, saved)
+    if progress is not None:
+        book.resume(progress)
+        logger.info("parareal: resuming from %s after iteration %d", checkpoint, book.saved)
+    if schedule == "standard":
+        strategy = _run_standard
+    else:
+        from .pipelined import run_pipelined  # (pipelined.py builds on this module)
 
-        reason = _stop_reason(progress, tol, max_iterations)
-        while reason is None:
-            previous_final = progress.states[-1]
-            _iterate(progress, fine, coarse, times, pool, project)
-            final = progress.states[-1]
-            progress.increments.append(relative_change(previous_final, final, positions))
-            if reference is not None:
-                progress.errors.append(relative_change(final, reference[-1], positions))
-            elapsed = time.perf_counter() - session_start
-            progress.timings.total = earlier_total + elapsed
-            logger.info(
-                "parareal k=%d eta~=%.3e eta=%s parallel sweep %.3fs serial sweep %.3fs",
-                progress.iteration,
-                progress.increments[-1],
-                "n/a" if reference is None else f"{progress.errors[-1]:.3e}",
-                progress.timings.parallel_sweeps[-1],
-                progress.timings.serial_sweeps[-1],
-            )
-            if checkpoint is not None:
-                ckpt.save(checkpoint, progress, key)
-                saved = progress.iteration
-            if on_iteration is not None:
-                on_iteration(
-                    IterationReport(
-                        iteration=progress.iteration,
-                        increment=progress.increments[-1],
-                        error=progress.errors[-1] if reference is not None else None,
-                        final_state=final,
-                        elapsed=progress.timings.total,
-                    )
-                )
-            reason = _stop_reason(progress, tol, max_iterations)
-            if reason is None and wall_time_limit is not None and elapsed >= wall_time_limit:
-                reason = "wall_time"
+        strategy = run_pipelined
+    try:
+        problem = Problem(fine, coarse, x0, times, pool, project)
+        progress, reason = strategy(progress, problem, book)
     except (TaskError, KeyboardInterrupt) as exc:
-        if saved is not None:
+        if book.saved is not None:
             exc.add_note(
-                f"parareal: the checkpoint {os.fspath(checkpoint)} holds iteration {saved}; "
+                f"parareal: the checkpoint {os.fspath(checkpoint)} holds iteration {book.saved}; "
                 "rerun with the same checkpoint to resume from there"
             )
         raise
 
-    progress.timings.total = earlier_total + (time.perf_counter() - session_start)
+    progress.timings.total = book.earlier_total + (time.perf_counter() - session_start)
+    progress.timings.schedule = schedule
     return PararealResult(
         states=progress.states,
         times=times,

@@ -21,10 +21,11 @@ each coarse step of the serial sweep takes ceil(N_G / N_c) rounds.
 from __future__ import annotations
 
 import copy
+import functools
 import itertools
 import logging
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Executor
 from typing import Any
 
@@ -100,8 +101,7 @@ class Extrapolated:
         solvers = [p for row in self.auxiliary for p in row]
         workers = getattr(self.executor, "workers", None)
         if workers is None or workers == 1 or len(solvers) <= workers:
-            tasks = [Task(p, (t_start, t_end, x), self._label(i)) for i, p in enumerate(solvers)]
-            return run_tasks(self.executor, tasks)
+            return run_tasks(self.executor, self.auxiliary_tasks(t_start, t_end, x))
         batches = np.array_split(np.arange(len(solvers)), workers)
         tasks = [
             Task(
@@ -121,7 +121,12 @@ class Extrapolated:
         steps = np.array([(t_end - t_start) / p.n_steps(t_start, t_end) for p in self.auxiliary[0]])
         return steps, step_weights(steps, self.order)
 
-    def __call__(self, t_start: float, t_end: float, x: np.ndarray) -> np.ndarray:
+    def coefficients(self, t_start: float, t_end: float) -> np.ndarray:
+        """The weights w_j v_q of eq. 30 on a slice, flat in the order of ``auxiliary_tasks``.
+
+        Logs the steps at INFO when they change; raises ValueError (from :meth:`plan`) before any
+        solver runs when two steps coincide after rounding.
+        """
         steps, v = self.plan(t_start, t_end)
         if tuple(steps) != self.steps_used:
             logger.info(
@@ -131,14 +136,43 @@ class Extrapolated:
                 np.array2string(v, precision=6),
             )
             self.steps_used = tuple(steps)
+        return np.multiply.outer(self.lagrange_weights, v).ravel()
+
+    def auxiliary_tasks(self, t_start: float, t_end: float, x: np.ndarray) -> list[Task]:
+        """The N_G auxiliary solves G_{Theta^j, r^q tau}(t_start, t_end, x), one task each."""
+        solvers = [p for row in self.auxiliary for p in row]
+        return [Task(p, (t_start, t_end, x), self._label(i)) for i, p in enumerate(solvers)]
+
+    def combine(
+        self,
+        t_start: float,
+        t_end: float,
+        x: np.ndarray,
+        coefficients: np.ndarray,
+        values: list[np.ndarray],
+    ) -> np.ndarray:
+        """Eq. 30 from the auxiliary solvers' ``values``: the weighted sum, checked, projected."""
+        combined = sum(c * g for c, g in zip(coefficients, values, strict=True))
+        self._check_combination(t_start, t_end, x, combined, coefficients)
+        return self.system.project(combined)
+
+    def split(
+        self, t_start: float, t_end: float, x: np.ndarray
+    ) -> tuple[list[Task], Callable[[list[np.ndarray]], np.ndarray]]:
+        """One call as separate work: its auxiliary tasks, and the function that combines their
+        values (in task order) into exactly what the call returns. Used by the pipelined schedule
+        (:mod:`parastokes.parareal.pipelined`) to run every auxiliary solve as its own task."""
+        coefficients = self.coefficients(t_start, t_end)
+        tasks = self.auxiliary_tasks(t_start, t_end, x)
+        return tasks, functools.partial(self.combine, t_start, t_end, x, coefficients)
+
+    def __call__(self, t_start: float, t_end: float, x: np.ndarray) -> np.ndarray:
+        coefficients = self.coefficients(t_start, t_end)
         if self.executor is None:
             values = [p(t_start, t_end, x) for row in self.auxiliary for p in row]
         else:
             values = self._run_on_executor(t_start, t_end, x)
-        coefficients = np.multiply.outer(self.lagrange_weights, v).ravel()
-        combined = sum(c * g for c, g in zip(coefficients, values, strict=True))
-        self._check_combination(t_start, t_end, x, combined, coefficients)
-        return self.system.project(combined)
+        return self.combine(t_start, t_end, x, coefficients, values)
 
     def _check_combination(
         self,

@@ -12,9 +12,12 @@ from collections.abc import Iterable, Sequence
 
 __all__ = [
     "parareal_runtime",
+    "pipelined_runtime",
     "predict",
     "speedup",
     "speedup_bound",
+    "speedup_pipelined",
+    "speedup_standard",
 ]
 
 
@@ -48,6 +51,33 @@ def speedup_bound(gamma_ratio: float, iterations: int, n_slices: int) -> float:
     """Eq. 15: 2 / ((N_it + 1)(2 - N_it / N_c)) * gamma_F / gamma_G, with gamma_ratio = G/F."""
     _check(iterations, n_slices)
     return 2.0 / ((iterations + 1) * (2.0 - iterations / n_slices)) / gamma_ratio
+
+
+def speedup_standard(alpha: float, iterations: int, n_slices: int) -> float:
+    """The closed formula of Algorithm 1's speedup, 1 / ((1 + K) alpha + K / P), with alpha =
+    gamma_G / gamma_F, K iterations and P slices on P workers: eq. 14 without overhead when
+    every serial sweep is counted over all P slices (eq. 12 counts P - k; the two agree to
+    O(K^2 / P)). Limit as P grows: 1 / ((K + 1) alpha)."""
+    _check(iterations, n_slices)
+    return 1.0 / ((1 + iterations) * alpha + iterations / n_slices)
+
+
+def speedup_pipelined(alpha: float, iterations: int, n_slices: int) -> float:
+    """The closed formula of pipelined Parareal's speedup, 1 / ((1 + K / P) alpha + K / P): wall
+    time P gamma_G + K (gamma_F + gamma_G), the pipeline in which slice n's worker runs its coarse
+    and fine solves one after the other (Minion 2010, Ruprecht 2017). The event-based schedule of
+    ``run(..., schedule="pipelined")`` is at least as fast (see :func:`pipelined_runtime`).
+    Limit as P grows: 1 / alpha."""
+    _check(iterations, n_slices)
+    return 1.0 / ((1 + iterations / n_slices) * alpha + iterations / n_slices)
+
+
+def pipelined_runtime(gamma_g: float, gamma_f: float, iterations: int, n_slices: int) -> float:
+    """The critical path of the pipelined schedule, K gamma_F + (N - K) gamma_G (for
+    gamma_G <= gamma_F): every path from X_0 to X_N^K takes K fine and N - K coarse steps, so
+    this is its wall time when no task ever waits for a worker."""
+    _check(iterations, n_slices)
+    return iterations * gamma_f + (n_slices - iterations) * gamma_g
 
 
 def predict(

@@ -9,7 +9,13 @@ import numpy as np
 
 from . import speedup as model
 
-__all__ = ["Timings", "queued_durations"]
+__all__ = ["MANAGER", "TASK_FIELDS", "Timings", "queued_durations", "queued_intervals"]
+
+#: The fields of one entry of ``Timings.tasks``.
+TASK_FIELDS = ("kind", "slice", "iteration", "start", "end", "worker")
+
+#: The ``worker`` of a task run on the manager (the standard schedule's coarse steps).
+MANAGER = -1
 
 
 @dataclass
@@ -21,6 +27,13 @@ class Timings:
     - ``fine[k-1]``: every F call of parallel sweep k (eq. 10, slices n = k..N).
     - ``serial_sweeps[k]``, ``parallel_sweeps[k-1]``: the sweeps themselves.
     - ``total``: the whole run, Upsilon_pr of eq. 12 (summed over sessions when resumed).
+    - ``tasks``: one ``[kind, slice, iteration, start, end, worker]`` per task (``TASK_FIELDS``),
+      kind ``"fine"``, ``"coarse"`` or ``"auxiliary"`` (one auxiliary solve of an extrapolated
+      coarse step, pipelined schedule only), times in seconds since the run started, worker the
+      slot 0, 1, ... that ran it or ``MANAGER`` (-1); the data of the Gantt chart.
+    - ``schedule``: ``"standard"`` (Algorithm 1) or ``"pipelined"``.
+    In the pipelined schedule ``parallel_sweeps[k-1]`` and ``serial_sweeps[k]`` are the spans
+    (first start to last end) of iteration k's fine and coarse tasks, which overlap.
     """
 
     coarse: list[list[float]] = field(default_factory=list)
@@ -28,6 +41,8 @@ class Timings:
     serial_sweeps: list[float] = field(default_factory=list)
     parallel_sweeps: list[float] = field(default_factory=list)
     total: float = 0.0
+    tasks: list[list] = field(default_factory=list)
+    schedule: str = "standard"
 
     @property
     def gamma_g(self) -> float:
@@ -44,23 +59,47 @@ class Timings:
         ideal = model.parareal_runtime(self.gamma_g, self.gamma_f, len(self.fine), n_slices)
         return self.total - ideal
 
+    def add_task(
+        self, kind: str, n: int, k: int, start: float, end: float, worker: int, origin: float
+    ) -> None:
+        """Record a task that ran from ``start`` to ``end`` (clock readings; ``origin`` is the
+        reading at the start of the run)."""
+        self.tasks.append([kind, n, k, start - origin, end - origin, worker])
+
     def to_dict(self) -> dict:
         """A JSON-ready copy (used by checkpoints and summary files)."""
         return asdict(self)
 
 
-def queued_durations(
+def queued_intervals(
     submitted: Sequence[float], completed: Sequence[float], workers: int | None
-) -> list[float]:
-    """Run times of tasks on a first-in-first-out pool of ``workers``, from manager-side clocks.
+) -> list[tuple[float, float, int]]:
+    """(start, end, worker slot) of tasks on a first-in-first-out pool of ``workers``, from
+    manager-side clocks.
 
     Task i is submitted at ``submitted[i]`` (increasing) and seen complete at ``completed[i]``. It
     starts when submitted, or, once all workers are busy, when the (i - workers + 1)-th of the tasks
-    before it completes. ``workers=None`` means that every task starts at once.
+    before it completes. ``workers=None`` means that every task starts at once. The slot is the one
+    that became free first (for drawing: the pool does not say which worker ran what).
     """
-    durations = []
+    intervals = []
+    free_at: list[float] = []  # when each slot became free
     for i, (start, end) in enumerate(zip(submitted, completed, strict=True)):
         if workers is not None and i >= workers:
             start = max(start, sorted(completed[:i])[i - workers])
-        durations.append(end - start)
-    return durations
+        idle = [s for s, t in enumerate(free_at) if t <= start]
+        if idle or (workers is not None and len(free_at) >= workers):
+            slot = min(idle or range(len(free_at)), key=lambda s: free_at[s])
+        else:
+            slot = len(free_at)
+            free_at.append(start)
+        free_at[slot] = end
+        intervals.append((start, end, slot))
+    return intervals
+
+
+def queued_durations(
+    submitted: Sequence[float], completed: Sequence[float], workers: int | None
+) -> list[float]:
+    """Run times of the tasks of :func:`queued_intervals`."""
+    return [end - start for start, end, _ in queued_intervals(submitted, completed, workers)]

@@ -46,6 +46,15 @@ class OnCoarseGrid:
         coarse_end = self.propagator(t_start, t_end, self.transfer.restrict(x))
         return self.transfer.prolong(coarse_end)
 
+    def split(self, t_start: float, t_end: float, x: np.ndarray):
+        """The wrapped combinator's ``split`` on the restricted state, its combination prolonged
+        (see :meth:`Extrapolated.split`); None when the wrapped propagator cannot be split."""
+        split = getattr(self.propagator, "split", None)
+        if split is None:
+            return None
+        tasks, combine = split(t_start, t_end, self.transfer.restrict(x))
+        return tasks, lambda values: self.transfer.prolong(combine(values))
+
     @property
     def executor(self) -> Executor | None:
         """The executor of the wrapped combinator (None for a plain propagator)."""

@@ -17,7 +17,7 @@ N_SLICES = 4
 T1 = 4e-4
 
 
-def solve(executor) -> tuple[np.ndarray, np.ndarray]:
+def solve(executor, schedule: str = "standard") -> tuple[np.ndarray, np.ndarray]:
     """Parareal iterates at T_0..T_N after 3 iterations, and the increments eta~^k."""
     rod = models.rod_swimmer(n_points=21)
     fine = integrate.Propagator(rod, "rk2", 1e-6)
@@ -35,5 +35,6 @@ def solve(executor) -> tuple[np.ndarray, np.ndarray]:
         max_iterations=3,
         executor=executor,
         allow_oversubscribe=True,
+        schedule=schedule,
     )
     return result.states, np.asarray(result.increments)

@@ -1,0 +1,416 @@
+"""Pipelined (event-based) Parareal: every task starts as soon as its inputs exist.
+
+Algorithm 1 alternates a parallel sweep (eq. 10) and a serial coarse sweep (eq. 11) with a barrier
+between them. Here the same tasks run as a dependency graph (Minion 2010; Elwasif et al. 2011;
+Berry et al. 2012; Ruprecht 2017; docs/parareal.md):
+
+- the fine solve F_n^k = F(T_{n-1}, T_n, X_{n-1}^{k-1}) for n = k..N (eq. 10) starts once
+  X_{n-1}^{k-1} exists;
+- the coarse step G_n^k = G(T_{n-1}, T_n, X_{n-1}^k) for n = k+1..N (k = 0: the initial sweep,
+  eq. 9) starts once X_{n-1}^k exists; a coarse solver with ``split`` (an extrapolated one, eq. 30)
+  runs each of its N_G auxiliary solves as a task of its own and is combined on the manager;
+- X_k^k = F_k^k, and X_n^k = project(F_n^k + (G_n^k - G_n^{k-1})) (eq. 11) is formed on the
+  manager as soon as its three inputs exist, by :func:`~parastokes.parareal.algorithm.correct`,
+  the function Algorithm 1 uses: the iterates are Algorithm 1's, bit for bit.
+
+Tasks wait in a priority queue and are handed to the executor while fewer than
+``executor.workers`` run (all at once without that attribute): list scheduling with priority to
+the coarse chain, the critical path (:func:`priority`; the cost model in
+:mod:`~parastokes.parareal.schedule_model` uses the same). Iterations are closed in order: after
+iteration k has completed, its checkpoint, report and stopping rule are exactly Algorithm 1's
+(:class:`~parastokes.parareal.algorithm.Bookkeeping`); work already started for later iterations is
+then cancelled (tasks not started) or discarded (tasks running). A task that fails stops new work
+for its iteration and later ones; its TaskError is raised once every earlier iteration has
+completed without meeting the stopping rule, so the same runs fail, with the same checkpoint, as
+under Algorithm 1.
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+import math
+import queue
+import time
+from collections.abc import Callable
+from concurrent.futures import BrokenExecutor, Executor, Future
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..parallel import TaskError, WorkerDiedError
+from . import checkpoint as ckpt
+from .algorithm import (
+    Bookkeeping,
+    Problem,
+    PropagatorLike,
+    coarse_error,
+    correct,
+    fine_label,
+    stop_reason,
+)
+from .timings import Timings
+
+__all__ = ["AUXILIARY", "COARSE", "FINE", "priority", "run_pipelined"]
+
+FINE, COARSE, AUXILIARY = "fine", "coarse", "auxiliary"
+
+
+def priority(kind: str, n: int, k: int, index: int = 0) -> tuple[int, int, int, int]:
+    """List-scheduling priority of a task, smaller first: coarse work (coarse steps and their
+    auxiliary solves: the critical path) before fine solves, then lower iterations k, then lower
+    slices n, then the auxiliary solver's index."""
+    return (1 if kind == FINE else 0, k, n, index)
+
+
+@dataclass
+class _Job:
+    kind: str
+    n: int
+    k: int
+    fn: Callable[..., Any]
+    args: tuple
+    label: str
+    index: int = 0
+
+
+@dataclass
+class _Group:
+    """The auxiliary solves of one split coarse step, and how to combine them."""
+
+    combine: Callable[[list[np.ndarray]], np.ndarray]
+    values: list
+    remaining: int
+    begin: float = math.inf
+    longest: float = 0.0  # the longest auxiliary solve
+
+
+class _Workers:
+    """List scheduling on an executor: ready jobs by priority, at most ``workers`` in flight.
+
+    Each job in flight holds a worker slot (0, 1, ...), the worker it is drawn on in the Gantt
+    chart; start and end are read on the manager when it is submitted and when it completes.
+    """
+
+    def __init__(self, executor: Executor) -> None:
+        self.executor = executor
+        self.limit = getattr(executor, "workers", None)
+        self.ready: list[tuple[tuple, int, _Job]] = []
+        self.order = itertools.count()
+        self.flight: dict[Future, tuple[_Job, int, float]] = {}
+        self.free: list[int] = []
+        self.slots = 0
+        self.done: queue.SimpleQueue = queue.SimpleQueue()
+
+    def add(self, job: _Job) -> None:
+        key = priority(job.kind, job.n, job.k, job.index)
+        heapq.heappush(self.ready, (key, next(self.order), job))
+
+    def start(self, blocked: float) -> None:
+        """Submit ready jobs while a worker is free; drop those of iterations >= ``blocked``."""
+        while self.ready and (self.limit is None or len(self.flight) < self.limit):
+            _, _, job = heapq.heappop(self.ready)
+            if job.k >= blocked:
+                continue
+            if self.free:
+                slot = heapq.heappop(self.free)
+            else:
+                slot, self.slots = self.slots, self.slots + 1
+            begin = time.perf_counter()
+            try:
+                future = self.executor.submit(job.fn, *job.args)
+            except Exception as exc:  # e.g. a pool that a dead worker has broken
+                future = Future()
+                future.set_exception(exc)
+            self.flight[future] = (job, slot, begin)
+            future.add_done_callback(self._finished)
+
+    def _finished(self, future: Future) -> None:
+        self.done.put((future, time.perf_counter()))
+
+    def next(self) -> tuple[_Job, Future, float, float, int]:
+        """Wait for the next job to complete: (job, future, start, end, slot)."""
+        future, end = self.done.get()
+        job, slot, begin = self.flight.pop(future)
+        heapq.heappush(self.free, slot)
+        return job, future, begin, end, slot
+
+    def cancel(self) -> None:
+        """Drop the jobs not submitted and cancel those not started; running ones are left to
+        finish (their results are never read)."""
+        self.ready.clear()
+        for future in self.flight:
+            future.cancel()
+
+
+def _is_broken(exc: BaseException) -> bool:
+    return isinstance(exc, BrokenExecutor)
+
+
+def _is_bystander(exc: BaseException) -> bool:
+    """A task that failed only because another task broke the pool."""
+    return isinstance(exc, BrokenExecutor) and not isinstance(exc, WorkerDiedError)
+
+
+@dataclass
+class _Pipeline:
+    fine: PropagatorLike
+    coarse: PropagatorLike
+    times: np.ndarray
+    project: Callable[[np.ndarray], np.ndarray] | None
+    book: Bookkeeping
+    workers: _Workers
+    x: dict = field(default_factory=dict)  # (n, k) -> X_n^k for n >= k
+    fine_values: dict = field(default_factory=dict)  # (n, k) -> F_n^k
+    coarse_values: dict = field(default_factory=dict)  # (n, k) -> G_n^k
+    groups: dict = field(default_factory=dict)  # (n, k) -> _Group
+    runs: dict = field(default_factory=dict)  # (kind, n, k) -> (start, end)
+    coarse_times: dict = field(default_factory=dict)  # (n, k) -> the time of G_n^k (gamma_G)
+    tasks: list = field(default_factory=list)  # this session's Timings.tasks entries
+    finished: set = field(default_factory=set)  # iterations whose X_N^k exists
+    failures: dict = field(default_factory=dict)  # iteration -> TaskError
+    progress: ckpt.Progress | None = None
+    completed: int = -1
+    earlier_tasks: list = field(default_factory=list)
+
+    @property
+    def n_slices(self) -> int:
+        return len(self.times) - 1
+
+    @property
+    def last(self) -> int:
+        """The last iteration that may be needed."""
+        return min(self.book.max_iterations, self.n_slices)
+
+    @property
+    def blocked(self) -> float:
+        """The lowest iteration with a failed task (no new work from there on)."""
+        return min(self.failures, default=math.inf)
+
+    # ---- tasks ---------------------------------------------------------------------------
+    def add_fine(self, n: int, k: int) -> None:
+        if k <= self.last and k < self.blocked:
+            args = (self.times[n - 1], self.times[n], self.x[n - 1, k - 1])
+            self.workers.add(_Job(FINE, n, k, self.fine, args, fine_label(n, k)))
+
+    def add_coarse(self, n: int, k: int) -> None:
+        if k > self.last or k >= self.blocked:
+            return
+        t_start, t_end, x = self.times[n - 1], self.times[n], self.x[n - 1, k]
+        split = getattr(self.coarse, "split", None)
+        try:
+            parts = None if split is None else split(t_start, t_end, x)
+        except Exception as exc:
+            self.fail(k, coarse_error(exc, n, k))
+            return
+        if parts is None:
+            self.workers.add(_Job(COARSE, n, k, self.coarse, (t_start, t_end, x), "coarse step"))
+            return
+        tasks, combine = parts
+        self.groups[n, k] = _Group(combine, [None] * len(tasks), len(tasks))
+        for i, task in enumerate(tasks):
+            self.workers.add(_Job(AUXILIARY, n, k, task.fn, tuple(task.args), task.label, i))
+
+    # ---- values --------------------------------------------------------------------------
+    def set_state(self, n: int, k: int, value: np.ndarray) -> None:
+        self.x[n, k] = value
+        if n == self.n_slices:
+            self.finished.add(k)
+            return
+        self.add_coarse(n + 1, k)
+        self.add_fine(n + 1, k + 1)
+
+    def try_correct(self, n: int, k: int) -> None:
+        keys = ((n, k) in self.fine_values, (n, k) in self.coarse_values)
+        if all(keys) and (n, k - 1) in self.coarse_values and (n, k) not in self.x:
+            value = correct(
+                self.fine_values[n, k],
+                self.coarse_values[n, k],
+                self.coarse_values[n, k - 1],
+                self.project,
+            )
+            self.set_state(n, k, value)
+
+    def coarse_done(
+        self, n: int, k: int, value: np.ndarray, begin: float, end: float, duration: float
+    ) -> None:
+        self.runs[COARSE, n, k] = (begin, end)
+        self.coarse_times[n, k] = duration
+        self.coarse_values[n, k] = value
+        if k == 0:
+            self.set_state(n, 0, value)
+        else:
+            self.try_correct(n, k)
+        if n > k + 1:
+            self.try_correct(n, k + 1)
+
+    def job_done(self, job: _Job, future: Future, begin: float, end: float, slot: int) -> None:
+        self.tasks.append([job.kind, job.n, job.k, begin, end, slot])
+        exc = future.exception()
+        n, k = job.n, job.k
+        if exc is not None:
+            self.task_failed(job, exc)
+        elif job.kind == FINE:
+            self.runs[FINE, n, k] = (begin, end)
+            self.fine_values[n, k] = future.result()
+            if n == k:
+                self.set_state(n, k, future.result())
+            else:
+                self.try_correct(n, k)
+        elif job.kind == COARSE:
+            self.coarse_done(n, k, future.result(), begin, end, end - begin)
+        else:
+            group = self.groups[n, k]
+            group.values[job.index] = future.result()
+            group.remaining -= 1
+            group.begin = min(group.begin, begin)
+            group.longest = max(group.longest, end - begin)
+            if group.remaining == 0:
+                del self.groups[n, k]
+                start = time.perf_counter()
+                try:
+                    value = group.combine(group.values)
+                except Exception as error:
+                    self.fail(k, coarse_error(error, n, k))
+                    return
+                done = time.perf_counter()
+                # gamma_G as in Algorithm 1: as if the auxiliary solves had run at once
+                self.coarse_done(n, k, value, group.begin, done, group.longest + done - start)
+
+    # ---- failures ------------------------------------------------------------------------
+    def error_of(self, job: _Job, exc: BaseException) -> TaskError:
+        if job.kind == FINE:
+            return TaskError(job.label, exc)
+        if job.kind == AUXILIARY:
+            return coarse_error(TaskError(job.label, exc), job.n, job.k)
+        return coarse_error(exc, job.n, job.k)
+
+    def task_failed(self, job: _Job, exc: BaseException) -> None:
+        if not _is_broken(exc):
+            self.fail(job.k, self.error_of(job, exc))
+            return
+        # A worker died: the pool fails every task in flight. Collect them all and name the
+        # task that ran on the dead worker (as parallel.run_tasks does).
+        errors = [(job.k, exc, job)]
+        while self.workers.flight:
+            other, future, *_ = self.workers.next()
+            if not future.cancelled() and future.exception() is not None:
+                errors.append((other.k, future.exception(), other))
+        causes = [e for e in errors if not _is_bystander(e[1])] or errors
+        _, cause, culprit = min(causes, key=lambda e: e[0])
+        error = self.error_of(culprit, cause)
+        raise error from cause
+
+    def fail(self, k: int, error: TaskError) -> None:
+        """A task of iteration k failed: no new work from iteration k on (see the module)."""
+        self.failures.setdefault(k, error)
+
+    # ---- iterations ----------------------------------------------------------------------
+    def close_iterations(self) -> str | None:
+        """Close the completed iterations in order; return a stop reason, or raise the failure
+        of the next iteration once nothing before it can stop the run."""
+        while self.completed + 1 in self.finished:
+            k = self.completed + 1
+            reason = self.close(k)
+            self.completed = k
+            if reason is not None:
+                return reason
+        if self.failures and min(self.failures) == self.completed + 1:
+            error = self.failures[self.completed + 1]
+            raise error from error.original
+        return None
+
+    def durations(self, kind: str, slices: range, k: int) -> tuple[list[float], float]:
+        """Run times of one kind of task of iteration k, and their span (first start to last
+        end; 0 when there are none)."""
+        runs = [self.runs[kind, n, k] for n in slices]
+        span = max((e for _, e in runs), default=0.0) - min((b for b, _ in runs), default=0.0)
+        if kind == COARSE:
+            return [self.coarse_times[n, k] for n in slices], span
+        return [end - begin for begin, end in runs], span
+
+    def close(self, k: int) -> str | None:
+        n_slices = self.n_slices
+        coarse, coarse_span = self.durations(COARSE, range(k + 1, n_slices + 1), k)
+        origin = self.book.origin
+        tasks = self.earlier_tasks + [
+            [kind, n, j, begin - origin, end - origin, slot]
+            for kind, n, j, begin, end, slot in self.tasks
+        ]
+        if k == 0:
+            x0 = self.x[0, 0]
+            states = np.empty((n_slices + 1, *x0.shape))
+            states[0] = x0
+            for n in range(1, n_slices + 1):
+                states[n] = self.x[n, 0]
+            timings = Timings(coarse=[coarse], serial_sweeps=[coarse_span], tasks=tasks)
+            errors = [] if self.book.reference is not None else None
+            self.progress = ckpt.Progress(
+                0, states, states[1:].copy(), errors=errors, timings=timings
+            )
+            self.book.initial_sweep_done(self.progress)
+            return None
+        progress = self.progress
+        previous_final = progress.states[-1]
+        states = progress.states.copy()  # X_n^k = X_n^{k-1} for n < k
+        coarse_values = progress.coarse_values.copy()
+        for n in range(k, n_slices + 1):
+            states[n] = self.x[n, k]
+        for n in range(k + 1, n_slices + 1):
+            coarse_values[n - 1] = self.coarse_values[n, k]
+        fine, fine_span = self.durations(FINE, range(k, n_slices + 1), k)
+        timings = progress.timings
+        timings.fine.append(fine)
+        timings.coarse.append(coarse)
+        timings.parallel_sweeps.append(fine_span)
+        timings.serial_sweeps.append(coarse_span)
+        timings.tasks = tasks
+        progress.states = states
+        progress.coarse_values = coarse_values
+        progress.iteration = k
+        return self.book.iteration_done(progress, previous_final)
+
+    # ---- the run -------------------------------------------------------------------------
+    def start(self, progress: ckpt.Progress | None, x0: np.ndarray) -> None:
+        if progress is None:
+            self.set_state(0, 0, x0)
+            return
+        k0 = progress.iteration
+        self.progress, self.completed = progress, k0
+        self.earlier_tasks = list(progress.timings.tasks)
+        for n in range(k0 + 1, self.n_slices + 1):
+            self.coarse_values[n, k0] = progress.coarse_values[n - 1]
+        for n in range(k0, self.n_slices):
+            self.x[n, k0] = progress.states[n]
+            self.add_fine(n + 1, k0 + 1)
+
+    def run(self) -> str:
+        while True:
+            reason = self.close_iterations()
+            if reason is not None:
+                return reason
+            self.workers.start(self.blocked)
+            if not self.workers.flight:
+                raise RuntimeError("pipelined Parareal: no task left to run (please report)")
+            self.job_done(*self.workers.next())
+
+
+def run_pipelined(
+    progress: ckpt.Progress | None, problem: Problem, book: Bookkeeping
+) -> tuple[ckpt.Progress, str]:
+    """Parareal's iterates by the pipelined schedule, from ``progress`` (a resumed run) or from
+    the start; the counterpart of Algorithm 1's loop in :func:`parastokes.parareal.run`."""
+    if progress is not None:
+        reason = stop_reason(progress, book.tol, book.max_iterations)
+        if reason is not None:
+            return progress, reason
+    workers = _Workers(problem.executor)
+    p = problem
+    pipeline = _Pipeline(p.fine, p.coarse, p.times, p.project, book, workers)
+    try:
+        pipeline.start(progress, p.x0)
+        reason = pipeline.run()
+    finally:
+        workers.cancel()
+    return pipeline.progress, reason
