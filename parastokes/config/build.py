@@ -6,44 +6,18 @@ from concurrent.futures import Executor
 from dataclasses import dataclass
 from typing import Any
 
-from .. import integrate, models, parallel, parareal
+from .. import integrate, parallel, parareal
 from ..warmup import WarmUp
 from .checks import Resolved
 from .errors import ConfigError
-from .schema import Config, RodModel
+from .schema import Config
 
 __all__ = ["Setup", "build", "build_system"]
 
 
 def build_system(cfg: Config, resolved: Resolved) -> Any:
-    """The system of ``cfg.model`` with the correct parameters Θ⁰ (absolute ε⁰)."""
-    model = cfg.model
-    threads = cfg.execution.threads
-    if isinstance(model, RodModel):
-        return models.rod_swimmer(
-            n_rods=model.n_rods,
-            n_points=model.n_points,
-            epsilon=resolved.epsilon,
-            length=model.length,
-            amplitude=model.amplitude,
-            frequency=model.frequency,
-            wavelength=model.wavelength,
-            bending=model.bending,
-            shear=tuple(model.shear),
-            viscosity=model.viscosity,
-            wall=model.wall,
-            height=model.height,
-            spacing=model.spacing,
-            n_threads=threads,
-        )
-    system = models.vesicle(
-        subdivisions=model.subdivisions,
-        stiffness=model.stiffness,
-        viscosity=model.viscosity,
-        shear_rate=model.shear_rate,
-        n_threads=threads,
-    )
-    return system.with_params(epsilon=resolved.epsilon)
+    """The system of ``cfg.model`` with the correct parameters Θ⁰ (its kind's section builds it)."""
+    return cfg.model.build(cfg.execution.threads)
 
 
 def build_coarse(cfg: Config, resolved: Resolved, system: Any) -> parareal.Extrapolated:
