@@ -5,7 +5,6 @@ errors."""
 import dataclasses
 import math
 import os
-import pickle
 import signal
 import threading
 import time
@@ -167,11 +166,6 @@ def test_non_finite_state_is_the_same_error_from_both_loops():
     a, b = blowup_from_both_loops(system, x0, 1e-5, "rk2", 1e-6)
     assert "non-finite" in str(a) and a.step == 0
     assert math.isnan(a.monitor) and math.isnan(b.monitor)
-
-
-@pytest.mark.parametrize("system", [swimmers(), models.vesicle()], ids=["rods", "vesicle"])
-def test_systems_with_their_loops_still_pickle_small(system):
-    assert len(pickle.dumps(system)) < 1000
 
 
 def test_the_loops_call_the_kernels_mrs_velocity_calls():

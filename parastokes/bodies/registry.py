@@ -156,7 +156,9 @@ class BodyKind:
     are those of ``system.params``); ``layout(section, system, frames, tracked)``: the
     :class:`BodyLayout` of every body of the state (``frames``: write node vectors; ``tracked``:
     marked points or None for the kind's default); ``draw``: see :data:`Draw`;
-    ``tracks_points``: whether ``output.tracked_points`` applies.
+    ``tracks_points``: whether ``output.tracked_points`` applies; ``example()``: a small system, an
+    active state of it and a horizon on which the schemes show their orders, for
+    :func:`parastokes.testing.check_system` (the contract tests run it for every kind).
     """
 
     name: str
@@ -164,6 +166,7 @@ class BodyKind:
     layout: Callable[[Any, Any, bool, Sequence[int] | None], list[BodyLayout]]
     draw: Draw = _draw_points
     tracks_points: bool = False
+    example: Callable[[], tuple[Any, np.ndarray, float | None]] | None = None
 
 
 # ---- kinds derived from a system class ----------------------------------------------------------

@@ -128,4 +128,10 @@ def draw(fig: Any, bodies: Mapping[str, Mapping[str, np.ndarray]], times: np.nda
     ax.set_title(f"rods in the x-y plane ({run}; y exaggerated)")
 
 
-KIND = BodyKind("rod", RodModel, layout, draw)
+def example() -> tuple[RodSystem, np.ndarray, float | None]:
+    """Two short swimmers side by side above the wall (travelling wave of eq. 36), at rest."""
+    system = models.rod_swimmer(2, 31, 1.0, length=6.0, wavelength=3.0)
+    return system, system.initial_state(), None
+
+
+KIND = BodyKind("rod", RodModel, layout, draw, example=example)
