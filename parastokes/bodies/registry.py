@@ -7,7 +7,7 @@ drawing. Config, runner, io and plots ask the registry and never name a kind.
 
 A kind is found by its ``kind`` string:
 
-- a built-in name (:data:`BUILTIN`: ``"rod"``, ``"vesicle"``), one line each;
+- a built-in name (:data:`BUILTIN`: ``"rod"``, ``"vesicle"``, ``"chain"``), one line each;
 - ``"package.module:Name"``: ``Name`` in an importable module, either a :class:`BodyKind` or a
   system class (a frozen dataclass; :func:`derived_kind` makes its kind from its fields);
 - an entry point name of the group ``parastokes.bodies`` (installed packages), whose value is a
@@ -49,6 +49,7 @@ __all__ = [
 BUILTIN: dict[str, str] = {
     "rod": "parastokes.kinds.rod:KIND",
     "vesicle": "parastokes.kinds.vesicle:KIND",
+    "chain": "parastokes.kinds.chain:KIND",
 }
 
 #: The entry point group of installed body packages: ``name = "package.module:Name"``.
