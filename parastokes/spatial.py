@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from collections.abc import Callable
 from concurrent.futures import Executor
 from dataclasses import dataclass
 from typing import Any
@@ -32,12 +31,11 @@ from typing import Any
 import numpy as np
 
 from . import integrate, mrs
+from .contracts import PropagatorLike
 from .parallel import Task, run_tasks
 from .system import RodSystem, VesicleSystem
 
 __all__ = ["SpatialSpeedup", "TargetBlocks", "fine_solver", "measure_speedup", "threaded"]
-
-PropagatorLike = Callable[[float, float, np.ndarray], np.ndarray]
 
 
 def threaded(system: RodSystem | VesicleSystem, n_threads: int) -> RodSystem | VesicleSystem:

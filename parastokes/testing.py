@@ -5,6 +5,7 @@
 
 :func:`check_system` raises ``AssertionError`` naming the part of the contract that is broken:
 
+- ``members``: every member of :class:`parastokes.contracts.System` is there;
 - ``state``: ``initial_state()`` is a finite float64 array, ``positions`` gives (N, 3);
 - ``rates``: ``rates(t, x)`` is finite with a row per state row; ``advance(x, r, dt)`` returns a
   new array of the state's shape, leaves its inputs alone, and ``advance(x, r, 0)`` is ``x``;
@@ -36,6 +37,7 @@ from typing import Any
 import numpy as np
 
 from . import integrate
+from .contracts import System
 
 __all__ = ["check_system", "fitted_order"]
 
@@ -223,6 +225,8 @@ def check_system(
     the orders fitted, over ``[t, t + horizon]`` with ``counts`` steps (twice as many for
     first-order schemes). Raises ``AssertionError`` naming the broken part; returns None.
     """
+    missing = sorted(n for n in vars(System) if not n.startswith("_") and not hasattr(system, n))
+    _Part(system, "members")(not missing, f"missing {', '.join(missing)} (contracts.System)")
     x0 = system.initial_state()
     _check_state(system, x0)
     x = x0 if state is None else np.ascontiguousarray(state, dtype=float)

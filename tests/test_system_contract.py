@@ -93,3 +93,41 @@ def test_a_scheme_that_loses_its_order_is_named():
     step) keeps every scheme at order 1: the check names the first scheme of higher order."""
     with pytest.raises(AssertionError, match=r"order: rk2: fitted order 1\.\d+"):
         check_system(LaggingAdvance(n_points=8), horizon=2.0)
+
+
+# ---- the typed contracts (parastokes.contracts) ------------------------------------------------
+def test_the_packages_parts_satisfy_the_protocols():
+    from parastokes import contracts, parareal
+
+    for name in sorted(registry.BUILTIN):
+        system, _, _ = registry.get(name).example()
+        assert isinstance(system, contracts.System)
+        fine = integrate.Propagator(system, "rk2", 1e-3)
+        assert isinstance(fine, contracts.Propagator)
+        assert not isinstance(fine, contracts.CoarseSolver)
+    coarse = parareal.extrapolated(system, "euler", 1e-2, richardson={"m": 1, "r": 0.5})
+    assert isinstance(coarse, contracts.CoarseSolver) and coarse.n_auxiliary == 2
+    assert isinstance(SedimentingCloud(), contracts.System)
+
+
+def test_a_system_missing_members_is_named():
+    class Half:
+        def rates(self, t, x):
+            return x
+
+    with pytest.raises(AssertionError, match=r"members: missing advance, initial_state"):
+        check_system(Half())
+
+
+@pytest.mark.parametrize(
+    ("n_auxiliary", "workers", "ok"),
+    [(4, 4, True), (5, 4, False), (8, 1, True), (8, None, True)],
+)
+def test_the_rule_n_g_at_most_n_c_lives_in_one_place(n_auxiliary, workers, ok):
+    """Config checks, the MPI build check and parareal.run all word it through this function."""
+    from parastokes.contracts import oversubscription
+
+    problem = oversubscription(n_auxiliary, workers)
+    assert (problem is None) == ok
+    if not ok:
+        assert f"N_G = {n_auxiliary}" in problem and f"N_c = {workers}" in problem

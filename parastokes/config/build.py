@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from concurrent.futures import Executor
 from dataclasses import dataclass
-from typing import Any
 
 from .. import integrate, parallel, parareal
+from ..contracts import PropagatorLike, System, oversubscription
 from ..warmup import WarmUp
 from .checks import Resolved
 from .errors import ConfigError
@@ -15,12 +16,19 @@ from .schema import Config
 __all__ = ["Setup", "build", "build_system"]
 
 
-def build_system(cfg: Config, resolved: Resolved) -> Any:
+def build_system(cfg: Config, resolved: Resolved) -> System:
     """The system of ``cfg.model`` with the correct parameters Θ⁰ (its kind's section builds it)."""
     return cfg.model.build(cfg.execution.threads)
 
 
-def build_coarse(cfg: Config, resolved: Resolved, system: Any) -> parareal.Extrapolated:
+def build_coarse(cfg: Config, resolved: Resolved, system: System) -> PropagatorLike:
+    """The coarse solver G of the family ``coarse.kind`` (:data:`COARSE`)."""
+    return COARSE[cfg.coarse.kind](cfg, resolved, system)
+
+
+def build_extrapolated(
+    cfg: Config, resolved: Resolved, system: System
+) -> parareal.Extrapolated | parareal.OnCoarseGrid:
     """G of eq. 30 with the base step τ = τ_c / r^m (``resolved.coarse_base_dt``)."""
     coarse = cfg.coarse
     richardson = coarse.richardson
@@ -34,15 +42,21 @@ def build_coarse(cfg: Config, resolved: Resolved, system: Any) -> parareal.Extra
     )
 
 
+#: Coarse-solver families by ``coarse.kind``: ``build(cfg, resolved, system) -> G``.
+COARSE: dict[str, Callable[[Config, Resolved, System], PropagatorLike]] = {
+    "extrapolated": build_extrapolated,
+}
+
+
 @dataclass
 class Setup:
     """Everything a run needs; a context manager that shuts the executor down on exit."""
 
     config: Config
     resolved: Resolved
-    system: Any
+    system: System
     fine: integrate.Propagator
-    coarse: Any
+    coarse: PropagatorLike
     executor: Executor | None
 
     def __enter__(self) -> Setup:
@@ -78,15 +92,14 @@ def build(cfg: Config, resolved: Resolved, *, executor: bool = True) -> Setup:
             warmup=WarmUp(system),
             **options,
         )
-        n_aux = resolved.n_auxiliary
-        if resolved.workers is None and n_aux > pool.workers and not ex.allow_oversubscribe:
+        problem = oversubscription(resolved.n_auxiliary, pool.workers)
+        if resolved.workers is None and problem and not ex.allow_oversubscribe:
             pool.shutdown()
             raise ConfigError(
                 [
                     (
                         "execution.workers",
-                        f"the MPI launch provides {pool.workers} workers for N_G = {n_aux} "
-                        "auxiliary solvers; start more ranks or set "
+                        f"{problem} in this MPI launch; start more ranks or set "
                         "execution.allow_oversubscribe = true",
                     )
                 ]

@@ -19,7 +19,9 @@ from typing import Any
 
 from .. import integrate
 from ..bodies import registry
+from ..contracts import oversubscription
 from ..parallel import available_cores
+from ..parareal.weights import step_weights
 from .errors import ConfigError
 from .schema import Config
 
@@ -118,13 +120,12 @@ def _workers(cfg: Config, n_auxiliary: int, issues: list, warnings: list) -> int
         workers = max(1, min(cfg.parareal.n_slices, available_cores() // ex.threads))
     if workers is None:  # mpi: all ranks of the launch, known only when the executor exists
         return None
-    if n_auxiliary > workers and not ex.allow_oversubscribe and cfg.run.mode != "serial":
+    problem = oversubscription(n_auxiliary, workers)
+    if problem and not ex.allow_oversubscribe and cfg.run.mode != "serial":
         issues.append(
             (
                 "execution.workers",
-                f"the coarse solver has N_G = {n_auxiliary} auxiliary solvers but there are only "
-                f"{workers} workers, so they cannot all run at once (Algorithm 1 assumes "
-                "N_G <= N_c); raise workers or set execution.allow_oversubscribe = true",
+                f"{problem}; raise workers or set execution.allow_oversubscribe = true",
             )
         )
     if cfg.parareal.n_slices > workers and cfg.run.mode != "serial":
@@ -169,7 +170,9 @@ def resolve(cfg: Config, source: str = "") -> Resolved:
         _steps(slice_length, base_dt * (r or 1.0) ** q, "coarse.dt", "τ_c", None if m else warnings)
         for q in range(m + 1)
     ]
-    if len(set(coarse_steps)) < len(coarse_steps):
+    try:  # the rule of eq. 27 where it lives: the weights of the steps actually taken
+        step_weights([slice_length / n for n in coarse_steps], 1)
+    except ValueError:
         issues.append(
             (
                 "coarse.richardson.r",

@@ -83,6 +83,9 @@ class Coarse(_Section):
     solvers, r^m τ; the base step of eq. 26 is τ = τ_c / r^m.
     """
 
+    kind: Literal["extrapolated"] = Field(
+        "extrapolated", description="The coarse-solver family: the extrapolated G of eq. 30."
+    )
     scheme: Scheme = Field("euler", description="Scheme of the auxiliary solvers (paper: euler).")
     dt: Positive | None = Field(None, description="Coarse step τ_c = r^m τ (give dt or dt_ratio).")
     dt_ratio: Positive | None = Field(None, description="τ_c / τ_f (the tables' τ_c = 18 τ_f: 18).")
