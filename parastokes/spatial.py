@@ -64,8 +64,9 @@ class TargetBlocks:
     of eq. 6 plus the shear flow), with the O(N^2) kernel sums split into ``n_blocks`` contiguous
     blocks of targets (default ``executor.workers``), one labelled task each. Every other attribute
     (``advance``, ``project``, ``monitor``, ``params``...) is the wrapped system's, so
-    :class:`parastokes.integrate.Propagator` runs it like any system, except its compiled loop
-    ``run_steps``, which would bypass the blocks: ``integrate.run`` takes the Python loop here.
+    :class:`parastokes.integrate.Propagator` runs it like any system; it has no compiled loop (those
+    are registered per exact type, :mod:`parastokes.stepping.registry`), so ``integrate.run``
+    steps through these blocks.
     It lives on the manager (it holds the executor) and does not pickle.
     """
 
@@ -89,10 +90,6 @@ class TargetBlocks:
 
     def __getattr__(self, name: str) -> Any:
         if name in ("system", "executor", "blocks"):  # not set yet: do not recurse
-            raise AttributeError(name)
-        if name == "run_steps":
-            # the wrapped system's compiled loop evaluates its own rates, not these blocks:
-            # integrate.run must step through self.rates
             raise AttributeError(name)
         return getattr(self.system, name)
 

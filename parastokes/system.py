@@ -15,17 +15,20 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any
 
 import numpy as np
 
-from . import mrs, stepping
+from . import mrs
 from .bodies import frames, geometry, rod, vesicle
 from .bodies.rod_transfer import RodTransfer
 from .mrs.velocity import thread_count
+from .stepping import loop, registry
+from .stepping.registry import RunSteps
+from .stepping.rod import rod_data
+from .stepping.vesicle import vesicle_data
 
 __all__ = ["RodSystem", "VesicleSystem"]
 
@@ -43,38 +46,6 @@ def _wave_table(n_half: int, ds: float, wavenumber: float) -> np.ndarray:
     return table
 
 
-#: The methods whose physics the compiled parts of :mod:`parastokes.stepping` reproduce: a
-#: subclass that overrides one of them has its own physics, which the compiled loop would ignore.
-_MIRRORED = ("rates", "advance", "monitor", "bracket", "loads", "forces", "preferred_strain",
-             "mechanics")
-
-
-class _CompiledSteps:
-    """``run_steps`` for a system whose compiled parts are registered in
-    :mod:`parastokes.stepping` (its data builder is the class attribute ``_stepping_data``).
-
-    A subclass that overrides a method of :data:`_MIRRORED` (and registers no parts of its own)
-    gets ``run_steps = None``, so ``integrate.run`` steps through its Python methods."""
-
-    _stepping_data: Any = None
-
-    def __init_subclass__(cls, **kwargs: Any) -> None:
-        super().__init_subclass__(**kwargs)
-        if "_stepping_data" not in cls.__dict__ and any(m in cls.__dict__ for m in _MIRRORED):
-            cls._stepping_data = None
-
-    @property
-    def run_steps(self) -> Callable[..., tuple[np.ndarray, float, int, int, float]] | None:
-        """``run_steps(scheme, x, t0, dt, n, limit, stop_above)``: ``n`` steps of ``scheme`` in
-        compiled calls (:mod:`parastokes.stepping`), the loop ``integrate.run`` uses, with the
-        same result as stepping through ``rates``/``advance``; ``None`` where the compiled parts
-        do not reproduce this class's methods."""
-        make_data = type(self)._stepping_data
-        if make_data is None:
-            return None
-        return functools.partial(stepping.loop.run_steps, self, make_data)
-
-
 def _replace_params(system: Any, theta: dict[str, float]) -> Any:
     """``dataclasses.replace`` restricted to the names of ``system.params``."""
     unknown = sorted(set(theta) - set(system.params))
@@ -86,7 +57,7 @@ def _replace_params(system: Any, theta: dict[str, float]) -> Any:
 
 
 @dataclass(frozen=True)
-class RodSystem(_CompiledSteps):
+class RodSystem:
     """``n_rods`` Kirchhoff rods of ``n_points`` nodes each, interacting through the fluid.
 
     Rods start straight along x (geometry.straight_rods), side by side in y, at ``height`` above the
@@ -110,8 +81,6 @@ class RodSystem(_CompiledSteps):
     height: float = 10.0
     spacing: float = 5.0
     n_threads: int | None = None
-
-    _stepping_data = staticmethod(stepping.rod.rod_data)
 
     def __post_init__(self) -> None:
         for name in ("n_rods", "n_points"):
@@ -215,6 +184,12 @@ class RodSystem(_CompiledSteps):
 
     # ---- parameters and monitor ------------------------------------------------------------
     @property
+    def run_steps(self) -> RunSteps | None:
+        """The compiled loop of :mod:`parastokes.stepping` registered for this exact type (None
+        for a subclass: it may compute other rates; see :mod:`parastokes.stepping.registry`)."""
+        return registry.compiled_loop(self)
+
+    @property
     def params(self) -> dict[str, float]:
         return {"epsilon": self.epsilon, "viscosity": self.viscosity, "bending": self.bending}
 
@@ -260,7 +235,7 @@ def _spring_network(subdivisions: int) -> tuple[np.ndarray, np.ndarray, float]:
 
 
 @dataclass(frozen=True)
-class VesicleSystem(_CompiledSteps):
+class VesicleSystem:
     """Unit icosphere (``subdivisions`` levels) with springs on its edges in a shear flow.
 
     Rest lengths are the initial edge lengths; ε is absolute (the paper quotes ε = 0.3 l_max, see
@@ -273,8 +248,6 @@ class VesicleSystem(_CompiledSteps):
     stiffness: float
     shear_rate: float
     n_threads: int | None = None
-
-    _stepping_data = staticmethod(stepping.vesicle.vesicle_data)
 
     def __post_init__(self) -> None:
         geometry.icosphere(self.subdivisions)  # validates subdivisions
@@ -331,6 +304,8 @@ class VesicleSystem(_CompiledSteps):
         """The identity (no frames); returns ``state`` itself."""
         return state
 
+    run_steps = RodSystem.run_steps
+
     @property
     def params(self) -> dict[str, float]:
         return {"epsilon": self.epsilon, "viscosity": self.viscosity, "stiffness": self.stiffness}
@@ -347,3 +322,9 @@ class VesicleSystem(_CompiledSteps):
         """Relative change of the surface area from the initial sphere's (section 5.2)."""
         area = geometry.surface_area(state, self.mesh[1])
         return abs(area - self.initial_area) / self.initial_area
+
+
+registry.register(RodSystem, lambda system: functools.partial(loop.run_steps, system, rod_data))
+registry.register(
+    VesicleSystem, lambda system: functools.partial(loop.run_steps, system, vesicle_data)
+)

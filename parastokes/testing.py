@@ -38,6 +38,7 @@ import numpy as np
 
 from . import integrate
 from .contracts import System
+from .stepping.registry import compiled_loop
 
 __all__ = ["check_system", "fitted_order"]
 
@@ -171,10 +172,6 @@ def _check_project(system: Any, x: np.ndarray, r: np.ndarray, dt: float) -> None
     ok(np.allclose(twice, once, rtol=0, atol=1e-13 * scale), "project is not idempotent")
 
 
-def _compiled_loop(system: Any) -> Any:
-    return getattr(system, "run_steps", None)
-
-
 def _check_compiled(system: Any, x: np.ndarray, t: float, dt: float, n: int) -> None:
     ok = _Part(system, "compiled loop")
     for name in integrate.SCHEMES:
@@ -238,6 +235,6 @@ def check_system(
     _check_params(system, x, t)
     _check_pickle(system, x, t, pickle_limit)
     _check_project(system, x, r, dt)
-    if _compiled_loop(system) is not None:
+    if compiled_loop(system) is not None:
         _check_compiled(system, x, t, dt, 6)
     _check_orders(system, x, t, horizon, counts, order_tolerance)

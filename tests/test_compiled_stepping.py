@@ -3,6 +3,7 @@ rods and vesicles: the same tableaux through the same parts, so the same bits, o
 errors."""
 
 import dataclasses
+import functools
 import math
 import os
 import signal
@@ -16,7 +17,8 @@ from rods import helix_rod
 
 from parastokes import integrate, models
 from parastokes.integrate import SCHEMES, BlowUpError
-from parastokes.stepping import loop
+from parastokes.stepping import loop, registry
+from parastokes.stepping.rod import rod_data
 
 
 def swimmers(**kw):
@@ -81,6 +83,32 @@ def test_a_subclass_with_its_own_rates_is_not_stepped_by_the_parent_loop():
     np.testing.assert_array_equal(moved, plain)
     still = integrate.propagate(base, x0, 0.0, 1e-5, "rk2", 1e-6)
     np.testing.assert_allclose(moved[:, 1] - still[:, 1], 50.0 * 1e-5, rtol=1e-9)
+
+
+@dataclasses.dataclass(frozen=True)
+class RenamedSwimmers(models.RodSystem):
+    """A subclass with the rod's physics unchanged."""
+
+
+class Forwarding:
+    """A wrapper that forwards every attribute to a system (as spatial.TargetBlocks does)."""
+
+    def __init__(self, system):
+        self.system = system
+
+    def __getattr__(self, name):
+        return getattr(self.system, name)
+
+
+def test_the_compiled_loop_is_chosen_by_exact_type_never_inherited():
+    base = swimmers()
+    assert registry.compiled_loop(Forwarding(base)) is None
+    renamed = RenamedSwimmers(**{f.name: getattr(base, f.name) for f in dataclasses.fields(base)})
+    assert renamed.run_steps is None  # not inherited, even with the same physics
+    registry.register(RenamedSwimmers, lambda s: functools.partial(loop.run_steps, s, rod_data))
+    assert RenamedSwimmers in registry.registered()
+    compiled, python = both_loops(renamed, "rk2", base.initial_state(), 0.0, 2e-6, 5)
+    assert_same(compiled, python)
 
 
 @pytest.mark.parametrize("call_seconds", [0.0, 1e-4])

@@ -68,8 +68,16 @@ class InPlaceAdvance(SedimentingCloud):
 class WrongCompiledLoop(SedimentingCloud):
     """A compiled loop that takes one step fewer than asked."""
 
-    def run_steps(self, scheme, x, t0, dt, n, limit, stop_above):
+    def wrong_steps(self, scheme, x, t0, dt, n, limit, stop_above):
         return integrate._python_steps(self, scheme, x, t0, dt, n - 1, limit, stop_above)
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _register_the_wrong_loop():
+    """A compiled loop is registered for an exact type (parastokes.stepping.registry)."""
+    from parastokes.stepping import registry as loops
+
+    loops.register(WrongCompiledLoop, lambda system: system.wrong_steps)
 
 
 @pytest.mark.parametrize(
