@@ -21,9 +21,9 @@ from typing import Any
 
 import numpy as np
 
-from . import mrs
 from .bodies import frames, geometry, rod, vesicle
 from .bodies.rod_transfer import RodTransfer
+from .fluid import MRS, BlockedMRS, TargetBlocks
 from .mrs.velocity import thread_count
 from .stepping import loop, registry
 from .stepping.registry import RunSteps
@@ -44,6 +44,14 @@ def _wave_table(n_half: int, ds: float, wavenumber: float) -> np.ndarray:
     table = rod.wave_table(n_half, ds, wavenumber)
     table.flags.writeable = False
     return table
+
+
+def _fluid(system: Any) -> MRS:
+    """The MRS fluid of a system's μ, wall and threads; blocked with its ``target_blocks``."""
+    wall = bool(getattr(system, "wall", False))
+    if system.target_blocks is None:
+        return MRS(system.viscosity, wall, system.n_threads)
+    return BlockedMRS(system.viscosity, wall, system.n_threads, system.target_blocks)
 
 
 def _replace_params(system: Any, theta: dict[str, float]) -> Any:
@@ -81,6 +89,7 @@ class RodSystem:
     height: float = 10.0
     spacing: float = 5.0
     n_threads: int | None = None
+    target_blocks: TargetBlocks | None = None
 
     def __post_init__(self) -> None:
         for name in ("n_rods", "n_points"):
@@ -149,22 +158,15 @@ class RodSystem:
         n_rods, ds, a, b, table, *wave = self.mechanics
         return rod.rod_loads(state, n_rods, ds, a, b, rod.preferred_strain(table, float(t), *wave))
 
+    @property
+    def fluid(self) -> MRS:
+        """The fluid (μ, wall, threads; by blocks of targets with ``target_blocks``)."""
+        return _fluid(self)
+
     def rates(self, t: float, state: np.ndarray) -> np.ndarray:
         """``[u, w]`` per node (physics.md (13)): velocities from all points of all rods."""
         f, n = self.loads(t, state)
-        x = state[:, :3]
-        u, w = mrs.velocity(
-            x,
-            x,
-            f,
-            epsilon=self.epsilon,
-            mu=self.viscosity,
-            torques=n,
-            wall=self.wall,
-            angular=True,
-            n_threads=self.n_threads,
-            check=False,
-        )
+        u, w = self.fluid.velocity(state[:, :3], f, epsilon=self.epsilon, torques=n, angular=True)
         return np.concatenate([u, w], axis=1)
 
     def advance(self, state: np.ndarray, rates: np.ndarray, dt: float) -> np.ndarray:
@@ -248,6 +250,7 @@ class VesicleSystem:
     stiffness: float
     shear_rate: float
     n_threads: int | None = None
+    target_blocks: TargetBlocks | None = None
 
     def __post_init__(self) -> None:
         geometry.icosphere(self.subdivisions)  # validates subdivisions
@@ -283,17 +286,11 @@ class VesicleSystem:
         """Spring forces on the fluid (physics.md (14))."""
         return vesicle.spring_forces(state, self.edges, self.rest_lengths, self.stiffness)
 
+    fluid = RodSystem.fluid
+
     def rates(self, t: float, state: np.ndarray) -> np.ndarray:
         """u∞(X) + Stokeslet velocities (eq. 6) of the spring forces (physics.md (15))."""
-        u = mrs.velocity(
-            state,
-            state,
-            self.forces(state),
-            epsilon=self.epsilon,
-            mu=self.viscosity,
-            n_threads=self.n_threads,
-            check=False,
-        )
+        u = self.fluid.velocity(state, self.forces(state), epsilon=self.epsilon)
         u[:, 0] += self.shear_rate * state[:, 2]
         return u
 
@@ -324,7 +321,10 @@ class VesicleSystem:
         return abs(area - self.initial_area) / self.initial_area
 
 
-registry.register(RodSystem, lambda system: functools.partial(loop.run_steps, system, rod_data))
 registry.register(
-    VesicleSystem, lambda system: functools.partial(loop.run_steps, system, vesicle_data)
+    RodSystem, lambda system: functools.partial(loop.run_steps, system, rod_data), fluid=MRS
+)
+registry.register(
+    VesicleSystem, lambda system: functools.partial(loop.run_steps, system, vesicle_data),
+    fluid=MRS,
 )

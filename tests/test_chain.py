@@ -200,3 +200,16 @@ def test_chain_parameters_extrapolate_like_any_other():
                        - fine(0.0, 0.1, x0)).max()
     err_extrapolated = np.abs(coarse(0.0, 0.1, x0) - fine(0.0, 0.1, x0)).max()
     assert err_extrapolated < err_plain
+
+
+def test_a_chain_in_a_blocked_fluid_moves_exactly_as_in_the_plain_one():
+    """The fluid is a value: the process-block implementation gives the same bits (Remark 1)."""
+    from parastokes import parallel, spatial
+
+    s = ChainSystem(n_beads=9, stiffness=20.0, bending=2.0, shear_rate=1.0, stretch=1.1,
+                    wall=True, height=2.0, tilt=0.2)
+    x0 = s.initial_state()
+    with parallel.make_executor("serial") as ex:
+        blocked = spatial.fine_solver(s, "rk2", 0.002, executor=ex, n_blocks=3)
+        np.testing.assert_array_equal(blocked(0.0, 0.02, x0),
+                                      integrate.propagate(s, x0, 0.0, 0.02, "rk2", 0.002))

@@ -16,6 +16,7 @@ import pytest
 from rods import helix_rod
 
 from parastokes import integrate, models
+from parastokes.fluid import MRS
 from parastokes.integrate import SCHEMES, BlowUpError
 from parastokes.stepping import loop, registry
 from parastokes.stepping.rod import rod_data
@@ -105,8 +106,9 @@ def test_the_compiled_loop_is_chosen_by_exact_type_never_inherited():
     assert registry.compiled_loop(Forwarding(base)) is None
     renamed = RenamedSwimmers(**{f.name: getattr(base, f.name) for f in dataclasses.fields(base)})
     assert renamed.run_steps is None  # not inherited, even with the same physics
-    registry.register(RenamedSwimmers, lambda s: functools.partial(loop.run_steps, s, rod_data))
-    assert RenamedSwimmers in registry.registered()
+    registry.register(RenamedSwimmers, lambda s: functools.partial(loop.run_steps, s, rod_data),
+                      fluid=MRS)
+    assert (RenamedSwimmers, MRS) in registry.registered()
     compiled, python = both_loops(renamed, "rk2", base.initial_state(), 0.0, 2e-6, 5)
     assert_same(compiled, python)
 

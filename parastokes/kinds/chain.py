@@ -26,8 +26,8 @@ import numpy as np
 from numba import njit
 from pydantic import Field
 
-from .. import mrs
 from ..bodies.registry import BodyKind, BodyLayout, BodyResolution, BodySection, Positive
+from ..fluid import MRS, BlockedMRS, TargetBlocks
 from ..mrs.velocity import thread_count
 
 __all__ = ["KIND", "ChainModel", "ChainSystem", "chain_energy", "chain_forces"]
@@ -98,6 +98,7 @@ class ChainSystem:
     stretch: float = 1.0
     tilt: float = 0.0
     n_threads: int | None = None
+    target_blocks: TargetBlocks | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.n_beads, int) or self.n_beads < 2:
@@ -125,10 +126,17 @@ class ChainSystem:
         f = chain_forces(state, self.bond, self.stiffness, self.bending)
         return f + np.asarray(self.load, dtype=float)
 
+    @property
+    def fluid(self) -> MRS:
+        """The MRS fluid of μ, the wall and the threads (by blocks of targets with
+        ``target_blocks``, :func:`parastokes.spatial.fine_solver`)."""
+        if self.target_blocks is None:
+            return MRS(self.viscosity, self.wall, self.n_threads)
+        return BlockedMRS(self.viscosity, self.wall, self.n_threads, self.target_blocks)
+
     def rates(self, t: float, state: np.ndarray) -> np.ndarray:
         """u∞ + regularized Stokeslet velocities of the bead forces (eq. 6)."""
-        u = mrs.velocity(state, state, self.forces(state), epsilon=self.epsilon,
-                         mu=self.viscosity, wall=self.wall, n_threads=self.n_threads, check=False)
+        u = self.fluid.velocity(state, self.forces(state), epsilon=self.epsilon)
         u[:, 0] += self.shear_rate * state[:, 2]
         return u
 
