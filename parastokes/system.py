@@ -30,7 +30,7 @@ from .stepping.registry import RunSteps
 from .stepping.rod import rod_data
 from .stepping.vesicle import vesicle_data
 
-__all__ = ["RodSystem", "VesicleSystem"]
+__all__ = ["FluidBody", "PointsInShear", "RodSystem", "VesicleSystem", "replace_params"]
 
 
 def _require_positive(**values: float) -> None:
@@ -46,15 +46,43 @@ def _wave_table(n_half: int, ds: float, wavenumber: float) -> np.ndarray:
     return table
 
 
-def _fluid(system: Any) -> MRS:
-    """The MRS fluid of a system's μ, wall and threads; blocked with its ``target_blocks``."""
-    wall = bool(getattr(system, "wall", False))
-    if system.target_blocks is None:
-        return MRS(system.viscosity, wall, system.n_threads)
-    return BlockedMRS(system.viscosity, wall, system.n_threads, system.target_blocks)
+class FluidBody:
+    """A body whose point loads act on the MRS fluid of its ``viscosity``, ``wall`` (if it has
+    one), ``n_threads`` and ``target_blocks`` (:mod:`parastokes.fluid`)."""
+
+    @property
+    def fluid(self) -> MRS:
+        """:class:`~parastokes.fluid.MRS`, or :class:`~parastokes.fluid.BlockedMRS` with
+        ``target_blocks`` (the spatially parallel fine solver of Remark 1)."""
+        wall = bool(getattr(self, "wall", False))
+        if self.target_blocks is None:
+            return MRS(self.viscosity, wall, self.n_threads)
+        return BlockedMRS(self.viscosity, wall, self.n_threads, self.target_blocks)
 
 
-def _replace_params(system: Any, theta: dict[str, float]) -> Any:
+class PointsInShear(FluidBody):
+    """Points that move with the fluid under the forces ``forces(state)`` they exert (no frames,
+    no torques), in the background shear u∞ = (γ̇ z, 0, 0), γ̇ = ``shear_rate`` (physics.md (15)).
+    The state is the positions, ``project`` the identity."""
+
+    def rates(self, t: float, state: np.ndarray) -> np.ndarray:
+        """u∞(X) + Stokeslet velocities (eq. 6) of the forces."""
+        u = self.fluid.velocity(state, self.forces(state), epsilon=self.epsilon)
+        u[:, 0] += self.shear_rate * state[:, 2]
+        return u
+
+    def advance(self, state: np.ndarray, rates: np.ndarray, dt: float) -> np.ndarray:
+        return state + dt * rates
+
+    def project(self, state: np.ndarray) -> np.ndarray:
+        """The identity (no frames); returns ``state`` itself."""
+        return state
+
+    def positions(self, state: np.ndarray) -> np.ndarray:
+        return np.array(state)
+
+
+def replace_params(system: Any, theta: dict[str, float]) -> Any:
     """``dataclasses.replace`` restricted to the names of ``system.params``."""
     unknown = sorted(set(theta) - set(system.params))
     if unknown:
@@ -65,7 +93,7 @@ def _replace_params(system: Any, theta: dict[str, float]) -> Any:
 
 
 @dataclass(frozen=True)
-class RodSystem:
+class RodSystem(FluidBody):
     """``n_rods`` Kirchhoff rods of ``n_points`` nodes each, interacting through the fluid.
 
     Rods start straight along x (geometry.straight_rods), side by side in y, at ``height`` above the
@@ -158,11 +186,6 @@ class RodSystem:
         n_rods, ds, a, b, table, *wave = self.mechanics
         return rod.rod_loads(state, n_rods, ds, a, b, rod.preferred_strain(table, float(t), *wave))
 
-    @property
-    def fluid(self) -> MRS:
-        """The fluid (μ, wall, threads; by blocks of targets with ``target_blocks``)."""
-        return _fluid(self)
-
     def rates(self, t: float, state: np.ndarray) -> np.ndarray:
         """``[u, w]`` per node (physics.md (13)): velocities from all points of all rods."""
         f, n = self.loads(t, state)
@@ -197,7 +220,7 @@ class RodSystem:
 
     def with_params(self, **theta: float) -> RodSystem:
         """A copy with some of ``epsilon``, ``viscosity``, ``bending`` (= a1 = a2 = a3) changed."""
-        return _replace_params(self, theta)
+        return replace_params(self, theta)
 
     @property
     def monitor_limit(self) -> float:
@@ -237,7 +260,7 @@ def _spring_network(subdivisions: int) -> tuple[np.ndarray, np.ndarray, float]:
 
 
 @dataclass(frozen=True)
-class VesicleSystem:
+class VesicleSystem(PointsInShear):
     """Unit icosphere (``subdivisions`` levels) with springs on its edges in a shear flow.
 
     Rest lengths are the initial edge lengths; ε is absolute (the paper quotes ε = 0.3 l_max, see
@@ -279,27 +302,9 @@ class VesicleSystem:
     def initial_state(self) -> np.ndarray:
         return np.array(self.mesh[0])
 
-    def positions(self, state: np.ndarray) -> np.ndarray:
-        return np.array(state)
-
     def forces(self, state: np.ndarray) -> np.ndarray:
         """Spring forces on the fluid (physics.md (14))."""
         return vesicle.spring_forces(state, self.edges, self.rest_lengths, self.stiffness)
-
-    fluid = RodSystem.fluid
-
-    def rates(self, t: float, state: np.ndarray) -> np.ndarray:
-        """u∞(X) + Stokeslet velocities (eq. 6) of the spring forces (physics.md (15))."""
-        u = self.fluid.velocity(state, self.forces(state), epsilon=self.epsilon)
-        u[:, 0] += self.shear_rate * state[:, 2]
-        return u
-
-    def advance(self, state: np.ndarray, rates: np.ndarray, dt: float) -> np.ndarray:
-        return state + dt * rates
-
-    def project(self, state: np.ndarray) -> np.ndarray:
-        """The identity (no frames); returns ``state`` itself."""
-        return state
 
     run_steps = RodSystem.run_steps
 
@@ -309,7 +314,7 @@ class VesicleSystem:
 
     def with_params(self, **theta: float) -> VesicleSystem:
         """A copy with some of ``epsilon``, ``viscosity``, ``stiffness`` (κ) changed."""
-        return _replace_params(self, theta)
+        return replace_params(self, theta)
 
     @property
     def monitor_limit(self) -> float:

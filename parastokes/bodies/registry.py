@@ -40,9 +40,11 @@ __all__ = [
     "Positive",
     "UnknownKindError",
     "derived_kind",
+    "draw_over_time",
     "get",
     "kinds",
     "point_layout",
+    "polyline",
 ]
 
 #: The package's own kinds: name -> ``"module:attribute"`` of their :class:`BodyKind`.
@@ -127,6 +129,30 @@ def point_layout(name: str, kind: str, first: int, rows: int) -> BodyLayout:
     """The layout of ``rows`` unconnected points (XDMF Polyvertex, one cell per point)."""
     cells = np.arange(rows, dtype=np.int64).reshape(-1, 1)
     return BodyLayout(name, kind, first, rows, "Polyvertex", cells)
+
+
+def polyline(n: int) -> np.ndarray:
+    """The n - 1 segments (i, i + 1) of a line through n points, (n - 1, 2) int64."""
+    return np.stack([np.arange(n - 1), np.arange(1, n)], axis=1).astype(np.int64)
+
+
+def draw_over_time(fig: Any, bodies: Mapping[str, Mapping[str, np.ndarray]], times: np.ndarray,
+                   plane: tuple[int, int], title: str, **style: Any) -> None:
+    """Every frame of every body as a line in ``plane`` (axis indices), coloured by time."""
+    from matplotlib import colormaps
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import Normalize
+
+    ax = fig.subplots()
+    colors = colormaps["viridis"](np.linspace(0, 1, len(times)))
+    for body in bodies.values():
+        for color, frame in zip(colors, body["positions"], strict=True):
+            ax.plot(frame[:, plane[0]], frame[:, plane[1]], color=color, **style)
+    mappable = ScalarMappable(cmap="viridis", norm=Normalize(times[0], times[-1]))
+    fig.colorbar(mappable, ax=ax, label="t (s)")
+    ax.set_xlabel(f"{'xyz'[plane[0]]} (μm)")
+    ax.set_ylabel(f"{'xyz'[plane[1]]} (μm)")
+    ax.set_title(title)
 
 
 #: ``draw(fig, bodies, times, run)``: draw the frames of this kind's ``bodies`` (name -> dict with

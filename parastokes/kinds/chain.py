@@ -16,7 +16,6 @@ the background shear u∞ = (γ̇ z, 0, 0) as for the vesicle (physics.md (15)).
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -26,9 +25,18 @@ import numpy as np
 from numba import njit
 from pydantic import Field
 
-from ..bodies.registry import BodyKind, BodyLayout, BodyResolution, BodySection, Positive
-from ..fluid import MRS, BlockedMRS, TargetBlocks
+from ..bodies.registry import (
+    BodyKind,
+    BodyLayout,
+    BodyResolution,
+    BodySection,
+    Positive,
+    draw_over_time,
+    polyline,
+)
+from ..fluid import TargetBlocks
 from ..mrs.velocity import thread_count
+from ..system import PointsInShear, replace_params
 
 __all__ = ["KIND", "ChainModel", "ChainSystem", "chain_energy", "chain_forces"]
 
@@ -79,7 +87,7 @@ def _positive(**values: float) -> None:
 
 
 @dataclass(frozen=True)
-class ChainSystem:
+class ChainSystem(PointsInShear):
     """A chain of ``n_beads`` beads, initially straight with bonds ``stretch`` · ``bond`` along
     (cos tilt, 0, sin tilt), centred at (0, 0, ``height``); springs ``stiffness`` k, bending
     ``bending`` κ, regularization ``epsilon`` (absolute), viscosity μ, shear rate γ̇, a uniform
@@ -118,34 +126,10 @@ class ChainSystem:
         direction = np.array([math.cos(self.tilt), 0.0, math.sin(self.tilt)])
         return s[:, None] * direction + np.array([0.0, 0.0, self.height])
 
-    def positions(self, state: np.ndarray) -> np.ndarray:
-        return np.array(state)
-
     def forces(self, state: np.ndarray) -> np.ndarray:
         """Elastic forces plus the external load, on the fluid (N, 3)."""
         f = chain_forces(state, self.bond, self.stiffness, self.bending)
         return f + np.asarray(self.load, dtype=float)
-
-    @property
-    def fluid(self) -> MRS:
-        """The MRS fluid of μ, the wall and the threads (by blocks of targets with
-        ``target_blocks``, :func:`parastokes.spatial.fine_solver`)."""
-        if self.target_blocks is None:
-            return MRS(self.viscosity, self.wall, self.n_threads)
-        return BlockedMRS(self.viscosity, self.wall, self.n_threads, self.target_blocks)
-
-    def rates(self, t: float, state: np.ndarray) -> np.ndarray:
-        """u∞ + regularized Stokeslet velocities of the bead forces (eq. 6)."""
-        u = self.fluid.velocity(state, self.forces(state), epsilon=self.epsilon)
-        u[:, 0] += self.shear_rate * state[:, 2]
-        return u
-
-    def advance(self, state: np.ndarray, rates: np.ndarray, dt: float) -> np.ndarray:
-        return state + dt * rates
-
-    def project(self, state: np.ndarray) -> np.ndarray:
-        """The identity (positions only)."""
-        return state
 
     @property
     def params(self) -> dict[str, float]:
@@ -154,12 +138,7 @@ class ChainSystem:
 
     def with_params(self, **theta: float) -> ChainSystem:
         """A copy with some of ``epsilon``, ``viscosity``, ``stiffness`` (k), ``bending`` (κ)."""
-        unknown = sorted(set(theta) - set(self.params))
-        if unknown:
-            raise ValueError(
-                f"with_params: unknown parameter(s) {unknown}; allowed: {sorted(self.params)}"
-            )
-        return dataclasses.replace(self, **{k: float(v) for k, v in theta.items()})
+        return replace_params(self, theta)
 
     @property
     def monitor_limit(self) -> float:
@@ -215,29 +194,16 @@ def layout(section: ChainModel, system: ChainSystem, frames: bool,
            tracked: Sequence[int] | None) -> list[BodyLayout]:
     """One Polyline through the beads."""
     n = system.n_beads
-    bonds = np.stack([np.arange(n - 1), np.arange(1, n)], axis=1).astype(np.int64)
-    return [BodyLayout("chain_0", "chain", 0, n, "Polyline", bonds)]
+    return [BodyLayout("chain_0", "chain", 0, n, "Polyline", polyline(n))]
 
 
 def draw(fig: Any, bodies: Mapping[str, Mapping[str, np.ndarray]], times: np.ndarray,
          run: str) -> None:
     """Every frame of every chain in the x-z plane (the plane of the shear flow), by time."""
-    from matplotlib import colormaps
-    from matplotlib.cm import ScalarMappable
-    from matplotlib.colors import Normalize
-
     fig.set_size_inches(6, 4.5)
-    ax = fig.subplots()
-    colors = colormaps["viridis"](np.linspace(0, 1, len(times)))
-    for body in bodies.values():
-        for color, frame in zip(colors, body["positions"], strict=True):
-            ax.plot(frame[:, 0], frame[:, 2], "-o", color=color, lw=1, ms=2)
-    fig.colorbar(ScalarMappable(cmap="viridis", norm=Normalize(times[0], times[-1])), ax=ax,
-                 label="t (s)")
-    ax.set_xlabel("x (μm)")
-    ax.set_ylabel("z (μm)")
-    ax.set_aspect("equal", adjustable="datalim")
-    ax.set_title(f"chains in the x-z plane ({run})")
+    draw_over_time(fig, bodies, times, (0, 2), f"chains in the x-z plane ({run})", marker="o",
+                   lw=1, ms=2)
+    fig.axes[0].set_aspect("equal", adjustable="datalim")
 
 
 def example() -> tuple[ChainSystem, np.ndarray, float | None]:

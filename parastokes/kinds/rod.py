@@ -15,7 +15,15 @@ import numpy as np
 from pydantic import Field
 
 from .. import models
-from ..bodies.registry import BodyKind, BodyLayout, BodyResolution, BodySection, Positive
+from ..bodies.registry import (
+    BodyKind,
+    BodyLayout,
+    BodyResolution,
+    BodySection,
+    Positive,
+    draw_over_time,
+    polyline,
+)
 from ..system import RodSystem
 
 __all__ = ["KIND", "RodModel"]
@@ -100,7 +108,7 @@ def layout(
 ) -> list[BodyLayout]:
     """One Polyline per rod; the frames D1, D2, D3 (state columns 3-11) when ``frames``."""
     m = section.n_points
-    segments = np.stack([np.arange(m - 1), np.arange(1, m)], axis=1).astype(np.int64)
+    segments = polyline(m)
     vectors = {f"D{i + 1}": slice(3 + 3 * i, 6 + 3 * i) for i in range(3)} if frames else {}
     return [
         BodyLayout(f"rod_{i}", "rod", i * m, m, "Polyline", segments, vectors)
@@ -111,21 +119,9 @@ def layout(
 def draw(fig: Any, bodies: Mapping[str, Mapping[str, np.ndarray]], times: np.ndarray,
          run: str) -> None:
     """Every frame of every rod in the x-y plane, coloured by time."""
-    from matplotlib import colormaps
-    from matplotlib.cm import ScalarMappable
-    from matplotlib.colors import Normalize
-
     fig.set_size_inches(7, 3.5)
-    ax = fig.subplots()
-    colors = colormaps["viridis"](np.linspace(0, 1, len(times)))
-    for body in bodies.values():
-        for color, frame in zip(colors, body["positions"], strict=True):
-            ax.plot(frame[:, 0], frame[:, 1], color=color, lw=1)
-    mappable = ScalarMappable(cmap="viridis", norm=Normalize(times[0], times[-1]))
-    fig.colorbar(mappable, ax=ax, label="t (s)")
-    ax.set_xlabel("x (μm)")
-    ax.set_ylabel("y (μm)")
-    ax.set_title(f"rods in the x-y plane ({run}; y exaggerated)")
+    draw_over_time(fig, bodies, times, (0, 1), f"rods in the x-y plane ({run}; y exaggerated)",
+                   lw=1)
 
 
 def example() -> tuple[RodSystem, np.ndarray, float | None]:
