@@ -17,7 +17,7 @@ import functools
 import math
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -64,6 +64,18 @@ class PointsInShear(FluidBody):
     """Points that move with the fluid under the forces ``forces(state)`` they exert (no frames,
     no torques), in the background shear u∞ = (γ̇ z, 0, 0), γ̇ = ``shear_rate`` (physics.md (15)).
     The state is the positions, ``project`` the identity."""
+
+    #: Rates are velocities only (no angular part); for :class:`parastokes.scene.Scene`.
+    angular: ClassVar[bool] = False
+
+    def loads(self, t: float, state: np.ndarray) -> tuple[np.ndarray, None]:
+        """The point forces on the fluid, no torques."""
+        return self.forces(state), None
+
+    @staticmethod
+    def body_rates(u: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """The rates from the fluid velocity at the points (background included): ``u``."""
+        return u
 
     def rates(self, t: float, state: np.ndarray) -> np.ndarray:
         """u∞(X) + Stokeslet velocities (eq. 6) of the forces."""
@@ -186,11 +198,19 @@ class RodSystem(FluidBody):
         n_rods, ds, a, b, table, *wave = self.mechanics
         return rod.rod_loads(state, n_rods, ds, a, b, rod.preferred_strain(table, float(t), *wave))
 
+    #: Rates carry angular velocities (for :class:`parastokes.scene.Scene`).
+    angular: ClassVar[bool] = True
+
+    @staticmethod
+    def body_rates(u: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """``[u, w]`` per node from the fluid's linear and angular velocity at the nodes."""
+        return np.concatenate([u, w], axis=1)
+
     def rates(self, t: float, state: np.ndarray) -> np.ndarray:
         """``[u, w]`` per node (physics.md (13)): velocities from all points of all rods."""
         f, n = self.loads(t, state)
         u, w = self.fluid.velocity(state[:, :3], f, epsilon=self.epsilon, torques=n, angular=True)
-        return np.concatenate([u, w], axis=1)
+        return self.body_rates(u, w)
 
     def advance(self, state: np.ndarray, rates: np.ndarray, dt: float) -> np.ndarray:
         """X + dt u; frames rotated by |w| dt about w (Rodrigues, eq. 13)."""

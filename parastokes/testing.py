@@ -11,8 +11,8 @@
   new array of the state's shape, leaves its inputs alone, and ``advance(x, r, 0)`` is ``x``;
 - ``monitor``: ``monitor(x)`` is a finite number >= 0 below the blow-up bound of
   ``integrate.run`` (``BLOWUP_FACTOR * monitor_limit``);
-- ``with_params``: each parameter of ``params`` changes alone (to the value asked; for a dataclass,
-  no other field changes) and changes the rates, the original is unchanged, an unknown name is a
+- ``with_params``: each parameter of ``params`` changes alone (to the value asked; for a dataclass
+  whose parameters are its fields, no other field changes) and changes the rates, the original is unchanged, an unknown name is a
   ``ValueError``;
 - ``pickle``: the system pickles small and its copy gives the same rates, bit for bit;
 - ``project``: ``project`` is idempotent and leaves a valid state (nearly) unchanged;
@@ -127,6 +127,8 @@ def _check_params(system: Any, x: np.ndarray, t: float) -> None:
        f"params must map names to numbers, got {params!r}")
     before = pickle.dumps(system)
     fields = dataclasses.fields(system) if dataclasses.is_dataclass(system) else ()
+    if not set(params) <= {f.name for f in fields}:
+        fields = ()  # a composite (a scene): its parameters are not its own fields
     for name, value in params.items():
         new_value = float(value) * 1.125
         other = system.with_params(**{name: new_value})
