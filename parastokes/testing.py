@@ -12,8 +12,8 @@
 - ``monitor``: ``monitor(x)`` is a finite number >= 0 below the blow-up bound of
   ``integrate.run`` (``BLOWUP_FACTOR * monitor_limit``);
 - ``with_params``: each parameter of ``params`` changes alone (to the value asked; for a dataclass
-  whose parameters are its fields, no other field changes) and changes the rates, the original is unchanged, an unknown name is a
-  ``ValueError``;
+  whose parameters are its fields, no other field changes) and changes the rates, the original
+  is unchanged, an unknown name is a ``ValueError``;
 - ``pickle``: the system pickles small and its copy gives the same rates, bit for bit;
 - ``project``: ``project`` is idempotent and leaves a valid state (nearly) unchanged;
 - ``compiled loop``: where ``integrate.run`` has a compiled loop for the system, it gives the

@@ -45,6 +45,7 @@ __all__ = [
 
 logger = logging.getLogger(__name__)
 
+
 @dataclass(frozen=True)
 class IterationReport:
     """What :func:`run` passes to ``on_iteration`` after iteration k.
