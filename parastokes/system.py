@@ -294,6 +294,7 @@ class VesicleSystem(PointsInShear):
     shear_rate: float
     n_threads: int | None = None
     target_blocks: TargetBlocks | None = None
+    center: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
         geometry.icosphere(self.subdivisions)  # validates subdivisions
@@ -320,7 +321,8 @@ class VesicleSystem(PointsInShear):
         return _spring_network(self.subdivisions)[2]
 
     def initial_state(self) -> np.ndarray:
-        return np.array(self.mesh[0])
+        """The icosphere's vertices around ``center``."""
+        return self.mesh[0] + np.asarray(self.center, dtype=float)
 
     def forces(self, state: np.ndarray) -> np.ndarray:
         """Spring forces on the fluid (physics.md (14))."""

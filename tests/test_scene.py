@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -91,3 +93,19 @@ def test_bad_scenes_are_named():
         Scene((swimmer(),), viscosity=1.0, wall=True)
     with pytest.raises(ValueError, match="unknown parameter"):
         Scene((swimmer(),), viscosity=1e-6, wall=True).with_params(epsilon=2.0)
+
+
+def test_a_swimmer_beside_a_vesicle_above_the_wall_keeps_the_contract():
+    """The issue's scene in miniature: a beating rod (forces, torques, frames) and a vesicle
+    (forces only) above the wall, coupled through the wall's image systems."""
+    rod = models.rod_swimmer(1, 31, 1.0, length=6.0, wavelength=3.0, viscosity=1e-3, height=3.0)
+    vesicle = dataclasses.replace(models.vesicle(subdivisions=1, shear_rate=0.0, viscosity=1e-3),
+                                  center=(3.0, 2.5, 3.0))
+    scene = Scene((rod, vesicle), viscosity=1e-3, wall=True)
+    x = scene.initial_state()
+    np.testing.assert_allclose(x[31:, :3].mean(axis=0), [3.0, 2.5, 3.0], atol=1e-14)
+    x[31:, :3] = (x[31:, :3] - [3.0, 2.5, 3.0]) * [1.02, 1.0, 1 / 1.02] + [3.0, 2.5, 3.0]
+    check_system(scene, x, horizon=2e-3)
+    # the vesicle feels the rod: its rates differ from its rates alone
+    alone = vesicle.rates(0.0, x[31:, :3])
+    assert np.abs(scene.rates(0.0, x)[31:, :3] - alone).max() > 1e-3 * np.abs(alone).max()

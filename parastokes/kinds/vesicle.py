@@ -7,8 +7,9 @@ projection at the first and the last frame, tracked points marked).
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping, Sequence
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 import numpy as np
 from pydantic import Field
@@ -37,6 +38,10 @@ class VesicleModel(BodySection):
     stiffness: Positive = Field(0.1, description="Spring constant κ⁰ (g s⁻²).")
     viscosity: Positive = Field(1e-3, description="Fluid viscosity μ⁰ (g μm⁻¹ s⁻¹).")
     shear_rate: float = Field(0.1, allow_inf_nan=False, description="Shear rate γ̇ of u∞ (1/s).")
+    center: list[Annotated[float, Field(allow_inf_nan=False)]] = Field(
+        [0.0, 0.0, 0.0], min_length=3, max_length=3,
+        description="Initial centre of the sphere [x, y, z] (μm).",
+    )
 
     def resolve(self) -> BodyResolution:
         verts, tris = geometry.icosphere(self.subdivisions)
@@ -53,12 +58,13 @@ class VesicleModel(BodySection):
             shear_rate=self.shear_rate,
             n_threads=threads,
         )
+        system = dataclasses.replace(system, center=tuple(self.center))
         return system.with_params(epsilon=self.resolve().theta0["epsilon"])
 
 
 def default_tracked(system: VesicleSystem) -> list[int]:
     """Three points on the x-z circle (top, front, lower back) as in Fig. 11."""
-    x0 = system.initial_state()
+    x0 = system.initial_state() - np.asarray(system.center)
     targets = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [-0.6, 0.0, -0.8]])
     return [int(np.argmin(np.linalg.norm(x0 - t, axis=1))) for t in targets]
 
