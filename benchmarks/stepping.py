@@ -72,7 +72,7 @@ def kernel_call(system, t, x):
     targets, sources = np.empty((3, 1, starts[-1])), np.empty((1, n, 3))
     loop.pack_points(x, targets, sources)
     u, w = np.empty((1, n, 3)), np.empty((1, n, 3))
-    if hasattr(system, "loads"):
+    if system.angular:  # rods: forces and torques, the full kernel
         f, torques = system.loads(t, x)
         args = (targets, sources, f[None], torques[None], eps, system.wall, False, denom, starts,
                 u, w)
@@ -86,7 +86,7 @@ def kernel_call(system, t, x):
             kernel(*args)
 
     call()  # what mrs.velocity returns for these inputs
-    return call, ((u[0].copy(), w[0].copy()) if hasattr(system, "loads") else u[0].copy())
+    return call, ((u[0].copy(), w[0].copy()) if system.angular else u[0].copy())
 
 
 def best_time(fn, n):

@@ -18,6 +18,7 @@ from pydantic_core import PydanticUndefined
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from parastokes.bodies import registry  # noqa: E402
 from parastokes.config import schema  # noqa: E402
 
 HEADER = """\
@@ -110,8 +111,7 @@ def render() -> str:
     """The text of docs/config.md."""
     sections = [
         ("(top level)", schema.Config),
-        ('model (kind = "rod")', schema.RodModel),
-        ('model (kind = "vesicle")', schema.VesicleModel),
+        *((f'model (kind = "{name}")', registry.get(name).section) for name in registry.BUILTIN),
         ("time", schema.Time),
         ("fine", schema.Fine),
         ("coarse", schema.Coarse),

@@ -28,9 +28,10 @@ RKMK step. Projecting the input makes a propagator safe on states that come stra
 combination (Parareal's correction, extrapolation); for orthonormal input it changes nothing beyond
 round-off.
 
-A system may also offer the whole loop of steps in compiled code, ``run_steps`` (rods and
-vesicles: :mod:`parastokes.stepping`): the same tableau, the same parts, the same checks, without
-a Python call per stage. :func:`run` uses it when present; ``run(..., compiled=False)`` does not.
+A system type may also have the whole loop of steps in compiled code, registered for its exact
+type in :mod:`parastokes.stepping.registry` (rods and vesicles): the same tableau, the same parts,
+the same checks, without a Python call per stage. :func:`run` uses it when present;
+``run(..., compiled=False)`` does not.
 
 Blow-up is an error: after every step the state must be finite and ``system.monitor`` must stay
 below ``blowup_factor * system.monitor_limit``; otherwise :class:`BlowUpError` names the time, the
@@ -46,6 +47,8 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+
+from .stepping.registry import compiled_loop
 
 __all__ = [
     "SCHEMES",
@@ -253,12 +256,13 @@ def _stepping(
 ) -> RunResult:
     """Take ``n`` steps of size ``dt``; stop early (``completed=False``) if monitor > stop_above.
 
-    The steps run in ``system.run_steps`` when the system has it and ``compiled`` (rods:
-    :mod:`parastokes.stepping`), else in :func:`_python_steps`; both return the same.
+    The steps run in the compiled loop registered for the exact type of ``system`` when there is
+    one and ``compiled`` (:mod:`parastokes.stepping.registry`: rods, vesicles), else in
+    :func:`_python_steps`; both return the same.
     """
     limit = blowup_factor * system.monitor_limit
     x = system.project(x)
-    loop = getattr(system, "run_steps", None) if compiled else None
+    loop = compiled_loop(system) if compiled else None
     if loop is None:
         loop = functools.partial(_python_steps, system)
     steps = loop(scheme, x, t0, dt, n, limit, math.inf if stop_above is None else stop_above)

@@ -4,11 +4,13 @@
 
 - ``/<run>/time``: the frame times, shape (F,);
 - ``/<run>/<body>/positions``: one extendible dataset per body, shape (F, M, 3), appended frame by
-  frame (a serial run writes as it goes); rods also ``D1``, ``D2``, ``D3`` (F, M, 3), the frames;
+  frame (a serial run writes as it goes), and the body's node vectors, e.g. a rod's frames ``D1``,
+  ``D2``, ``D3`` (F, M, 3);
 
 and once per file:
 
-- ``/bodies/<body>/connectivity``: rods: the M - 1 segments (M - 1, 2); vesicles: the triangles;
+- ``/bodies/<body>/connectivity``: the cells of its topology (rods: the M - 1 segments; vesicles:
+  the triangles), attributes ``kind``, ``topology`` and ``n_points``; its static marks, e.g.
   ``/bodies/<body>/tracked`` (vesicles): the tracked points of Fig. 11 as a 0/1 mask;
 - ``/parareal_history``: per iteration k = 1..K the relative increment η̃^k and true error η^k
   (eq. 34; NaN without a serial reference), the final positions X^k at T_N, the wall time elapsed
@@ -17,7 +19,9 @@ and once per file:
   attribute under its key path (``model.epsilon``, ``resolved.coarse_dt``, ...).
 
 ``trajectory.xdmf`` describes the same data for ParaView/VisIt (XDMF 3): one temporal collection per
-run, a Polyline per rod and a Triangle mesh per vesicle, with the frames as node vectors.
+run, one grid per body with the topology of its layout (a Polyline per rod, a Triangle mesh per
+vesicle), with the node vectors as attributes. The layout of every body comes from its kind
+(:class:`parastokes.bodies.registry.BodyLayout`); this module knows no kind.
 """
 
 from __future__ import annotations
@@ -33,6 +37,8 @@ from typing import Any
 
 import h5py
 import numpy as np
+
+from .bodies.registry import BodyLayout
 
 __all__ = [
     "HistoryRecord",
@@ -122,60 +128,44 @@ def _flat_attributes(prefix: str, value: Any, out: dict[str, Any]) -> None:
         out[prefix] = value
 
 
-def _bodies(kind: str, n_bodies: int, n_points: int) -> list[tuple[str, int, int]]:
-    """``(name, first row, rows)`` of every body in the state."""
-    return [(f"{kind}_{i}", i * n_points, n_points) for i in range(n_bodies)]
-
-
 class TrajectoryWriter:
     """Writes ``trajectory.h5``: frames of one or more runs, the history, all parameters.
 
-    ``kind`` is ``"rod"`` or ``"vesicle"``; a rod state (n_rods M, 12) is split into ``n_bodies``
-    rods of M nodes, a vesicle state (N, 3) is one body. ``triangles`` is the vesicle mesh.
-    Datasets are created on first use and extended frame by frame; the file is flushed after
-    every frame, so an interrupted run leaves a readable file.
+    ``layout`` gives every body of the state: its rows, node vectors, topology and marks (from its
+    kind, :mod:`parastokes.bodies.registry`). Datasets are created on first use and extended frame
+    by frame; the file is flushed after every frame, so an interrupted run leaves a readable file.
     """
 
     def __init__(
         self,
         path: str | os.PathLike,
+        layout: Sequence[BodyLayout],
         *,
-        kind: str,
-        n_bodies: int,
-        n_points: int,
         config: Mapping[str, Any],
-        frames: bool = True,
-        triangles: np.ndarray | None = None,
-        tracked: Sequence[int] = (),
     ) -> None:
-        if kind not in ("rod", "vesicle"):
-            raise ValueError(f"kind must be 'rod' or 'vesicle', got {kind!r}")
+        if not layout:
+            raise ValueError("layout: need at least one body")
         self.path = Path(path)
-        self.kind = kind
-        self.bodies = _bodies(kind, n_bodies, n_points)
-        self.frames = frames and kind == "rod"
+        self.layout = list(layout)
+        kinds = sorted({body.kind for body in self.layout})
         self.file = h5py.File(self.path, "w")
         attrs = self.file.attrs
         attrs["format"] = FORMAT
         attrs["version"] = VERSION
-        attrs["kind"] = kind
+        attrs["kind"] = kinds[0] if len(kinds) == 1 else "scene"
         attrs["config"] = json.dumps(_plain(config))
         flat: dict[str, Any] = {}
         _flat_attributes("", config, flat)
         for key, value in flat.items():
             attrs[key] = value
-        for name, _, rows in self.bodies:
-            group = self.file.create_group(f"bodies/{name}")
-            group.attrs["kind"] = kind
-            group.attrs["n_points"] = rows
-            if kind == "rod":
-                segments = np.stack([np.arange(rows - 1), np.arange(1, rows)], axis=1)
-                group.create_dataset("connectivity", data=segments.astype(np.int64))
-            else:
-                group.create_dataset("connectivity", data=np.asarray(triangles, dtype=np.int64))
-                mask = np.zeros(rows, dtype=np.int32)
-                mask[list(tracked)] = 1
-                group.create_dataset("tracked", data=mask)
+        for body in self.layout:
+            group = self.file.create_group(f"bodies/{body.name}")
+            group.attrs["kind"] = body.kind
+            group.attrs["topology"] = body.topology
+            group.attrs["n_points"] = body.rows
+            group.create_dataset("connectivity", data=np.asarray(body.cells, dtype=np.int64))
+            for name, mark in body.marks.items():
+                group.create_dataset(name, data=np.asarray(mark))
 
     def __enter__(self) -> TrajectoryWriter:
         return self
@@ -207,14 +197,12 @@ class TrajectoryWriter:
         state = np.asarray(state, dtype=float)
         group = self.file.require_group(run)
         self._extend(group, "time", np.asarray(float(t)))
-        for name, first, rows in self.bodies:
-            body = group.require_group(name)
-            part = state[first : first + rows]
+        for layout in self.layout:
+            body = group.require_group(layout.name)
+            part = state[layout.first : layout.first + layout.rows]
             self._extend(body, "positions", np.ascontiguousarray(part[:, :3]))
-            if self.frames:
-                for i, label in enumerate(("D1", "D2", "D3")):
-                    columns = slice(3 + 3 * i, 6 + 3 * i)
-                    self._extend(body, label, np.ascontiguousarray(part[:, columns]))
+            for label, columns in layout.vectors.items():
+                self._extend(body, label, np.ascontiguousarray(part[:, columns]))
         self.file.flush()
 
     def write_history(self, history: HistoryRecord) -> None:
@@ -268,7 +256,8 @@ def read_history(path: str | os.PathLike) -> dict[str, Any] | None:
 
 def read_trajectory(path: str | os.PathLike, run: str | None = None) -> dict[str, Any]:
     """Frames of one run of a ``trajectory.h5``: ``{"run", "kind", "time", "bodies": {name:
-    {"positions", "connectivity", ["tracked"], ["D1", "D2", "D3"]}}, "config"}``.
+    {"kind", "positions", "connectivity", marks ("tracked"), node vectors ("D1"...)}},
+    "config"}``.
 
     ``run`` defaults to ``"parareal"`` when present, else ``"serial"``.
     """
@@ -285,6 +274,7 @@ def read_trajectory(path: str | os.PathLike, run: str | None = None) -> dict[str
         for name, static in f["bodies"].items():
             body = {key: value[()] for key, value in f[run][name].items()}
             body.update({key: value[()] for key, value in static.items()})
+            body["kind"] = str(static.attrs.get("kind", f.attrs["kind"]))
             bodies[name] = body
         return {
             "run": run,
@@ -358,25 +348,23 @@ def _body_grid(
 ) -> None:
     grid = ET.SubElement(parent, "Grid", Name=name, GridType="Uniform")
     cells = static["connectivity"]
-    rod = static.attrs["kind"] == "rod"
     topology = ET.SubElement(
         grid,
         "Topology",
-        TopologyType="Polyline" if rod else "Triangle",
+        TopologyType=str(static.attrs["topology"]),
         NumberOfElements=str(cells.shape[0]),
         NodesPerElement=str(cells.shape[1]),
     )
     _data_item(topology, h5name, cells)
     geometry = ET.SubElement(grid, "Geometry", GeometryType="XYZ")
     _slab(geometry, h5name, frames["positions"], i)
-    for label in ("D1", "D2", "D3"):
-        if label in frames:
-            attribute = ET.SubElement(
-                grid, "Attribute", Name=label, AttributeType="Vector", Center="Node"
-            )
-            _slab(attribute, h5name, frames[label], i)
-    if "tracked" in static:
+    for label in sorted(set(frames) - {"positions"}):
         attribute = ET.SubElement(
-            grid, "Attribute", Name="tracked", AttributeType="Scalar", Center="Node"
+            grid, "Attribute", Name=label, AttributeType="Vector", Center="Node"
         )
-        _data_item(attribute, h5name, static["tracked"])
+        _slab(attribute, h5name, frames[label], i)
+    for label in sorted(set(static) - {"connectivity"}):
+        attribute = ET.SubElement(
+            grid, "Attribute", Name=label, AttributeType="Scalar", Center="Node"
+        )
+        _data_item(attribute, h5name, static[label])

@@ -35,13 +35,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from matplotlib import colormaps
-from matplotlib.cm import ScalarMappable
-from matplotlib.collections import LineCollection
-from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 
 from . import io
+from .bodies import registry
 
 __all__ = [
     "RunData",
@@ -344,39 +341,20 @@ def draw_benchmark(
 def structure(
     trajectory: Path, stem: Path, formats: Sequence[str] = FORMATS, run: str | None = None
 ):
-    """Rods: every frame in the x-y plane, coloured by time. Vesicle: x-z projection at the first
-    and the last frame, tracked points marked (Fig. 11)."""
+    """The bodies over time, drawn by their kinds (registry): rods in the x-y plane coloured by
+    time, the vesicle's x-z projection at the first and last frame with tracked points (Fig. 11).
+    One figure per kind: ``stem`` for one kind, ``stem_<kind>`` for several."""
     data = io.read_trajectory(trajectory, run)
-    times = data["time"]
-    if data["kind"] == "rod":
-        fig = Figure(figsize=(7, 3.5))
-        ax = fig.subplots()
-        colors = colormaps["viridis"](np.linspace(0, 1, len(times)))
-        for body in data["bodies"].values():
-            for color, frame in zip(colors, body["positions"], strict=True):
-                ax.plot(frame[:, 0], frame[:, 1], color=color, lw=1)
-        mappable = ScalarMappable(cmap="viridis", norm=Normalize(times[0], times[-1]))
-        fig.colorbar(mappable, ax=ax, label="t (s)")
-        ax.set_xlabel("x (μm)")
-        ax.set_ylabel("y (μm)")
-        ax.set_title(f"rods in the x-y plane ({data['run']}; y exaggerated)")
-    else:
-        body = next(iter(data["bodies"].values()))
-        tracked = np.flatnonzero(body["tracked"])
-        fig = Figure(figsize=(8, 4))
-        axes = fig.subplots(1, 2, sharex=True, sharey=True)
-        for ax, index in zip(axes, (0, -1), strict=True):
-            points = body["positions"][index][:, [0, 2]]
-            edges = points[body["connectivity"][:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)]
-            ax.add_collection(LineCollection(edges, colors="0.6", linewidths=0.3))
-            for j, p in enumerate(tracked):
-                ax.plot(*points[p], "o", color=f"C{j + 1}", ms=7)
-            ax.set_title(f"t = {times[index]:g}")
-            ax.set_xlabel("x")
-            ax.set_aspect("equal")
-            ax.autoscale_view()
-        axes[0].set_ylabel("z")
-    return _save(fig, stem, formats)
+    by_kind: dict[str, dict[str, Any]] = {}
+    for name, body in data["bodies"].items():
+        by_kind.setdefault(body["kind"], {})[name] = body
+    written = []
+    for kind, bodies in by_kind.items():
+        fig = Figure()
+        registry.get(kind).draw(fig, bodies, data["time"], data["run"])
+        name = stem if len(by_kind) == 1 else stem.with_name(f"{stem.name}_{kind.split(':')[-1]}")
+        written += _save(fig, name, formats)
+    return written
 
 
 # ---- entry points ----------------------------------------------------------------------------

@@ -25,8 +25,8 @@ from typing import Any
 import numpy as np
 
 from . import __version__, io, parareal
+from .bodies import registry
 from .config import Config, ConfigError, Resolved, Setup, build, resolved_dict
-from .config.schema import RodModel
 
 __all__ = ["CHECKPOINT", "HISTORY", "REFERENCE", "Reporter", "execute", "speedup_table"]
 
@@ -201,37 +201,11 @@ def _monitor(system: Any, states: np.ndarray) -> dict[str, float]:
     return {"max": float(max(values)), "final": float(values[-1]), "limit": system.monitor_limit}
 
 
-def _tracked_points(cfg: Config, system: Any) -> list[int]:
-    """Vesicle points highlighted in pictures: the configured ones, else three on the x-z circle."""
-    if isinstance(cfg.model, RodModel):
-        return []
-    if cfg.output.tracked_points is not None:
-        return list(cfg.output.tracked_points)
-    x0 = system.initial_state()
-    targets = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [-0.6, 0.0, -0.8]])
-    return [int(np.argmin(np.linalg.norm(x0 - t, axis=1))) for t in targets]
-
-
 def _writer(cfg: Config, setup: Setup, conf: dict[str, Any], out: Path) -> io.TrajectoryWriter:
-    model = cfg.model
-    if isinstance(model, RodModel):
-        return io.TrajectoryWriter(
-            out / TRAJECTORY,
-            kind="rod",
-            n_bodies=model.n_rods,
-            n_points=model.n_points,
-            config=conf,
-            frames=cfg.output.frames,
-        )
-    return io.TrajectoryWriter(
-        out / TRAJECTORY,
-        kind="vesicle",
-        n_bodies=1,
-        n_points=setup.resolved.n_points,
-        config=conf,
-        triangles=setup.system.mesh[1],
-        tracked=_tracked_points(cfg, setup.system),
-    )
+    """The trajectory writer of the layout that the body's kind gives (registry)."""
+    kind = registry.get(cfg.model.kind)
+    layout = kind.layout(cfg.model, setup.system, cfg.output.frames, cfg.output.tracked_points)
+    return io.TrajectoryWriter(out / TRAJECTORY, layout, config=conf)
 
 
 def execute(

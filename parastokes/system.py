@@ -15,19 +15,22 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
-from . import mrs, stepping
 from .bodies import frames, geometry, rod, vesicle
 from .bodies.rod_transfer import RodTransfer
+from .fluid import MRS, BlockedMRS, TargetBlocks
 from .mrs.velocity import thread_count
+from .stepping import loop, registry
+from .stepping.registry import RunSteps
+from .stepping.rod import rod_data
+from .stepping.vesicle import vesicle_data
 
-__all__ = ["RodSystem", "VesicleSystem"]
+__all__ = ["FluidBody", "PointsInShear", "RodSystem", "VesicleSystem", "replace_params"]
 
 
 def _require_positive(**values: float) -> None:
@@ -43,39 +46,55 @@ def _wave_table(n_half: int, ds: float, wavenumber: float) -> np.ndarray:
     return table
 
 
-#: The methods whose physics the compiled parts of :mod:`parastokes.stepping` reproduce: a
-#: subclass that overrides one of them has its own physics, which the compiled loop would ignore.
-_MIRRORED = ("rates", "advance", "monitor", "bracket", "loads", "forces", "preferred_strain",
-             "mechanics")
-
-
-class _CompiledSteps:
-    """``run_steps`` for a system whose compiled parts are registered in
-    :mod:`parastokes.stepping` (its data builder is the class attribute ``_stepping_data``).
-
-    A subclass that overrides a method of :data:`_MIRRORED` (and registers no parts of its own)
-    gets ``run_steps = None``, so ``integrate.run`` steps through its Python methods."""
-
-    _stepping_data: Any = None
-
-    def __init_subclass__(cls, **kwargs: Any) -> None:
-        super().__init_subclass__(**kwargs)
-        if "_stepping_data" not in cls.__dict__ and any(m in cls.__dict__ for m in _MIRRORED):
-            cls._stepping_data = None
+class FluidBody:
+    """A body whose point loads act on the MRS fluid of its ``viscosity``, ``wall`` (if it has
+    one), ``n_threads`` and ``target_blocks`` (:mod:`parastokes.fluid`)."""
 
     @property
-    def run_steps(self) -> Callable[..., tuple[np.ndarray, float, int, int, float]] | None:
-        """``run_steps(scheme, x, t0, dt, n, limit, stop_above)``: ``n`` steps of ``scheme`` in
-        compiled calls (:mod:`parastokes.stepping`), the loop ``integrate.run`` uses, with the
-        same result as stepping through ``rates``/``advance``; ``None`` where the compiled parts
-        do not reproduce this class's methods."""
-        make_data = type(self)._stepping_data
-        if make_data is None:
-            return None
-        return functools.partial(stepping.loop.run_steps, self, make_data)
+    def fluid(self) -> MRS:
+        """:class:`~parastokes.fluid.MRS`, or :class:`~parastokes.fluid.BlockedMRS` with
+        ``target_blocks`` (the spatially parallel fine solver of Remark 1)."""
+        wall = bool(getattr(self, "wall", False))
+        if self.target_blocks is None:
+            return MRS(self.viscosity, wall, self.n_threads)
+        return BlockedMRS(self.viscosity, wall, self.n_threads, self.target_blocks)
 
 
-def _replace_params(system: Any, theta: dict[str, float]) -> Any:
+class PointsInShear(FluidBody):
+    """Points that move with the fluid under the forces ``forces(state)`` they exert (no frames,
+    no torques), in the background shear u∞ = (γ̇ z, 0, 0), γ̇ = ``shear_rate`` (physics.md (15)).
+    The state is the positions, ``project`` the identity."""
+
+    #: Rates are velocities only (no angular part); for :class:`parastokes.scene.Scene`.
+    angular: ClassVar[bool] = False
+
+    def loads(self, t: float, state: np.ndarray) -> tuple[np.ndarray, None]:
+        """The point forces on the fluid, no torques."""
+        return self.forces(state), None
+
+    @staticmethod
+    def body_rates(u: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """The rates from the fluid velocity at the points (background included): ``u``."""
+        return u
+
+    def rates(self, t: float, state: np.ndarray) -> np.ndarray:
+        """u∞(X) + Stokeslet velocities (eq. 6) of the forces."""
+        u = self.fluid.velocity(state, self.forces(state), epsilon=self.epsilon)
+        u[:, 0] += self.shear_rate * state[:, 2]
+        return u
+
+    def advance(self, state: np.ndarray, rates: np.ndarray, dt: float) -> np.ndarray:
+        return state + dt * rates
+
+    def project(self, state: np.ndarray) -> np.ndarray:
+        """The identity (no frames); returns ``state`` itself."""
+        return state
+
+    def positions(self, state: np.ndarray) -> np.ndarray:
+        return np.array(state)
+
+
+def replace_params(system: Any, theta: dict[str, float]) -> Any:
     """``dataclasses.replace`` restricted to the names of ``system.params``."""
     unknown = sorted(set(theta) - set(system.params))
     if unknown:
@@ -86,7 +105,7 @@ def _replace_params(system: Any, theta: dict[str, float]) -> Any:
 
 
 @dataclass(frozen=True)
-class RodSystem(_CompiledSteps):
+class RodSystem(FluidBody):
     """``n_rods`` Kirchhoff rods of ``n_points`` nodes each, interacting through the fluid.
 
     Rods start straight along x (geometry.straight_rods), side by side in y, at ``height`` above the
@@ -110,8 +129,7 @@ class RodSystem(_CompiledSteps):
     height: float = 10.0
     spacing: float = 5.0
     n_threads: int | None = None
-
-    _stepping_data = staticmethod(stepping.rod.rod_data)
+    target_blocks: TargetBlocks | None = None
 
     def __post_init__(self) -> None:
         for name in ("n_rods", "n_points"):
@@ -180,23 +198,19 @@ class RodSystem(_CompiledSteps):
         n_rods, ds, a, b, table, *wave = self.mechanics
         return rod.rod_loads(state, n_rods, ds, a, b, rod.preferred_strain(table, float(t), *wave))
 
+    #: Rates carry angular velocities (for :class:`parastokes.scene.Scene`).
+    angular: ClassVar[bool] = True
+
+    @staticmethod
+    def body_rates(u: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """``[u, w]`` per node from the fluid's linear and angular velocity at the nodes."""
+        return np.concatenate([u, w], axis=1)
+
     def rates(self, t: float, state: np.ndarray) -> np.ndarray:
         """``[u, w]`` per node (physics.md (13)): velocities from all points of all rods."""
         f, n = self.loads(t, state)
-        x = state[:, :3]
-        u, w = mrs.velocity(
-            x,
-            x,
-            f,
-            epsilon=self.epsilon,
-            mu=self.viscosity,
-            torques=n,
-            wall=self.wall,
-            angular=True,
-            n_threads=self.n_threads,
-            check=False,
-        )
-        return np.concatenate([u, w], axis=1)
+        u, w = self.fluid.velocity(state[:, :3], f, epsilon=self.epsilon, torques=n, angular=True)
+        return self.body_rates(u, w)
 
     def advance(self, state: np.ndarray, rates: np.ndarray, dt: float) -> np.ndarray:
         """X + dt u; frames rotated by |w| dt about w (Rodrigues, eq. 13)."""
@@ -215,12 +229,18 @@ class RodSystem(_CompiledSteps):
 
     # ---- parameters and monitor ------------------------------------------------------------
     @property
+    def run_steps(self) -> RunSteps | None:
+        """The compiled loop of :mod:`parastokes.stepping` registered for this exact type (None
+        for a subclass: it may compute other rates; see :mod:`parastokes.stepping.registry`)."""
+        return registry.compiled_loop(self)
+
+    @property
     def params(self) -> dict[str, float]:
         return {"epsilon": self.epsilon, "viscosity": self.viscosity, "bending": self.bending}
 
     def with_params(self, **theta: float) -> RodSystem:
         """A copy with some of ``epsilon``, ``viscosity``, ``bending`` (= a1 = a2 = a3) changed."""
-        return _replace_params(self, theta)
+        return replace_params(self, theta)
 
     @property
     def monitor_limit(self) -> float:
@@ -260,7 +280,7 @@ def _spring_network(subdivisions: int) -> tuple[np.ndarray, np.ndarray, float]:
 
 
 @dataclass(frozen=True)
-class VesicleSystem(_CompiledSteps):
+class VesicleSystem(PointsInShear):
     """Unit icosphere (``subdivisions`` levels) with springs on its edges in a shear flow.
 
     Rest lengths are the initial edge lengths; ε is absolute (the paper quotes ε = 0.3 l_max, see
@@ -273,8 +293,8 @@ class VesicleSystem(_CompiledSteps):
     stiffness: float
     shear_rate: float
     n_threads: int | None = None
-
-    _stepping_data = staticmethod(stepping.vesicle.vesicle_data)
+    target_blocks: TargetBlocks | None = None
+    center: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
         geometry.icosphere(self.subdivisions)  # validates subdivisions
@@ -301,35 +321,14 @@ class VesicleSystem(_CompiledSteps):
         return _spring_network(self.subdivisions)[2]
 
     def initial_state(self) -> np.ndarray:
-        return np.array(self.mesh[0])
-
-    def positions(self, state: np.ndarray) -> np.ndarray:
-        return np.array(state)
+        """The icosphere's vertices around ``center``."""
+        return self.mesh[0] + np.asarray(self.center, dtype=float)
 
     def forces(self, state: np.ndarray) -> np.ndarray:
         """Spring forces on the fluid (physics.md (14))."""
         return vesicle.spring_forces(state, self.edges, self.rest_lengths, self.stiffness)
 
-    def rates(self, t: float, state: np.ndarray) -> np.ndarray:
-        """u∞(X) + Stokeslet velocities (eq. 6) of the spring forces (physics.md (15))."""
-        u = mrs.velocity(
-            state,
-            state,
-            self.forces(state),
-            epsilon=self.epsilon,
-            mu=self.viscosity,
-            n_threads=self.n_threads,
-            check=False,
-        )
-        u[:, 0] += self.shear_rate * state[:, 2]
-        return u
-
-    def advance(self, state: np.ndarray, rates: np.ndarray, dt: float) -> np.ndarray:
-        return state + dt * rates
-
-    def project(self, state: np.ndarray) -> np.ndarray:
-        """The identity (no frames); returns ``state`` itself."""
-        return state
+    run_steps = RodSystem.run_steps
 
     @property
     def params(self) -> dict[str, float]:
@@ -337,7 +336,7 @@ class VesicleSystem(_CompiledSteps):
 
     def with_params(self, **theta: float) -> VesicleSystem:
         """A copy with some of ``epsilon``, ``viscosity``, ``stiffness`` (κ) changed."""
-        return _replace_params(self, theta)
+        return replace_params(self, theta)
 
     @property
     def monitor_limit(self) -> float:
@@ -347,3 +346,12 @@ class VesicleSystem(_CompiledSteps):
         """Relative change of the surface area from the initial sphere's (section 5.2)."""
         area = geometry.surface_area(state, self.mesh[1])
         return abs(area - self.initial_area) / self.initial_area
+
+
+registry.register(
+    RodSystem, lambda system: functools.partial(loop.run_steps, system, rod_data), fluid=MRS
+)
+registry.register(
+    VesicleSystem, lambda system: functools.partial(loop.run_steps, system, vesicle_data),
+    fluid=MRS,
+)

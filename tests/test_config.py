@@ -272,3 +272,11 @@ def test_config_reference_is_up_to_date():
     spec.loader.exec_module(module)
     committed = (ROOT / "docs" / "config.md").read_text(encoding="utf-8")
     assert committed == module.render(), "run: python docs/gen_config_reference.py"
+
+
+def test_the_coarse_solver_family_is_a_key_with_the_extrapolated_default():
+    cfg, _ = config.loads(BASE)
+    assert cfg.coarse.kind == "extrapolated"
+    assert cfg.model_dump()["coarse"]["kind"] == "extrapolated"
+    issues = issues_of(BASE, 'coarse.kind="hodmd"')
+    assert "coarse.kind" in issues and "extrapolated" in issues["coarse.kind"]

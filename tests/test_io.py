@@ -11,8 +11,15 @@ import numpy as np
 import pytest
 
 from parastokes import io
+from parastokes.bodies import registry
 
 CONFIG = {"model": {"kind": "rod", "epsilon": 5.0, "shear": [0.6, 0.6, 0.6]}, "title": "t"}
+
+
+def rod_layout(n_rods: int, m: int) -> list[registry.BodyLayout]:
+    """The rod kind's layout of ``n_rods`` rods of ``m`` nodes."""
+    kind = registry.get("rod")
+    return kind.layout(kind.section(kind="rod", n_rods=n_rods, n_points=m), None, True, None)
 
 
 def rod_state(n_rods: int, m: int, shift: float) -> np.ndarray:
@@ -42,7 +49,7 @@ def test_arrays_round_trip_with_metadata(tmp_path):
 
 def write_rods(path, n_frames=3):
     states = [rod_state(2, 5, float(i)) for i in range(n_frames)]
-    with io.TrajectoryWriter(path, kind="rod", n_bodies=2, n_points=5, config=CONFIG) as writer:
+    with io.TrajectoryWriter(path, rod_layout(2, 5), config=CONFIG) as writer:
         for i, state in enumerate(states):
             writer.append("serial", 0.1 * i, state)
             writer.append("parareal", 0.1 * i, state + 1)
@@ -89,16 +96,15 @@ def test_rod_trajectory_round_trip(tmp_path):
 
 def test_reading_a_missing_run_fails_clearly(tmp_path):
     path = tmp_path / "trajectory.h5"
-    with io.TrajectoryWriter(path, kind="rod", n_bodies=1, n_points=3, config={}) as writer:
+    with io.TrajectoryWriter(path, rod_layout(1, 3), config={}) as writer:
         writer.append("serial", 0.0, rod_state(1, 3, 0.0))
     assert io.read_trajectory(path)["run"] == "serial"
     assert io.read_history(path) is None
     with pytest.raises(ValueError, match="no run 'parareal'"):
         io.read_trajectory(path, "parareal")
     with pytest.raises(ValueError, match="run must be one of"):
-        io.TrajectoryWriter(
-            tmp_path / "b.h5", kind="rod", n_bodies=1, n_points=3, config={}
-        ).append("other", 0.0, rod_state(1, 3, 0.0))
+        writer = io.TrajectoryWriter(tmp_path / "b.h5", rod_layout(1, 3), config={})
+        writer.append("other", 0.0, rod_state(1, 3, 0.0))
 
 
 def check_xdmf(xdmf_path, h5_path) -> ET.Element:
@@ -139,15 +145,11 @@ def test_vesicle_trajectory_and_xdmf(tmp_path):
     verts = np.random.default_rng(1).normal(size=(6, 3))
     tris = np.array([[0, 1, 2], [2, 3, 4], [3, 4, 5]])
     path = tmp_path / "trajectory.h5"
-    with io.TrajectoryWriter(
-        path,
-        kind="vesicle",
-        n_bodies=1,
-        n_points=6,
-        config={},
-        triangles=tris,
-        tracked=[1, 4],
-    ) as writer:
+    mask = np.array([0, 1, 0, 0, 1, 0], dtype=np.int32)
+    layout = registry.BodyLayout(
+        "vesicle_0", "vesicle", 0, 6, "Triangle", tris, marks={"tracked": mask}
+    )
+    with io.TrajectoryWriter(path, [layout], config={}) as writer:
         writer.append("parareal", 0.0, verts)
         writer.append("parareal", 1.0, verts * 2)
     data = io.read_trajectory(path)

@@ -6,13 +6,16 @@ targets sent to a worker is summed the same way, so both are bit-identical to th
 
 from __future__ import annotations
 
+import dataclasses
 import pickle
 
 import numpy as np
 import pytest
 from odes import ToySystem
 
-from parastokes import integrate, models, parallel, parareal, spatial
+from parastokes import fluid, integrate, models, parallel, parareal, spatial
+from parastokes.fluid import BlockedMRS
+from parastokes.stepping import registry
 
 # two interacting rods above the wall (forces, torques, images) and a small vesicle in shear
 CASES = {
@@ -45,7 +48,8 @@ def test_threaded_fine_solver_is_bit_identical(case, n_threads):
 def test_target_blocks_on_processes_equal_serial_fine_solver(case, pool):
     system, dt, t1, x0, serial = case
     fine = spatial.fine_solver(system, "rk2", dt, executor=pool)
-    assert len(fine.system.blocks) == 2
+    assert isinstance(fine.system.fluid, BlockedMRS) and fine.system.target_blocks.n_blocks == 2
+    assert registry.compiled_loop(fine.system) is None  # the compiled loop would bypass blocks
     np.testing.assert_array_equal(fine(0.0, t1, x0), serial)
 
 
@@ -59,22 +63,26 @@ def test_target_blocks_fine_solver_evaluates_its_blocks(case, monkeypatch):
         calls.append(len(args[0]))
         return real(*args)
 
-    real = spatial._block_velocity
-    monkeypatch.setattr(spatial, "_block_velocity", counting)
+    real = fluid._block_velocity
+    monkeypatch.setattr(fluid, "_block_velocity", counting)
     fine = spatial.fine_solver(system, "rk2", dt, executor=parallel.make_executor("serial"))
     np.testing.assert_array_equal(fine(0.0, t1, x0), serial)
     evaluations = 2 * round(t1 / dt)
-    assert len(calls) == evaluations * len(fine.system.blocks)
+    assert len(calls) == evaluations * fine.system.target_blocks.n_blocks
     assert sum(calls) == evaluations * len(x0)  # every target, once per evaluation
 
 
 @pytest.mark.parametrize("n_blocks", [1, 3, 7])
 def test_target_blocks_rates_equal_system_rates(case, n_blocks):
+    """The blocked fluid is a second implementation of the same fluid: the same bits."""
     system, _, _, _, moved = case
-    blocks = spatial.TargetBlocks(system, parallel.make_executor("serial"), n_blocks)
-    assert sum(b.stop - b.start for b in blocks.blocks) == len(moved)  # every target, once
-    np.testing.assert_array_equal(blocks.rates(2e-6, moved), system.rates(2e-6, moved))
-    assert blocks.params == system.params and blocks.monitor_limit == system.monitor_limit
+    blocks = spatial.TargetBlocks(parallel.make_executor("serial"), n_blocks)
+    blocked = dataclasses.replace(system, target_blocks=blocks)
+    slices = blocks.slices(len(moved))
+    assert sum(b.stop - b.start for b in slices) == len(moved)  # every target, once
+    np.testing.assert_array_equal(blocked.rates(2e-6, moved), system.rates(2e-6, moved))
+    assert blocked.params == system.params and type(blocked.fluid) is BlockedMRS
+    assert type(system.fluid) is fluid.MRS and system.fluid.viscosity == system.viscosity
 
 
 def test_measure_speedup_eq35(case):
@@ -111,10 +119,10 @@ def test_bad_arguments():
     with pytest.raises(ValueError, match="n_threads must be an integer >= 1"):
         spatial.threaded(system, 0)
     with pytest.raises(ValueError, match="n_blocks must be an integer >= 1"):
-        spatial.TargetBlocks(system, executor, 0)
-    with pytest.raises(TypeError, match="supports RodSystem and VesicleSystem, not ToySystem"):
-        spatial.TargetBlocks(ToySystem(), executor)
+        spatial.TargetBlocks(executor, 0)
+    with pytest.raises(TypeError, match="ToySystem has no target_blocks field"):
+        spatial.fine_solver(ToySystem(), "rk2", 1e-3, executor=executor)
     with pytest.raises(TypeError, match="does not pickle"):
-        pickle.dumps(spatial.TargetBlocks(system, executor))
+        pickle.dumps(spatial.fine_solver(system, "rk2", 1e-3, executor=executor))
     with pytest.raises(ValueError, match="repeats"):
         spatial.measure_speedup(None, None, 0.0, 1.0, np.zeros(3), repeats=0)

@@ -21,14 +21,14 @@ from typing import Any
 
 from pydantic import ValidationError
 
+from ..bodies import registry
 from .build import Setup, build, build_system
-from .checks import PARAMETERS, Resolved, resolve, resolved_dict
+from .checks import Resolved, resolve, resolved_dict
 from .errors import ConfigError, from_validation_error
 from .schema import Config
 
 __all__ = [
     "DEMO",
-    "PARAMETERS",
     "Config",
     "ConfigError",
     "Resolved",
@@ -140,12 +140,44 @@ def _read(path: Path, chain: tuple[Path, ...] = ()) -> dict[str, Any]:
     return merge(_read(path.parent / base, (*chain, path.resolve())), data)
 
 
-def parse(data: dict[str, Any], source: str = "") -> Config:
-    """Validate the schema of a configuration dictionary; raise :class:`ConfigError`."""
+def _model_section(data: dict[str, Any], issues: list[tuple[str, str]], source: str) -> Any:
+    """The ``[model]`` table validated by its kind's section (None, with issues, if it is not)."""
+    model = data["model"]
+    if "kind" not in model:
+        issues.append(("model.kind", "required key is missing"))
+        return None
     try:
-        return Config.model_validate(data)
+        kind = registry.get(model["kind"])
+    except registry.UnknownKindError as error:
+        issues.append(("model.kind", str(error)))
+        return None
+    try:
+        return kind.section.model_validate(model)
     except ValidationError as error:
-        raise from_validation_error(error, data, source) from None
+        issues += from_validation_error(error, data, source, ("model",)).issues
+        return None
+
+
+def parse(data: dict[str, Any], source: str = "") -> Config:
+    """Validate the schema of a configuration dictionary; raise :class:`ConfigError`.
+
+    The ``[model]`` table is validated by the section of its kind
+    (:mod:`parastokes.bodies.registry`; an unknown kind is an error listing the registered ones),
+    the rest by :class:`Config`, and the issues of both are reported together.
+    """
+    issues: list[tuple[str, str]] = []
+    if isinstance(data, dict) and isinstance(data.get("model"), dict):
+        section = _model_section(data, issues, source)
+        data = {**data, "model": section} if section is not None else data
+    try:
+        cfg = Config.model_validate(data)
+    except ValidationError as error:
+        found = from_validation_error(error, data, source).issues
+        issues += [(path, text) for path, text in found if not (issues and path == "model")]
+        raise ConfigError(issues, source) from None
+    if issues:
+        raise ConfigError(issues, source)
+    return cfg
 
 
 def loads(

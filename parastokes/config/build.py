@@ -2,51 +2,33 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from concurrent.futures import Executor
 from dataclasses import dataclass
-from typing import Any
 
-from .. import integrate, models, parallel, parareal
+from .. import integrate, parallel, parareal
+from ..contracts import PropagatorLike, System, oversubscription
 from ..warmup import WarmUp
 from .checks import Resolved
 from .errors import ConfigError
-from .schema import Config, RodModel
+from .schema import Config
 
 __all__ = ["Setup", "build", "build_system"]
 
 
-def build_system(cfg: Config, resolved: Resolved) -> Any:
-    """The system of ``cfg.model`` with the correct parameters Θ⁰ (absolute ε⁰)."""
-    model = cfg.model
-    threads = cfg.execution.threads
-    if isinstance(model, RodModel):
-        return models.rod_swimmer(
-            n_rods=model.n_rods,
-            n_points=model.n_points,
-            epsilon=resolved.epsilon,
-            length=model.length,
-            amplitude=model.amplitude,
-            frequency=model.frequency,
-            wavelength=model.wavelength,
-            bending=model.bending,
-            shear=tuple(model.shear),
-            viscosity=model.viscosity,
-            wall=model.wall,
-            height=model.height,
-            spacing=model.spacing,
-            n_threads=threads,
-        )
-    system = models.vesicle(
-        subdivisions=model.subdivisions,
-        stiffness=model.stiffness,
-        viscosity=model.viscosity,
-        shear_rate=model.shear_rate,
-        n_threads=threads,
-    )
-    return system.with_params(epsilon=resolved.epsilon)
+def build_system(cfg: Config, resolved: Resolved) -> System:
+    """The system of ``cfg.model`` with the correct parameters Θ⁰ (its kind's section builds it)."""
+    return cfg.model.build(cfg.execution.threads)
 
 
-def build_coarse(cfg: Config, resolved: Resolved, system: Any) -> parareal.Extrapolated:
+def build_coarse(cfg: Config, resolved: Resolved, system: System) -> PropagatorLike:
+    """The coarse solver G of the family ``coarse.kind`` (:data:`COARSE`)."""
+    return COARSE[cfg.coarse.kind](cfg, resolved, system)
+
+
+def build_extrapolated(
+    cfg: Config, resolved: Resolved, system: System
+) -> parareal.Extrapolated | parareal.OnCoarseGrid:
     """G of eq. 30 with the base step τ = τ_c / r^m (``resolved.coarse_base_dt``)."""
     coarse = cfg.coarse
     richardson = coarse.richardson
@@ -60,15 +42,21 @@ def build_coarse(cfg: Config, resolved: Resolved, system: Any) -> parareal.Extra
     )
 
 
+#: Coarse-solver families by ``coarse.kind``: ``build(cfg, resolved, system) -> G``.
+COARSE: dict[str, Callable[[Config, Resolved, System], PropagatorLike]] = {
+    "extrapolated": build_extrapolated,
+}
+
+
 @dataclass
 class Setup:
     """Everything a run needs; a context manager that shuts the executor down on exit."""
 
     config: Config
     resolved: Resolved
-    system: Any
+    system: System
     fine: integrate.Propagator
-    coarse: Any
+    coarse: PropagatorLike
     executor: Executor | None
 
     def __enter__(self) -> Setup:
@@ -104,16 +92,15 @@ def build(cfg: Config, resolved: Resolved, *, executor: bool = True) -> Setup:
             warmup=WarmUp(system),
             **options,
         )
-        n_aux = resolved.n_auxiliary
+        problem = oversubscription(resolved.n_auxiliary, pool.workers)
         queued = ex.allow_oversubscribe or cfg.parareal.schedule == "pipelined"
-        if resolved.workers is None and n_aux > pool.workers and not queued:
+        if resolved.workers is None and problem and not queued:
             pool.shutdown()
             raise ConfigError(
                 [
                     (
                         "execution.workers",
-                        f"the MPI launch provides {pool.workers} workers for N_G = {n_aux} "
-                        "auxiliary solvers; start more ranks or set "
+                        f"{problem} in this MPI launch; start more ranks or set "
                         "execution.allow_oversubscribe = true",
                     )
                 ]

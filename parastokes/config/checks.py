@@ -19,18 +19,14 @@ from dataclasses import asdict, dataclass, field
 from typing import Any
 
 from .. import integrate
-from ..bodies import geometry
+from ..bodies import registry
+from ..contracts import oversubscription
 from ..parallel import available_cores
+from ..parareal.weights import step_weights
 from .errors import ConfigError
-from .schema import Config, RodModel
+from .schema import Config
 
 __all__ = ["Resolved", "resolve", "resolved_dict"]
-
-#: The physical parameters Θ that Lagrangian extrapolation may vary, per model kind.
-PARAMETERS = {
-    "rod": ("epsilon", "bending", "viscosity"),
-    "vesicle": ("epsilon", "stiffness", "viscosity"),
-}
 
 
 @dataclass(frozen=True)
@@ -39,7 +35,9 @@ class Resolved:
 
     ``coarse_dt`` is τ_c = r^m τ (the smallest auxiliary step, as the paper counts it) and
     ``coarse_base_dt`` the τ of eq. 26; ``coarse_steps[q]`` is the number of steps of
-    G_{Θ, r^q τ} on one slice; ``grid_spacing`` is σ_f (rods) or l_max (vesicles).
+    G_{Θ, r^q τ} on one slice; ``grid_spacing`` is the length ε may be given in units of (σ_f for
+    rods, l_max for vesicles; NaN for kinds without one); ``epsilon`` is ε⁰ (NaN for kinds without
+    an ε in Θ).
     """
 
     epsilon: float
@@ -59,25 +57,28 @@ class Resolved:
     warnings: list[str] = field(default_factory=list)
 
 
-def _vesicle_mesh(subdivisions: int) -> tuple[float, int]:
-    """(l_max, number of vertices) of the icosphere."""
-    verts, tris = geometry.icosphere(subdivisions)
-    return float(geometry.edge_lengths(verts, geometry.mesh_edges(tris)).max()), len(verts)
-
-
 def _node_values(
-    cfg: Config, name: str, theta0: float, scale: float, issues: list[tuple[str, str]]
+    cfg: Config, name: str, theta0: float, body: registry.BodyResolution,
+    issues: list[tuple[str, str]]
 ) -> list[float]:
     """The absolute nodes of parameter ``name``; appends issues for bad units and orderings."""
     path = f"coarse.lagrange.{name}"
     spec = cfg.coarse.lagrange[name]
-    model_unit = cfg.model.epsilon_unit if name == "epsilon" else "absolute"
+    model_unit = getattr(cfg.model, "epsilon_unit", "absolute") if name == "epsilon" else "absolute"
     unit = spec.unit or model_unit
-    grid_unit = "sigma_f" if isinstance(cfg.model, RodModel) else "l_max"
-    if unit in ("sigma_f", "l_max") and (name != "epsilon" or unit != grid_unit):
-        issues.append((f"{path}.unit", f"{unit!r} applies to epsilon of a {grid_unit} model only"))
+    factors = {"absolute": 1.0, "relative": theta0}
+    if name == "epsilon" and body.grid_unit is not None:
+        factors[body.grid_unit] = body.grid_spacing
+    if unit not in factors:
+        issues.append(
+            (
+                f"{path}.unit",
+                f"{unit!r} is not a unit of {name} of a {cfg.model.kind} model; use one of "
+                f"{', '.join(factors)}",
+            )
+        )
         return []
-    factor = {"absolute": 1.0, "relative": theta0, "sigma_f": scale, "l_max": scale}[unit]
+    factor = factors[unit]
     values = [v * factor for v in spec.nodes]
     if min(spec.nodes) <= 0:
         issues.append((path, f"nodes must be positive, got {spec.nodes}"))
@@ -122,14 +123,13 @@ def _workers(cfg: Config, n_auxiliary: int, issues: list, warnings: list) -> int
         workers = max(1, min(cfg.parareal.n_slices, available_cores() // ex.threads))
     if workers is None:  # mpi: all ranks of the launch, known only when the executor exists
         return None
+    problem = oversubscription(n_auxiliary, workers)
     queued = ex.allow_oversubscribe or cfg.parareal.schedule == "pipelined"  # (as tasks)
-    if n_auxiliary > workers and not queued and cfg.run.mode != "serial":
+    if problem and not queued and cfg.run.mode != "serial":
         issues.append(
             (
                 "execution.workers",
-                f"the coarse solver has N_G = {n_auxiliary} auxiliary solvers but there are only "
-                f"{workers} workers, so they cannot all run at once (Algorithm 1 assumes "
-                "N_G <= N_c); raise workers or set execution.allow_oversubscribe = true",
+                f"{problem}; raise workers or set execution.allow_oversubscribe = true",
             )
         )
     if cfg.parareal.n_slices > workers and cfg.run.mode != "serial":
@@ -145,17 +145,11 @@ def resolve(cfg: Config, source: str = "") -> Resolved:
     issues: list[tuple[str, str]] = []
     warnings: list[str] = []
     model = cfg.model
-    if isinstance(model, RodModel):
-        kind = "rod"
-        spacing = model.length / (model.n_points - 1)
-        n_points = model.n_rods * model.n_points
-        extra = {"bending": model.bending}
-    else:
-        kind = "vesicle"
-        spacing, n_points = _vesicle_mesh(model.subdivisions)
-        extra = {"stiffness": model.stiffness}
-    epsilon = model.epsilon * (spacing if model.epsilon_unit != "absolute" else 1.0)
-    theta0 = {"epsilon": epsilon, "viscosity": model.viscosity, **extra}
+    try:
+        body = model.resolve()
+    except ValueError as error:  # a user section whose system rejects its values
+        raise ConfigError([("model", str(error))], source) from None
+    theta0, n_points = body.theta0, body.n_points
 
     t0, t1 = cfg.time.t0, cfg.time.t1
     if not t1 > t0:
@@ -180,7 +174,9 @@ def resolve(cfg: Config, source: str = "") -> Resolved:
         _steps(slice_length, base_dt * (r or 1.0) ** q, "coarse.dt", "τ_c", None if m else warnings)
         for q in range(m + 1)
     ]
-    if len(set(coarse_steps)) < len(coarse_steps):
+    try:  # the rule of eq. 27 where it lives: the weights of the steps actually taken
+        step_weights([slice_length / n for n in coarse_steps], 1)
+    except ValueError:
         issues.append(
             (
                 "coarse.richardson.r",
@@ -193,38 +189,31 @@ def resolve(cfg: Config, source: str = "") -> Resolved:
 
     lagrange = {}
     for name in coarse.lagrange:
-        if name not in PARAMETERS[kind]:
+        if name not in theta0:
             issues.append(
                 (
                     f"coarse.lagrange.{name}",
-                    f"unknown parameter; a {kind} model extrapolates in "
-                    f"{', '.join(PARAMETERS[kind])}",
+                    f"unknown parameter; a {model.kind} model extrapolates in "
+                    f"{', '.join(theta0)}",
                 )
             )
             continue
-        lagrange[name] = _node_values(cfg, name, theta0[name], spacing, issues)
+        lagrange[name] = _node_values(cfg, name, theta0[name], body, issues)
     n_auxiliary = math.prod(len(spec.nodes) for spec in coarse.lagrange.values()) * (m + 1)
 
     coarse_points = n_points
     if coarse.grid_factor > 1:
-        if not isinstance(model, RodModel):
-            issues.append(("coarse.grid_factor", "only rods have a coarser grid; use 1"))
-        elif (model.n_points - 1) % coarse.grid_factor or (
-            model.n_points - 1
-        ) // coarse.grid_factor < 2:
-            issues.append(
-                (
-                    "coarse.grid_factor",
-                    f"must divide n_points - 1 = {model.n_points - 1} and leave at least 3 nodes",
-                )
-            )
-        else:
-            coarse_points = model.n_rods * ((model.n_points - 1) // coarse.grid_factor + 1)
+        try:
+            coarse_points = model.coarse_points(coarse.grid_factor)
+        except ValueError as error:
+            issues.append(("coarse.grid_factor", str(error)))
 
     tracked = cfg.output.tracked_points
     if tracked:
-        if isinstance(model, RodModel):
-            issues.append(("output.tracked_points", "applies to vesicles only"))
+        if not registry.get(model.kind).tracks_points:
+            issues.append(
+                ("output.tracked_points", f"a {model.kind} model marks no points (vesicles only)")
+            )
         elif max(tracked) >= n_points:
             issues.append(("output.tracked_points", f"indices must be below {n_points}"))
 
@@ -232,8 +221,8 @@ def resolve(cfg: Config, source: str = "") -> Resolved:
     if issues:
         raise ConfigError(issues, source)
     return Resolved(
-        epsilon=epsilon,
-        grid_spacing=spacing,
+        epsilon=theta0.get("epsilon", math.nan),
+        grid_spacing=body.grid_spacing,
         n_points=n_points,
         theta0=theta0,
         slice_length=slice_length,

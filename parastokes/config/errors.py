@@ -8,11 +8,12 @@ from typing import Any
 
 from pydantic import BaseModel, ValidationError
 
+from ..bodies import registry
 from . import schema
 
 __all__ = ["ConfigError", "from_validation_error", "key_path"]
 
-# The schema class of every section, by key path (the model section depends on its kind).
+# The schema class of every section, by key path (the model section's is its kind's, registry).
 _SECTIONS: dict[tuple[str, ...], type[BaseModel]] = {
     (): schema.Config,
     ("time",): schema.Time,
@@ -24,7 +25,6 @@ _SECTIONS: dict[tuple[str, ...], type[BaseModel]] = {
     ("output",): schema.Output,
     ("run",): schema.RunSection,
 }
-_MODELS = {"rod": schema.RodModel, "vesicle": schema.VesicleModel}
 
 
 class ConfigError(ValueError):
@@ -58,8 +58,11 @@ def key_path(loc: Iterable[Any]) -> str:
 
 def _section_class(loc: tuple[Any, ...], data: Any) -> type[BaseModel] | None:
     if loc == ("model",):
-        kind = data.get("model", {}).get("kind") if isinstance(data, dict) else None
-        return _MODELS.get(kind) if isinstance(kind, str) else None
+        model = data.get("model") if isinstance(data, dict) else None
+        try:
+            return registry.get(model["kind"]).section  # type: ignore[index]
+        except (TypeError, KeyError, registry.UnknownKindError):
+            return None
     if len(loc) == 3 and loc[:2] == ("coarse", "lagrange"):
         return schema.LagrangeNodes
     return _SECTIONS.get(loc)
@@ -80,24 +83,20 @@ def _message(error: dict[str, Any], loc: tuple[Any, ...], data: Any) -> str:
         return f"unknown key ({hint})"
     if kind == "missing":
         return "required key is missing"
-    message = error["msg"]
-    if kind.startswith("union_tag"):
-        return message
-    return f"{message} (got {_describe(error.get('input'))})"
+    return f"{error['msg']} (got {_describe(error.get('input'))})"
 
 
-def from_validation_error(error: ValidationError, data: Any, source: str = "") -> ConfigError:
+def from_validation_error(
+    error: ValidationError, data: Any, source: str = "", prefix: tuple[str, ...] = ()
+) -> ConfigError:
     """A :class:`ConfigError` from pydantic's error, with key paths instead of pydantic's locations.
 
-    The discriminator tag that pydantic inserts after ``model`` (``model.rod.epsilon``) is dropped,
-    and unknown keys get a "did you mean" hint from the keys of their section.
+    ``prefix`` is the key path of the validated section within ``data`` (``("model",)`` for a body
+    section validated on its own). Unknown keys get a "did you mean" hint from the keys of their
+    section.
     """
     issues = []
     for item in error.errors():
-        loc = tuple(item["loc"])
-        if len(loc) > 1 and loc[0] == "model" and loc[1] in _MODELS:
-            loc = ("model", *loc[2:])
-        if item["type"].startswith("union_tag"):
-            loc = ("model", "kind")
+        loc = (*prefix, *item["loc"])
         issues.append((key_path(loc), _message(item, loc, data)))
     return ConfigError(issues, source)

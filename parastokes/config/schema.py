@@ -6,15 +6,18 @@ are accepted where a float is expected). Checks that involve several keys (nodes
 against the slice length, auxiliary solvers against workers) live in :mod:`.checks`.
 
 Units follow the paper: μm, s, g. Defaults are the paper's values (Table 2 for rods, section 5.2 for
-the vesicle).
+the vesicle). The ``[model]`` section is the section of its body kind, found through
+:mod:`parastokes.bodies.registry` (the rod's and the vesicle's live in :mod:`parastokes.kinds`).
 """
 
 from __future__ import annotations
 
-import math
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, ConfigDict, Field, SerializeAsAny, field_validator
+
+from ..bodies import registry
+from ..bodies.registry import BodySection, Positive
 
 __all__ = [
     "Coarse",
@@ -25,75 +28,15 @@ __all__ = [
     "Output",
     "Parareal",
     "Richardson",
-    "RodModel",
     "RunSection",
     "Time",
-    "VesicleModel",
 ]
 
 Scheme = Literal["euler", "rk2", "rk4"]
-Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 
 
 class _Section(BaseModel):
     model_config = ConfigDict(extra="forbid", strict=True, validate_default=True)
-
-
-class RodModel(_Section):
-    """Kirchhoff rods swimming above the wall z = 0 (section 5.1, Table 2, eq. 36)."""
-
-    kind: Literal["rod"] = Field(description='"rod" for rod-like swimmers (section 5.1).')
-    n_rods: int = Field(1, ge=1, description="Number of rods, side by side in y (5 in 5.1.4).")
-    n_points: int = Field(
-        301, ge=3, description="Nodes per rod M; the grid spacing is σ_f = length / (M - 1)."
-    )
-    length: Positive = Field(60.0, description="Rod length L (μm).")
-    epsilon: Positive = Field(
-        5.0, description="Regularization ε⁰ of the MRS, in the unit `epsilon_unit`."
-    )
-    epsilon_unit: Literal["absolute", "sigma_f"] = Field(
-        "sigma_f", description='"sigma_f": ε⁰ = epsilon · σ_f (the paper\'s way); "absolute": μm.'
-    )
-    viscosity: Positive = Field(1e-6, description="Fluid viscosity μ⁰ (g μm⁻¹ s⁻¹).")
-    bending: Positive = Field(
-        1.0, description="Bending and twist modulus a⁰ = a1 = a2 = a3 (g μm³ s⁻²)."
-    )
-    shear: list[Positive] = Field(
-        [0.6, 0.6, 0.6],
-        min_length=3,
-        max_length=3,
-        description="Shear and stretch moduli [b1, b2, b3] (g μm s⁻²).",
-    )
-    amplitude: float = Field(1.0, allow_inf_nan=False, description="Amplitude A of eq. 36 (μm).")
-    frequency: float = Field(
-        40.0 * math.pi,
-        allow_inf_nan=False,
-        description="Frequency f of eq. 36 (rad/s; default 40π). Negative: a wave sin(ks - |f|t).",
-    )
-    wavelength: Positive = Field(30.0, description="Wavelength λ of eq. 36 (μm), k = 2π/λ.")
-    wall: bool = Field(
-        True, description="Plane wall at z = 0 (method of images); false: free space."
-    )
-    height: Positive = Field(10.0, description="Initial distance d of the rods from the wall (μm).")
-    spacing: Positive = Field(5.0, description="Distance between neighbouring rods in y (μm).")
-
-
-class VesicleModel(_Section):
-    """The spring-network sphere in the shear flow u∞ = (γ̇ z, 0, 0) (section 5.2)."""
-
-    kind: Literal["vesicle"] = Field(description='"vesicle" for the elastic sphere (section 5.2).')
-    subdivisions: int = Field(
-        3, ge=0, le=6, description="Icosphere refinement level (3: 642 points, 1280 triangles)."
-    )
-    epsilon: Positive = Field(
-        0.3, description="Regularization ε⁰ of the MRS, in the unit `epsilon_unit`."
-    )
-    epsilon_unit: Literal["absolute", "l_max"] = Field(
-        "l_max", description='"l_max": ε⁰ = epsilon · l_max (longest edge); "absolute".'
-    )
-    stiffness: Positive = Field(0.1, description="Spring constant κ⁰ (g s⁻²).")
-    viscosity: Positive = Field(1e-3, description="Fluid viscosity μ⁰ (g μm⁻¹ s⁻¹).")
-    shear_rate: float = Field(0.1, allow_inf_nan=False, description="Shear rate γ̇ of u∞ (1/s).")
 
 
 class Time(_Section):
@@ -116,10 +59,11 @@ class LagrangeNodes(_Section):
     nodes: list[Annotated[float, Field(allow_inf_nan=False)]] = Field(
         min_length=1, description="The node values, strictly increasing, θ⁰ outside their range."
     )
-    unit: Literal["absolute", "relative", "sigma_f", "l_max"] | None = Field(
+    unit: str | None = Field(
         None,
-        description='"relative": θ^j/θ⁰ (the tables\' a^j/a⁰); "sigma_f" / "l_max": ε only; '
-        "omitted: the unit the model section uses for that parameter.",
+        description='"absolute"; "relative": θ^j/θ⁰ (the tables\' a^j/a⁰); for ε only, the grid '
+        'length of the body ("sigma_f" for rods, "l_max" for vesicles); omitted: the unit the '
+        "model section uses for that parameter.",
     )
 
 
@@ -139,6 +83,9 @@ class Coarse(_Section):
     solvers, r^m τ; the base step of eq. 26 is τ = τ_c / r^m.
     """
 
+    kind: Literal["extrapolated"] = Field(
+        "extrapolated", description="The coarse-solver family: the extrapolated G of eq. 30."
+    )
     scheme: Scheme = Field("euler", description="Scheme of the auxiliary solvers (paper: euler).")
     dt: Positive | None = Field(None, description="Coarse step τ_c = r^m τ (give dt or dt_ratio).")
     dt_ratio: Positive | None = Field(None, description="τ_c / τ_f (the tables' τ_c = 18 τ_f: 18).")
@@ -231,8 +178,9 @@ class Config(_Section):
     """A whole run: model, time, fine and coarse solvers, Parareal, execution, output, run."""
 
     title: str = Field("", description="Free text, e.g. the paper's table and solver.")
-    model: Annotated[RodModel | VesicleModel, Field(discriminator="kind")] = Field(
-        description="The physical model (rod or vesicle)."
+    model: SerializeAsAny[BodySection] = Field(
+        description="The body: a section of its registered kind (`kind` = rod, vesicle, chain, "
+        'or "package.module:ClassName", docs/extending.md).'
     )
     time: Time
     fine: Fine
@@ -241,3 +189,19 @@ class Config(_Section):
     execution: Execution = Field(default_factory=Execution)
     output: Output = Field(default_factory=Output)
     run: RunSection = Field(default_factory=RunSection)
+
+    @field_validator("model", mode="before")
+    @classmethod
+    def _section_of_kind(cls, value: Any) -> Any:
+        """A ``[model]`` table is validated by the section class of its kind (the registry)."""
+        if isinstance(value, dict):
+            return registry.get(value.get("kind", "")).section.model_validate(value)
+        return value
+
+
+def __getattr__(name: str) -> Any:
+    """``RodModel`` and ``VesicleModel``, the sections of the built-in kinds (loaded on use)."""
+    kinds = {"RodModel": "rod", "VesicleModel": "vesicle"}
+    if name in kinds:
+        return registry.get(kinds[name]).section
+    raise AttributeError(name)

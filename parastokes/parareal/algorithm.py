@@ -26,6 +26,8 @@ from typing import Any
 
 import numpy as np
 
+from ..contracts import PropagatorLike, check_workers
+from ..contracts import with_executor as _with_executor
 from ..parallel import SerialExecutor, TaskError, run_labelled
 from . import checkpoint as ckpt
 from .metrics import Positions, relative_change
@@ -42,8 +44,6 @@ __all__ = [
 ]
 
 logger = logging.getLogger(__name__)
-
-PropagatorLike = Callable[[float, float, np.ndarray], np.ndarray]
 
 
 @dataclass(frozen=True)
@@ -118,65 +118,6 @@ def _validate(
         )
     if wall_time_limit is not None and not wall_time_limit > 0.0:
         raise ValueError(f"wall_time_limit must be positive, got {wall_time_limit!r}")
-
-
-def check_workers(n_auxiliary: int, executor: Executor | None, allow_oversubscribe: bool) -> None:
-    """Check Algorithm 1's input condition N_G <= N_c on ``executor``.
-
-    The N_G = N_theta1 N_theta2 N_theta3 (m + 1) = ``n_auxiliary`` auxiliary solvers of a coarse
-    step run concurrently on the N_c = ``executor.workers`` workers (Algorithm 1, steps 4 and 15).
-    With more solvers than workers this raises ValueError naming both numbers, unless
-    ``allow_oversubscribe``: then a warning is logged, the solvers are batched, one batch per
-    worker, and each coarse step of a serial sweep takes ceil(N_G / N_c) rounds.
-    An executor with one worker (the serial reference) runs everything serially anyway, and one
-    without a ``workers`` attribute is taken to run every task at once: neither is checked.
-    """
-    workers = getattr(executor, "workers", None)
-    if workers is None or workers == 1 or n_auxiliary <= workers:
-        return
-    rounds = math.ceil(n_auxiliary / workers)
-    if not allow_oversubscribe:
-        raise ValueError(
-            f"the coarse solver has N_G = {n_auxiliary} auxiliary solvers but the executor has "
-            f"only N_c = {workers} workers: Algorithm 1 requires N_G <= N_c so that they all run "
-            f"at once; use at least {n_auxiliary} workers or fewer Lagrange nodes / Richardson "
-            "steps, or pass allow_oversubscribe=True to batch them (each coarse step of the "
-            f"serial sweep then takes ceil({n_auxiliary}/{workers}) = {rounds} rounds)"
-        )
-    logger.warning(
-        "N_G = %d auxiliary coarse solvers on N_c = %d workers (allow_oversubscribe=True): "
-        "batched per worker, each coarse step of the serial sweep takes ceil(%d/%d) = %d rounds",
-        n_auxiliary,
-        workers,
-        n_auxiliary,
-        workers,
-        rounds,
-    )
-
-
-def _auxiliary_count(coarse: Any) -> int:
-    """N_G of a coarse combinator (``n_auxiliary``), looking through wrappers such as
-    :class:`~parastokes.parareal.OnCoarseGrid` (``propagator``); 0 for a plain propagator."""
-    while coarse is not None:
-        count = getattr(coarse, "n_auxiliary", None)
-        if count is not None:
-            return count
-        coarse = getattr(coarse, "propagator", None)
-    return 0
-
-
-def _with_executor(
-    coarse: PropagatorLike, executor: Executor | None, allow_oversubscribe: bool
-) -> PropagatorLike:
-    """Send the coarse combinator's auxiliary solvers to ``executor`` unless it has its own.
-
-    Checks N_G <= N_c first (:func:`check_workers`), before any work.
-    """
-    bind = getattr(coarse, "with_executor", None)
-    if executor is None or bind is None or coarse.executor is not None:
-        return coarse
-    check_workers(_auxiliary_count(coarse), executor, allow_oversubscribe)
-    return bind(executor)
 
 
 def _warn_idle_workers(executor: Executor | None, n_slices: int) -> None:

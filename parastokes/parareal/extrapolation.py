@@ -32,8 +32,8 @@ from typing import Any
 import numpy as np
 
 from .. import integrate
+from ..contracts import check_workers
 from ..parallel import Task, run_tasks
-from .algorithm import check_workers
 from .transfer import OnCoarseGrid
 from .weights import check_nodes, lagrange_weights, step_weights, validate_richardson
 

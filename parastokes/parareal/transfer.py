@@ -17,7 +17,7 @@ from typing import Protocol
 
 import numpy as np
 
-from .algorithm import PropagatorLike
+from ..contracts import PropagatorLike
 
 __all__ = ["OnCoarseGrid", "Transfer"]
 

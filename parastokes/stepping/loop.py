@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
+from ..contracts import System
 from ..integrate import ABOVE, BEYOND, DONE, NON_FINITE, Scheme
 from ..mrs import compiled
 from ..mrs.velocity import EIGHT_PI, kernel_threads
@@ -102,7 +103,7 @@ def pack_points(x, targets, sources):
             sources[0, i, j] = x[i, j]
 
 
-def kernel_arguments(system: Any, n_points: int, threads: int) -> tuple:
+def kernel_arguments(system: System, n_points: int, threads: int) -> tuple:
     """``(eps, denom, starts)`` as ``mrs.velocity`` passes them to the kernels for ``system``'s
     ε and μ (one system: (1,) arrays, denom = 8πμ) and ``n_points`` targets on ``threads``
     threads; ``starts[-1]`` is the padded target count."""
@@ -211,7 +212,7 @@ CALL_SECONDS = 0.25
 
 
 def run_steps(
-    system: Any,
+    system: System,
     make_data: Callable[[Any, int], tuple],
     scheme: Scheme,
     x: np.ndarray,

@@ -1,0 +1,302 @@
+"""The body registry: how config, run, output and plots find a kind of body (docs/extending.md).
+
+A *body kind* is one :class:`BodyKind` value: its config section (a :class:`BodySection`, which
+resolves its own units and defaults and builds the system), the parameter names Θ that Lagrangian
+extrapolation may vary, the output :class:`BodyLayout` of its state (fields, topology) and its
+drawing. Config, runner, io and plots ask the registry and never name a kind.
+
+A kind is found by its ``kind`` string:
+
+- a built-in name (:data:`BUILTIN`: ``"rod"``, ``"vesicle"``, ``"chain"``), one line each;
+- ``"package.module:Name"``: ``Name`` in an importable module, either a :class:`BodyKind` or a
+  system class (a frozen dataclass; :func:`derived_kind` makes its kind from its fields);
+- an entry point name of the group ``parastokes.bodies`` (installed packages), whose value is a
+  ``"package.module:Name"`` as above.
+
+Modules are imported only when a kind is asked for, so this module imports no body.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib
+import typing
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from functools import cache
+from importlib import metadata
+from typing import Annotated, Any, Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, create_model
+
+__all__ = [
+    "BUILTIN",
+    "ENTRY_POINT_GROUP",
+    "BodyKind",
+    "BodyLayout",
+    "BodyResolution",
+    "BodySection",
+    "Positive",
+    "UnknownKindError",
+    "derived_kind",
+    "draw_over_time",
+    "get",
+    "kinds",
+    "point_layout",
+    "polyline",
+]
+
+#: The package's own kinds: name -> ``"module:attribute"`` of their :class:`BodyKind`.
+BUILTIN: dict[str, str] = {
+    "rod": "parastokes.kinds.rod:KIND",
+    "vesicle": "parastokes.kinds.vesicle:KIND",
+    "chain": "parastokes.kinds.chain:KIND",
+}
+
+#: The entry point group of installed body packages: ``name = "package.module:Name"``.
+ENTRY_POINT_GROUP = "parastokes.bodies"
+
+
+#: A finite number > 0 (for config fields).
+Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+
+
+class UnknownKindError(ValueError):
+    """A ``kind`` that names no registered, importable or installed body."""
+
+
+@dataclass(frozen=True)
+class BodyResolution:
+    """What a body section resolves to, in absolute units.
+
+    ``theta0``: the parameters Θ⁰ by name (absolute ε⁰ among them); ``n_points``: rows of the
+    state; ``grid_spacing`` and ``grid_unit``: the length that ε may be given in units of (rods:
+    σ_f, ``"sigma_f"``; vesicles: l_max, ``"l_max"``; ``None`` when the kind has none).
+    """
+
+    theta0: dict[str, float]
+    n_points: int
+    grid_spacing: float = float("nan")
+    grid_unit: str | None = None
+
+
+class BodySection(BaseModel):
+    """The base of every body's config section (``[model]``): ``kind`` plus the body's own keys.
+
+    Subclasses set ``kind`` to a ``Literal`` of their name and implement :meth:`resolve` and
+    :meth:`build`; a kind with a coarser grid (Remark 4) overrides :meth:`coarse_points`.
+    """
+
+    model_config = ConfigDict(extra="forbid", strict=True, validate_default=True)
+
+    kind: str = Field(description="The body kind.")
+
+    def resolve(self) -> BodyResolution:
+        """Θ⁰ in absolute units, the number of state rows and the grid length of ε's unit."""
+        raise NotImplementedError
+
+    def build(self, threads: int = 1) -> Any:
+        """The system of this section with Θ⁰, its kernels on ``threads`` threads."""
+        raise NotImplementedError
+
+    def coarse_points(self, factor: int) -> int:
+        """State rows on the grid ``factor`` times coarser; ValueError naming why not."""
+        raise ValueError(f"the {self.kind!r} kind has no coarser grid; use 1")
+
+
+@dataclass(frozen=True)
+class BodyLayout:
+    """One body's rows of the state and how to write and show them.
+
+    ``first``/``rows``: its rows of the state (positions in the columns 0-2); ``vectors``: further
+    node vectors by name (column slices, e.g. a rod's frames ``D1`` = 3:6); ``cells`` and
+    ``topology``: the XDMF topology (``"Polyline"``, ``"Triangle"``, ``"Polyvertex"``) and its
+    connectivity; ``marks``: static per-node integer arrays (e.g. ``tracked``).
+    """
+
+    name: str
+    kind: str
+    first: int
+    rows: int
+    topology: str
+    cells: np.ndarray
+    vectors: Mapping[str, slice] = field(default_factory=dict)
+    marks: Mapping[str, np.ndarray] = field(default_factory=dict)
+
+
+def point_layout(name: str, kind: str, first: int, rows: int) -> BodyLayout:
+    """The layout of ``rows`` unconnected points (XDMF Polyvertex, one cell per point)."""
+    cells = np.arange(rows, dtype=np.int64).reshape(-1, 1)
+    return BodyLayout(name, kind, first, rows, "Polyvertex", cells)
+
+
+def polyline(n: int) -> np.ndarray:
+    """The n - 1 segments (i, i + 1) of a line through n points, (n - 1, 2) int64."""
+    return np.stack([np.arange(n - 1), np.arange(1, n)], axis=1).astype(np.int64)
+
+
+def draw_over_time(fig: Any, bodies: Mapping[str, Mapping[str, np.ndarray]], times: np.ndarray,
+                   plane: tuple[int, int], title: str, **style: Any) -> None:
+    """Every frame of every body as a line in ``plane`` (axis indices), coloured by time."""
+    from matplotlib import colormaps
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import Normalize
+
+    ax = fig.subplots()
+    colors = colormaps["viridis"](np.linspace(0, 1, len(times)))
+    for body in bodies.values():
+        for color, frame in zip(colors, body["positions"], strict=True):
+            ax.plot(frame[:, plane[0]], frame[:, plane[1]], color=color, **style)
+    mappable = ScalarMappable(cmap="viridis", norm=Normalize(times[0], times[-1]))
+    fig.colorbar(mappable, ax=ax, label="t (s)")
+    ax.set_xlabel(f"{'xyz'[plane[0]]} (μm)")
+    ax.set_ylabel(f"{'xyz'[plane[1]]} (μm)")
+    ax.set_title(title)
+
+
+#: ``draw(fig, bodies, times, run)``: draw the frames of this kind's ``bodies`` (name -> dict with
+#: ``positions`` (F, M, 3), ``connectivity`` and marks) onto the matplotlib ``fig``.
+Draw = Callable[[Any, Mapping[str, Mapping[str, np.ndarray]], np.ndarray, str], None]
+
+
+def _draw_points(fig: Any, bodies: Mapping[str, Mapping[str, np.ndarray]], times: np.ndarray,
+                 run: str) -> None:
+    """Points of every body projected on x-y and x-z, first frame light, last frame dark."""
+    axes = fig.subplots(1, 2)
+    for ax, (i, j), label in zip(axes, ((0, 1), (0, 2)), ("y", "z"), strict=True):
+        for body in bodies.values():
+            for index, color in ((0, "0.7"), (-1, "k")):
+                points = body["positions"][index]
+                ax.plot(points[:, i], points[:, j], ".", color=color, ms=3)
+        ax.set_xlabel("x")
+        ax.set_ylabel(label)
+        ax.set_aspect("equal", adjustable="datalim")
+    axes[0].set_title(f"t = {times[0]:g} (grey), {times[-1]:g} (black); {run}")
+
+
+@dataclass(frozen=True)
+class BodyKind:
+    """One kind of body: everything the shell needs to configure, run, write and draw it.
+
+    ``section``: the config section class (its :meth:`BodySection.resolve` gives Θ⁰, whose names
+    are those of ``system.params``); ``layout(section, system, frames, tracked)``: the
+    :class:`BodyLayout` of every body of the state (``frames``: write node vectors; ``tracked``:
+    marked points or None for the kind's default); ``draw``: see :data:`Draw`;
+    ``tracks_points``: whether ``output.tracked_points`` applies; ``example()``: a small system, an
+    active state of it and a horizon on which the schemes show their orders, for
+    :func:`parastokes.testing.check_system` (the contract tests run it for every kind).
+    """
+
+    name: str
+    section: type[BodySection]
+    layout: Callable[[Any, Any, bool, Sequence[int] | None], list[BodyLayout]]
+    draw: Draw = _draw_points
+    tracks_points: bool = False
+    example: Callable[[], tuple[Any, np.ndarray, float | None]] | None = None
+
+
+# ---- kinds derived from a system class ----------------------------------------------------------
+def _field_type(annotation: Any) -> Any:
+    """TOML has arrays, not tuples: ``tuple[float, ...]`` fields are read as lists."""
+    if typing.get_origin(annotation) is tuple:
+        args = [a for a in typing.get_args(annotation) if a is not Ellipsis]
+        return list[args[0]] if args else list
+    return annotation
+
+
+def derived_kind(cls: type, name: str) -> BodyKind:
+    """The :class:`BodyKind` of a system class ``cls`` that is a dataclass: its config section has
+    one key per field (same types and defaults; ``n_threads`` comes from ``execution.threads``),
+    Θ⁰ is the built system's ``params``, and its state is one body of unconnected points."""
+    if not dataclasses.is_dataclass(cls):
+        raise UnknownKindError(
+            f"{name!r}: {cls!r} is neither a BodyKind nor a dataclass system class"
+        )
+    hints = typing.get_type_hints(cls)
+    fields: dict[str, Any] = {"kind": (Literal[name], Field(description="This body's class."))}
+    for f in dataclasses.fields(cls):
+        if f.name == "n_threads" or not f.init:
+            continue
+        default = f.default if f.default is not dataclasses.MISSING else ...
+        if isinstance(default, tuple):
+            default = list(default)
+        fields[f.name] = (_field_type(hints[f.name]), default)
+
+    def resolve(self: BodySection) -> BodyResolution:
+        system = self.build()
+        theta0 = {k: float(v) for k, v in system.params.items()}
+        return BodyResolution(theta0, len(system.initial_state()))
+
+    def build(self: BodySection, threads: int = 1) -> Any:
+        values = {k: tuple(v) if isinstance(v, list) else v
+                  for k, v in self.model_dump(exclude={"kind"}).items()}
+        if any(f.name == "n_threads" for f in dataclasses.fields(cls)):
+            values["n_threads"] = threads
+        return cls(**values)
+
+    section = create_model(
+        f"{cls.__name__}Section",
+        __base__=BodySection,
+        __doc__=cls.__doc__,
+        **fields,
+    )
+    section.resolve = resolve  # type: ignore[method-assign]
+    section.build = build  # type: ignore[method-assign]
+
+    def layout(section_: Any, system: Any, frames: bool, tracked: Sequence[int] | None):
+        return [point_layout(f"{cls.__name__.lower()}_0", name, 0, len(system.initial_state()))]
+
+    return BodyKind(name, section, layout)
+
+
+# ---- lookup ---------------------------------------------------------------------------------
+def _entry_points() -> dict[str, str]:
+    return {ep.name: ep.value for ep in metadata.entry_points(group=ENTRY_POINT_GROUP)}
+
+
+def kinds() -> list[str]:
+    """The names of the built-in and installed kinds (``"module:Name"`` kinds are not listed)."""
+    return sorted(set(BUILTIN) | set(_entry_points()))
+
+
+def _load(target: str, name: str) -> BodyKind:
+    module_name, _, attribute = target.partition(":")
+    try:
+        obj: Any = importlib.import_module(module_name)
+    except ImportError as error:
+        raise UnknownKindError(
+            f"{name!r}: cannot import module {module_name!r} ({error})"
+        ) from None
+    for part in attribute.split("."):
+        try:
+            obj = getattr(obj, part)
+        except AttributeError:
+            raise UnknownKindError(
+                f"{name!r}: module {module_name!r} has no attribute {attribute!r}"
+            ) from None
+    if isinstance(obj, BodyKind):
+        return obj
+    if isinstance(getattr(obj, "body_kind", None), BodyKind):
+        return obj.body_kind
+    if isinstance(obj, type):
+        return derived_kind(obj, name)
+    raise UnknownKindError(f"{name!r}: {target} is not a BodyKind or a system class")
+
+
+@cache
+def get(kind: str) -> BodyKind:
+    """The :class:`BodyKind` of ``kind``; :class:`UnknownKindError` naming the known kinds."""
+    if not isinstance(kind, str) or not kind:
+        raise UnknownKindError(f"kind must be a non-empty string, got {kind!r}")
+    if kind in BUILTIN:
+        return _load(BUILTIN[kind], kind)
+    if ":" in kind:
+        return _load(kind, kind)
+    installed = _entry_points()
+    if kind in installed:
+        return _load(installed[kind], kind)
+    raise UnknownKindError(
+        f"unknown body kind {kind!r}; registered kinds: {', '.join(kinds())}, or give a class "
+        'as "package.module:ClassName" (docs/extending.md)'
+    )

@@ -1,0 +1,131 @@
+"""The fluid as a value: what turns the point loads of the bodies into velocities.
+
+A system's rates are the background flow plus ``fluid.velocity(points, forces, epsilon=ε,
+torques=..., angular=...)`` of its loads (eq. 6; with torques the rotlets, physics.md (2)-(4); with
+``wall`` the images of (5)-(8)). Two implementations compute the same numbers, bit for bit:
+
+- :class:`MRS`: regularized Stokeslets through :func:`parastokes.mrs.velocity`, the targets in
+  tiles over ``n_threads`` numba threads (the threaded spatial parallelization of Remark 1);
+- :class:`BlockedMRS`: the same sums split into contiguous blocks of targets, one task per block
+  on an executor (process pool or MPI ranks), the loads shipped with all sources to every block,
+  as a distributed-memory code broadcasts them (the process-block spatial parallelization).
+
+The regularization ε belongs to the body (it is a parameter Θ that extrapolation varies) and is
+passed with each evaluation; the fluid holds μ, the wall and how the sums are computed.
+Compiled loops of steps are registered per (system type, fluid type)
+(:mod:`parastokes.stepping.registry`): only the :class:`MRS` fluid has them.
+"""
+
+from __future__ import annotations
+
+from concurrent.futures import Executor
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from . import mrs
+from .parallel import Task, run_tasks
+
+__all__ = ["MRS", "BlockedMRS", "TargetBlocks"]
+
+
+@dataclass(frozen=True)
+class MRS:
+    """Regularized Stokeslets of viscosity μ in free space or above the wall z = 0."""
+
+    viscosity: float
+    wall: bool = False
+    n_threads: int | None = None
+
+    def velocity(
+        self,
+        points: np.ndarray,
+        forces: np.ndarray,
+        *,
+        epsilon: float,
+        torques: np.ndarray | None = None,
+        angular: bool = False,
+    ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+        """u at ``points`` from the loads at the same points (and w with ``angular``)."""
+        return mrs.velocity(
+            points,
+            points,
+            forces,
+            epsilon=epsilon,
+            mu=self.viscosity,
+            torques=torques,
+            wall=self.wall,
+            angular=angular,
+            n_threads=self.n_threads,
+            check=False,
+        )
+
+
+def _block_velocity(
+    targets: np.ndarray,
+    sources: np.ndarray,
+    forces: np.ndarray,
+    torques: np.ndarray | None,
+    options: dict[str, Any],
+) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+    """Eq. 6 at one block of targets from all sources (runs on a worker, one thread)."""
+    return mrs.velocity(targets, sources, forces, torques=torques, check=False, **options)
+
+
+class TargetBlocks:
+    """How a :class:`BlockedMRS` splits its targets: ``n_blocks`` contiguous blocks (default
+    ``executor.workers``), one labelled task each on ``executor``. It holds the executor, so it
+    lives on the manager and does not pickle."""
+
+    def __init__(self, executor: Executor, n_blocks: int | None = None) -> None:
+        n_blocks = getattr(executor, "workers", 1) if n_blocks is None else n_blocks
+        if isinstance(n_blocks, bool) or not isinstance(n_blocks, int) or n_blocks < 1:
+            raise ValueError(f"n_blocks must be an integer >= 1, got {n_blocks!r}")
+        self.executor = executor
+        self.n_blocks = n_blocks
+
+    def __reduce__(self) -> tuple:
+        raise TypeError("TargetBlocks holds an executor (manager only): it does not pickle")
+
+    def slices(self, n_points: int) -> list[slice]:
+        """The blocks of ``n_points`` targets (at most one per target)."""
+        parts = np.array_split(np.arange(n_points), min(self.n_blocks, n_points))
+        return [slice(int(b[0]), int(b[-1]) + 1) for b in parts]
+
+    def run(self, points: np.ndarray, forces: np.ndarray, torques: np.ndarray | None,
+            options: dict[str, Any]) -> list[Any]:
+        """The velocities of every block (in order) of ``points`` from all of them."""
+        tasks = [
+            Task(
+                _block_velocity,
+                (points[block], points, forces, torques, options),
+                f"velocity of targets {block.start}-{block.stop - 1}",
+            )
+            for block in self.slices(len(points))
+        ]
+        return run_tasks(self.executor, tasks)
+
+
+@dataclass(frozen=True)
+class BlockedMRS(MRS):
+    """:class:`MRS` with every evaluation split into blocks of targets (:class:`TargetBlocks`);
+    each target's sum is the same sum in the same order, so the velocities are the same bits."""
+
+    blocks: TargetBlocks | None = None
+
+    def velocity(
+        self,
+        points: np.ndarray,
+        forces: np.ndarray,
+        *,
+        epsilon: float,
+        torques: np.ndarray | None = None,
+        angular: bool = False,
+    ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+        options = {"epsilon": epsilon, "mu": self.viscosity, "wall": self.wall,
+                   "angular": angular}
+        parts = self.blocks.run(points, forces, torques, options)
+        if angular:
+            return (np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts]))
+        return np.concatenate(parts)

@@ -1,0 +1,183 @@
+"""Scenes: several bodies of any kinds in one fluid, as one system (one state, one set of Θ).
+
+``Scene(bodies=(rod, vesicle), viscosity=1e-6, wall=True)`` couples its bodies through the fluid:
+every body's point loads (forces, and torques for rods) drive the velocity at the points of all
+bodies, each source with its own body's ε (regularized Stokeslets and rotlets, eq. 6 and
+physics.md (1)-(8); ``wall``: images in the plane z = 0), plus the background shear
+u∞ = (γ̇ z, 0, 0) with its rotation w∞ = (0, γ̇/2, 0) for bodies with frames.
+
+- **State**: the bodies' states stacked by rows, padded with zero columns to the widest (a rod's
+  12, a vesicle's 3), so positions are the columns 0-2 of every row, as the output expects.
+- **Θ**: ``viscosity`` (the one fluid's) and every body's other parameters as ``"name.param"``
+  (``"rod.epsilon"``, ``"vesicle.stiffness"``): Lagrangian extrapolation varies any of them.
+- **Monitor**: the largest of the bodies' monitors over their limits (``monitor_limit`` = 1).
+
+A body in a scene offers ``loads(t, state) -> (forces, torques or None)``, ``angular`` (whether
+its rates include angular velocities) and ``body_rates(u, w)`` (its rates from the fluid's
+velocities at its points), besides the System contract (docs/contracts.md). Its ``viscosity``,
+and its ``wall`` and ``shear_rate`` where it has them, must agree with the scene's. A scene has no
+compiled loop of steps: it runs the Runge-Kutta tableaux through its Python ``rates``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from functools import cached_property
+from typing import Any
+
+import numpy as np
+
+from . import mrs
+
+__all__ = ["Scene"]
+
+
+def _name(body: Any) -> str:
+    return type(body).__name__.removesuffix("System").lower()
+
+
+@dataclass(frozen=True)
+class Scene:
+    """``bodies`` (systems) in one MRS fluid of ``viscosity``, with ``wall`` and background shear
+    ``shear_rate``; ``names`` label the bodies in Θ (default: their kinds, numbered if repeated)."""
+
+    bodies: tuple[Any, ...]
+    viscosity: float
+    wall: bool = False
+    shear_rate: float = 0.0
+    names: tuple[str, ...] = ()
+    n_threads: int | None = None
+
+    def __post_init__(self) -> None:
+        if not self.bodies:
+            raise ValueError("bodies: a scene needs at least one body")
+        object.__setattr__(self, "bodies", tuple(self.bodies))
+        if not self.names:
+            kinds = [_name(b) for b in self.bodies]
+            names = [k if kinds.count(k) == 1 else f"{k}{kinds[:i].count(k)}"
+                     for i, k in enumerate(kinds)]
+            object.__setattr__(self, "names", tuple(names))
+        if len(self.names) != len(self.bodies) or len(set(self.names)) != len(self.names):
+            raise ValueError(f"names: need one distinct name per body, got {self.names!r}")
+        for name, body in zip(self.names, self.bodies, strict=True):
+            for key in ("viscosity", "wall", "shear_rate"):
+                if hasattr(body, key) and getattr(body, key) != getattr(self, key):
+                    raise ValueError(
+                        f"{name}.{key}: {getattr(body, key)!r} differs from the scene's "
+                        f"{getattr(self, key)!r} (one fluid, one background flow)"
+                    )
+
+    # ---- layout of the state -------------------------------------------------------------
+    @cached_property
+    def _shapes(self) -> tuple[tuple[int, int, int], ...]:
+        """(first row, rows, state columns) of every body."""
+        out, first = [], 0
+        for body in self.bodies:
+            rows, cols = np.shape(body.initial_state())
+            out.append((first, rows, cols))
+            first += rows
+        return tuple(out)
+
+    def blocks(self, array: np.ndarray, columns: list[int] | None = None) -> list[np.ndarray]:
+        """Every body's view of a stacked ``array`` (its rows; its state columns by default)."""
+        cols = columns or [c for _, _, c in self._shapes]
+        return [array[f : f + n, :c] for (f, n, _), c in zip(self._shapes, cols, strict=True)]
+
+    def _stack(self, parts: list[np.ndarray]) -> np.ndarray:
+        width = max(p.shape[1] for p in parts)
+        out = np.zeros((sum(len(p) for p in parts), width))
+        for (first, rows, _), part in zip(self._shapes, parts, strict=True):
+            out[first : first + rows, : part.shape[1]] = part
+        return out
+
+    # ---- the System contract -------------------------------------------------------------
+    def initial_state(self) -> np.ndarray:
+        return self._stack([body.initial_state() for body in self.bodies])
+
+    def positions(self, state: np.ndarray) -> np.ndarray:
+        return np.array(state[:, :3])
+
+    def rates(self, t: float, state: np.ndarray) -> np.ndarray:
+        """Each body's rates from u∞ + the velocities that all bodies' loads induce at its points
+        (each source body with its own ε)."""
+        points = np.ascontiguousarray(state[:, :3])
+        angular = any(body.angular for body in self.bodies)
+        u = np.zeros_like(points)
+        w = np.zeros_like(points)
+        for body, x in zip(self.bodies, self.blocks(state), strict=True):
+            forces, torques = body.loads(t, x)
+            sources = np.ascontiguousarray(x[:, :3])
+            value = mrs.velocity(points, sources, forces, epsilon=body.epsilon, mu=self.viscosity,
+                                 torques=torques, wall=self.wall, angular=angular,
+                                 n_threads=self.n_threads, check=False)
+            if angular:
+                u += value[0]
+                w += value[1]
+            else:
+                u += value
+        u[:, 0] += self.shear_rate * points[:, 2]
+        w[:, 1] += 0.5 * self.shear_rate
+        parts = [body.body_rates(u[f : f + n], w[f : f + n])
+                 for body, (f, n, _) in zip(self.bodies, self._shapes, strict=True)]
+        return self._stack(parts)
+
+    @property
+    def _rate_columns(self) -> list[int]:
+        return [6 if body.angular else 3 for body in self.bodies]
+
+    def advance(self, state: np.ndarray, rates: np.ndarray, dt: float) -> np.ndarray:
+        parts = [
+            body.advance(x, r, dt)
+            for body, x, r in zip(self.bodies, self.blocks(state),
+                                  self.blocks(rates, self._rate_columns), strict=True)
+        ]
+        return self._stack(parts)
+
+    def bracket(self, r1: np.ndarray, r2: np.ndarray) -> np.ndarray:
+        """The bodies' Lie brackets (zero for bodies without one)."""
+        cols = self._rate_columns
+        parts = [
+            body.bracket(a, b) if hasattr(body, "bracket") else np.zeros_like(a)
+            for body, a, b in zip(self.bodies, self.blocks(r1, cols), self.blocks(r2, cols),
+                                  strict=True)
+        ]
+        return self._stack(parts)
+
+    def project(self, state: np.ndarray) -> np.ndarray:
+        return self._stack([body.project(x) for body, x in zip(self.bodies, self.blocks(state),
+                                                                 strict=True)])
+
+    # ---- parameters and monitor ----------------------------------------------------------
+    @property
+    def params(self) -> dict[str, float]:
+        """``viscosity`` and every body's other parameters as ``"name.param"``."""
+        out = {"viscosity": float(self.viscosity)}
+        for name, body in zip(self.names, self.bodies, strict=True):
+            out |= {f"{name}.{k}": v for k, v in body.params.items() if k != "viscosity"}
+        return out
+
+    def with_params(self, **theta: float) -> Scene:
+        """A copy with some of :attr:`params` changed (``viscosity`` for every body)."""
+        unknown = sorted(set(theta) - set(self.params))
+        if unknown:
+            raise ValueError(
+                f"with_params: unknown parameter(s) {unknown}; allowed: {sorted(self.params)}"
+            )
+        bodies = []
+        for name, body in zip(self.names, self.bodies, strict=True):
+            mine = {k.split(".", 1)[1]: v for k, v in theta.items() if k.startswith(f"{name}.")}
+            if "viscosity" in theta and "viscosity" in body.params:
+                mine["viscosity"] = theta["viscosity"]
+            bodies.append(body.with_params(**mine) if mine else body)
+        viscosity = float(theta.get("viscosity", self.viscosity))
+        return dataclasses.replace(self, bodies=tuple(bodies), viscosity=viscosity)
+
+    monitor_limit = 1.0
+
+    def monitor(self, state: np.ndarray) -> float:
+        """The largest of the bodies' monitors, each over its own limit."""
+        values = [body.monitor(x) / body.monitor_limit
+                  for body, x in zip(self.bodies, self.blocks(state), strict=True)]
+        return float(max(values)) if all(math.isfinite(v) for v in values) else math.nan

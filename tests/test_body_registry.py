@@ -1,0 +1,118 @@
+"""The body registry: built-in kinds, "module:Class" kinds, installed kinds (entry points), and the
+clear error for a kind that is none of these."""
+
+from __future__ import annotations
+
+import itertools
+import textwrap
+
+import numpy as np
+import pytest
+
+from parastokes import config
+from parastokes.bodies import registry
+from parastokes.config import ConfigError
+
+USER = """\
+[model]
+kind = "user_body:SedimentingCloud"
+n_points = 12
+{extra}
+
+[time]
+t1 = 0.2
+
+[fine]
+dt = 0.01
+
+[coarse]
+dt = 0.05
+lagrange = {{ epsilon = [0.12, 0.13] }}
+
+[parareal]
+n_slices = 2
+
+[execution]
+executor = "serial"
+allow_oversubscribe = true
+"""
+
+
+def test_unknown_kind_lists_the_registered_kinds():
+    with pytest.raises(ConfigError) as info:
+        config.loads(USER.format(extra="").replace("user_body:SedimentingCloud", "sphere"))
+    message = dict(info.value.issues)["model.kind"]
+    assert "unknown body kind 'sphere'" in message
+    assert "rod" in message and "vesicle" in message and "package.module:ClassName" in message
+
+
+@pytest.mark.parametrize(
+    ("kind", "fragment"),
+    [("no_such_module:X", "cannot import module"), ("user_body:Missing", "has no attribute")],
+)
+def test_bad_module_kinds_name_the_problem(kind, fragment):
+    with pytest.raises(ConfigError, match=fragment):
+        config.loads(USER.format(extra="").replace("user_body:SedimentingCloud", kind))
+
+
+def test_a_dataclass_system_is_a_kind_with_its_fields_as_keys():
+    cfg, resolved = config.loads(USER.format(extra="weight = 2.0"))
+    assert cfg.model.kind == "user_body:SedimentingCloud"
+    assert resolved.theta0 == {"epsilon": 0.1, "viscosity": 1.0}
+    assert resolved.n_points == 12
+    assert resolved.lagrange == {"epsilon": [0.12, 0.13]}
+    system = config.build_system(cfg, resolved)
+    assert (type(system).__name__, system.weight, system.n_points) == ("SedimentingCloud", 2.0, 12)
+    # the section has the class's keys: a typo is named, with a hint
+    with pytest.raises(ConfigError) as info:
+        config.loads(USER.format(extra="wieght = 2.0"))
+    assert "did you mean 'weight'" in dict(info.value.issues)["model.wieght"]
+    # and the class's types, strictly
+    with pytest.raises(ConfigError, match=r"model\.n_points"):
+        config.loads(USER.format(extra="").replace("n_points = 12", 'n_points = "12"'))
+
+
+def test_unknown_parameters_of_a_user_kind_are_named():
+    text = USER.format(extra="").replace("epsilon = [0.12, 0.13]", "weight = [1.1, 1.2]")
+    with pytest.raises(ConfigError) as info:
+        config.loads(text)
+    assert "epsilon, viscosity" in dict(info.value.issues)["coarse.lagrange.weight"]
+
+
+def test_installed_packages_register_kinds_through_entry_points(tmp_path, monkeypatch):
+    package = tmp_path / "site"
+    (package / "cloudpkg").mkdir(parents=True)
+    (package / "cloudpkg" / "__init__.py").write_text("from user_body import SedimentingCloud\n")
+    info = package / "cloudpkg-1.0.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: cloudpkg\nVersion: 1.0\n")
+    (info / "entry_points.txt").write_text(
+        textwrap.dedent(
+            """\
+            [parastokes.bodies]
+            cloud = cloudpkg:SedimentingCloud
+            """
+        )
+    )
+    monkeypatch.syspath_prepend(str(package))
+    registry.get.cache_clear()
+    try:
+        assert "cloud" in registry.kinds()
+        cfg, resolved = config.loads(USER.format(extra="").replace("user_body:SedimentingCloud",
+                                                                   "cloud"))
+        assert type(config.build_system(cfg, resolved)).__name__ == "SedimentingCloud"
+    finally:
+        registry.get.cache_clear()
+
+
+def test_layouts_of_the_builtin_kinds_cover_the_state():
+    for text in (config.DEMO, config.DEMO.replace(
+            'kind = "rod"', 'kind = "rod"\nn_rods = 3')):
+        cfg, resolved = config.loads(text)
+        system = config.build_system(cfg, resolved)
+        kind = registry.get(cfg.model.kind)
+        layout = kind.layout(cfg.model, system, True, None)
+        rows = sorted((body.first, body.first + body.rows) for body in layout)
+        assert rows[0][0] == 0 and rows[-1][1] == len(system.initial_state())
+        assert all(a[1] == b[0] for a, b in itertools.pairwise(rows))
+        assert all(np.max(body.cells) < body.rows for body in layout)

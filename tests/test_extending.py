@@ -1,0 +1,74 @@
+"""docs/extending.md as a new user follows it: its files written into an empty folder, its scripts
+run, its config checked and run through the command line, with no edit to parastokes."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+BLOCK = re.compile(r"<!-- (file|append|run): (\S+) -->\n```\w*\n(.*?)```", re.S)
+
+
+def _python(args: list[str], cwd: Path) -> subprocess.CompletedProcess:
+    env = dict(os.environ, PYTHONPATH=f"{cwd}{os.pathsep}{ROOT}")
+    return subprocess.run([sys.executable, *args], cwd=cwd, env=env, capture_output=True,
+                          text=True, timeout=600)
+
+
+@pytest.fixture(scope="module")
+def walk(tmp_path_factory):
+    """The folder after every file and script step of the page (scripts' outputs by name)."""
+    folder = tmp_path_factory.mktemp("user")
+    outputs = {}
+    for action, name, text in BLOCK.findall((ROOT / "docs" / "extending.md").read_text()):
+        path = folder / name
+        if action == "append":
+            path.write_text(path.read_text() + "\n\n" + text)
+        else:
+            path.write_text(text)
+        if action == "run":
+            done = _python([name], folder)
+            assert done.returncode == 0, done.stderr
+            outputs[name] = done.stdout
+    return folder, outputs
+
+
+def test_the_pages_python_steps_run(walk):
+    _, outputs = walk
+    assert outputs["check.py"].strip() == "contract ok"
+    assert outputs["parareal_cloud.py"].startswith("errors")
+
+
+def test_the_pages_config_checks_and_runs_from_the_command_line(walk):
+    folder, _ = walk
+    done = _python(["-m", "parastokes", "check", "cloud.toml"], folder)
+    assert done.returncode == 0, done.stderr
+    assert "mybodies:SedimentingCloud" in done.stdout
+    done = _python(["-m", "parastokes", "run", "cloud.toml", "--out", "cloud_run"], folder)
+    assert done.returncode == 0, done.stderr
+    out = folder / "cloud_run"
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["config"]["model"]["weight"] == 2.0
+    assert summary["errors"][-1] < 1e-8
+    assert len(summary["final_positions"]) == 20
+    assert 'TopologyType="Polyvertex"' in (out / "trajectory.xdmf").read_text()
+    assert (out / "structure.png").exists()
+
+
+def test_the_pages_body_kind_is_found_by_its_name(walk):
+    folder, _ = walk
+    text = (folder / "cloud.toml").read_text()
+    text = text.replace('kind = "mybodies:SedimentingCloud"', 'kind = "mybodies:CLOUD"')
+    (folder / "cloud_kind.toml").write_text(text.replace("weight = 2.0\n", ""))
+    done = _python(["-m", "parastokes", "check", "cloud_kind.toml"], folder)
+    assert done.returncode == 0, done.stderr
+    (folder / "typo.toml").write_text(text)  # weight is not a key of CloudSection
+    done = _python(["-m", "parastokes", "check", "typo.toml"], folder)
+    assert done.returncode != 0 and "model.weight: unknown key" in done.stderr + done.stdout

@@ -1,0 +1,111 @@
+"""Scenes (parastokes/scene.py): several bodies of any kinds in one fluid, as one system."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from parastokes import integrate, models, parareal
+from parastokes.kinds.chain import ChainSystem
+from parastokes.scene import Scene
+from parastokes.testing import check_system
+
+
+def swimmer():
+    return models.rod_swimmer(1, 31, 1.0, length=6.0, wavelength=3.0)
+
+
+@pytest.mark.parametrize(
+    "body",
+    [swimmer(), models.vesicle(subdivisions=1, shear_rate=0.3),
+     ChainSystem(n_beads=6, shear_rate=0.5, stretch=1.2, wall=True, height=3.0)],
+    ids=["rod", "vesicle", "chain"],
+)
+def test_a_scene_of_one_body_is_that_body_bit_for_bit(body):
+    scene = Scene((body,), viscosity=body.viscosity, wall=getattr(body, "wall", False),
+                  shear_rate=getattr(body, "shear_rate", 0.0))
+    x0 = body.initial_state()
+    np.testing.assert_array_equal(scene.initial_state(), x0)
+    np.testing.assert_array_equal(scene.rates(0.01, x0), body.rates(0.01, x0))
+    dt = 1e-6 if body.viscosity < 1e-3 else 1e-3
+    np.testing.assert_array_equal(integrate.propagate(scene, x0, 0.0, 5 * dt, "rk4", dt),
+                                  integrate.propagate(body, x0, 0.0, 5 * dt, "rk4", dt))
+
+
+def test_a_mixed_scene_keeps_the_system_contract():
+    chain = ChainSystem(n_beads=8, stiffness=0.02, bending=0.002, viscosity=1e-3,
+                        shear_rate=0.1, height=4.0, stretch=1.05)
+    vesicle = models.vesicle(subdivisions=1, shear_rate=0.1)
+    scene = Scene((chain, vesicle), viscosity=1e-3, shear_rate=0.1)
+    assert scene.names == ("chain", "vesicle")
+    assert set(scene.params) == {"viscosity", "chain.epsilon", "chain.stiffness",
+                                 "chain.bending", "vesicle.epsilon", "vesicle.stiffness"}
+    x = scene.initial_state()
+    x[: chain.n_beads, 2] += 0.2 * np.sin(np.linspace(0, np.pi, chain.n_beads))
+    x[chain.n_beads :] *= [1.02, 1.0, 1 / 1.02]  # a stretched vesicle: its springs pull
+    check_system(scene, x, horizon=0.02)
+
+
+def sedimenting_pair(distance: float) -> tuple[float, float]:
+    """Mean fall speed of a chain alone, and of the same chain with a twin ``distance`` above."""
+    low = ChainSystem(n_beads=5, bending=0.0, load=(0.0, 0.0, -1.0))
+    high = ChainSystem(n_beads=5, bending=0.0, load=(0.0, 0.0, -1.0), height=distance)
+    alone = -low.rates(0.0, low.initial_state())[:, 2].mean()
+    scene = Scene((low, high), viscosity=1.0)
+    together = -scene.rates(0.0, scene.initial_state())[:5, 2].mean()
+    return alone, together
+
+
+def test_bodies_interact_through_the_fluid_and_far_apart_as_stokeslets():
+    """A twin above a sedimenting chain drags it down faster; far away, the extra speed is the
+    twin's Stokeslet, F_tot 2 / (8πμ d) along the line joining them."""
+    for distance in (40.0, 80.0):
+        alone, together = sedimenting_pair(distance)
+        assert together > alone
+        stokeslet = 5 * 2 / (8 * np.pi * distance)
+        assert together - alone == pytest.approx(stokeslet, rel=0.01)
+
+
+def test_parareal_extrapolates_in_any_bodys_parameter():
+    chain = ChainSystem(n_beads=6, stiffness=20.0, bending=2.0, shear_rate=1.0, stretch=1.2)
+    other = ChainSystem(n_beads=6, stiffness=20.0, bending=2.0, shear_rate=1.0, height=2.0,
+                        tilt=0.5)
+    scene = Scene((chain, other), viscosity=1.0, shear_rate=1.0)
+    assert scene.names == ("chain0", "chain1")
+    assert scene.with_params(**{"chain1.stiffness": 18.0}).bodies[1].stiffness == 18.0
+    assert scene.with_params(viscosity=2.0).bodies[0].viscosity == 2.0
+    fine = integrate.Propagator(scene, "rk2", 0.002)
+    coarse = parareal.extrapolated(scene, "euler", 0.02, lagrange={"chain0.stiffness": [16, 18]},
+                                   richardson={"m": 1, "r": 0.5})
+    x0 = scene.initial_state()
+    reference = parareal.serial_solution(fine, x0, 0.0, 0.2, 4)
+    res = parareal.run(fine, coarse, x0, 0.0, 0.2, 4, tol=0.0, max_iterations=4,
+                       reference=reference)
+    assert res.errors[-1] < 1e-12 < res.errors[0]
+
+
+def test_bad_scenes_are_named():
+    with pytest.raises(ValueError, match=r"vesicle\.shear_rate"):
+        Scene((models.vesicle(1, shear_rate=0.1),), viscosity=1e-3, shear_rate=0.0)
+    with pytest.raises(ValueError, match="viscosity"):
+        Scene((swimmer(),), viscosity=1.0, wall=True)
+    with pytest.raises(ValueError, match="unknown parameter"):
+        Scene((swimmer(),), viscosity=1e-6, wall=True).with_params(epsilon=2.0)
+
+
+def test_a_swimmer_beside_a_vesicle_above_the_wall_keeps_the_contract():
+    """The issue's scene in miniature: a beating rod (forces, torques, frames) and a vesicle
+    (forces only) above the wall, coupled through the wall's image systems."""
+    rod = models.rod_swimmer(1, 31, 1.0, length=6.0, wavelength=3.0, viscosity=1e-3, height=3.0)
+    vesicle = dataclasses.replace(models.vesicle(subdivisions=1, shear_rate=0.0, viscosity=1e-3),
+                                  center=(3.0, 2.5, 3.0))
+    scene = Scene((rod, vesicle), viscosity=1e-3, wall=True)
+    x = scene.initial_state()
+    np.testing.assert_allclose(x[31:, :3].mean(axis=0), [3.0, 2.5, 3.0], atol=1e-14)
+    x[31:, :3] = (x[31:, :3] - [3.0, 2.5, 3.0]) * [1.02, 1.0, 1 / 1.02] + [3.0, 2.5, 3.0]
+    check_system(scene, x, horizon=2e-3)
+    # the vesicle feels the rod: its rates differ from its rates alone
+    alone = vesicle.rates(0.0, x[31:, :3])
+    assert np.abs(scene.rates(0.0, x)[31:, :3] - alone).max() > 1e-3 * np.abs(alone).max()

@@ -1,0 +1,141 @@
+"""The System contract (docs/contracts.md) through ``parastokes.testing.check_system``: every
+registered body kind, a user's body, and broken systems that each part of the check must catch."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+from rods import helix_rod
+from user_body import SedimentingCloud
+
+from parastokes import integrate
+from parastokes.bodies import registry
+from parastokes.testing import check_system
+
+
+@pytest.mark.parametrize("name", sorted(registry.BUILTIN))
+def test_every_registered_kind_keeps_the_contract(name):
+    system, state, horizon = registry.get(name).example()
+    check_system(system, state, horizon=horizon)
+
+
+def test_a_rod_with_3d_frame_dynamics_keeps_the_contract():
+    """The helix-relaxing rod: w changes direction, so RK4's order needs the RKMK brackets."""
+    rod = helix_rod()
+    x = integrate.propagate(rod, rod.initial_state(), 0.0, 2.0, "rk2", 0.05)
+    check_system(rod, x, horizon=1.0)
+
+
+def test_a_users_body_keeps_the_contract():
+    check_system(SedimentingCloud(n_points=16), horizon=2.0)
+
+
+# ---- each part of the check catches its own defect ----------------------------------------------
+@dataclasses.dataclass(frozen=True)
+class TwoParamsAtOnce(SedimentingCloud):
+    def with_params(self, **theta):
+        return dataclasses.replace(super().with_params(**theta), weight=2.0)
+
+
+@dataclasses.dataclass(frozen=True)
+class HeavyPickle(SedimentingCloud):
+    table: tuple = tuple(range(2000))
+
+
+@dataclasses.dataclass(frozen=True)
+class DriftingProjection(SedimentingCloud):
+    def project(self, state):
+        return state * (1.0 + 1e-9)
+
+
+@dataclasses.dataclass(frozen=True)
+class LaggingAdvance(SedimentingCloud):
+    """An advance with an O(dt²) error of its own: x + dt r + dt² (1, 1, 1)."""
+
+    def advance(self, state, rates, dt):
+        return state + dt * rates + dt * dt
+
+
+@dataclasses.dataclass(frozen=True)
+class InPlaceAdvance(SedimentingCloud):
+    def advance(self, state, rates, dt):
+        state += dt * rates
+        return state.copy()
+
+
+@dataclasses.dataclass(frozen=True)
+class WrongCompiledLoop(SedimentingCloud):
+    """A compiled loop that takes one step fewer than asked."""
+
+    def wrong_steps(self, scheme, x, t0, dt, n, limit, stop_above):
+        return integrate._python_steps(self, scheme, x, t0, dt, n - 1, limit, stop_above)
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _register_the_wrong_loop():
+    """A compiled loop is registered for an exact type (parastokes.stepping.registry)."""
+    from parastokes.stepping import registry as loops
+
+    loops.register(WrongCompiledLoop, lambda system: system.wrong_steps)
+
+
+@pytest.mark.parametrize(
+    ("system", "part"),
+    [
+        (TwoParamsAtOnce(n_points=8), "with_params"),
+        (HeavyPickle(n_points=8), "pickle"),
+        (DriftingProjection(n_points=8), "project"),
+        (InPlaceAdvance(n_points=8), "rates: advance modified its inputs"),
+        (WrongCompiledLoop(n_points=8), "compiled loop"),
+    ],
+    ids=["with_params", "pickle", "project", "advance", "compiled"],
+)
+def test_each_broken_part_is_named(system, part):
+    with pytest.raises(AssertionError, match=f"check_system\\({type(system).__name__}\\): {part}"):
+        check_system(system, horizon=2.0)
+
+
+def test_a_scheme_that_loses_its_order_is_named():
+    """An advance that is only first-order accurate (it drops half of the rates' change along the
+    step) keeps every scheme at order 1: the check names the first scheme of higher order."""
+    with pytest.raises(AssertionError, match=r"order: rk2: fitted order 1\.\d+"):
+        check_system(LaggingAdvance(n_points=8), horizon=2.0)
+
+
+# ---- the typed contracts (parastokes.contracts) ------------------------------------------------
+def test_the_packages_parts_satisfy_the_protocols():
+    from parastokes import contracts, parareal
+
+    for name in sorted(registry.BUILTIN):
+        system, _, _ = registry.get(name).example()
+        assert isinstance(system, contracts.System)
+        fine = integrate.Propagator(system, "rk2", 1e-3)
+        assert isinstance(fine, contracts.Propagator)
+        assert not isinstance(fine, contracts.CoarseSolver)
+    coarse = parareal.extrapolated(system, "euler", 1e-2, richardson={"m": 1, "r": 0.5})
+    assert isinstance(coarse, contracts.CoarseSolver) and coarse.n_auxiliary == 2
+    assert isinstance(SedimentingCloud(), contracts.System)
+
+
+def test_a_system_missing_members_is_named():
+    class Half:
+        def rates(self, t, x):
+            return x
+
+    with pytest.raises(AssertionError, match=r"members: missing advance, initial_state"):
+        check_system(Half())
+
+
+@pytest.mark.parametrize(
+    ("n_auxiliary", "workers", "ok"),
+    [(4, 4, True), (5, 4, False), (8, 1, True), (8, None, True)],
+)
+def test_the_rule_n_g_at_most_n_c_lives_in_one_place(n_auxiliary, workers, ok):
+    """Config checks, the MPI build check and parareal.run all word it through this function."""
+    from parastokes.contracts import oversubscription
+
+    problem = oversubscription(n_auxiliary, workers)
+    assert (problem is None) == ok
+    if not ok:
+        assert f"N_G = {n_auxiliary}" in problem and f"N_c = {workers}" in problem
