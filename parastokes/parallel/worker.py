@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import ctypes
 import os
+import signal
 import sys
 from collections.abc import Callable
 from typing import Any
@@ -43,3 +45,28 @@ def configure_worker(threads: int, warmup: Callable[[], Any] | None) -> None:
     numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
     if warmup is not None:
         warmup()
+
+
+# prctl(2) option: the signal this process gets when its parent thread exits (Linux).
+_PR_SET_PDEATHSIG = 1
+
+
+def die_with_parent(parent: int) -> None:
+    """Make this process end when its parent (process ``parent``) does, even on SIGKILL.
+
+    On Linux the kernel sends SIGKILL when the parent exits (``prctl(PR_SET_PDEATHSIG)``); a parent
+    that is already gone by then makes this process exit at once. Elsewhere nothing is done: the
+    workers then notice the manager's end only between tasks. SIGINT and SIGHUP are ignored: the
+    manager handles Ctrl-C and hang-ups and stops its workers itself.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGHUP, signal.SIG_IGN)
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    except (OSError, AttributeError):  # no prctl: as elsewhere
+        return
+    if os.getppid() != parent:  # the parent died before prctl took effect
+        os._exit(1)
