@@ -99,19 +99,11 @@ def _check_launch(argv: Sequence[str]) -> None:
     """Refuse an MPI launch of several copies of the command (each would run everything)."""
     size = mpi_processes()
     if size > 1 and not _under_futures_launcher():
-        from .config import ConfigError
-
         command = f"mpiexec -n {size} python -m mpi4py.futures -m parastokes {' '.join(argv)}"
-        raise ConfigError(
-            [
-                (
-                    "",
-                    f"launched as {size} MPI processes without the futures launcher: each would "
-                    f"run the whole problem into the same directory. Use:\n    {command}\n"
-                    "(with execution.executor = \"mpi\"; see docs/parallel.md)",
-                )
-            ],
-            "the MPI launch",
+        raise ValueError(
+            f"launched as {size} MPI processes without the futures launcher: each would run the "
+            f"whole problem into the same directory. Use\n    {command}\nwith "
+            'execution.executor = "mpi" (docs/parallel.md, "mpi")'
         )
 
 

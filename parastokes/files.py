@@ -70,6 +70,7 @@ def read_npz(
     except FileNotFoundError:
         raise
     except (OSError, EOFError, ValueError, KeyError, zipfile.BadZipFile) as error:
-        # numpy reports a damaged or foreign file as any of these (its advice to load "with
-        # allow_pickle" included: parastokes never writes pickles)
-        raise CorruptFileError(path, f"damaged or not written by parastokes ({error})") from None
+        # numpy reports a damaged or foreign file as any of these; its advice to load it "with
+        # allow_pickle" does not apply (parastokes never writes pickles)
+        reason = "not a NumPy array file" if "pickle" in str(error) else str(error)
+        raise CorruptFileError(path, f"damaged or not written by parastokes ({reason})") from None

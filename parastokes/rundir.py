@@ -15,7 +15,8 @@ replaced whole.
   previous run's results that the new one does not have (stale figures). The commit is journalled
   (``.partial/COMMIT``): a commit cut short is completed by the next claim, so the directory holds
   either the old complete results or the new complete ones. The resume state (``checkpoint.npz``,
-  ``reference.npz``, ``history.npz``) is written in place, each file atomically.
+  ``reference.npz``, ``history.npz``) is written in place, each file atomically; the partial
+  results of a run that stops early are dropped (the next run writes them anew).
 """
 
 from __future__ import annotations
@@ -289,5 +290,7 @@ def claim(out: str | os.PathLike, *, resume: bool, overwrite: bool) -> Iterator[
         directory.reset_staging()
         yield directory
     finally:
+        if not (path / STAGING / _COMMIT).exists():  # an unfinished run's partial results
+            shutil.rmtree(path / STAGING, ignore_errors=True)
         if _owner(path / LOCK) == record:
             (path / LOCK).unlink(missing_ok=True)

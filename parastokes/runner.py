@@ -114,11 +114,19 @@ def _same_run(path: Path, saved: Any, now: dict[str, Any]) -> None:
     found = ckpt.differences({k: v for k, v in saved.items() if k != ckpt.PROBLEM}, now)
     if found:
         hint = (
-            "--resume continues only the same configuration: undo the change, pass --overwrite "
-            "to discard the interrupted run, or choose another --out"
+            "continues only the same configuration: undo the change, pass --overwrite to "
+            "discard the run in that directory, or choose another --out"
         )
         issues = [(key, f"{new!r} now, {old!r} in the run to resume") for key, old, new in found]
-        raise ConfigError([*issues, ("", hint)], f"{path} (the run to resume)")
+        raise ConfigError([*issues, ("--resume", hint)], f"{path} (the run to resume)")
+
+
+def _check_resumable(out: Path, key: dict[str, Any]) -> None:
+    """Before any work: every resume file in ``out`` is readable and of this run (``key``)."""
+    for name in (REFERENCE, HISTORY, CHECKPOINT):
+        path = out / name
+        if path.exists():
+            _same_run(path, io.load_arrays(path)[0].get("key"), key)
 
 
 def _blow_up_note(out: Path, error: BlowUpError, where: str, fix: str) -> str:
@@ -178,7 +186,6 @@ def _serial(
     done, wall = 0, 0.0
     if path.exists():
         meta, arrays = io.load_arrays(path, required=("states",))
-        _same_run(path, meta.get("key"), key)
         try:
             done, wall = int(meta["done"]), float(meta["wall_time"])
             states[: done + 1] = arrays["states"][: done + 1]
@@ -228,11 +235,8 @@ def _parareal(
     finals: list[np.ndarray] = []
     elapsed: list[float] = []
     checkpoint = out / CHECKPOINT
-    if checkpoint.exists():  # refused before any work if it is another run's
-        _same_run(checkpoint, io.load_arrays(checkpoint)[0].get("key"), key)
     if history_path.exists():
-        meta, arrays = io.load_arrays(history_path, required=("final_positions", "elapsed"))
-        _same_run(history_path, meta.get("key"), key)
+        _, arrays = io.load_arrays(history_path, required=("final_positions", "elapsed"))
         finals, elapsed = list(arrays["final_positions"]), list(arrays["elapsed"])
 
     def record(report: parareal.IterationReport) -> None:
@@ -393,6 +397,7 @@ def _execute(
     out, staging = directory.path, directory.staging
     conf = resolved_dict(cfg, resolved)
     key = identity(cfg)
+    _check_resumable(out, key)
     mode = cfg.run.mode
     start = time.perf_counter()
     with build(cfg, resolved) as setup:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import ctypes
+import multiprocessing
 import os
 import signal
 import sys
@@ -36,6 +37,10 @@ def configure_worker(threads: int, warmup: Callable[[], Any] | None) -> None:
     keeps its pool: set ``OMP_NUM_THREADS`` before starting Python to limit it too (see
     docs/parallel.md).
     """
+    # This worker never forks; with the default start method "fork(server)" numba would guard
+    # its thread launch with a process-shared semaphore that a killed worker leaks (the
+    # resource tracker's "leaked semaphore" warning).
+    multiprocessing.set_start_method("spawn", force=True)
     numba_loaded = "numba" in sys.modules
     for name in THREAD_VARIABLES:
         if not (numba_loaded and name == "NUMBA_NUM_THREADS"):
