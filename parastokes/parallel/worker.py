@@ -57,15 +57,23 @@ _PR_SET_PDEATHSIG = 1
 
 
 def die_with_parent(parent: int) -> None:
-    """Make this process end when its parent (process ``parent``) does, even on SIGKILL.
+    """Make this worker end when its parent (process ``parent``) does, even on SIGKILL.
 
     On Linux the kernel sends SIGKILL when the parent exits (``prctl(PR_SET_PDEATHSIG)``); a parent
-    that is already gone by then makes this process exit at once. Elsewhere nothing is done: the
-    workers then notice the manager's end only between tasks. SIGINT and SIGHUP are ignored: the
-    manager handles Ctrl-C and hang-ups and stops its workers itself.
+    that is already gone by then makes this process exit at once. A worker started by the
+    forkserver also closes the forkserver's "alive" pipe that it inherits: the forkserver exits when
+    the last holder of that pipe (now: the manager alone) is gone, and its workers with it.
+    Elsewhere nothing is done: the workers then notice the manager's end only between tasks.
+    SIGINT and SIGHUP are ignored: the manager handles Ctrl-C and hang-ups and stops its workers.
     """
+    from multiprocessing import forkserver
+
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGHUP, signal.SIG_IGN)
+    server = forkserver._forkserver  # the state a forkserver child inherits (private)
+    if getattr(server, "_forkserver_alive_fd", None) is not None:
+        os.close(server._forkserver_alive_fd)
+        server._forkserver_alive_fd = None
     if not sys.platform.startswith("linux"):
         return
     try:
