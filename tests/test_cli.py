@@ -278,8 +278,11 @@ def test_help_documents_every_exit_code(capsys):
 
 
 def test_demo_configuration_file_keeps_the_overrides():
-    overrides = ["parareal.n_slices=4", "coarse.lagrange.epsilon.nodes=[5.5, 5.6]", "fine.scheme=rk"]
-    overrides[-1] += "4"  # a bare word: a string
+    overrides = [
+        "parareal.n_slices=4",
+        "coarse.lagrange.epsilon.nodes=[5.5, 5.6]",
+        "fine.scheme=rk4",  # a bare word: a string
+    ]
     written, _ = config.loads(cli.demo_text(overrides))
     expected, _ = config.loads(config.DEMO, overrides=overrides)
     assert written == expected
