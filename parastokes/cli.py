@@ -285,7 +285,7 @@ def cmd_check(args: argparse.Namespace, console: Console) -> ExitCode:
             f"{path}: ok ({cfg.model.kind}, {r.n_points} points, ε⁰ = {r.epsilon:.6g}; "
             f"{cfg.parareal.n_slices} slices of {r.fine_steps} fine steps; coarse τ_c = "
             f"{r.coarse_dt:.6g} ({r.coarse_dt / r.fine_dt:.4g} τ_f), N_G = {r.n_auxiliary}, "
-            f"workers = {r.workers})"
+            f"Σ|w| = {r.weight_sum:.3g}, workers = {r.workers})"
         )
         for warning in r.warnings:
             console.print(f"  note: {warning}")

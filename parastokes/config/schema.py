@@ -151,6 +151,11 @@ class Coarse(_Section):
         default_factory=Richardson, description="Richardson extrapolation {m, r}."
     )
     grid_factor: int = Field(1, ge=1, description="σ_c / σ_f (rods only; Table 6 uses 6).")
+    max_weight_sum: Positive = Field(
+        1e6,
+        description="Refuse a coarse solver whose weights have Σ|w_j v_q| above this (nearly "
+        "coinciding nodes amplify round-off by that factor; the paper's reach 1.7e5).",
+    )
 
     @field_validator("lagrange", mode="before")
     @classmethod
