@@ -22,7 +22,9 @@ checkpoint. Files in the output directory while a run is in progress:
 
 from __future__ import annotations
 
+import itertools
 import logging
+import os
 import platform
 import time
 from pathlib import Path
@@ -35,6 +37,7 @@ from .config import Config, ConfigError, Resolved, Setup, build, resolved_dict
 from .config.schema import RodModel
 from .files import CorruptFileError, atomic_write
 from .integrate import BlowUpError
+from .parallel import SerialExecutor, run_labelled
 from .parareal import checkpoint as ckpt
 
 __all__ = [
@@ -171,6 +174,48 @@ def _blow_up(error: BaseException) -> tuple[BlowUpError, str] | None:
 def _frame_indices(n_slices: int, every: int) -> list[int]:
     """Slice boundaries written as frames: every ``every``-th, and always the last."""
     return sorted(set(range(0, n_slices + 1, every)) | {n_slices})
+
+
+def _inner_frames(
+    fine: Any, t_start: float, t_end: float, x: np.ndarray, parts: int
+) -> np.ndarray:
+    """The states at the ``parts - 1`` equally spaced times inside ``[t_start, t_end]``, by fine
+    solves chained from ``x`` (the frames inside a slice; equal to the run's states up to
+    round-off, since every solve projects its ends)."""
+    ends = np.linspace(t_start, t_end, parts + 1)
+    states = []
+    for a, b in itertools.pairwise(ends[:-1]):
+        x = fine(a, b, x)
+        states.append(x)
+    return np.asarray(states)
+
+
+def _append_frames(
+    writer: io.TrajectoryWriter, run: str, setup: Setup, times: np.ndarray, states: np.ndarray
+) -> None:
+    """Write the frames of ``states`` (at the slice boundaries ``times``) as ``output.every``
+    asks: every m-th boundary, or every boundary and the frames inside the slices."""
+    every, steps = setup.config.output.every, setup.resolved.fine_steps
+    n_slices = len(times) - 1
+    frames = _frame_indices(n_slices, max(1, (every or steps) // steps))
+    parts = steps // every if every is not None and every < steps else 1
+    inner: dict[int, np.ndarray] = {}
+    if parts > 1:
+        slices = range(1, n_slices + 1)
+        values = run_labelled(
+            setup.executor or SerialExecutor(),
+            _inner_frames,
+            [(setup.fine, times[n - 1], times[n], states[n - 1], parts) for n in slices],
+            [f"frames inside slice {n} ({run})" for n in slices],
+        )
+        inner = dict(zip(slices, values, strict=True))
+    for n in range(n_slices + 1):
+        if n in frames:
+            writer.append(run, times[n], states[n])
+        if n + 1 in inner:
+            inside = np.linspace(times[n], times[n + 1], parts + 1)[1:-1]
+            for t, state in zip(inside, inner[n + 1], strict=True):
+                writer.append(run, t, state)
 
 
 # ---- the serial fine run ---------------------------------------------------------------------
@@ -382,6 +427,13 @@ def execute(
         return _execute(cfg, resolved, directory, reporter or Reporter())
 
 
+def _kernels_cached() -> bool:
+    """Whether numba's cache holds compiled kernels of this package (else the first run compiles
+    them, which takes up to a minute)."""
+    root = os.environ.get("NUMBA_CACHE_DIR") or Path(__file__).parent
+    return next(Path(root).rglob("*.nbi"), None) is not None
+
+
 def _stop_workers(setup: Setup) -> None:
     """After a failure or an interrupt: stop the executor's workers now, without waiting for the
     tasks they run (their results would be discarded; the checkpoint is consistent)."""
@@ -401,24 +453,23 @@ def _execute(
     _check_resumable(out, key)
     mode = cfg.run.mode
     start = time.perf_counter()
+    if not _kernels_cached():
+        reporter.note("compiling the numerical kernels (first run only; up to a minute) ...")
     with build(cfg, resolved) as setup:
         system = setup.system
         x0 = system.initial_state()
         times = parareal.time_points(cfg.time.t0, cfg.time.t1, cfg.parareal.n_slices)
-        frames = _frame_indices(cfg.parareal.n_slices, cfg.output.every)
         writer = _writer(cfg, setup, conf, staging) if cfg.output.trajectory else None
         try:
             reference = serial_time = result = record = None
             if mode in ("serial", "both"):
                 reference, serial_time = _serial(setup, x0, times, out, key, reporter)
                 if writer is not None:
-                    for n in frames:
-                        writer.append("serial", times[n], reference[n])
+                    _append_frames(writer, "serial", setup, times, reference)
             if mode in ("parareal", "both"):
                 result, record = _parareal(setup, x0, times, reference, out, key, reporter)
                 if writer is not None:
-                    for n in frames:
-                        writer.append("parareal", times[n], result.states[n])
+                    _append_frames(writer, "parareal", setup, times, result.states)
                     writer.write_history(record)
         except BaseException:
             _stop_workers(setup)

@@ -220,3 +220,23 @@ def test_an_mpi_launch_without_the_futures_launcher_is_refused(tmp_path, monkeyp
     monkeypatch.setenv("PMI_RANK", "2")  # the other ranks exit quietly
     assert _run(path, "--out", tmp_path / "out") == cli.ExitCode.CONFIG
     assert capsys.readouterr().err == ""
+
+
+def test_dense_output_adds_frames_inside_the_slices(tmp_path):
+    serial = TINY + '[run]\nmode = "serial"\n'
+    path = _config(tmp_path, serial.replace("[output]", "[output]\nfigures = false"))
+    steps = 2000 // 2  # fine steps per slice: T = 2e-3, τ_f = 1e-6, 2 slices
+    dense = ["--set", "parareal.n_slices=2", "--set", f"output.every={steps // 4}"]
+    assert _run(path, "--out", tmp_path / "dense", *dense) == 0
+    assert _run(path, "--out", tmp_path / "fine", "--set", "parareal.n_slices=8") == 0
+    assert _run(path, "--out", tmp_path / "bad", "--set", "output.every=3") == 2
+    a = io.read_trajectory(tmp_path / "dense" / "trajectory.h5")
+    b = io.read_trajectory(tmp_path / "fine" / "trajectory.h5")
+    np.testing.assert_allclose(a["time"], np.linspace(0.0, 0.002, 9), rtol=1e-12)
+    np.testing.assert_allclose(a["time"], b["time"], rtol=1e-12)
+    # the same solution at the same times (8 slices: one solve per quarter slice), to round-off
+    pa, pb = a["bodies"]["rod_0"]["positions"], b["bodies"]["rod_0"]["positions"]
+    np.testing.assert_allclose(pa, pb, rtol=0, atol=1e-12 * np.abs(pb).max())
+    assert not np.array_equal(pa[1], pa[0])  # frames inside a slice are new states
+    boundaries = io.load_arrays(tmp_path / "dense" / runner.REFERENCE)[1]["states"]
+    np.testing.assert_array_equal(pa[::4], boundaries[:, :, :3])  # the run's own states, exact

@@ -319,6 +319,15 @@ def resolve(cfg: Config, source: str = "") -> Resolved:
         else:
             coarse_points = model.n_rods * ((model.n_points - 1) // coarse.grid_factor + 1)
 
+    every = cfg.output.every
+    if every is not None and every % fine_steps and fine_steps % every:
+        issues.append(
+            (
+                "output.every",
+                f"must be a multiple or a divisor of the {fine_steps} fine steps per slice, "
+                f"got {every}",
+            )
+        )
     tracked = cfg.output.tracked_points
     if tracked:
         if isinstance(model, RodModel):

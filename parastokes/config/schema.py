@@ -200,7 +200,13 @@ class Output(_Section):
     """What a run writes to its output directory."""
 
     trajectory: bool = Field(True, description="Write trajectory.h5 and trajectory.xdmf.")
-    every: int = Field(1, ge=1, description="Write every n-th slice boundary T_n as a frame.")
+    every: int | None = Field(
+        None,
+        ge=1,
+        description="Frames every this many fine steps τ_f (a multiple or a divisor of the fine "
+        "steps per slice). Denser than the slices: the frames inside them are computed after the "
+        "run, one more fine solve per slice (on the workers). Default: at every slice boundary.",
+    )
     frames: bool = Field(True, description="Rods: also write the frames D1, D2, D3.")
     figures: bool = Field(True, description="Draw the figures after the run.")
     formats: list[Literal["png", "pdf"]] = Field(
