@@ -36,6 +36,8 @@ import math
 import os
 import signal
 import sys
+import threading
+import time
 from collections.abc import Sequence
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
@@ -48,6 +50,8 @@ logger = logging.getLogger("parastokes")
 _RANK_VARIABLES = ("PMI_RANK", "OMPI_COMM_WORLD_RANK", "PMIX_RANK")
 #: ... and the number of processes of the launch (MPICH/Intel MPI, Open MPI).
 _SIZE_VARIABLES = ("PMI_SIZE", "OMPI_COMM_WORLD_SIZE")
+#: Seconds between redraws of a progress bar inside a step.
+_TICK_SECONDS = 0.5
 #: Signals handled like Ctrl-C: the run stops with a consistent checkpoint.
 _TERMINATING = (signal.SIGTERM, signal.SIGHUP)
 
@@ -151,6 +155,9 @@ class Console:
         self.quiet = quiet
         self.bars = not quiet and is_manager() and sys.stderr.isatty()
         self._bar = None
+        self._times: list[float] = []  # start of the phase, then the end of every step
+        self._expected: float | None = None
+        self._ticking = threading.Event()
 
     def print(self, text: str = "") -> None:
         if self.quiet:
@@ -169,17 +176,44 @@ class Console:
             self.print(f"{'k':>3}  {'increment η̃^k':>14}  {'error η^k':>10}  {'elapsed [s]':>11}")
         else:
             self.print(f"serial fine run over {total} slices ...")
+        self._times, self._expected = [time.monotonic()], None
         if self.bars:
             from tqdm import tqdm
 
             unit = "slice" if what == "serial" else "iteration"
             self._bar = tqdm(total=total, desc=what, unit=unit, leave=False, file=sys.stderr)
+            self._ticking.clear()
+            threading.Thread(target=self._tick, daemon=True).start()
+
+    def expect(self, seconds: float) -> None:
+        """An estimate of one step of the current phase, used until a step has been timed."""
+        self._expected = seconds
+
+    def progress(self, now: float) -> float:
+        """Steps of the current phase done by ``now``, the running one counted by its elapsed
+        time over the expected time of a step (the mean of those done, else the estimate), so
+        that a bar moves, and gives an ETA, inside long slices; always below the next step."""
+        done = len(self._times) - 1
+        expected = (self._times[-1] - self._times[0]) / done if done else self._expected
+        if not expected:
+            return float(done)
+        return done + min(0.99, (now - self._times[-1]) / expected)
+
+    def _tick(self) -> None:
+        while not self._ticking.wait(_TICK_SECONDS):
+            bar = self._bar
+            if bar is not None:
+                bar.n = self.progress(time.monotonic())
+                bar.refresh()
 
     def advance(self) -> None:
+        self._times.append(time.monotonic())
         if self._bar is not None:
-            self._bar.update()
+            self._bar.n = len(self._times) - 1
+            self._bar.refresh()
 
     def finish(self) -> None:
+        self._ticking.set()
         if self._bar is not None:
             self._bar.close()
             self._bar = None
@@ -463,8 +497,6 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def _catch_termination() -> dict[int, object]:
     """Handle SIGTERM and SIGHUP like Ctrl-C (main thread only); returns the previous handlers."""
-    import threading
-
     if threading.current_thread() is not threading.main_thread():
         return {}
     return {signum: signal.signal(signum, _terminate) for signum in _TERMINATING}

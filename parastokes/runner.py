@@ -34,6 +34,7 @@ import numpy as np
 
 from . import __version__, io, parareal, rundir
 from .config import Config, ConfigError, Resolved, Setup, build, resolved_dict
+from .config.checks import estimated_fine_seconds
 from .config.schema import RodModel
 from .files import CorruptFileError, atomic_write
 from .integrate import BlowUpError
@@ -69,6 +70,9 @@ class Reporter:
 
     def start(self, what: str, total: int) -> None:
         """A phase of ``total`` steps begins: ``"serial"`` slices or ``"parareal"`` iterations."""
+
+    def expect(self, seconds: float) -> None:
+        """An estimate of the wall time of one step of the current phase (for an ETA)."""
 
     def advance(self) -> None:
         """One step of the current phase is done."""
@@ -218,6 +222,12 @@ def _append_frames(
                 writer.append(run, t, state)
 
 
+def _slice_seconds(setup: Setup) -> float:
+    """A rough estimate of one fine solve over a slice (for the progress bars' ETA)."""
+    r = setup.resolved
+    return estimated_fine_seconds(setup.config.fine.scheme, r.fine_steps, r.n_points)
+
+
 # ---- the serial fine run ---------------------------------------------------------------------
 def _serial(
     setup: Setup, x0: np.ndarray, times: np.ndarray, out: Path, key: dict, reporter: Reporter
@@ -241,9 +251,8 @@ def _serial(
             reporter.note(f"serial fine solution reloaded from {path.name}")
             return states, wall
         reporter.note(f"serial fine run resumed after slice {done} of {n_slices}")
-    reporter.start("serial", n_slices)
-    for _ in range(done):
-        reporter.advance()
+    reporter.start("serial", n_slices - done)
+    reporter.expect(_slice_seconds(setup))
     for n in range(done + 1, n_slices + 1):
         start = time.perf_counter()
         try:
@@ -304,6 +313,8 @@ def _parareal(
 
     p = cfg.parareal
     reporter.start("parareal", p.max_iterations)
+    workers = getattr(setup.executor, "workers", 1)
+    reporter.expect(_slice_seconds(setup) * -(-p.n_slices // workers))  # one parallel sweep
     try:
         result = parareal.run(
             setup.fine,

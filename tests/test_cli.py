@@ -287,3 +287,20 @@ def test_demo_configuration_file_keeps_the_overrides():
     expected, _ = config.loads(config.DEMO, overrides=overrides)
     assert written == expected
     assert cli.demo_text([]) == config.DEMO  # without --set: the annotated file
+
+
+def test_progress_moves_inside_a_slice_by_the_expected_time(monkeypatch, capsys):
+    clock = iter([100.0, 130.0, 190.0])  # start, end of slice 1, end of slice 2
+    monkeypatch.setattr(cli.time, "monotonic", lambda: next(clock))
+    console = cli.Console(quiet=False)
+    console.start("serial", 4)
+    assert console.progress(150.0) == 0.0  # no estimate yet: whole slices only
+    console.expect(100.0)  # the estimate of one slice, before any is timed
+    assert console.progress(125.0) == pytest.approx(0.25)
+    assert console.progress(1e6) == pytest.approx(0.99)  # never a slice that is not done
+    console.advance()  # slice 1 took 30 s: the mean replaces the estimate
+    assert console.progress(145.0) == pytest.approx(1.5)
+    console.advance()  # slices took 30 and 60 s: 45 s each on average
+    assert console.progress(190.0 + 9.0) == pytest.approx(2.2)
+    console.finish()
+    assert "serial fine run over 4 slices" in capsys.readouterr().out
