@@ -77,19 +77,30 @@ def _start(tmp_path: Path, text: str) -> tuple[subprocess.Popen, Path]:
     return subprocess.Popen(command, env=ENV, stderr=subprocess.PIPE, text=True), out
 
 
+def _wait_until(manager: subprocess.Popen, ready) -> None:
+    """Wait (at most 5 min) until ``ready()``, the manager still running."""
+    deadline = time.monotonic() + 300
+    while not ready():
+        assert manager.poll() is None and time.monotonic() < deadline, manager.stderr.read()
+        time.sleep(0.02)
+
+
+def _signal_during_the_serial_run(tmp_path: Path, signum: int) -> tuple[subprocess.Popen, str]:
+    """Start SERIAL, send ``signum`` once its first slice is saved; the manager and its stderr."""
+    manager, out = _start(tmp_path, SERIAL)
+    _wait_until(manager, (out / runner.REFERENCE).exists)
+    manager.send_signal(signum)
+    return manager, manager.communicate(timeout=60)[1]
+
+
 pytestmark = pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
 
 
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGKILL])
 def test_nothing_of_the_run_outlives_its_manager(tmp_path, signum):
     manager, out = _start(tmp_path, POOLED)
-    deadline = time.monotonic() + 300
-    while len(_descendants(manager.pid)) < 4:  # forkserver, 2 workers, resource tracker
-        assert manager.poll() is None and time.monotonic() < deadline, manager.stderr.read()
-        time.sleep(0.05)
-    while not (out / runner.CHECKPOINT).exists():  # the workers are busy with iteration 1
-        assert manager.poll() is None and time.monotonic() < deadline, manager.stderr.read()
-        time.sleep(0.05)
+    _wait_until(manager, lambda: len(_descendants(manager.pid)) >= 4)  # forkserver, 2 workers,
+    _wait_until(manager, (out / runner.CHECKPOINT).exists)  # tracker; busy with iteration 1
     processes = _descendants(manager.pid)
     manager.send_signal(signum)
     _, stderr = manager.communicate(timeout=60)
@@ -105,26 +116,15 @@ def test_nothing_of_the_run_outlives_its_manager(tmp_path, signum):
 
 
 def test_sighup_is_handled_like_ctrl_c(tmp_path):
-    manager, out = _start(tmp_path, SERIAL)
-    deadline = time.monotonic() + 300
-    while not (out / runner.REFERENCE).exists():
-        assert manager.poll() is None and time.monotonic() < deadline, manager.stderr.read()
-        time.sleep(0.02)
-    manager.send_signal(signal.SIGHUP)
-    _, stderr = manager.communicate(timeout=60)
+    manager, stderr = _signal_during_the_serial_run(tmp_path, signal.SIGHUP)
     assert manager.returncode == cli.ExitCode.HANGUP == 129
     assert "hung up (SIGHUP)" in stderr
 
 
 def test_an_interrupted_serial_fine_run_resumes_bit_for_bit(tmp_path):
-    manager, out = _start(tmp_path, SERIAL)
-    deadline = time.monotonic() + 300
-    while not (out / runner.REFERENCE).exists():
-        assert manager.poll() is None and time.monotonic() < deadline, manager.stderr.read()
-        time.sleep(0.02)
-    manager.send_signal(signal.SIGTERM)
-    _, stderr = manager.communicate(timeout=60)
+    manager, stderr = _signal_during_the_serial_run(tmp_path, signal.SIGTERM)
     assert manager.returncode == 143, stderr
+    out = tmp_path / "out"
     meta, _ = io.load_arrays(out / runner.REFERENCE)
     assert 1 <= meta["done"] < 8  # the slices computed before the signal are kept
 
