@@ -16,6 +16,7 @@ import h5py
 import numpy as np
 import pytest
 from configs import small_rod
+from mpi_scripts.launch import SKIP_REASON, mpiexec
 
 from parastokes import cli, io, rundir, runner
 
@@ -240,3 +241,15 @@ def test_dense_output_adds_frames_inside_the_slices(tmp_path):
     assert not np.array_equal(pa[1], pa[0])  # frames inside a slice are new states
     boundaries = io.load_arrays(tmp_path / "dense" / runner.REFERENCE)[1]["states"]
     np.testing.assert_array_equal(pa[::4], boundaries[:, :, :3])  # the run's own states, exact
+
+
+@pytest.mark.mpi
+@pytest.mark.skipif(SKIP_REASON is not None, reason=str(SKIP_REASON))
+def test_a_real_mpi_launch_without_the_futures_launcher_is_refused_once(tmp_path):
+    path = _config(tmp_path)
+    out = tmp_path / "out"
+    run = mpiexec(["-m", "parastokes", "run", str(path), "--out", str(out)], ranks=2)
+    assert run.returncode == cli.ExitCode.CONFIG, run.stderr
+    assert run.stderr.count("launched as 2 MPI processes without the futures launcher") == 1
+    assert f"mpiexec -n 2 python -m mpi4py.futures -m parastokes run {path}" in run.stderr
+    assert not out.exists()
