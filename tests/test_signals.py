@@ -27,11 +27,11 @@ POOLED = small_rod(
 POOLED = POOLED.replace("n_points = 21\nlength = 4.0", "n_points = 41\nlength = 8.0").replace(
     "t1 = 0.002", "t1 = 0.2"
 )
-# The serial fine run alone, in 8 slices of about a second each.
+# The serial fine run alone, in 8 slices of a fraction of a second each.
 SERIAL = small_rod(rest='[run]\nmode = "serial"\n[output]\nfigures = false\n').replace(
     "n_slices = 4", "n_slices = 8"
 ).replace("n_points = 21\nlength = 4.0", "n_points = 41\nlength = 8.0").replace(
-    "t1 = 0.002", "t1 = 0.04"
+    "t1 = 0.002", "t1 = 0.02"
 )
 
 
