@@ -116,7 +116,7 @@ def _reading(path: str | os.PathLike) -> Iterator[h5py.File]:
     if not Path(path).exists():
         raise FileNotFoundError(f"{path} does not exist")
     try:
-        with h5py.File(path, "r") as f:
+        with h5py.File(path, "r", locking=False) as f:
             if f.attrs.get("format") != FORMAT:
                 raise CorruptFileError(path, "not a parastokes trajectory file")
             yield f
@@ -176,7 +176,9 @@ class TrajectoryWriter:
         self.kind = kind
         self.bodies = _bodies(kind, n_bodies, n_points)
         self.frames = frames and kind == "rod"
-        self.file = h5py.File(self.path, "w")
+        # the run directory's lock (parastokes.rundir) keeps other runs out: HDF5's own file
+        # locking, which many cluster file systems do not support, is not needed
+        self.file = h5py.File(self.path, "w", locking=False)
         attrs = self.file.attrs
         attrs["format"] = FORMAT
         attrs["version"] = VERSION

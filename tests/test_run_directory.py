@@ -253,3 +253,15 @@ def test_a_real_mpi_launch_without_the_futures_launcher_is_refused_once(tmp_path
     assert run.stderr.count("launched as 2 MPI processes without the futures launcher") == 1
     assert f"mpiexec -n 2 python -m mpi4py.futures -m parastokes run {path}" in run.stderr
     assert not out.exists()
+
+
+def test_trajectories_need_no_hdf5_file_locking(tmp_path):
+    """The directory's own lock keeps other runs out, so the writer takes no HDF5 lock (file
+    systems without locking work): another handle can open the file while it is written."""
+    path = tmp_path / "trajectory.h5"
+    with io.TrajectoryWriter(path, kind="rod", n_bodies=1, n_points=3, config={}) as writer:
+        writer.append("serial", 0.0, np.zeros((3, 12)))
+        opened = f"h5py.File({str(path)!r}, 'r', locking=True)"
+        reader = f"import h5py; print({opened}['serial/time'].shape)"
+        other = subprocess.run([sys.executable, "-c", reader], capture_output=True, text=True)
+        assert other.stdout.strip() == "(1,)", other.stderr  # refused if the writer held a lock
