@@ -34,6 +34,7 @@ import json
 import logging
 import math
 import os
+import shlex
 import signal
 import sys
 import threading
@@ -103,7 +104,7 @@ def _check_launch(argv: Sequence[str]) -> None:
     """Refuse an MPI launch of several copies of the command (each would run everything)."""
     size = mpi_processes()
     if size > 1 and not _under_futures_launcher():
-        command = f"mpiexec -n {size} python -m mpi4py.futures -m parastokes {' '.join(argv)}"
+        command = f"mpiexec -n {size} python -m mpi4py.futures -m parastokes {shlex.join(argv)}"
         raise ValueError(
             f"launched as {size} MPI processes without the futures launcher: each would run the "
             f"whole problem into the same directory. Use\n    {command}\nwith "
