@@ -1,4 +1,4 @@
-"""Throughput of the regularized-Stokeslet kernels (issue 2): pair interactions per second.
+"""Throughput of the regularized-Stokeslet kernels: pair interactions per second.
 
 Run from the repository root::
 
@@ -8,7 +8,7 @@ Times, for N = 301, 642, 1505 and 5000 points (targets = sources, N² pairs each
 
 - ``free``: the free-space force kernel, ``mrs.velocity(x, x, f)`` (u from f, eq. 6);
 - ``wall``: the full wall kernel, ``mrs.velocity(x, x, f, torques=n, wall=True, angular=True)``
-  (u and w from f and n, ``shared/physics.md`` (1)-(8));
+  (u and w from f and n, the physics notes' (1)-(8), the paper's eqs. 3-6);
 
 on 1 and 2 threads with ``check=False`` (the kernel alone), plus one line per kernel with
 validation on (N = 642, alternating calls with and without it); the numpy oracle

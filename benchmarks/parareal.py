@@ -1,4 +1,4 @@
-"""Parareal benchmarks (issue 5): speedup against eq. 14, executor overhead, Figs. 9 and 10.
+"""Parareal benchmarks: speedup against eq. 14, executor overhead, Figs. 9 and 10.
 
 Run from the repository root::
 

@@ -1,4 +1,4 @@
-"""Cost of one RK2 step of the paper's model problems (issue 3), against the kernels inside it.
+"""Cost of one RK2 step of the paper's model problems, against the kernels inside it.
 
 Run from the repository root::
 
@@ -188,7 +188,7 @@ def main(argv=None) -> int:
             argv if argv is not None else sys.argv[1:]
         )
         lines = [
-            "# Stepping benchmark (issue 3)",
+            "# Stepping benchmark",
             "",
             f"Command: `{command.strip()}`",
             "",

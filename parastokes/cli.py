@@ -2,8 +2,8 @@
 
 ::
 
-    parastokes run CONFIG.toml --out DIR [--resume] [--set KEY=VALUE ...]
-    parastokes demo --out DIR [--resume] [--set KEY=VALUE ...]
+    parastokes run CONFIG.toml --out DIR [--resume | --overwrite] [--set KEY=VALUE ...]
+    parastokes demo --out DIR [--resume | --overwrite] [--set KEY=VALUE ...]
     parastokes plot DIR [DIR ...] [--out FIGDIR] [--formats png pdf]
     parastokes plot --benchmark FILE.json [--out FIGDIR] [--formats png pdf]
     parastokes check CONFIG.toml [CONFIG.toml ...] [--set KEY=VALUE ...]
@@ -11,10 +11,16 @@
                        [--iterations K]
 
 Exit codes (:class:`ExitCode`): 0 success; 1 unexpected error (a bug: please report the
-traceback); 2 bad configuration or usage; 3 numerical blow-up (a step too large for the problem:
-the message names time, step and monitor); 4 worker or parallel failure (a worker died or raised;
-rerun with ``--resume`` to continue from the last completed iteration); 130 interrupted (Ctrl-C;
-the checkpoint is consistent, ``--resume`` continues).
+traceback); 2 bad configuration or usage, or an output directory or file that cannot be used
+(in use by another run, a finished run without ``--overwrite``, damaged, unwritable); 3 numerical
+blow-up (a step too large for the problem: the message names the solver, time and step, and the
+last good state is saved); 4 worker or parallel failure (a worker died or raised; rerun with
+``--resume`` to continue from the last completed iteration); 130 interrupted (Ctrl-C), 143
+terminated (SIGTERM: ``kill``, ``timeout``, Slurm's time limit), 129 hung up (SIGHUP): in these
+three cases the workers are stopped, the checkpoint is consistent and ``--resume`` continues.
+
+An MPI launch of several processes without ``-m mpi4py.futures`` would run the whole problem once
+per process: it is refused with the command line to use.
 
 Progress bars (tqdm) are drawn only when stderr is a terminal, only by the manager (rank 0 of an
 MPI launch) and never with ``--quiet``; ``--quiet`` also silences the tables (errors still go to
@@ -25,10 +31,15 @@ from __future__ import annotations
 
 import argparse
 import enum
+import json
 import logging
 import math
 import os
+import shlex
+import signal
 import sys
+import threading
+import time
 from collections.abc import Sequence
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
@@ -39,6 +50,12 @@ logger = logging.getLogger("parastokes")
 
 #: Environment variables that carry the rank of an MPI process (MPICH/Intel MPI, Open MPI, PMIx).
 _RANK_VARIABLES = ("PMI_RANK", "OMPI_COMM_WORLD_RANK", "PMIX_RANK")
+#: ... and the number of processes of the launch (MPICH/Intel MPI, Open MPI).
+_SIZE_VARIABLES = ("PMI_SIZE", "OMPI_COMM_WORLD_SIZE")
+#: Seconds between redraws of a progress bar inside a step.
+_TICK_SECONDS = 0.5
+#: Signals handled like Ctrl-C: the run stops with a consistent checkpoint.
+_TERMINATING = (signal.SIGTERM, signal.SIGHUP)
 
 
 class ExitCode(enum.IntEnum):
@@ -49,12 +66,51 @@ class ExitCode(enum.IntEnum):
     CONFIG = 2
     BLOWUP = 3
     PARALLEL = 4
+    HANGUP = 129
     INTERRUPTED = 130
+    TERMINATED = 143
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM or SIGHUP arrived: stop like Ctrl-C (a KeyboardInterrupt, so every clean-up that
+    an interrupt runs runs too); ``signum`` is the signal."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+def _terminate(signum: int, _frame: object) -> None:
+    raise Terminated(signum)
 
 
 def is_manager() -> bool:
     """False on the non-root ranks of an MPI launch (read from the launcher's environment)."""
     return all(os.environ.get(name, "0") == "0" for name in _RANK_VARIABLES)
+
+
+def mpi_processes() -> int:
+    """The number of processes of the MPI launch this process belongs to (1 without one)."""
+    sizes = [os.environ.get(name, "") for name in _SIZE_VARIABLES]
+    return max([int(v) for v in sizes if v.isdigit()] or [1])
+
+
+def _under_futures_launcher() -> bool:
+    """Whether ``python -m mpi4py.futures`` runs this process (its pool of the other ranks)."""
+    core = sys.modules.get("mpi4py.futures._core")
+    return getattr(core, "SharedPool", None) is not None
+
+
+def _check_launch(argv: Sequence[str]) -> None:
+    """Refuse an MPI launch of several copies of the command (each would run everything)."""
+    size = mpi_processes()
+    if size > 1 and not _under_futures_launcher():
+        command = f"mpiexec -n {size} python -m mpi4py.futures -m parastokes {shlex.join(argv)}"
+        raise ValueError(
+            f"launched as {size} MPI processes without the futures launcher: each would run the "
+            f"whole problem into the same directory. Use\n    {command}\nwith "
+            'execution.executor = "mpi" (docs/parallel.md, "mpi")'
+        )
 
 
 def _causes(error: BaseException):
@@ -77,6 +133,9 @@ def exit_code(error: BaseException) -> ExitCode:
     from .parallel import TaskError
 
     causes = list(_causes(error))
+    for cause in causes:
+        if isinstance(cause, Terminated):
+            return ExitCode(128 + cause.signum)
     if any(isinstance(e, KeyboardInterrupt) for e in causes):
         return ExitCode.INTERRUPTED
     if any(isinstance(e, BlowUpError) for e in causes):
@@ -85,8 +144,8 @@ def exit_code(error: BaseException) -> ExitCode:
         return ExitCode.CONFIG
     if any(isinstance(e, TaskError | BrokenProcessPool) for e in causes):
         return ExitCode.PARALLEL
-    if isinstance(error, ValueError | FileNotFoundError | ImportError):
-        return ExitCode.CONFIG
+    if isinstance(error, ValueError | OSError | ImportError):
+        return ExitCode.CONFIG  # bad input, or a file or directory that cannot be used
     return ExitCode.UNEXPECTED
 
 
@@ -98,6 +157,9 @@ class Console:
         self.quiet = quiet
         self.bars = not quiet and is_manager() and sys.stderr.isatty()
         self._bar = None
+        self._times: list[float] = []  # start of the phase, then the end of every step
+        self._expected: float | None = None
+        self._ticking = threading.Event()
 
     def print(self, text: str = "") -> None:
         if self.quiet:
@@ -116,17 +178,44 @@ class Console:
             self.print(f"{'k':>3}  {'increment η̃^k':>14}  {'error η^k':>10}  {'elapsed [s]':>11}")
         else:
             self.print(f"serial fine run over {total} slices ...")
+        self._times, self._expected = [time.monotonic()], None
         if self.bars:
             from tqdm import tqdm
 
             unit = "slice" if what == "serial" else "iteration"
             self._bar = tqdm(total=total, desc=what, unit=unit, leave=False, file=sys.stderr)
+            self._ticking.clear()
+            threading.Thread(target=self._tick, daemon=True).start()
+
+    def expect(self, seconds: float) -> None:
+        """An estimate of one step of the current phase, used until a step has been timed."""
+        self._expected = seconds
+
+    def progress(self, now: float) -> float:
+        """Steps of the current phase done by ``now``, the running one counted by its elapsed
+        time over the expected time of a step (the mean of those done, else the estimate), so
+        that a bar moves, and gives an ETA, inside long slices; always below the next step."""
+        done = len(self._times) - 1
+        expected = (self._times[-1] - self._times[0]) / done if done else self._expected
+        if not expected:
+            return float(done)
+        return done + min(0.99, (now - self._times[-1]) / expected)
+
+    def _tick(self) -> None:
+        while not self._ticking.wait(_TICK_SECONDS):
+            bar = self._bar
+            if bar is not None:
+                bar.n = self.progress(time.monotonic())
+                bar.refresh()
 
     def advance(self) -> None:
+        self._times.append(time.monotonic())
         if self._bar is not None:
-            self._bar.update()
+            self._bar.n = len(self._times) - 1
+            self._bar.refresh()
 
     def finish(self) -> None:
+        self._ticking.set()
         if self._bar is not None:
             self._bar.close()
             self._bar = None
@@ -145,12 +234,22 @@ def _load(path: str | None, overrides: Sequence[str], text: str | None = None):
     return config.load(path, overrides)
 
 
-def _execute(args: argparse.Namespace, cfg, resolved, console: Console) -> ExitCode:
+def _execute(
+    args: argparse.Namespace, cfg, resolved, console: Console, files: dict[str, str] | None = None
+) -> ExitCode:
     from . import runner
 
     for warning in resolved.warnings:
         console.print(f"note: {warning}")
-    summary = runner.execute(cfg, resolved, args.out, resume=args.resume, reporter=console)
+    summary = runner.execute(
+        cfg,
+        resolved,
+        args.out,
+        resume=args.resume,
+        overwrite=args.overwrite,
+        reporter=console,
+        files=files,
+    )
     if summary["speedup"] is not None:
         console.print(runner.speedup_table(summary))
     monitor = summary["monitor"]
@@ -168,15 +267,43 @@ def cmd_run(args: argparse.Namespace, console: Console) -> ExitCode:
     return _execute(args, cfg, resolved, console)
 
 
+def _toml(value: object) -> str:
+    """A TOML value (the configuration's types: tables, arrays, strings, numbers, booleans)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, dict):
+        return "{ " + ", ".join(f"{k} = {_toml(v)}" for k, v in value.items()) + " }"
+    if isinstance(value, list):
+        return "[" + ", ".join(_toml(v) for v in value) + "]"
+    if isinstance(value, str):
+        return json.dumps(value, ensure_ascii=False)
+    return repr(value)
+
+
+def demo_text(overrides: Sequence[str]) -> str:
+    """The demo's configuration file with ``overrides`` applied (the annotated text without)."""
+    import tomllib
+
+    from .config import DEMO, apply_overrides
+
+    if not overrides:
+        return DEMO
+    data = apply_overrides(tomllib.loads(DEMO), overrides)
+    lines = [f"# parastokes demo --set {' --set '.join(overrides)}"]
+    lines += [f"{k} = {_toml(v)}" for k, v in data.items() if not isinstance(v, dict)]
+    for section, table in data.items():
+        if isinstance(table, dict):
+            lines += ["", f"[{section}]", *(f"{k} = {_toml(v)}" for k, v in table.items())]
+    return "\n".join(lines) + "\n"
+
+
 def cmd_demo(args: argparse.Namespace, console: Console) -> ExitCode:
     from .config import DEMO
 
     cfg, resolved = _load(None, args.set, text=DEMO)
-    Path(args.out).mkdir(parents=True, exist_ok=True)
-    (Path(args.out) / "config.toml").write_text(DEMO, encoding="utf-8")
     console.print(cfg.title)
     console.print(f"(configuration written to {args.out}/config.toml; edit it and use `run`)")
-    return _execute(args, cfg, resolved, console)
+    return _execute(args, cfg, resolved, console, files={"config.toml": demo_text(args.set)})
 
 
 def cmd_check(args: argparse.Namespace, console: Console) -> ExitCode:
@@ -194,7 +321,7 @@ def cmd_check(args: argparse.Namespace, console: Console) -> ExitCode:
             f"{path}: ok ({cfg.model.kind}, {r.n_points} points, ε⁰ = {r.epsilon:.6g}; "
             f"{cfg.parareal.n_slices} slices of {r.fine_steps} fine steps; coarse τ_c = "
             f"{r.coarse_dt:.6g} ({r.coarse_dt / r.fine_dt:.4g} τ_f), N_G = {r.n_auxiliary}, "
-            f"workers = {r.workers})"
+            f"Σ|w| = {r.weight_sum:.3g}, workers = {r.workers})"
         )
         for warning in r.warnings:
             console.print(f"  note: {warning}")
@@ -223,6 +350,10 @@ def cmd_predict(args: argparse.Namespace, console: Console) -> ExitCode:
     if args.iterations is not None and args.iterations < 1:
         raise ValueError(f"predict: --iterations must be >= 1, got {args.iterations}")
     cfg, resolved = _load(args.config, args.set)
+    if min(args.cores) < 1:
+        raise ValueError(f"predict: --cores must be at least 1, got {min(args.cores)}")
+    if args.iterations is not None and args.iterations < 1:
+        raise ValueError(f"predict: --iterations must be at least 1, got {args.iterations}")
     measured = io.read_summary(Path(args.measured) / "summary.json") if args.measured else None
     if measured is not None and not measured.get("speedup"):
         raise ValueError(f"{args.measured} holds no Parareal run")
@@ -286,8 +417,11 @@ def _parser() -> argparse.ArgumentParser:
         prog="parastokes",
         description="Parareal with extrapolated coarse solvers for rods and vesicles in Stokes "
         "flow (Liu & Rostami).",
-        epilog="Exit codes: 0 ok, 1 unexpected error, 2 bad configuration or usage, 3 numerical "
-        "blow-up, 4 worker/parallel failure, 130 interrupted.",
+        epilog="Exit codes: 0 ok, 1 unexpected error (a bug), 2 bad configuration, usage or output "
+        "directory (in use, finished, damaged file, unwritable), 3 numerical blow-up (last good "
+        "state saved), 4 worker/parallel failure, 130 interrupted (Ctrl-C), 143 terminated "
+        "(SIGTERM), 129 hung up (SIGHUP); after 4, 130, 143 and 129 the checkpoint is consistent "
+        "and --resume continues.",
     )
     parser.add_argument("--version", action="version", version=f"parastokes {__version__}")
     common = argparse.ArgumentParser(add_help=False)
@@ -303,8 +437,17 @@ def _parser() -> argparse.ArgumentParser:
     )
     running = argparse.ArgumentParser(add_help=False)
     running.add_argument("--out", required=True, help="output directory")
-    running.add_argument(
-        "--resume", action="store_true", help="continue from the checkpoint in --out"
+    again = running.add_mutually_exclusive_group()
+    again.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue the interrupted (or finished) run in --out; refused if the configuration "
+        "differs",
+    )
+    again.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace the run in --out (its results stay until the new run completes)",
     )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
@@ -362,22 +505,46 @@ def main(argv: Sequence[str] | None = None) -> int:
         format="%(levelname)s %(name)s: %(message)s",
     )
     console = Console(args.quiet)
+    handlers = _catch_termination()
     try:
+        _check_launch(sys.argv[1:] if argv is None else argv)
         return int(args.func(args, console))
     except BaseException as error:  # map every failure to a documented exit status
         if isinstance(error, SystemExit):
             raise
-        code = exit_code(error)
-        console.finish()
-        if code is ExitCode.INTERRUPTED:
-            print("interrupted; rerun with --resume to continue", file=sys.stderr)
-        elif code is ExitCode.UNEXPECTED:
-            logger.exception("unexpected error")
-        else:
-            print(f"error: {error}", file=sys.stderr)
-            if code is ExitCode.PARALLEL:
-                print("rerun with --resume to continue from the last iteration", file=sys.stderr)
-        return int(code)
+        return int(_report(error, console))
+    finally:
+        for signum, handler in handlers.items():
+            signal.signal(signum, handler)
+
+
+def _catch_termination() -> dict[int, object]:
+    """Handle SIGTERM and SIGHUP like Ctrl-C (main thread only); returns the previous handlers."""
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+    return {signum: signal.signal(signum, _terminate) for signum in _TERMINATING}
+
+
+def _report(error: BaseException, console: Console) -> ExitCode:
+    """Print what ended the command (with the notes that say what was saved); its exit status."""
+    code = exit_code(error)
+    console.finish()
+    if not is_manager() and mpi_processes() > 1 and code is ExitCode.CONFIG:
+        return code  # the launch was refused: rank 0 says so
+    notes = [f"  {note}" for note in getattr(error, "__notes__", ())]
+    if code in (ExitCode.INTERRUPTED, ExitCode.TERMINATED, ExitCode.HANGUP):
+        what = {130: "interrupted", 143: "terminated (SIGTERM)", 129: "hung up (SIGHUP)"}[code]
+        lines = [f"{what}: the workers are stopped and the checkpoint is consistent; rerun with "
+                 "--resume to continue"]
+    elif code is ExitCode.UNEXPECTED:
+        logger.exception("unexpected error")
+        return code
+    else:
+        lines = [f"error: {error}", *notes]
+        if code is ExitCode.PARALLEL:
+            lines.append("rerun with --resume to continue from the last iteration")
+    print("\n".join(lines), file=sys.stderr)
+    return code
 
 
 if __name__ == "__main__":

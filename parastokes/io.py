@@ -18,6 +18,9 @@ and once per file:
 - root attributes: the resolved configuration as JSON (``config``) and every parameter as its own
   attribute under its key path (``model.epsilon``, ``resolved.coarse_dt``, ...).
 
+Every file is written atomically (:mod:`parastokes.files`); reading a damaged or foreign file raises
+:class:`~parastokes.files.CorruptFileError` naming it.
+
 ``trajectory.xdmf`` describes the same data for ParaView/VisIt (XDMF 3): one temporal collection per
 run, one grid per body with the topology of its layout (a Polyline per rod, a Triangle mesh per
 vesicle), with the node vectors as attributes. The layout of every body comes from its kind
@@ -30,7 +33,8 @@ import json
 import math
 import os
 import xml.etree.ElementTree as ET
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -39,6 +43,7 @@ import h5py
 import numpy as np
 
 from .bodies.registry import BodyLayout
+from .files import CorruptFileError, atomic_write, read_npz, write_npz
 
 __all__ = [
     "HistoryRecord",
@@ -76,40 +81,56 @@ def _plain(value: Any) -> Any:
 def write_summary(path: str | os.PathLike, summary: Mapping[str, Any]) -> None:
     """Write ``summary`` as strict JSON (NaN and infinities become null), atomically."""
     text = json.dumps(_plain(summary), indent=2, allow_nan=False)
-    _atomic_write(Path(path), text.encode())
+    atomic_write(path, lambda handle: handle.write(text.encode()))
 
 
 def read_summary(path: str | os.PathLike) -> dict[str, Any]:
-    """Read a ``summary.json``."""
-    return json.loads(Path(path).read_text(encoding="utf-8"))
+    """Read a ``summary.json``; :class:`~parastokes.files.CorruptFileError` names a damaged one."""
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(
+            f"{path} does not exist: is {path.parent} the output directory of a finished run?"
+        )
+    try:
+        summary = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as error:
+        raise CorruptFileError(path, f"not a readable summary ({error})") from None
+    if not isinstance(summary, dict):
+        raise CorruptFileError(path, "not a parastokes summary (not a JSON object)")
+    return summary
 
 
 # ---- atomic array files ----------------------------------------------------------------------
-def _atomic_write(path: Path, data: bytes) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    with open(tmp, "wb") as handle:
-        handle.write(data)
-        handle.flush()
-        os.fsync(handle.fileno())
-    os.replace(tmp, path)
-
-
 def save_arrays(path: str | os.PathLike, meta: Mapping[str, Any], **arrays: np.ndarray) -> None:
     """Write arrays and a JSON-ready ``meta`` dict to an ``.npz`` file atomically."""
-    path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
-    with open(tmp, "wb") as handle:
-        np.savez(handle, meta=np.array(json.dumps(_plain(meta))), **arrays)
-        handle.flush()
-        os.fsync(handle.fileno())
-    os.replace(tmp, path)
+    write_npz(path, _plain(meta), **arrays)
 
 
-def load_arrays(path: str | os.PathLike) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-    """Read a file written by :func:`save_arrays`: ``(meta, arrays)``."""
-    with np.load(path, allow_pickle=False) as data:
-        meta = json.loads(str(data["meta"]))
-        return meta, {k: data[k] for k in data.files if k != "meta"}
+def load_arrays(
+    path: str | os.PathLike, required: tuple[str, ...] = ()
+) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """Read a file written by :func:`save_arrays`: ``(meta, arrays)`` (``required`` arrays must be
+    there); :class:`~parastokes.files.CorruptFileError` names a damaged or foreign file."""
+    return read_npz(path, required)
+
+
+@contextmanager
+def _reading(path: str | os.PathLike) -> Iterator[h5py.File]:
+    """``path`` opened for reading; a damaged, foreign or incomplete file raises
+    :class:`~parastokes.files.CorruptFileError` naming it."""
+    if not Path(path).exists():
+        raise FileNotFoundError(f"{path} does not exist")
+    try:
+        with h5py.File(path, "r", locking=False) as f:
+            if f.attrs.get("format") != FORMAT:
+                raise CorruptFileError(path, "not a parastokes trajectory file")
+            yield f
+    except CorruptFileError:
+        raise
+    except (OSError, KeyError, TypeError, json.JSONDecodeError) as error:
+        raise CorruptFileError(
+            path, f"damaged or incomplete trajectory ({error})", "rerun the run that wrote it"
+        ) from None
 
 
 # ---- HDF5 trajectory -------------------------------------------------------------------------
@@ -148,7 +169,9 @@ class TrajectoryWriter:
         self.path = Path(path)
         self.layout = list(layout)
         kinds = sorted({body.kind for body in self.layout})
-        self.file = h5py.File(self.path, "w")
+        # the run directory's lock (parastokes.rundir) keeps other runs out: HDF5's own file
+        # locking, which many cluster file systems do not support, is not needed
+        self.file = h5py.File(self.path, "w", locking=False)
         attrs = self.file.attrs
         attrs["format"] = FORMAT
         attrs["version"] = VERSION
@@ -244,7 +267,7 @@ class HistoryRecord:
 
 def read_history(path: str | os.PathLike) -> dict[str, Any] | None:
     """The Parareal history of a ``trajectory.h5`` as a dict of arrays (None if there is none)."""
-    with h5py.File(path, "r") as f:
+    with _reading(path) as f:
         if "parareal_history" not in f:
             return None
         group = f["parareal_history"]
@@ -261,9 +284,7 @@ def read_trajectory(path: str | os.PathLike, run: str | None = None) -> dict[str
 
     ``run`` defaults to ``"parareal"`` when present, else ``"serial"``.
     """
-    with h5py.File(path, "r") as f:
-        if f.attrs.get("format") != FORMAT:
-            raise ValueError(f"{path} is not a parastokes trajectory file")
+    with _reading(path) as f:
         available = [r for r in RUNS if r in f]
         if not available:
             raise ValueError(f"{path} holds no frames")
@@ -321,7 +342,7 @@ def write_xdmf(h5_path: str | os.PathLike, xdmf_path: str | os.PathLike | None =
     root = ET.Element("Xdmf", Version="3.0")
     domain = ET.SubElement(root, "Domain")
     h5name = h5_path.name
-    with h5py.File(h5_path, "r") as f:
+    with _reading(h5_path) as f:
         for run in (r for r in RUNS if r in f):
             series = ET.SubElement(
                 domain, "Grid", Name=run, GridType="Collection", CollectionType="Temporal"
@@ -339,7 +360,8 @@ def write_xdmf(h5_path: str | os.PathLike, xdmf_path: str | os.PathLike | None =
                     _body_grid(step, h5name, name, static, f[run][name], i)
     ET.indent(root)
     text = '<?xml version="1.0" ?>\n<!DOCTYPE Xdmf SYSTEM "Xdmf.dtd" []>\n'
-    xdmf_path.write_text(text + ET.tostring(root, encoding="unicode") + "\n", encoding="utf-8")
+    text += ET.tostring(root, encoding="unicode") + "\n"
+    atomic_write(xdmf_path, lambda handle: handle.write(text.encode()))
     return xdmf_path
 
 

@@ -7,11 +7,17 @@ From one run directory (:func:`draw_run`):
 - ``speedup_vs_error``: the measured speedup reached for a desired error, a staircase because the
   iteration count is an integer (Figs. 6b, 7b, 12b, 13b); at least one iteration is assumed;
 - ``speedup_by_iteration``: measured and theoretical speedup (eq. 14) after k iterations, with the
-  bound of eq. 15 (Figs. 6c, 7c, 8b, 12c, 13c);
-- ``structure``: rods in the x-y plane over time; the vesicle projected on the x-z plane at the
-  first and last frame with its tracked points (Fig. 11);
+  bound of eq. 15 as text above each group (Figs. 6c, 7c, 8b, 12c, 13c); the measured speedup
+  after the last iteration is the one the run prints;
+- ``structure``: the bodies drawn by their kinds (registry): rods in the x-y and x-z planes over
+  time (z: the distance to the wall; each title states how much its vertical axis is stretched);
+  the vesicle projected on the x-z plane at the first and last frame with its tracked points
+  (Fig. 11);
 - ``gantt``: which worker ran which task when (:mod:`parastokes.plots_gantt`), when the summary
   holds per-task timings.
+
+Legends sit beside the axes, never over the data; one run's legend names the curves only (its title
+is above the axes), a comparison's names each run by its directory.
 
 From several run directories (:func:`draw_comparison`): the same error and speedup figures with one
 curve per run (e.g. the coarse solvers G^1..G^4 of one table), and, when the runs differ in the
@@ -80,12 +86,13 @@ class RunData:
 
 
 def load_run(directory: str | Path, label: str | None = None) -> RunData:
-    """Read ``summary.json`` (and locate ``trajectory.h5``) of a run directory."""
+    """Read ``summary.json`` (and locate ``trajectory.h5``) of a run directory; the label is the
+    directory's name (short, for legends) unless given."""
     directory = Path(directory)
     summary = io.read_summary(directory / "summary.json")
     trajectory = directory / "trajectory.h5"
     return RunData(
-        label=label or summary.get("title") or directory.name,
+        label=label or directory.resolve().name,
         summary=summary,
         trajectory=trajectory if trajectory.exists() else None,
     )
@@ -94,12 +101,24 @@ def load_run(directory: str | Path, label: str | None = None) -> RunData:
 def _finish(fig: Figure, ax, stem: Path, formats: Sequence[str], *, integer_x: bool = False,
             **grid) -> list[Path]:
     """Integer ticks on x (iteration counts) if asked, a light grid (``grid``: which/axis), the
-    legend, and the files."""
+    legend outside the axes (never over the data), and the files."""
     if integer_x:
         ax.xaxis.get_major_locator().set_params(integer=True)
     ax.grid(True, alpha=0.3, **grid)
-    ax.legend(fontsize=7)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0)
     return _save(fig, stem, formats)
+
+
+def _named(runs: Sequence[RunData], run: RunData, what: str) -> str:
+    """A legend entry: ``what`` alone for one run, prefixed by the run's label for several."""
+    return what if len(runs) == 1 else f"{run.label}: {what}"
+
+
+def _titled(ax, runs: Sequence[RunData]) -> None:
+    """One run: its title (shortened) above the axes, since the legend names no run."""
+    title = runs[0].summary.get("title") if len(runs) == 1 else ""
+    if title:
+        ax.set_title(title if len(title) <= 60 else title[:57] + "...", fontsize=8)
 
 
 def _save(fig: Figure, stem: Path, formats: Sequence[str]) -> list[Path]:
@@ -120,12 +139,13 @@ def error_decay(runs: Sequence[RunData], stem: Path, formats: Sequence[str] = FO
         k = np.arange(1, len(run.summary["increments"]) + 1)
         color = f"C{i}"
         if run.summary.get("errors"):
-            ax.semilogy(k, run.summary["errors"], "o-", color=color, label=f"{run.label}: η^k")
-        ax.semilogy(
-            k, run.summary["increments"], "s--", color=color, alpha=0.7, label=f"{run.label}: η̃^k"
-        )
+            label = _named(runs, run, "error η^k")
+            ax.semilogy(k, run.summary["errors"], "o-", color=color, label=label)
+        label = _named(runs, run, "increment η̃^k")
+        ax.semilogy(k, run.summary["increments"], "s--", color=color, alpha=0.7, label=label)
     ax.set_xlabel("iteration k")
     ax.set_ylabel("relative error / increment (eq. 34)")
+    _titled(ax, runs)
     return _finish(fig, ax, stem, formats, integer_x=True, which="both")
 
 
@@ -150,14 +170,17 @@ def speedup_vs_error(runs: Sequence[RunData], stem: Path, formats: Sequence[str]
     for i, run in enumerate(runs):
         accuracy, name = run.accuracy()
         measured = run.summary["speedup"]["by_iteration"]["measured"]
-        ax.semilogx(desired, staircase(accuracy, measured, desired), color=f"C{i}", label=run.label)
+        steps = staircase(accuracy, measured, desired)
+        ax.semilogx(desired, steps, color=f"C{i}", label=_named(runs, run, "measured"))
     ax.set_xlabel(f"desired {name}" if len(runs) == 1 else "desired error")
     ax.set_ylabel("measured speedup (eq. 14)")
+    _titled(ax, runs)
     return _finish(fig, ax, stem, formats, which="both")
 
 
 def speedup_by_iteration(runs: Sequence[RunData], stem: Path, formats: Sequence[str] = FORMATS):
-    """Measured (bars) and theoretical (hatched) speedup after k iterations; eq. 15 as dots."""
+    """Measured (bars) and theoretical (hatched) speedup after k iterations, a line at 1; the
+    bound of eq. 15 as text above each group (as a bar it would flatten the others)."""
     fig = Figure(figsize=(5.5, 4))
     ax = fig.subplots()
     width = 0.8 / (2 * len(runs))
@@ -165,7 +188,8 @@ def speedup_by_iteration(runs: Sequence[RunData], stem: Path, formats: Sequence[
         data = run.summary["speedup"]["by_iteration"]
         k = np.asarray(data["iterations"], dtype=float)
         offset = (2 * i - len(runs) + 0.5) * width
-        ax.bar(k + offset, data["measured"], width, color=f"C{i}", label=f"{run.label}: measured")
+        ax.bar(k + offset, data["measured"], width, color=f"C{i}",
+               label=_named(runs, run, "measured"))
         ax.bar(
             k + offset + width,
             data["theoretical"],
@@ -173,14 +197,20 @@ def speedup_by_iteration(runs: Sequence[RunData], stem: Path, formats: Sequence[
             color=f"C{i}",
             alpha=0.4,
             hatch="//",
-            label=f"{run.label}: theoretical",
+            label=_named(runs, run, "theoretical (eq. 14)"),
         )
-        ax.plot(
-            k + offset + width / 2, data["bound"], "k.", label="bound (eq. 15)" if i == 0 else None
-        )
+        tops = np.maximum(data["measured"], data["theoretical"])
+        for x, top, bound in zip(k + offset + width / 2, tops, data["bound"], strict=True):
+            ax.annotate(f"≤{bound:.3g}", (x, top), xytext=(0, 2), textcoords="offset points",
+                        ha="center", va="bottom", fontsize=6, color="0.3")
+    ax.axhline(1.0, color="0.5", lw=0.8, ls=":")
+    ax.set_ylim(top=ax.get_ylim()[1] * 1.12)  # room for the bounds' text
     ax.set_xlabel("iterations N_it")
-    ax.set_ylabel("speedup")
-    return _finish(fig, ax, stem, formats, integer_x=True, axis="y")
+    ax.set_ylabel("speedup (text: bound of eq. 15)")
+    ax.set_xticks(sorted({k for run in runs for k in run.summary["speedup"]["by_iteration"]
+                          ["iterations"]}))
+    _titled(ax, runs)
+    return _finish(fig, ax, stem, formats, axis="y")
 
 
 def scaling(runs: Sequence[RunData], stem: Path, formats: Sequence[str] = FORMATS):

@@ -1,6 +1,12 @@
 """One run of a configuration: the serial fine solution, Parareal (Algorithm 1), or both, with all
 outputs (summary.json, trajectory.h5 + .xdmf, figures) in one directory. Used by the CLI.
 
+The directory is owned by the run (:mod:`parastokes.rundir`: a lock naming PID and host, no
+silent overwrite, results written to ``DIR/.partial/`` and moved into place whole when the run has
+completed). Every resume file carries the run's identity (:func:`identity`: the resolved model,
+time, fine, coarse and slice settings, the mode and the package version); ``--resume`` with any
+difference is refused, naming the keys.
+
 Parareal reports every iteration through ``parareal.run``'s ``on_iteration`` hook: the final
 positions X^k at T_N of every iteration are saved (so η^k and η̃^k of eq. 34 can be recomputed from
 the saved file) and reported live; ``--resume`` after an interruption continues from Parareal's
@@ -8,15 +14,17 @@ checkpoint. Files in the output directory while a run is in progress:
 
 - ``checkpoint.npz``: Parareal's checkpoint (removed at the end when ``parareal.checkpoint`` is
   false);
-- ``reference.npz``: the serial fine solution at T_0..T_N and its wall time (mode ``both``);
-- ``history.npz``: X^k at T_N and the elapsed wall time after every iteration.
+- ``reference.npz``: the serial fine solution at T_0..T_n and its wall time, written after every
+  slice n (``--resume`` continues the serial run after the last saved slice, bit for bit);
+- ``history.npz``: X^k at T_N and the elapsed wall time after every iteration;
+- ``blowup.npz``: after a numerical blow-up, the last good state, its time and which solver failed.
 """
 
 from __future__ import annotations
 
-import hashlib
-import json
+import itertools
 import logging
+import os
 import platform
 import time
 from pathlib import Path
@@ -24,17 +32,32 @@ from typing import Any
 
 import numpy as np
 
-from . import __version__, io, parareal
+from . import __version__, io, parareal, rundir
 from .bodies import registry
 from .config import Config, ConfigError, Resolved, Setup, build, resolved_dict
+from .config.checks import estimated_fine_seconds
+from .files import CorruptFileError, atomic_write
+from .integrate import BlowUpError
+from .parallel import SerialExecutor, run_labelled
+from .parareal import checkpoint as ckpt
 
-__all__ = ["CHECKPOINT", "HISTORY", "REFERENCE", "Reporter", "execute", "speedup_table"]
+__all__ = [
+    "BLOWUP",
+    "CHECKPOINT",
+    "HISTORY",
+    "REFERENCE",
+    "Reporter",
+    "execute",
+    "identity",
+    "speedup_table",
+]
 
 logger = logging.getLogger(__name__)
 
 CHECKPOINT = "checkpoint.npz"
 REFERENCE = "reference.npz"
 HISTORY = "history.npz"
+BLOWUP = "blowup.npz"
 SUMMARY = "summary.json"
 TRAJECTORY = "trajectory.h5"
 
@@ -48,6 +71,9 @@ class Reporter:
     def start(self, what: str, total: int) -> None:
         """A phase of ``total`` steps begins: ``"serial"`` slices or ``"parareal"`` iterations."""
 
+    def expect(self, seconds: float) -> None:
+        """An estimate of the wall time of one step of the current phase (for an ETA)."""
+
     def advance(self) -> None:
         """One step of the current phase is done."""
 
@@ -58,15 +84,95 @@ class Reporter:
         """Iteration k of Parareal finished: η̃^k, η^k (None without reference), wall time so far."""
 
 
-def _digest(data: Any) -> str:
-    return hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()
+def _flatten(prefix: str, value: Any, out: dict[str, Any]) -> None:
+    if isinstance(value, dict):
+        for key, item in value.items():
+            _flatten(f"{prefix}.{key}" if prefix else key, item, out)
+    else:
+        out[prefix] = value
 
 
-def _keys(cfg: Config) -> tuple[str, str]:
-    """Digests of what determines the serial fine solution, and of the whole Parareal problem."""
+def identity(cfg: Config) -> dict[str, Any]:
+    """What determines the iterates, by key path: the model, time, fine and coarse sections,
+    ``parareal.n_slices``, ``run.mode`` and the package version (``version``).
+
+    Keys that only say when to stop or where to run (``parareal.tol``, ``max_iterations``,
+    ``execution``, ``output``) are left out: ``--resume`` may change them (e.g. to run more
+    iterations).
+    """
     dumped = cfg.model_dump(mode="json")
-    fine = {k: dumped[k] for k in ("model", "time", "fine")} | {"n": cfg.parareal.n_slices}
-    return _digest(fine), _digest(fine | {"coarse": dumped["coarse"]})
+    sections = {key: dumped[key] for key in ("model", "time", "fine", "coarse")}
+    sections["parareal"] = {"n_slices": cfg.parareal.n_slices}
+    sections["run"] = {"mode": cfg.run.mode}
+    del sections["coarse"]["max_weight_sum"]  # a safety bound, not a setting of the solver
+    flat: dict[str, Any] = {}
+    _flatten("", sections, flat)
+    return {**flat, "version": __version__}
+
+
+def _same_run(path: Path, saved: Any, now: dict[str, Any]) -> None:
+    """Refuse to resume from ``path`` (written with identity ``saved``) unless it matches ``now``:
+    a :class:`ConfigError` names every differing key."""
+    if not isinstance(saved, dict):
+        raise CorruptFileError(
+            path,
+            "written by another version of parastokes (no run identity)",
+            "resume with that version, or pass --overwrite to start afresh",
+        )
+    found = ckpt.differences({k: v for k, v in saved.items() if k != ckpt.PROBLEM}, now)
+    if found:
+        hint = (
+            "continues only the same configuration: undo the change, pass --overwrite to "
+            "discard the run in that directory, or choose another --out"
+        )
+        issues = [(key, f"{new!r} now, {old!r} in the run to resume") for key, old, new in found]
+        raise ConfigError([*issues, ("--resume", hint)], f"{path} (the run to resume)")
+
+
+def _check_resumable(out: Path, key: dict[str, Any]) -> None:
+    """Before any work: every resume file in ``out`` is readable and of this run (``key``)."""
+    for name in (REFERENCE, HISTORY, CHECKPOINT):
+        path = out / name
+        if path.exists():
+            _same_run(path, io.load_arrays(path)[0].get("key"), key)
+
+
+def _blow_up_note(out: Path, error: BlowUpError, where: str, fix: str) -> str:
+    """Save the last good state of a blow-up to ``out/BLOWUP``; the note that says so."""
+    io.save_arrays(
+        out / BLOWUP,
+        {"where": where, "t": error.t, "step": error.step, "monitor": error.monitor},
+        last_state=error.last_state,
+    )
+    return (
+        f"{where} blew up at t = {error.t:.10g} (step {error.step} of that solve); the last good "
+        f"state is in {out / BLOWUP}; {fix}"
+    )
+
+
+def _fix(cfg: Config, label: str) -> str:
+    """What to change after a blow-up of the solve named ``label``."""
+    if "fine solve" in label or label == "serial":
+        return f"reduce fine.dt (now {cfg.fine.dt:g}) or use a more stable fine.scheme"
+    return (
+        "reduce the coarse step (coarse.dt_ratio or coarse.dt), or choose Lagrange nodes at which "
+        f"the coarse scheme ({cfg.coarse.scheme}) is stable at that step"
+    )
+
+
+def _blow_up(error: BaseException) -> tuple[BlowUpError, str] | None:
+    """The BlowUpError inside ``error`` (a TaskError's ``original`` or a cause) and the label of
+    the task that raised it."""
+    label = ""
+    seen: set[int] = set()
+    item: BaseException | None = error
+    while item is not None and id(item) not in seen:
+        seen.add(id(item))
+        if isinstance(item, BlowUpError):
+            return item, label
+        label = getattr(item, "label", label)
+        item = getattr(item, "original", None) or item.__cause__
+    return None
 
 
 def _frame_indices(n_slices: int, every: int) -> list[int]:
@@ -74,28 +180,92 @@ def _frame_indices(n_slices: int, every: int) -> list[int]:
     return sorted(set(range(0, n_slices + 1, every)) | {n_slices})
 
 
+def _inner_frames(
+    fine: Any, t_start: float, t_end: float, x: np.ndarray, parts: int
+) -> np.ndarray:
+    """The states at the ``parts - 1`` equally spaced times inside ``[t_start, t_end]``, by fine
+    solves chained from ``x`` (the frames inside a slice; equal to the run's states up to
+    round-off, since every solve projects its ends)."""
+    ends = np.linspace(t_start, t_end, parts + 1)
+    states = []
+    for a, b in itertools.pairwise(ends[:-1]):
+        x = fine(a, b, x)
+        states.append(x)
+    return np.asarray(states)
+
+
+def _append_frames(
+    writer: io.TrajectoryWriter, run: str, setup: Setup, times: np.ndarray, states: np.ndarray
+) -> None:
+    """Write the frames of ``states`` (at the slice boundaries ``times``) as ``output.every``
+    asks: every m-th boundary, or every boundary and the frames inside the slices."""
+    every, steps = setup.config.output.every, setup.resolved.fine_steps
+    n_slices = len(times) - 1
+    frames = _frame_indices(n_slices, max(1, (every or steps) // steps))
+    parts = steps // every if every is not None and every < steps else 1
+    inner: dict[int, np.ndarray] = {}
+    if parts > 1:
+        slices = range(1, n_slices + 1)
+        values = run_labelled(
+            setup.executor or SerialExecutor(),
+            _inner_frames,
+            [(setup.fine, times[n - 1], times[n], states[n - 1], parts) for n in slices],
+            [f"frames inside slice {n} ({run})" for n in slices],
+        )
+        inner = dict(zip(slices, values, strict=True))
+    for n in range(n_slices + 1):
+        if n in frames:
+            writer.append(run, times[n], states[n])
+        if n + 1 in inner:
+            inside = np.linspace(times[n], times[n + 1], parts + 1)[1:-1]
+            for t, state in zip(inside, inner[n + 1], strict=True):
+                writer.append(run, t, state)
+
+
+def _slice_seconds(setup: Setup) -> float:
+    """A rough estimate of one fine solve over a slice (for the progress bars' ETA)."""
+    r = setup.resolved
+    return estimated_fine_seconds(setup.config.fine.scheme, r.fine_steps, r.n_points)
+
+
 # ---- the serial fine run ---------------------------------------------------------------------
 def _serial(
-    setup: Setup, x0: np.ndarray, times: np.ndarray, path: Path, key: str, reporter: Reporter
+    setup: Setup, x0: np.ndarray, times: np.ndarray, out: Path, key: dict, reporter: Reporter
 ) -> tuple[np.ndarray, float]:
     """The serial fine solution F(T_n, T_0, x0) at every T_n (as ``parareal.serial_solution``) and
-    its wall time; reloaded from ``path`` when that holds the same problem (``key``)."""
-    if path.exists():
-        meta, arrays = io.load_arrays(path)
-        if meta.get("key") == key:
-            reporter.note(f"serial fine solution reloaded from {path.name}")
-            return arrays["states"], float(meta["wall_time"])
+    its wall time. Saved to ``out/REFERENCE`` after every slice, and continued from there when
+    that file holds the same run (``key``), so an interrupted serial run loses at most a slice."""
+    path = out / REFERENCE
     n_slices = len(times) - 1
-    states = np.empty((n_slices + 1, *x0.shape))
+    states = np.full((n_slices + 1, *x0.shape), np.nan)
     states[0] = x0
-    reporter.start("serial", n_slices)
-    start = time.perf_counter()
-    for n in range(1, n_slices + 1):
-        states[n] = setup.fine(times[n - 1], times[n], states[n - 1])
+    done, wall = 0, 0.0
+    if path.exists():
+        meta, arrays = io.load_arrays(path, required=("states",))
+        try:
+            done, wall = int(meta["done"]), float(meta["wall_time"])
+            states[: done + 1] = arrays["states"][: done + 1]
+        except (KeyError, TypeError, ValueError) as error:
+            raise CorruptFileError(path, f"an incomplete serial run ({error!r})") from None
+        if done == n_slices:
+            reporter.note(f"serial fine solution reloaded from {path.name}")
+            return states, wall
+        reporter.note(f"serial fine run resumed after slice {done} of {n_slices}")
+    reporter.start("serial", n_slices - done)
+    reporter.expect(_slice_seconds(setup))
+    for n in range(done + 1, n_slices + 1):
+        start = time.perf_counter()
+        try:
+            states[n] = setup.fine(times[n - 1], times[n], states[n - 1])
+        except BlowUpError as error:
+            cfg = setup.config
+            where = f"the fine solver F ({cfg.fine.scheme}) in slice {n} of the serial fine run"
+            error.add_note(_blow_up_note(out, error, where, _fix(cfg, "serial")))
+            raise
+        wall += time.perf_counter() - start
+        io.save_arrays(path, {"key": key, "done": n, "wall_time": wall}, states=states)
         reporter.advance()
-    wall = time.perf_counter() - start
     reporter.finish()
-    io.save_arrays(path, {"key": key, "wall_time": wall}, states=states)
     return states, wall
 
 
@@ -106,7 +276,7 @@ def _parareal(
     times: np.ndarray,
     reference: np.ndarray | None,
     out: Path,
-    key: str,
+    key: dict,
     reporter: Reporter,
 ) -> tuple[parareal.PararealResult, io.HistoryRecord]:
     """Parareal with the history of an interrupted run in ``out`` (if any) carried on.
@@ -119,12 +289,9 @@ def _parareal(
     history_path = out / HISTORY
     finals: list[np.ndarray] = []
     elapsed: list[float] = []
+    checkpoint = out / CHECKPOINT
     if history_path.exists():
-        meta, arrays = io.load_arrays(history_path)
-        if meta.get("key") != key:
-            raise ConfigError(
-                [("", f"{out} holds a run of another configuration; use a new --out directory")]
-            )
+        _, arrays = io.load_arrays(history_path, required=("final_positions", "elapsed"))
         finals, elapsed = list(arrays["final_positions"]), list(arrays["elapsed"])
 
     def record(report: parareal.IterationReport) -> None:
@@ -146,26 +313,39 @@ def _parareal(
 
     p = cfg.parareal
     reporter.start("parareal", p.max_iterations)
-    result = parareal.run(
-        setup.fine,
-        setup.coarse,
-        x0,
-        times[0],
-        times[-1],
-        p.n_slices,
-        p.tol,
-        max_iterations=p.max_iterations,
-        executor=setup.executor,
-        reference=reference,
-        project=system.project,
-        positions=system.positions,
-        checkpoint=out / CHECKPOINT,
-        allow_oversubscribe=cfg.execution.allow_oversubscribe
-        or cfg.execution.executor == "serial",
-        on_iteration=record,
-        schedule=p.schedule,
-    )
+    workers = getattr(setup.executor, "workers", 1)
+    reporter.expect(_slice_seconds(setup) * -(-p.n_slices // workers))  # one parallel sweep
+    try:
+        result = parareal.run(
+            setup.fine,
+            setup.coarse,
+            x0,
+            times[0],
+            times[-1],
+            p.n_slices,
+            p.tol,
+            max_iterations=p.max_iterations,
+            executor=setup.executor,
+            reference=reference,
+            project=system.project,
+            positions=system.positions,
+            checkpoint=checkpoint,
+            allow_oversubscribe=cfg.execution.allow_oversubscribe
+            or cfg.execution.executor == "serial",
+            on_iteration=record,
+            identity=key,
+            schedule=p.schedule,
+        )
+    except Exception as error:
+        found = _blow_up(error)
+        if found is not None:
+            blow, label = found
+            where = f"the {label or 'solve'} (Parareal)"
+            error.add_note(_blow_up_note(out, blow, where, _fix(cfg, label)))
+        raise
     reporter.finish()
+    if len(elapsed) >= result.iterations > 0:  # the last one as the report's total (same speedup)
+        elapsed[result.iterations - 1] = result.timings.total
     history = io.HistoryRecord(
         increments=result.increments,
         errors=result.errors,
@@ -214,48 +394,74 @@ def execute(
     out: str | Path,
     *,
     resume: bool = False,
+    overwrite: bool = False,
     reporter: Reporter | None = None,
+    files: dict[str, str] | None = None,
 ) -> dict[str, Any]:
     """Run ``cfg`` into the directory ``out``; returns the summary (also written to summary.json).
 
-    Without ``resume`` earlier run files in ``out`` are removed first; with it the serial solution
-    and the Parareal checkpoint found there are reused. Figures are drawn last
-    (``output.figures``). Raises ``integrate.BlowUpError`` on a numerical blow-up and
-    :class:`ConfigError` when ``out`` holds another problem's checkpoint.
+    The directory is claimed first (:func:`parastokes.rundir.claim`), before any work: a file, an
+    unwritable path, a directory in use by another run, or one holding a finished, interrupted or
+    foreign run (unless ``resume`` or ``overwrite``) raises a ValueError that says what to do.
+    ``files`` (name -> text) are then written into it (the demo's ``config.toml``). With
+    ``resume`` the serial solution and the Parareal checkpoint found there are continued; a run
+    of another configuration is refused (:class:`ConfigError` naming the keys). Results go to the
+    directory whole once complete; figures are drawn last (``output.figures``). Raises
+    ``integrate.BlowUpError`` on a numerical blow-up, after saving the last good state.
     """
+    with rundir.claim(out, resume=resume, overwrite=overwrite) as directory:
+        for name, text in (files or {}).items():
+            atomic_write(directory.path / name, lambda handle, t=text: handle.write(t.encode()))
+        return _execute(cfg, resolved, directory, reporter or Reporter())
+
+
+def _kernels_cached() -> bool:
+    """Whether numba's cache holds compiled kernels of this package (else the first run compiles
+    them, which takes up to a minute)."""
+    root = os.environ.get("NUMBA_CACHE_DIR") or Path(__file__).parent
+    return next(Path(root).rglob("*.nbi"), None) is not None
+
+
+def _stop_workers(setup: Setup) -> None:
+    """After a failure or an interrupt: stop the executor's workers now, without waiting for the
+    tasks they run (their results would be discarded; the checkpoint is consistent)."""
+    abort = getattr(setup.executor, "abort", None)
+    if abort is not None:
+        abort()
+
+
+def _execute(
+    cfg: Config, resolved: Resolved, directory: rundir.RunDirectory, reporter: Reporter
+) -> dict[str, Any]:
     from . import plots
 
-    reporter = reporter or Reporter()
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    if not resume:
-        for name in (CHECKPOINT, REFERENCE, HISTORY):
-            (out / name).unlink(missing_ok=True)
+    out, staging = directory.path, directory.staging
     conf = resolved_dict(cfg, resolved)
-    fine_key, parareal_key = _keys(cfg)
+    key = identity(cfg)
+    _check_resumable(out, key)
     mode = cfg.run.mode
     start = time.perf_counter()
+    if not _kernels_cached():
+        reporter.note("compiling the numerical kernels (first run only; up to a minute) ...")
     with build(cfg, resolved) as setup:
         system = setup.system
         x0 = system.initial_state()
         times = parareal.time_points(cfg.time.t0, cfg.time.t1, cfg.parareal.n_slices)
-        frames = _frame_indices(cfg.parareal.n_slices, cfg.output.every)
-        writer = _writer(cfg, setup, conf, out) if cfg.output.trajectory else None
+        writer = _writer(cfg, setup, conf, staging) if cfg.output.trajectory else None
         try:
             reference = serial_time = result = record = None
             if mode in ("serial", "both"):
-                reference, serial_time = _serial(
-                    setup, x0, times, out / REFERENCE, fine_key, reporter
-                )
+                reference, serial_time = _serial(setup, x0, times, out, key, reporter)
                 if writer is not None:
-                    for n in frames:
-                        writer.append("serial", times[n], reference[n])
+                    _append_frames(writer, "serial", setup, times, reference)
             if mode in ("parareal", "both"):
-                result, record = _parareal(setup, x0, times, reference, out, parareal_key, reporter)
+                result, record = _parareal(setup, x0, times, reference, out, key, reporter)
                 if writer is not None:
-                    for n in frames:
-                        writer.append("parareal", times[n], result.states[n])
+                    _append_frames(writer, "parareal", setup, times, result.states)
                     writer.write_history(record)
+        except BaseException:
+            _stop_workers(setup)
+            raise
         finally:
             if writer is not None:
                 writer.close()
@@ -288,16 +494,20 @@ def execute(
                 "python": platform.python_version(),
             },
         }
+    summary["wall_time"] = time.perf_counter() - start
+    io.write_summary(staging / SUMMARY, summary)
+    if writer is not None:
+        io.write_xdmf(staging / TRAJECTORY)
+    if cfg.output.figures:
+        written = plots.draw_run(staging, formats=cfg.output.formats)
+        reporter.note(f"figures: {', '.join(sorted({p.stem for p in written}))}")
+    directory.commit()  # the new results replace the old ones whole
+    (out / BLOWUP).unlink(missing_ok=True)
     if result is not None and not cfg.parareal.checkpoint:
         (out / CHECKPOINT).unlink(missing_ok=True)
-    summary["wall_time"] = time.perf_counter() - start
-    io.write_summary(out / SUMMARY, summary)
-    if writer is not None:
-        io.write_xdmf(out / TRAJECTORY)
-    if cfg.output.figures:
-        written = plots.draw_run(out, formats=cfg.output.formats)
-        reporter.note(f"figures: {', '.join(sorted({p.stem for p in written}))}")
     return summary
+
+
 
 
 def speedup_table(summary: dict[str, Any]) -> str:

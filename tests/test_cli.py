@@ -125,6 +125,8 @@ def check_demo_output(out: Path, n_frames: int) -> dict:
             assert (out / f"{name}.{fmt}").stat().st_size > 1000
     cfg, _ = config.load(out / "config.toml")
     assert cfg.model.n_points == 61
+    saved = {k: v for k, v in summary["config"].items() if k != "resolved"}
+    assert cfg.model_dump(mode="json") == saved  # the file reproduces the run, --set included
     return summary
 
 
@@ -212,8 +214,14 @@ def test_blow_up_exits_3(tmp_path, capsys):
         "t1 = 0.002", "t1 = 0.01"
     )
     path.write_text(text.replace("dt_ratio = 10", "dt_ratio = 1") + '[run]\nmode = "serial"\n')
-    assert cli.main(["run", str(path), "--out", str(tmp_path / "o")]) == cli.ExitCode.BLOWUP
-    assert "blow-up at t=" in capsys.readouterr().err
+    out = tmp_path / "o"
+    assert cli.main(["run", str(path), "--out", str(out)]) == cli.ExitCode.BLOWUP
+    err = capsys.readouterr().err
+    assert "blow-up at t=" in err
+    assert "the fine solver F (euler) in slice 1 of the serial fine run blew up" in err
+    assert "reduce fine.dt (now 0.0005)" in err and str(out / runner.BLOWUP) in err
+    meta, arrays = io.load_arrays(out / runner.BLOWUP)
+    assert meta["step"] >= 0 and np.isfinite(arrays["last_state"]).all()
 
 
 @pytest.mark.parametrize(
@@ -251,7 +259,48 @@ def test_predict_prints_eq_14_for_each_core_count(tiny_runs, capsys):
     assert "estimated" in capsys.readouterr().out
 
 
-def test_usage_errors_exit_2():
+def test_usage_errors_exit_2(tiny_runs, capsys):
     with pytest.raises(SystemExit) as info:
         cli.main(["run"])
     assert info.value.code == 2
+    path, _ = tiny_runs
+    assert cli.main(["predict", str(path), "--cores", "0"]) == cli.ExitCode.CONFIG
+    assert "--cores must be at least 1" in capsys.readouterr().err
+
+
+def test_help_documents_every_exit_code(capsys):
+    with pytest.raises(SystemExit):
+        cli.main(["--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    for code in cli.ExitCode:
+        assert f"{int(code)} " in text
+    assert "143 terminated (SIGTERM)" in text
+
+
+def test_demo_configuration_file_keeps_the_overrides():
+    overrides = [
+        "parareal.n_slices=4",
+        "coarse.lagrange.epsilon.nodes=[5.5, 5.6]",
+        "fine.scheme=rk4",  # a bare word: a string
+    ]
+    written, _ = config.loads(cli.demo_text(overrides))
+    expected, _ = config.loads(config.DEMO, overrides=overrides)
+    assert written == expected
+    assert cli.demo_text([]) == config.DEMO  # without --set: the annotated file
+
+
+def test_progress_moves_inside_a_slice_by_the_expected_time(monkeypatch, capsys):
+    clock = iter([100.0, 130.0, 190.0])  # start, end of slice 1, end of slice 2
+    monkeypatch.setattr(cli.time, "monotonic", lambda: next(clock))
+    console = cli.Console(quiet=False)
+    console.start("serial", 4)
+    assert console.progress(150.0) == 0.0  # no estimate yet: whole slices only
+    console.expect(100.0)  # the estimate of one slice, before any is timed
+    assert console.progress(125.0) == pytest.approx(0.25)
+    assert console.progress(1e6) == pytest.approx(0.99)  # never a slice that is not done
+    console.advance()  # slice 1 took 30 s: the mean replaces the estimate
+    assert console.progress(145.0) == pytest.approx(1.5)
+    console.advance()  # slices took 30 and 60 s: 45 s each on average
+    assert console.progress(190.0 + 9.0) == pytest.approx(2.2)
+    console.finish()
+    assert "serial fine run over 4 slices" in capsys.readouterr().out

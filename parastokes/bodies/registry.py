@@ -39,6 +39,7 @@ __all__ = [
     "BodySection",
     "Positive",
     "UnknownKindError",
+    "axis_stretch",
     "derived_kind",
     "draw_over_time",
     "get",
@@ -136,23 +137,42 @@ def polyline(n: int) -> np.ndarray:
     return np.stack([np.arange(n - 1), np.arange(1, n)], axis=1).astype(np.int64)
 
 
+def axis_stretch(fig: Any, ax: Any) -> str:
+    """How much the vertical axis of ``ax`` is stretched against the horizontal one."""
+    fig.draw_without_rendering()  # final axes sizes and limits
+    box = ax.get_window_extent()
+    (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+    factor = (box.height / (y1 - y0)) / (box.width / (x1 - x0))
+    return "true scale" if abs(factor - 1) < 0.05 else f"vertical axis stretched {factor:.3g}x"
+
+
 def draw_over_time(fig: Any, bodies: Mapping[str, Mapping[str, np.ndarray]], times: np.ndarray,
-                   plane: tuple[int, int], title: str, **style: Any) -> None:
-    """Every frame of every body as a line in ``plane`` (axis indices), coloured by time."""
+                   planes: Sequence[tuple[int, int, str]], run: str, equal: bool = False,
+                   **style: Any) -> None:
+    """Every frame of every body as a line coloured by time, in one axes per plane
+    ``(horizontal axis index, vertical axis index, vertical label)``, stacked with a shared
+    horizontal axis; each title names the plane and states how much its vertical axis is
+    stretched (``equal``: drawn at true scale)."""
     from matplotlib import colormaps
     from matplotlib.cm import ScalarMappable
     from matplotlib.colors import Normalize
 
-    ax = fig.subplots()
+    axes = fig.subplots(len(planes), 1, sharex=True, squeeze=False)[:, 0]
     colors = colormaps["viridis"](np.linspace(0, 1, len(times)))
-    for body in bodies.values():
-        for color, frame in zip(colors, body["positions"], strict=True):
-            ax.plot(frame[:, plane[0]], frame[:, plane[1]], color=color, **style)
+    for ax, (i, j, label) in zip(axes, planes, strict=True):
+        for body in bodies.values():
+            for color, frame in zip(colors, body["positions"], strict=True):
+                ax.plot(frame[:, i], frame[:, j], color=color, **style)
+        ax.set_ylabel(label)
+        ax.ticklabel_format(axis="y", useOffset=False)  # absolute distances, no "+1e1"
+        if equal:
+            ax.set_aspect("equal", adjustable="datalim")
     mappable = ScalarMappable(cmap="viridis", norm=Normalize(times[0], times[-1]))
-    fig.colorbar(mappable, ax=ax, label="t (s)")
-    ax.set_xlabel(f"{'xyz'[plane[0]]} (μm)")
-    ax.set_ylabel(f"{'xyz'[plane[1]]} (μm)")
-    ax.set_title(title)
+    fig.colorbar(mappable, ax=list(axes), label="t (s)")
+    axes[-1].set_xlabel(f"{'xyz'[planes[-1][0]]} (μm)")
+    for ax, (i, j, _) in zip(axes, planes, strict=True):
+        plane = f"{'xyz'[i]}-{'xyz'[j]}"
+        ax.set_title(f"{plane} plane ({run}), {axis_stretch(fig, ax)}", fontsize=8)
 
 
 #: ``draw(fig, bodies, times, run)``: draw the frames of this kind's ``bodies`` (name -> dict with

@@ -10,6 +10,16 @@ configuration before any expensive work. The rules are the paper's:
 - N_G = (Π_i N_θi)(m + 1) auxiliary solvers (eq. 31) run at once only with N_G workers: more is an
   error unless ``execution.allow_oversubscribe`` (Algorithm 1 assumes N_G <= N_c), or with
   ``parareal.schedule = "pipelined"`` (its auxiliary solves wait for workers like any task).
+
+And what cannot work or will not end in reasonable time:
+
+- the weights of eq. 30 sum, in absolute value, to Σ|w_j v_q| (Lagrange nodes close together,
+  or close to θ⁰, make it large): the coarse solver multiplies the auxiliary solvers' round-off
+  and step errors by up to that factor. Above ``coarse.max_weight_sum`` (default 10⁶; the paper's
+  configurations reach 1.7·10⁵) the configuration is refused; raise the key to force it;
+- a serial fine solution of more than 10¹² steps is refused, and one estimated (from the points
+  and steps, :func:`estimated_fine_seconds`) to take more than a day on one core gets a note;
+- more workers x threads than the cores of this machine gets a note naming what to pass instead.
 """
 
 from __future__ import annotations
@@ -22,11 +32,20 @@ from .. import integrate
 from ..bodies import registry
 from ..contracts import oversubscription
 from ..parallel import available_cores
-from ..parareal.weights import step_weights
+from ..parareal import weights
 from .errors import ConfigError
 from .schema import Config
 
-__all__ = ["Resolved", "resolve", "resolved_dict"]
+__all__ = ["Resolved", "estimated_fine_seconds", "resolve", "resolved_dict"]
+
+#: Most fine steps (all slices) a configuration may ask for: beyond, the run cannot end.
+MAX_FINE_STEPS = 10**12
+#: Estimated serial fine run time (s) above which ``check`` and every run print a note.
+LONG_RUN_SECONDS = 86400.0
+# One rate evaluation costs about _EVAL_SECONDS + _PAIR_SECONDS N² on one core (a rod of 301
+# nodes above the wall: 0.5 ms per evaluation, docs/benchmarks.md); a rough guide only.
+_EVAL_SECONDS = 4e-5
+_PAIR_SECONDS = 5.5e-9
 
 
 @dataclass(frozen=True)
@@ -55,6 +74,7 @@ class Resolved:
     n_auxiliary: int
     workers: int | None
     warnings: list[str] = field(default_factory=list)
+    weight_sum: float = 1.0
 
 
 def _node_values(
@@ -108,6 +128,64 @@ def _steps(slice_length: float, dt: float, path: str, what: str, warnings: list[
     return n
 
 
+def _duration(seconds: float) -> str:
+    for unit, size in (("years", 3.156e7), ("days", 86400.0), ("hours", 3600.0), ("min", 60.0)):
+        if seconds >= size:
+            return f"{seconds / size:.3g} {unit}"
+    return f"{seconds:.3g} s"
+
+
+def estimated_fine_seconds(scheme: str, steps: float, points: int) -> float:
+    """A rough one-core estimate of ``steps`` steps of ``scheme`` with ``points`` points: rate
+    evaluations times (overhead + (points)² Stokeslet pairs), from the measured rod step."""
+    stages = integrate.SCHEMES[scheme].stages
+    return steps * stages * (_EVAL_SECONDS + _PAIR_SECONDS * points**2)
+
+
+def _cores(cfg: Config, workers: int, warnings: list[str]) -> None:
+    """A note when the workers' threads outnumber this machine's cores (processes, serial)."""
+    ex = cfg.execution
+    cores = available_cores()
+    if ex.executor == "mpi" or workers * ex.threads <= cores:
+        return
+    if ex.executor == "serial":
+        fix = f"--set execution.threads={cores}"
+    else:
+        fix = f"--set execution.workers={max(1, cores // ex.threads)}"
+        if ex.threads > 1:
+            fix += f" (or execution.threads={max(1, cores // workers)})"
+    warnings.append(
+        f"execution: {workers} worker(s) x {ex.threads} thread(s) on {cores} cores: they take "
+        f"turns on the cores, so the run is slower and its speedup lower than on enough cores; "
+        f"pass {fix} here, or run it where there are {workers * ex.threads} cores"
+    )
+
+
+def _weight_sum(cfg: Config, lagrange: dict[str, list[float]], theta0: dict[str, float],
+                steps: list[int], slice_length: float, issues: list) -> float:
+    """Σ|w_j v_q| of eq. 30 (it factorizes over the parameters and the Richardson steps);
+    appends an issue above ``coarse.max_weight_sum``."""
+    total = 1.0
+    for name, values in lagrange.items():
+        if values:
+            total *= float(abs(weights.lagrange_weights(theta0[name], values)).sum())
+    if len(steps) > 1:
+        order = integrate.scheme_order(cfg.coarse.scheme)
+        total *= float(abs(weights.step_weights([slice_length / n for n in steps], order)).sum())
+    bound = cfg.coarse.max_weight_sum
+    if total > bound:
+        issues.append(
+            (
+                "coarse.lagrange",
+                f"the extrapolation weights have Σ|w_j v_q| = {total:.3g} > {bound:g}: the nodes "
+                "are so close together (or to θ⁰) that the coarse solver multiplies round-off and "
+                f"step errors by up to {total:.3g}; move the nodes apart, or raise "
+                "coarse.max_weight_sum to force it",
+            )
+        )
+    return total
+
+
 def _workers(cfg: Config, n_auxiliary: int, issues: list, warnings: list) -> int | None:
     ex = cfg.execution
     if ex.executor == "serial":
@@ -115,6 +193,7 @@ def _workers(cfg: Config, n_auxiliary: int, issues: list, warnings: list) -> int
             issues.append(
                 ("execution.workers", f"the serial executor has 1 worker, not {ex.workers}")
             )
+        _cores(cfg, 1, warnings)
         return 1
     workers = ex.workers
     if workers is None and ex.executor == "gpu":  # one batch holds every solve of a sweep
@@ -123,6 +202,7 @@ def _workers(cfg: Config, n_auxiliary: int, issues: list, warnings: list) -> int
         workers = max(1, min(cfg.parareal.n_slices, available_cores() // ex.threads))
     if workers is None:  # mpi: all ranks of the launch, known only when the executor exists
         return None
+    _cores(cfg, workers, warnings)
     problem = oversubscription(n_auxiliary, workers)
     queued = ex.allow_oversubscribe or cfg.parareal.schedule == "pipelined"  # (as tasks)
     if problem and not queued and cfg.run.mode != "serial":
@@ -160,6 +240,24 @@ def resolve(cfg: Config, source: str = "") -> Resolved:
         issues.append(
             ("fine.dt", f"exceeds the slice length (t1 - t0)/n_slices = {slice_length:.6g}")
         )
+    total_steps = (t1 - t0) / cfg.fine.dt
+    seconds = estimated_fine_seconds(cfg.fine.scheme, total_steps, n_points)
+    if total_steps > MAX_FINE_STEPS:
+        issues.append(
+            (
+                "fine.dt",
+                f"{total_steps:.3g} fine steps over [t0, t1] (more than {MAX_FINE_STEPS:.0e}): the "
+                f"serial fine solution would take about {_duration(seconds)} on one core; check "
+                "fine.dt and time.t1 (units: s)",
+            )
+        )
+        raise ConfigError(issues, source)
+    if seconds > LONG_RUN_SECONDS:
+        warnings.append(
+            f"fine.dt: {total_steps:.3g} fine steps; the serial fine solution would take about "
+            f"{_duration(seconds)} on one core (a rough estimate; Parareal divides it by at most "
+            "its speedup)"
+        )
     fine_steps = _steps(slice_length, cfg.fine.dt, "fine.dt", "τ_f", warnings)
 
     coarse = cfg.coarse
@@ -175,7 +273,7 @@ def resolve(cfg: Config, source: str = "") -> Resolved:
         for q in range(m + 1)
     ]
     try:  # the rule of eq. 27 where it lives: the weights of the steps actually taken
-        step_weights([slice_length / n for n in coarse_steps], 1)
+        weights.step_weights([slice_length / n for n in coarse_steps], 1)
     except ValueError:
         issues.append(
             (
@@ -200,6 +298,9 @@ def resolve(cfg: Config, source: str = "") -> Resolved:
             continue
         lagrange[name] = _node_values(cfg, name, theta0[name], body, issues)
     n_auxiliary = math.prod(len(spec.nodes) for spec in coarse.lagrange.values()) * (m + 1)
+    weight_sum = 1.0
+    if not issues:
+        weight_sum = _weight_sum(cfg, lagrange, theta0, coarse_steps, slice_length, issues)
 
     coarse_points = n_points
     if coarse.grid_factor > 1:
@@ -208,6 +309,15 @@ def resolve(cfg: Config, source: str = "") -> Resolved:
         except ValueError as error:
             issues.append(("coarse.grid_factor", str(error)))
 
+    every = cfg.output.every
+    if every is not None and every % fine_steps and fine_steps % every:
+        issues.append(
+            (
+                "output.every",
+                f"must be a multiple or a divisor of the {fine_steps} fine steps per slice, "
+                f"got {every}",
+            )
+        )
     tracked = cfg.output.tracked_points
     if tracked:
         if not registry.get(model.kind).tracks_points:
@@ -236,6 +346,7 @@ def resolve(cfg: Config, source: str = "") -> Resolved:
         n_auxiliary=n_auxiliary,
         workers=workers,
         warnings=warnings,
+        weight_sum=weight_sum,
     )
 
 

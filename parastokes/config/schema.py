@@ -98,6 +98,11 @@ class Coarse(_Section):
         default_factory=Richardson, description="Richardson extrapolation {m, r}."
     )
     grid_factor: int = Field(1, ge=1, description="σ_c / σ_f (rods only; Table 6 uses 6).")
+    max_weight_sum: Positive = Field(
+        1e6,
+        description="Refuse a coarse solver whose weights have Σ|w_j v_q| above this (nearly "
+        "coinciding nodes amplify round-off by that factor; the paper's reach 1.7e5).",
+    )
 
     @field_validator("lagrange", mode="before")
     @classmethod
@@ -153,7 +158,13 @@ class Output(_Section):
     """What a run writes to its output directory."""
 
     trajectory: bool = Field(True, description="Write trajectory.h5 and trajectory.xdmf.")
-    every: int = Field(1, ge=1, description="Write every n-th slice boundary T_n as a frame.")
+    every: int | None = Field(
+        None,
+        ge=1,
+        description="Frames every this many fine steps τ_f (a multiple or a divisor of the fine "
+        "steps per slice). Denser than the slices: the frames inside them are computed after the "
+        "run, one more fine solve per slice (on the workers). Default: at every slice boundary.",
+    )
     frames: bool = Field(True, description="Rods: also write the frames D1, D2, D3.")
     figures: bool = Field(True, description="Draw the figures after the run.")
     formats: list[Literal["png", "pdf"]] = Field(

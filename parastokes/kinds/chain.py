@@ -201,9 +201,8 @@ def draw(fig: Any, bodies: Mapping[str, Mapping[str, np.ndarray]], times: np.nda
          run: str) -> None:
     """Every frame of every chain in the x-z plane (the plane of the shear flow), by time."""
     fig.set_size_inches(6, 4.5)
-    draw_over_time(fig, bodies, times, (0, 2), f"chains in the x-z plane ({run})", marker="o",
-                   lw=1, ms=2)
-    fig.axes[0].set_aspect("equal", adjustable="datalim")
+    draw_over_time(fig, bodies, times, ((0, 2, "z (μm)"),), run, equal=True, marker="o", lw=1,
+                   ms=2)
 
 
 def example() -> tuple[ChainSystem, np.ndarray, float | None]:

@@ -118,10 +118,11 @@ def layout(
 
 def draw(fig: Any, bodies: Mapping[str, Mapping[str, np.ndarray]], times: np.ndarray,
          run: str) -> None:
-    """Every frame of every rod in the x-y plane, coloured by time."""
-    fig.set_size_inches(7, 3.5)
-    draw_over_time(fig, bodies, times, (0, 1), f"rods in the x-y plane ({run}; y exaggerated)",
-                   lw=1)
+    """Every frame of every rod in the x-y and x-z planes (z: the distance to the wall),
+    coloured by time, each title stating how much its vertical axis is stretched."""
+    fig.set_size_inches(7, 5.5)
+    planes = ((0, 1, "y (μm)"), (0, 2, "z (distance to the wall, μm)"))
+    draw_over_time(fig, bodies, times, planes, run, lw=1)
 
 
 def example() -> tuple[RodSystem, np.ndarray, float | None]:

@@ -20,13 +20,16 @@ from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
 from .errors import WorkerDiedError
-from .worker import available_cores, configure_worker
+from .worker import available_cores, configure_worker, die_with_parent
 
 #: Start methods that do not fork the caller.
 START_METHODS = ("forkserver", "spawn")
 
 # Seconds to wait for a worker that the pool saw die to be reaped, so that its exit code is known.
 _REAP_SECONDS = 0.05
+
+# Seconds to wait for each killed worker to exit in abort().
+_ABORT_SECONDS = 5.0
 
 # Seconds between looks at the slots while the workers check in.
 _CHECK_IN_POLL = 0.001
@@ -38,6 +41,7 @@ _WORKER: dict[str, Any] = {}
 
 
 def _initialize(slots, threads: int, warmup: Callable[[], Any] | None) -> None:
+    die_with_parent(os.getppid())  # the forkserver, which ends with the manager
     _WORKER.update(slots=slots, error=None)
     try:
         configure_worker(threads, warmup)
@@ -118,8 +122,10 @@ class ProcessExecutor(Executor):
     Attributes: ``workers`` (number of worker processes), ``threads_per_worker``, ``start_method``
     and ``worker_pids`` (one per worker, in no particular order).
 
-    A task that raises fails its future with that exception. When a worker process dies, the pool
-    is broken: the task it was running fails with :class:`WorkerDiedError` (pid and exit code), the
+    A task that raises fails its future with that exception. :meth:`abort` stops the workers at
+    once (an interrupted run); on Linux they also die with the manager, even when it is killed
+    (:func:`~.worker.die_with_parent`). When a worker process dies, the pool is broken: the task
+    it was running fails with :class:`WorkerDiedError` (pid and exit code), the
     other unfinished tasks with :class:`~concurrent.futures.process.BrokenProcessPool`.
     """
 
@@ -206,3 +212,14 @@ class ProcessExecutor(Executor):
     def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
         """Stop the workers once the submitted tasks are done (see ProcessPoolExecutor)."""
         self._pool.shutdown(wait=wait, cancel_futures=cancel_futures)
+
+    def abort(self) -> None:
+        """Stop now: cancel the queued tasks, kill the workers (running tasks are lost) and
+        release the pool. For an interrupted or failed run; :meth:`shutdown` may follow."""
+        self._slots[2 * self.workers] = 1
+        for process in self._processes.values():
+            if process.is_alive():
+                process.kill()
+        for process in self._processes.values():
+            process.join(_ABORT_SECONDS)
+        self._pool.shutdown(wait=True, cancel_futures=True)

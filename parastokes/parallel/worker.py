@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import ctypes
+import multiprocessing
 import os
+import signal
 import sys
 from collections.abc import Callable
 from typing import Any
@@ -34,6 +37,10 @@ def configure_worker(threads: int, warmup: Callable[[], Any] | None) -> None:
     keeps its pool: set ``OMP_NUM_THREADS`` before starting Python to limit it too (see
     docs/parallel.md).
     """
+    # This worker never forks; with the default start method "fork(server)" numba would guard
+    # its thread launch with a process-shared semaphore that a killed worker leaks (the
+    # resource tracker's "leaked semaphore" warning).
+    multiprocessing.set_start_method("spawn", force=True)
     numba_loaded = "numba" in sys.modules
     for name in THREAD_VARIABLES:
         if not (numba_loaded and name == "NUMBA_NUM_THREADS"):
@@ -43,3 +50,36 @@ def configure_worker(threads: int, warmup: Callable[[], Any] | None) -> None:
     numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
     if warmup is not None:
         warmup()
+
+
+# prctl(2) option: the signal this process gets when its parent thread exits (Linux).
+_PR_SET_PDEATHSIG = 1
+
+
+def die_with_parent(parent: int) -> None:
+    """Make this worker end when its parent (process ``parent``) does, even on SIGKILL.
+
+    On Linux the kernel sends SIGKILL when the parent exits (``prctl(PR_SET_PDEATHSIG)``); a parent
+    that is already gone by then makes this process exit at once. A worker started by the
+    forkserver also closes the forkserver's "alive" pipe that it inherits: the forkserver exits when
+    the last holder of that pipe (now: the manager alone) is gone, and its workers with it.
+    Elsewhere nothing is done: the workers then notice the manager's end only between tasks.
+    SIGINT and SIGHUP are ignored: the manager handles Ctrl-C and hang-ups and stops its workers.
+    """
+    from multiprocessing import forkserver
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGHUP, signal.SIG_IGN)
+    server = forkserver._forkserver  # the state a forkserver child inherits (private)
+    if getattr(server, "_forkserver_alive_fd", None) is not None:
+        os.close(server._forkserver_alive_fd)
+        server._forkserver_alive_fd = None
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    except (OSError, AttributeError):  # no prctl: as elsewhere
+        return
+    if os.getppid() != parent:  # the parent died before prctl took effect
+        os._exit(1)

@@ -457,6 +457,7 @@ def run(
     allow_oversubscribe: bool = False,
     on_iteration: Callable[[IterationReport], None] | None = None,
     schedule: str = "standard",
+    identity: dict[str, Any] | None = None,
 ) -> PararealResult:
     """Parareal (Algorithm 1): initial serial sweep eq. 9, then iterations of eqs. 10-11.
 
@@ -493,6 +494,8 @@ def run(
 
     ``on_iteration``, if given, is called after every iteration (once its checkpoint is written)
     with an :class:`IterationReport`: for live progress reports and per-iteration output.
+    ``identity`` (JSON values by key) is added to the checkpoint's fingerprint: a checkpoint whose
+    entries differ is refused, naming them (:class:`~.checkpoint.CheckpointMismatch`).
     """
     session_start = time.perf_counter()
     x0 = np.array(x0, dtype=float)
@@ -505,7 +508,7 @@ def run(
         coarse = _with_executor(coarse, executor, allow_oversubscribe)
     _warn_idle_workers(executor, n_slices)
     pool = SerialExecutor() if executor is None else executor
-    key = ckpt.fingerprint(x0, t0, t1, n_slices, reference)
+    key = ckpt.fingerprint(x0, t0, t1, n_slices, reference, identity)
     book = Bookkeeping(
         tol,
         max_iterations,

@@ -1,0 +1,296 @@
+"""Ownership of a run's output directory: one run at a time, nothing overwritten unasked, results
+replaced whole.
+
+- **Lock.** :func:`claim` creates ``DIR/.parastokes.lock`` with ``O_CREAT | O_EXCL`` (atomic on
+  local and network file systems alike, unlike HDF5's file locking) and writes the owner's PID,
+  host and start time into it. A second run on the same directory is refused with a message naming
+  that PID and host. A lock whose process is gone (same host, PID dead or reused) is stale and is
+  taken over; a lock from another host is never guessed about: the message says which file to
+  remove once that run is known to be over.
+- **No silent overwrite.** Without ``overwrite``, a directory holding a finished run
+  (``summary.json``), an interrupted one (its resume state) or files that are not a run's is
+  refused before anything is computed; ``resume`` continues an interrupted or finished run.
+- **Whole results.** A run writes its results (trajectory, summary, figures) into ``DIR/.partial/``
+  and :meth:`RunDirectory.commit` moves them in only when all are complete, then removes the
+  previous run's results that the new one does not have (stale figures). The commit is journalled
+  (``.partial/COMMIT``): a commit cut short is completed by the next claim, so the directory holds
+  either the old complete results or the new complete ones. The resume state (``checkpoint.npz``,
+  ``reference.npz``, ``history.npz``) is written in place, each file atomically; the partial
+  results of a run that stops early are dropped (the next run writes them anew).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import socket
+import sys
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+from .files import atomic_write
+
+__all__ = ["DirectoryInUse", "RunDirectory", "RunDirectoryError", "claim"]
+
+LOCK = ".parastokes.lock"
+STAGING = ".partial"
+MANIFEST = ".parastokes-results.json"
+_COMMIT = "COMMIT"
+
+#: The resume state of a run (written in place, atomically), and its last good state on blow-up.
+STATE_FILES = ("checkpoint.npz", "reference.npz", "history.npz", "blowup.npz")
+#: The results of a finished run.
+RESULT_FILES = ("summary.json", "trajectory.h5", "trajectory.xdmf")
+#: Inputs kept beside the results (the demo's configuration).
+INPUT_FILES = ("config.toml",)
+#: Figures of runs written before the results were listed in MANIFEST.
+_OLD_FIGURES = tuple(
+    f"{stem}.{fmt}"
+    for stem in ("error_decay", "speedup_vs_error", "speedup_by_iteration", "structure")
+    for fmt in ("png", "pdf")
+)
+# Seconds after which a lock take-over that was itself interrupted is ignored.
+_BREAK_TIMEOUT = 10.0
+
+
+class RunDirectoryError(ValueError):
+    """The output directory cannot be used (a file, unwritable, or holding a run not to touch)."""
+
+
+class DirectoryInUse(RunDirectoryError):
+    """Another run holds the directory's lock; ``owner`` is its lock record (pid, host, ...)."""
+
+    def __init__(self, out: Path, owner: dict) -> None:
+        self.owner = owner
+        super().__init__(
+            f"{out} is in use by another parastokes run (PID {owner.get('pid')} on host "
+            f"{owner.get('host')}, started {owner.get('time', '?')}); wait for it to finish or "
+            f"choose another --out. If that run is over (e.g. its node was lost), remove "
+            f"{out / LOCK}"
+        )
+
+
+def _process_start(pid: int) -> str | None:
+    """The start time of process ``pid`` in clock ticks since boot (Linux), else None."""
+    try:
+        text = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return None
+    return text.rsplit(")", 1)[1].split()[19]
+
+
+def _alive(pid: int, started: str | None) -> bool:
+    """Whether process ``pid`` of this host runs (not a zombie) and is the one that ``started``."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return True  # no /proc: trust kill()
+    return state != "Z" and (started is None or _process_start(pid) == started)
+
+
+def _owner(path: Path) -> dict | None:
+    """The lock record in ``path``; None if it is gone or unreadable (a lock being written)."""
+    try:
+        record = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return record if isinstance(record, dict) else None
+
+
+def _stale(owner: dict) -> bool:
+    if owner.get("host") != socket.gethostname() or not isinstance(owner.get("pid"), int):
+        return False
+    return not _alive(owner["pid"], owner.get("started"))
+
+
+def _take_over(path: Path, owner: dict) -> None:
+    """Remove the stale lock ``path`` unless another process is doing so or has replaced it."""
+    breaker = path.with_name(path.name + ".break")
+    try:
+        fd = os.open(breaker, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+    except FileExistsError:
+        if time.time() - breaker.stat().st_mtime > _BREAK_TIMEOUT:
+            breaker.unlink(missing_ok=True)
+        time.sleep(0.05)
+        return
+    os.close(fd)
+    try:
+        if _owner(path) == owner:  # still the same stale lock
+            path.unlink(missing_ok=True)
+    finally:
+        breaker.unlink(missing_ok=True)
+
+
+def _lock(out: Path) -> dict:
+    """Create ``out/LOCK`` for this process (taking over a stale one); returns its record."""
+    path = out / LOCK
+    pid = os.getpid()
+    record = {
+        "pid": pid,
+        "host": socket.gethostname(),
+        "started": _process_start(pid),
+        "time": time.strftime("%Y-%m-%d %H:%M:%S"),
+        "command": " ".join(sys.argv),
+    }
+    deadline = time.monotonic() + 2 * _BREAK_TIMEOUT
+    while True:
+        try:
+            fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+        except FileExistsError:
+            owner = _owner(path)
+            if (owner is not None and not _stale(owner)) or time.monotonic() > deadline:
+                raise DirectoryInUse(out, owner or {}) from None
+            if owner is None:
+                time.sleep(0.05)  # being written: read it again
+            else:
+                _take_over(path, owner)
+            continue
+        with os.fdopen(fd, "w", encoding="utf-8") as handle:
+            json.dump(record, handle)
+        return record
+
+
+class RunDirectory:
+    """A claimed output directory: ``path``, and ``staging`` where the new results are written."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self.staging = path / STAGING
+
+    def _previous_results(self) -> set[str]:
+        try:
+            names = json.loads((self.path / MANIFEST).read_text(encoding="utf-8"))["files"]
+            return {str(n) for n in names}
+        except (OSError, ValueError, KeyError, TypeError):
+            return set(RESULT_FILES) | set(_OLD_FIGURES)
+
+    def entries(self) -> dict[str, list[str]]:
+        """The directory's entries by role: ``results``, ``state``, ``foreign``."""
+        names = {p.name for p in self.path.iterdir()} - {LOCK, LOCK + ".break", STAGING, MANIFEST}
+        names = {n for n in names if not n.endswith(".tmp")}
+        results = self._previous_results() | set(RESULT_FILES)
+        known = results | set(STATE_FILES) | set(INPUT_FILES)
+        return {
+            "results": sorted(names & results),
+            "state": sorted(names & set(STATE_FILES)),
+            "foreign": sorted(names - known),
+        }
+
+    def check(self, *, resume: bool, overwrite: bool) -> None:
+        """Refuse, before any work, a directory whose contents this run must not replace."""
+        found = self.entries()
+        finished = "summary.json" in found["results"]
+        ours = finished or bool(found["state"])
+        where = self.path
+        if found["foreign"] and not overwrite and not (resume and ours):
+            shown = ", ".join(found["foreign"][:5]) + (", ..." if len(found["foreign"]) > 5 else "")
+            raise RunDirectoryError(
+                f"{where} holds files that are not a parastokes run's ({shown}); choose a new or "
+                "empty --out, or pass --overwrite to write this run's files beside them"
+            )
+        if resume or overwrite:
+            return
+        if finished:
+            raise RunDirectoryError(
+                f"{where} holds a finished run (summary.json); pass --overwrite to replace its "
+                "results (they stay until the new run has completed), --resume to continue it, or "
+                "choose another --out"
+            )
+        if found["state"]:
+            raise RunDirectoryError(
+                f"{where} holds an interrupted run ({', '.join(found['state'])}); pass --resume "
+                "to continue it, or --overwrite to discard it and start afresh"
+            )
+
+    def discard_state(self) -> None:
+        """Remove the resume state (``--overwrite``): nothing of the old run is resumed."""
+        for name in STATE_FILES:
+            (self.path / name).unlink(missing_ok=True)
+
+    def recover(self) -> None:
+        """Complete a commit that was cut short (by a kill or a power cut)."""
+        if (self.staging / _COMMIT).exists():
+            self._roll_forward()
+
+    def reset_staging(self) -> None:
+        """Drop an unfinished run's partial results and make an empty staging directory."""
+        shutil.rmtree(self.staging, ignore_errors=True)
+        self.staging.mkdir()
+
+    def commit(self) -> list[str]:
+        """Move every file of the staging directory into place, remove the previous results
+        that the new ones do not replace; returns the names of the new results."""
+        names = sorted(p.name for p in self.staging.iterdir() if not p.name.endswith(".tmp"))
+        text = json.dumps({"files": names})
+        atomic_write(self.staging / _COMMIT, lambda handle: handle.write(text.encode()))
+        self._roll_forward()
+        return names
+
+    def _roll_forward(self) -> None:
+        names = json.loads((self.staging / _COMMIT).read_text(encoding="utf-8"))["files"]
+        for name in names:
+            if (self.staging / name).exists():
+                os.replace(self.staging / name, self.path / name)
+        for name in self._previous_results() - set(names):
+            (self.path / name).unlink(missing_ok=True)
+        text = json.dumps({"files": names})
+        atomic_write(self.path / MANIFEST, lambda handle: handle.write(text.encode()))
+        shutil.rmtree(self.staging, ignore_errors=True)
+
+
+def _directory(out: Path) -> None:
+    """Make ``out`` (and its parents); a path that cannot be a writable directory is an error."""
+    if out.exists() and not out.is_dir():
+        raise RunDirectoryError(f"--out {out} is a file, not a directory; choose another --out")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        reason = error.strerror or str(error)
+        raise RunDirectoryError(
+            f"--out {out}: cannot create the directory ({reason}: {error.filename or out}); "
+            "choose a path in a directory you can write to"
+        ) from None
+    if not os.access(out, os.W_OK | os.X_OK):
+        raise RunDirectoryError(f"--out {out}: the directory is not writable; choose another")
+
+
+@contextmanager
+def claim(out: str | os.PathLike, *, resume: bool, overwrite: bool) -> Iterator[RunDirectory]:
+    """Own the directory ``out`` for one run (see the module docstring), checked before any work.
+
+    Raises :class:`RunDirectoryError` (a ValueError: the command line exits with status 2) when
+    ``out`` is a file, cannot be created or written, is in use by another run
+    (:class:`DirectoryInUse`), or holds results this run must not replace.
+    """
+    if resume and overwrite:
+        raise RunDirectoryError("--resume continues a run and --overwrite discards it: give one")
+    path = Path(out)
+    _directory(path)
+    try:
+        record = _lock(path)
+    except OSError as error:
+        raise RunDirectoryError(
+            f"--out {path}: cannot write there ({error.strerror or error}); choose another"
+        ) from None
+    try:
+        directory = RunDirectory(path)
+        directory.recover()
+        directory.check(resume=resume, overwrite=overwrite)
+        if overwrite:
+            directory.discard_state()
+        directory.reset_staging()
+        yield directory
+    finally:
+        if not (path / STAGING / _COMMIT).exists():  # an unfinished run's partial results
+            shutil.rmtree(path / STAGING, ignore_errors=True)
+        if _owner(path / LOCK) == record:
+            (path / LOCK).unlink(missing_ok=True)
