@@ -8,6 +8,7 @@
     parastokes plot --benchmark FILE.json [--out FIGDIR] [--formats png pdf]
     parastokes check CONFIG.toml [CONFIG.toml ...] [--set KEY=VALUE ...]
     parastokes predict CONFIG.toml --cores N [N ...] [--ratio R | --measured DIR] [--iterations K]
+    parastokes tune CONFIG.toml --cores N --target ETA --out TUNED.toml [--budget SECONDS]
 
 Exit codes (:class:`ExitCode`): 0 success; 1 unexpected error (a bug: please report the
 traceback); 2 bad configuration or usage; 3 numerical blow-up (a step too large for the problem:
@@ -241,6 +242,12 @@ def cmd_predict(args: argparse.Namespace, console: Console) -> ExitCode:
     return ExitCode.OK
 
 
+def cmd_tune(args: argparse.Namespace, console: Console) -> ExitCode:
+    from .tuning import command
+
+    return ExitCode(command.main(args, console))
+
+
 def cmd_plot(args: argparse.Namespace, console: Console) -> ExitCode:
     from . import plots
 
@@ -314,6 +321,16 @@ def _parser() -> argparse.ArgumentParser:
     source.add_argument("--measured", metavar="DIR", help="take γ_G/γ_F from a run directory")
     p.add_argument("--iterations", type=int, help="N_it (default: measured, else max_iterations)")
     p.set_defaults(func=cmd_predict)
+
+    p = sub.add_parser(
+        "tune",
+        parents=[common, overrides],
+        help="choose the coarse solver for a core count and a target error (docs/tuning.md)",
+    )
+    from .tuning.command import add_arguments
+
+    add_arguments(p)
+    p.set_defaults(func=cmd_tune)
 
     p = sub.add_parser("plot", parents=[common], help="figures from run directories")
     p.add_argument("dirs", nargs="*", help="run directories (several: comparison figures)")
