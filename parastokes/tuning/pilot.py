@@ -105,7 +105,7 @@ class Pilot:
         except integrate.BlowUpError as error:
             raise TuningError(
                 f"the fine solver itself is unstable: {error}; reduce fine.dt (or choose a "
-                "higher-order fine.scheme) before tuning the coarse solver"
+                "higher-order fine.scheme) before tuning"
             ) from None
         if not worst <= system.monitor_limit:
             raise TuningError(

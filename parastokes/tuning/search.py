@@ -30,6 +30,11 @@ __all__ = ["Candidate", "Progress", "TuneResult", "tune"]
 
 #: Exponents of the step-limit model used only to order candidates before their limit is measured
 #: (the stiffest mode scales like bending/viscosity; ε relaxes it strongly, docs/validation.md).
+#: Default budget: this fraction of the estimated serial fine solve (the issue's 15 %).
+BUDGET_FRACTION = 0.15
+
+FINE_ADVICE = "reduce fine.dt (or choose a higher-order fine.scheme) before tuning"
+
 _LIMIT_MODEL = {"epsilon": 4.0, "viscosity": 1.0, "bending": -1.0, "stiffness": -1.0}
 
 
@@ -315,7 +320,9 @@ def tune(
     system with the same parameters, grid spacing and stiffness (a shortened rod) on which every
     measurement is made, starting from its initial state (default: ``fine.system`` from ``x0``);
     ``pilot_slices`` the slices of the pilot window (run's slice length); ``budget`` a wall-time
-    limit in seconds for the whole search. Bad input raises :class:`TuningError` before the search.
+    limit in seconds for the whole search (default: 15 % of the estimated serial fine solve, or
+    what a minimal search needs on small problems, said in ``report["search"]["notes"]``).
+    Bad input raises :class:`TuningError` before the search.
     Ctrl-C during the search stops it and keeps what was measured (``report["search"]``).
     Returns a :class:`TuneResult`; its ``coarse`` is None when no candidate reaches η*.
     """
@@ -344,15 +351,25 @@ def tune(
     pilot_fine = integrate.Propagator(pilot_system, fine.scheme, fine.dt)
 
     probe = max(1, min(fine_steps, 50))
-    step_full = _seconds_per_step(system, fine.scheme, fine.dt, system.initial_state(), probe)
-    step_pilot = (step_full if pilot_system is system else
-                  _seconds_per_step(pilot_system, fine.scheme, fine.dt, start_state, probe))
+    try:
+        step_full = _seconds_per_step(system, fine.scheme, fine.dt, system.initial_state(), probe)
+        step_pilot = (step_full if pilot_system is system else
+                      _seconds_per_step(pilot_system, fine.scheme, fine.dt, start_state, probe))
+    except integrate.BlowUpError as error:
+        raise TuningError(f"the fine solver itself is unstable: {error}; {FINE_ADVICE}") from None
     serial_estimate = step_full * fine_steps * n_slices
     slice_seconds = step_pilot * fine_steps
     iterations = min(2, pilot_slices - 1)
     one_candidate = slice_seconds * sum(pilot_slices - k for k in range(1, iterations + 1))
     needed = slice_seconds * (pilot_slices + 0.5) + one_candidate
-    if budget is not None and budget < needed:
+    notes = []
+    if budget is None:  # 15 % of the serial fine solve, or what a minimal search needs
+        budget = max(BUDGET_FRACTION * serial_estimate, needed + 10 * one_candidate)
+        if budget > BUDGET_FRACTION * serial_estimate:
+            notes.append(f"the problem is too small for a search within {BUDGET_FRACTION:.0%} "
+                         f"of its serial fine solve ({serial_estimate:.3g} s); budget "
+                         f"{budget:.3g} s")
+    elif budget < needed:
         raise TuningError(
             f"budget: {budget:g} s is too small to test even one candidate; the pilot reference "
             f"and one candidate need about {needed:.3g} s (fine solves of {slice_seconds:.3g} s "
@@ -388,12 +405,12 @@ def tune(
     order = sorted((c for c in candidates if c.status == "pending"),
                    key=lambda c: (not c.given, -c.estimated_speedup))
     best = baseline.speedup if baseline.status == "accepted" else -math.inf
-    stopped, done = None, 0
+    stopped, done, spent = None, 0, []
     progress.start(len(order))
     try:
         for cand in order:
-            elapsed = clock() - started
-            if budget is not None and elapsed + one_candidate > budget:
+            typical = float(np.mean(spent)) if spent else one_candidate
+            if clock() - started + typical > budget:
                 stopped = "budget"
                 break
             if cand.estimated_speedup <= best and not cand.given:
@@ -402,6 +419,8 @@ def tune(
                                f"cannot beat the best measured {best:.3g}")
             else:
                 search.evaluate(cand, best)
+                if cand.pilot_errors:
+                    spent.append(cand.seconds)
                 if cand.status == "accepted" and cand.speedup > best:
                     best = cand.speedup
             done += 1
@@ -426,7 +445,8 @@ def tune(
         cost={"seconds": seconds, "serial_fine_estimate": serial_estimate,
               "fraction": seconds / serial_estimate, "budget": budget},
         search={"stopped": stopped, "evaluated": done, "ordered": len(order),
-                "total": len(everything), "reference_amplification": search.reference_gain},
+                "total": len(everything), "reference_amplification": search.reference_gain,
+                "notes": notes},
         full_points=len(system.positions(system.initial_state())),
     )
     coarse = chosen.settings.build(system) if chosen is not None else None

@@ -1,0 +1,108 @@
+"""Targets of ``parastokes tune`` (docs/tuning.md): tuned vs the paper's hand-chosen coarse solvers
+and vs the plain coarse solver, at 40 cores and targets 1e-6 and 1e-8.
+
+Run from the repository root (each run is ``parastokes tune``; its TUNED.json/.toml/.png land in
+``--dir``; measurements run at low priority)::
+
+    PYTHONPATH=. nice python benchmarks/tuning.py --problems rod5 rod7 --targets 1e-6 1e-8
+    PYTHONPATH=. python benchmarks/tuning.py --tables            # Markdown tables from --dir
+
+Problems: ``rod5`` / ``rod7`` (Tables 4 / 5: ε⁰ = 5σ_f / 7σ_f, M = 301, T = 1; the search runs
+on a pilot rod of 61 nodes at the same σ_f and slice length), ``ves7`` / ``ves8`` (Tables 7 / 8,
+the 642-point vesicle, T = 100), and two problems not in the paper: ``rod4`` (ε⁰ = 4σ_f) and
+``ves_soft`` (Table 7's vesicle with half the spring stiffness). For the paper's problems the
+paper's solvers are measured the same way (``--compare``), at their own steps.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from collections.abc import Sequence
+from pathlib import Path
+
+from parastokes import cli
+
+
+def _tables(number: int, solvers: Sequence[int]) -> list[str]:
+    return [f"experiments/table{number}_g{i}.toml" for i in solvers]
+
+
+PROBLEMS = {
+    "rod5": ("experiments/table4_g1.toml", [], _tables(4, (1, 2, 3, 4))),
+    "rod7": ("experiments/table5_g1.toml", [], _tables(5, (1, 2, 3))),
+    "ves7": ("experiments/table7_g1.toml", [], _tables(7, (1, 2, 3, 4))),
+    "ves8": ("experiments/table8_g1.toml", [], _tables(8, (1, 2, 3))),
+    "rod4": ("experiments/table4_g1.toml", ["model.epsilon=4"], []),
+    "ves_soft": ("experiments/table7_g1.toml", ["model.stiffness=0.05"], []),
+}
+
+
+def run(problem: str, target: float, cores: int, out: Path, extra: Sequence[str]) -> int:
+    config, overrides, compare = PROBLEMS[problem]
+    argv = ["tune", config, "--cores", str(cores), "--target", f"{target:g}",
+            "--out", str(out / f"{problem}_{target:g}.toml")]
+    for item in overrides:
+        argv += ["--set", item]
+    if compare:
+        argv += ["--compare", *compare]
+    return cli.main([*argv, *extra])
+
+
+def _num(value: float | None, spec: str) -> str:
+    return "-" if value is None else format(value, spec)
+
+
+def _row(c: dict) -> str:
+    p = c["predicted"]
+    return (f"| {c['label']} | {_num(c.get('dt_ratio'), '.3g')} | {c['n_auxiliary']} | "
+            f"{_num(c['stability']['amplification'], '.3g')} | "
+            f"{_num(c['pilot']['eta1'], '.2e')} | {p['iterations'] or '-'} | "
+            f"{_num(p['gamma_ratio'], '.4f')} | {_num(p['speedup'], '.2f')} | {c['status']} |")
+
+
+def tables(directory: Path) -> str:
+    """Markdown: per run, the chosen, the baseline and the given (paper's) solvers."""
+    out = []
+    for path in sorted(directory.glob("*.json")):
+        report = json.loads(path.read_text())
+        cost, problem = report["cost"], report["problem"]
+        out += [f"### {path.stem}: η* = {problem['target']:g}, N_c = {problem['n_slices']}", "",
+                f"{report['pilot']['note']}; tuning {cost['seconds']:.0f} s = "
+                f"{cost['fraction']:.1%} of the estimated serial fine solve "
+                f"({cost['serial_fine_estimate']:.0f} s); search stopped: "
+                f"{report['search']['stopped']}; {report['extrapolation']['note']}", "",
+                "| solver | τ_c/τ_f | N_G | ‖DG‖ | η¹ pilot | N_it | γ_G/γ_F | speedup | status |",
+                "|---|---|---|---|---|---|---|---|---|"]
+        rows = [report["chosen"]] if report["chosen"] else []
+        rows.append(report["baseline"])
+        rows += [c for c in report["candidates"] if c.get("given")]
+        seen = set()
+        for c in rows:
+            key = (c["label"], c["dt"])
+            if key not in seen:
+                seen.add(key)
+                out.append(_row(c))
+        out.append("")
+    return "\n".join(out)
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--problems", nargs="+", choices=sorted(PROBLEMS), default=[])
+    parser.add_argument("--targets", type=float, nargs="+", default=[1e-6, 1e-8])
+    parser.add_argument("--cores", type=int, default=40)
+    parser.add_argument("--dir", type=Path, default=Path("docs/figures/tuning"))
+    parser.add_argument("--tables", action="store_true", help="print the Markdown tables")
+    args, extra = parser.parse_known_args(argv)
+    args.dir.mkdir(parents=True, exist_ok=True)
+    for problem in args.problems:
+        for target in args.targets:
+            print(f"== {problem}, η* = {target:g}", flush=True)
+            run(problem, target, args.cores, args.dir, extra)
+    if args.tables:
+        print(tables(args.dir))
+
+
+if __name__ == "__main__":
+    main()
