@@ -6,6 +6,8 @@ Run from the repository root (each run is ``parastokes tune``; its TUNED.json/.t
 
     PYTHONPATH=. nice python benchmarks/tuning.py --problems rod5 rod7 --targets 1e-6 1e-8
     PYTHONPATH=. python benchmarks/tuning.py --tables            # Markdown tables from --dir
+    PYTHONPATH=. nice python benchmarks/tuning.py --validate 5 20 --targets 1e-6 1e-8 \\
+        --dir docs/figures/tuning/validate                      # pilot vs real runs
 
 Problems: ``rod5`` / ``rod7`` (Tables 4 / 5: ε⁰ = 5σ_f / 7σ_f, M = 301, T = 1; the search runs
 on a pilot rod of 61 nodes at the same σ_f and slice length), ``ves7`` / ``ves8`` (Tables 7 / 8,
@@ -68,9 +70,9 @@ def tables(directory: Path) -> str:
         report = json.loads(path.read_text())
         cost, problem = report["cost"], report["problem"]
         out += [f"### {path.stem}: η* = {problem['target']:g}, N_c = {problem['n_slices']}", "",
-                f"{report['pilot']['note']}; tuning {cost['seconds']:.0f} s = "
-                f"{cost['fraction']:.1%} of the estimated serial fine solve "
-                f"({cost['serial_fine_estimate']:.0f} s); search stopped: "
+                f"{report['pilot']['note']}; tuning {cost['cpu_seconds']:.0f} s CPU "
+                f"({cost['seconds']:.0f} s wall) = {cost['fraction']:.1%} of the estimated "
+                f"serial fine solve ({cost['serial_fine_estimate']:.0f} s CPU); search stopped: "
                 f"{report['search']['stopped']}; {report['extrapolation']['note']}", "",
                 "| solver | τ_c/τ_f | N_G | ‖DG‖ | η¹ pilot | N_it | γ_G/γ_F | speedup | status |",
                 "|---|---|---|---|---|---|---|---|---|"]
@@ -87,6 +89,40 @@ def tables(directory: Path) -> str:
     return "\n".join(out)
 
 
+#: Pilot against real runs: the quick rod (M = 61, ε⁰ = 5σ_f) with slices of 2e-3 (2000 τ_f,
+#: docs/validation.md's setup) on N_c = 5 and 20 slices, runs with the serial executor.
+VALIDATE = "experiments/quick/table4_g1.toml"
+
+
+def validate(target: float, cores: int, out: Path) -> dict:
+    """Tune, then run the tuned config to N_it + 1 iterations (mode both): predicted vs real η^k."""
+    from parastokes.tuning.cost import predicted_errors
+
+    stem = out / f"validate_{cores}_{target:g}"
+    t1 = 2e-3 * cores
+    code = cli.main(["tune", VALIDATE, "--cores", str(cores), "--target", f"{target:g}",
+                     "--out", f"{stem}.toml", "--set", f"time.t1={t1:g}", "-q"])
+    if code != 0:
+        return {"cores": cores, "target": target, "tune_exit": code}
+    report = json.loads(Path(f"{stem}.json").read_text())
+    chosen = report["chosen"]
+    n_it = chosen["predicted"]["iterations"]
+    run_dir = Path(f"{stem}_run")
+    cli.main(["run", f"{stem}.toml", "--out", str(run_dir), "-q",
+              "--set", f"parareal.max_iterations={n_it + 1}",
+              "--set", 'execution.executor="serial"', "--set", "execution.workers=1",
+              "--set", "output.trajectory=false", "--set", "output.figures=false"])
+    summary = json.loads((run_dir / "summary.json").read_text())
+    predicted = predicted_errors(chosen["pilot"]["eta"], report["pilot"]["slices"], cores,
+                                 n_it + 1)
+    return {"cores": cores, "target": target, "chosen": chosen["label"],
+            "predicted_iterations": n_it, "predicted_eta": predicted,
+            "measured_eta": summary["errors"],
+            "reached_at": next((k for k, e in enumerate(summary["errors"], 1) if e <= target),
+                               None),
+            "tuning_seconds": report["cost"]["seconds"]}
+
+
 def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--problems", nargs="+", choices=sorted(PROBLEMS), default=[])
@@ -94,12 +130,19 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument("--cores", type=int, default=40)
     parser.add_argument("--dir", type=Path, default=Path("docs/figures/tuning"))
     parser.add_argument("--tables", action="store_true", help="print the Markdown tables")
+    parser.add_argument("--validate", type=int, nargs="*", metavar="N_C",
+                        help="pilot vs real runs of tuned quick-rod configs on N_C slices")
     args, extra = parser.parse_known_args(argv)
     args.dir.mkdir(parents=True, exist_ok=True)
     for problem in args.problems:
         for target in args.targets:
             print(f"== {problem}, η* = {target:g}", flush=True)
             run(problem, target, args.cores, args.dir, extra)
+    if args.validate:
+        rows = [validate(target, n, args.dir) for n in args.validate for target in args.targets]
+        (args.dir / "validate.json").write_text(json.dumps(rows, indent=1))
+        for row in rows:
+            print(json.dumps(row))
     if args.tables:
         print(tables(args.dir))
 

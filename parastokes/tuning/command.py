@@ -131,8 +131,9 @@ def main(args: argparse.Namespace, console: Any) -> int:
         console.print(f"search stopped ({search['stopped']}) after {search['evaluated']} of "
                       f"{search['ordered']} candidates; what was measured is kept")
     cost = report["cost"]
-    console.print(f"tuning took {cost['seconds']:.1f} s = {cost['fraction']:.1%} of the estimated "
-                  f"serial fine solve ({cost['serial_fine_estimate']:.3g} s)")
+    console.print(f"tuning took {cost['seconds']:.1f} s ({cost['cpu_seconds']:.1f} s CPU = "
+                  f"{cost['fraction']:.1%} of the estimated serial fine solve, "
+                  f"{cost['serial_fine_estimate']:.3g} s CPU)")
     console.print(report["extrapolation"]["note"])
     if result.chosen is None:
         raise TuningError(f"no candidate is stable and reaches η* = {args.target:g}; see "

@@ -6,7 +6,9 @@ the fine solver's own time-discretization error over the first slice (one run at
 Richardson's estimate |F_τ - F_2τ| / (2^p - 1), eq. 34's measure). :meth:`Pilot.measure` runs
 Algorithm 1 itself (``parareal.run``) on the window for one coarse solver, giving η^k at T_P for
 k = 1..K and the measured cost of its coarse calls. Fine solves whose input is the reference
-(slices n <= k in iteration k) are taken from the reference instead of being recomputed.
+(slices n <= k in iteration k) are taken from the reference instead of being recomputed. Costs
+(γ_F, γ_G) are CPU times of this process: on a shared machine they do not depend on what else
+runs, wall times do.
 """
 
 from __future__ import annotations
@@ -48,9 +50,9 @@ class _Timed:
         self.seconds: list[float] = []
 
     def __call__(self, t_start: float, t_end: float, x: np.ndarray) -> np.ndarray:
-        start = time.perf_counter()
+        start = time.process_time()
         out = self.coarse(t_start, t_end, x)
-        self.seconds.append(time.perf_counter() - start)
+        self.seconds.append(time.process_time() - start)
         return out
 
 
@@ -59,7 +61,7 @@ class PilotRun:
     """What one coarse solver did on the pilot window."""
 
     errors: list[float]  # η^k at T_P, k = 1..K
-    coarse_seconds: float  # mean wall time of one coarse call (all auxiliaries in this process)
+    coarse_seconds: float  # mean CPU time of one coarse call (all auxiliaries in this process)
     fine_solves: int  # fine slice solves it needed beyond the reference
     seconds: float  # wall time of the whole pilot run
 
@@ -90,7 +92,7 @@ class Pilot:
         n_slices: int,
     ) -> Pilot:
         """The reference on ``n_slices`` slices; raises TuningError if the fine solver blows up."""
-        start = time.perf_counter()
+        start, cpu = time.perf_counter(), time.process_time()
         system = fine.system
         times = parareal.time_points(t0, t0 + n_slices * slice_length, n_slices)
         states = [system.project(np.array(x0, dtype=float))]
@@ -112,7 +114,7 @@ class Pilot:
                 f"the fine solver leaves the stability monitor's limit ({worst:.3g} > "
                 f"{system.monitor_limit:g}) on the first {n_slices} slices; reduce fine.dt"
             )
-        gamma_f = (time.perf_counter() - start) / n_slices
+        gamma_f = (time.process_time() - cpu) / n_slices
         reference = np.array(states)
         double = integrate.propagate(system, reference[0], times[0], times[1], fine.scheme,
                                      2.0 * fine.dt)

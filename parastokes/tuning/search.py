@@ -128,6 +128,21 @@ class TuneResult:
     report: dict[str, Any]
     pilot: Pilot
 
+    def curves(self, n_slices: int) -> dict[str, Any]:
+        """Predicted speedup at the targets 1e-4 .. 1e-10 for every candidate measured on the
+        pilot (the same measurements serve every target; only the step margins were derived for
+        the requested one), and the best candidate per target."""
+        targets = [10.0**-e for e in range(4, 11)]
+        measured = [c for c in self.candidates if c.pilot_errors and c.gamma_ratio]
+        rows = {f"{c.settings.label()} @ {c.settings.coarse_dt:.4g}":
+                self.speedup_curve(c, np.array(targets), n_slices) for c in measured}
+        best = {}
+        for i, eta in enumerate(targets):
+            values = [(v[i], k) for k, v in rows.items() if v[i] is not None]
+            best[f"{eta:g}"] = None if not values else {"speedup": max(values)[0],
+                                                         "candidate": max(values)[1]}
+        return {"targets": targets, "speedup": rows, "best": best}
+
     def speedup_curve(self, candidate: Candidate, targets: np.ndarray, n_slices: int) -> list:
         """Predicted speedup (eq. 14) against η* for one measured candidate (Fig. 6b)."""
         out = []
@@ -157,9 +172,9 @@ def _check_input(cores: Any, target: Any, n_slices: Any, t0: float, t1: float,
 
 def _seconds_per_step(system: Any, scheme: str, dt: float, x0: np.ndarray, steps: int) -> float:
     integrate.run(system, x0, 0.0, dt, scheme, dt)  # compiled code loaded
-    start = time.perf_counter()
+    start = time.process_time()
     integrate.run(system, x0, 0.0, steps * dt, scheme, dt)
-    return (time.perf_counter() - start) / steps
+    return (time.process_time() - start) / steps
 
 
 class _Search:
@@ -311,7 +326,7 @@ def tune(
     pilot: Any = None,
     pilot_slices: int = 3,
     progress: Progress | None = None,
-    clock: Callable[[], float] = time.perf_counter,
+    clock: Callable[[], float] | None = None,
 ) -> TuneResult:
     """Choose the coarse solver with the highest predicted speedup (eq. 14) that is stable and
     reaches the relative error ``target`` (η*, eq. 34) on ``n_slices`` slices with ``cores``.
@@ -320,13 +335,17 @@ def tune(
     system with the same parameters, grid spacing and stiffness (a shortened rod) on which every
     measurement is made, starting from its initial state (default: ``fine.system`` from ``x0``);
     ``pilot_slices`` the slices of the pilot window (run's slice length); ``budget`` a wall-time
-    limit in seconds for the whole search (default: 15 % of the estimated serial fine solve, or
-    what a minimal search needs on small problems, said in ``report["search"]["notes"]``).
+    limit in seconds for the whole search (default: 15 % of the estimated serial fine solve in
+    CPU time of this process, or what a minimal search needs on small problems, said in
+    ``report["search"]["notes"]``). Costs are CPU times (``report["cost"]``: ``fraction`` is
+    CPU time spent over the serial fine solve's estimated CPU time; ``seconds`` is wall time).
     Bad input raises :class:`TuningError` before the search.
     Ctrl-C during the search stops it and keeps what was measured (``report["search"]``).
     Returns a :class:`TuneResult`; its ``coarse`` is None when no candidate reaches η*.
     """
-    started = clock()
+    if clock is None:  # a given budget is wall time; the default one is CPU time (see above)
+        clock = time.perf_counter if budget is not None else time.process_time
+    started, wall, cpu = clock(), time.perf_counter(), time.process_time()
     _check_input(cores, target, n_slices, t0, t1, budget, pilot_slices)
     space = space or Space()
     progress = progress or Progress()
@@ -436,19 +455,23 @@ def tune(
     everything = [baseline, *candidates]
     accepted = [c for c in everything if c.status == "accepted"]
     chosen = max(accepted, key=lambda c: c.speedup) if accepted else None
-    seconds = clock() - started
+    seconds, cpu = time.perf_counter() - wall, time.process_time() - cpu
     from .report import build_report
 
     report = build_report(
         chosen=chosen, baseline=baseline, candidates=everything, fine=fine, pilot=pilot_window,
         n_slices=n_slices, cores=cores, target=target, t0=t0, t1=t1,
-        cost={"seconds": seconds, "serial_fine_estimate": serial_estimate,
-              "fraction": seconds / serial_estimate, "budget": budget},
+        cost={"seconds": seconds, "cpu_seconds": cpu, "serial_fine_estimate": serial_estimate,
+              "fraction": cpu / serial_estimate, "budget": budget},
         search={"stopped": stopped, "evaluated": done, "ordered": len(order),
                 "total": len(everything), "reference_amplification": search.reference_gain,
                 "notes": notes},
         full_points=len(system.positions(system.initial_state())),
     )
-    coarse = chosen.settings.build(system) if chosen is not None else None
-    return TuneResult(coarse, chosen.settings if chosen else None, chosen, baseline, everything,
-                      report, pilot_window)
+    result = TuneResult(None, chosen.settings if chosen else None, chosen, baseline, everything,
+                        report, pilot_window)
+    report["curves"] = result.curves(n_slices)
+    if chosen is not None:
+        result.coarse = chosen.settings.build(system)
+    return result
+
