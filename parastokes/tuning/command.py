@@ -114,11 +114,18 @@ def main(args: argparse.Namespace, console: Any) -> int:
     if pilot is not None:
         console.print(f"pilot rod: {points} nodes per rod at the run's spacing σ_f (the run has "
                       f"{cfg.model.n_points})")
-    result = tune(
-        fine, t0=cfg.time.t0, t1=cfg.time.t1, n_slices=args.cores, cores=args.cores,
-        target=args.target, space=space, budget=args.budget, pilot=pilot,
-        pilot_slices=pilot_slices, progress=_Bar(console),
-    )
+    bar = _Bar(console)
+    try:
+        result = tune(
+            fine, t0=cfg.time.t0, t1=cfg.time.t1, n_slices=args.cores, cores=args.cores,
+            target=args.target, space=space, budget=args.budget, pilot=pilot,
+            pilot_slices=pilot_slices, progress=bar,
+        )
+    except KeyboardInterrupt:  # before the search (Ctrl-C during it is handled by tune)
+        bar.finish()
+        print("interrupted before the search began (pilot reference or baseline): nothing was "
+              "written", file=sys.stderr)
+        return 130
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     report = result.report
