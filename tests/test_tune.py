@@ -246,3 +246,38 @@ def test_settings_weights_and_corner():
     assert s.weight_sum(theta0) == pytest.approx(w * v)
     assert s.corner() == {"epsilon": 1.04, "bending": 0.9}
     assert s.n_auxiliary == 8
+
+
+# ---- predictions and configurations --------------------------------------------------------
+def test_predicted_iterations_scale_with_slices_and_contract_geometrically():
+    from parastokes.tuning import cost
+
+    # pilot η^1, η^2 at T_3; the run has 30 slices: 1e-5, 1e-7, then x 1e-2 per iteration
+    assert cost.predicted_errors([1e-6, 1e-8], 3, 30, 4) == pytest.approx(
+        [1e-5, 1e-7, 1e-9, 1e-11])
+    assert cost.predicted_iterations([1e-6, 1e-8], 3, 30, 1e-8) == 3
+    assert cost.predicted_iterations([1e-6, 1e-8], 3, 30, 1e-4) == 1
+    assert cost.predicted_iterations([1e-6, 2e-6], 3, 30, 1e-8) is None  # no contraction
+    assert cost.predicted_iterations([1e-6, 1e-8], 3, 3, 1e-10) is None  # needs N_c iterations
+
+
+def test_gamma_ratio_counts_waves_of_the_slowest_auxiliary_solver():
+    from parastokes.tuning import cost
+
+    s = Settings("euler", (("epsilon", (1.04, 1.05, 1.06, 1.07)),), m=1, r=0.5, dt=2e-5)
+    # steps per slice 1e-3: 50 (τ) and 100 (τ/2): the slowest holds 100/150 of a row's work
+    one_wave = cost.gamma_ratio(s, 1e-3, coarse_seconds=1.2, gamma_f=10.0, cores=8)
+    assert one_wave == pytest.approx(1.2 * 100 / (4 * 150) / 10.0)
+    assert cost.gamma_ratio(s, 1e-3, 1.2, 10.0, cores=3) == pytest.approx(3 * one_wave)
+
+
+def test_settings_from_config_is_the_configured_coarse_solver():
+    from parastokes import config
+    from parastokes.tuning.space import settings_from_config
+
+    cfg, resolved = config.load("experiments/quick/table4_g3.toml")
+    setup = config.build(cfg, resolved, executor=False)
+    built = settings_from_config(cfg, resolved).build(setup.system)
+    assert built.thetas == setup.coarse.thetas
+    assert [p.dt for p in built.auxiliary[0]] == [p.dt for p in setup.coarse.auxiliary[0]]
+    np.testing.assert_array_equal(built.lagrange_weights, setup.coarse.lagrange_weights)

@@ -379,11 +379,12 @@ def tune(
     serial_estimate = step_full * fine_steps * n_slices
     slice_seconds = step_pilot * fine_steps
     iterations = min(2, pilot_slices - 1)
-    one_candidate = slice_seconds * sum(pilot_slices - k for k in range(1, iterations + 1))
+    # fine solves of a pilot run, plus about two slices' worth of coarse calls and bisection
+    one_candidate = slice_seconds * (sum(pilot_slices - k for k in range(1, iterations + 1)) + 2)
     needed = slice_seconds * (pilot_slices + 0.5) + one_candidate
     notes = []
     if budget is None:  # 15 % of the serial fine solve, or what a minimal search needs
-        budget = max(BUDGET_FRACTION * serial_estimate, needed + 10 * one_candidate)
+        budget = max(BUDGET_FRACTION * serial_estimate, needed + 20 * one_candidate)
         if budget > BUDGET_FRACTION * serial_estimate:
             notes.append(f"the problem is too small for a search within {BUDGET_FRACTION:.0%} "
                          f"of its serial fine solve ({serial_estimate:.3g} s); budget "
