@@ -11,9 +11,10 @@ Run from the repository root (each run is ``parastokes tune``; its TUNED.json/.t
 
 Problems: ``rod5`` / ``rod7`` (Tables 4 / 5: ε⁰ = 5σ_f / 7σ_f, M = 301, T = 1; the search runs
 on a pilot rod of 61 nodes at the same σ_f and slice length), ``ves7`` / ``ves8`` (Tables 7 / 8,
-the 642-point vesicle, T = 100), and two problems not in the paper: ``rod4`` (ε⁰ = 4σ_f) and
-``ves_soft`` (Table 7's vesicle with half the spring stiffness). For the paper's problems the
-paper's solvers are measured the same way (``--compare``), at their own steps.
+the 642-point vesicle, T = 100), and problems not in the paper: ``rod4`` (ε⁰ = 4σ_f),
+``ves_soft`` (Table 7's vesicle with half the spring stiffness), ``short5`` / ``short7`` (the
+61-node rod, ε⁰ = 5σ_f / 7σ_f, on 40 slices of 2e-3 instead of 0.025: T = 0.08). For the paper's
+problems the paper's solvers are measured the same way (``--compare``), at their own steps.
 """
 
 from __future__ import annotations
@@ -37,6 +38,9 @@ PROBLEMS = {
     "ves8": ("experiments/table8_g1.toml", [], _tables(8, (1, 2, 3))),
     "rod4": ("experiments/table4_g1.toml", ["model.epsilon=4"], []),
     "ves_soft": ("experiments/table7_g1.toml", ["model.stiffness=0.05"], []),
+    # short slices (2e-3 = 2000 τ_f, 40 of them), not in the paper: the quick rod (M = 61)
+    "short5": ("experiments/quick/table4_g1.toml", ["time.t1=0.08"], []),
+    "short7": ("experiments/quick/table5_g1.toml", ["time.t1=0.08"], []),
 }
 
 
