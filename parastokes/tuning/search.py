@@ -33,6 +33,9 @@ __all__ = ["Candidate", "Progress", "TuneResult", "tune"]
 #: Default budget: this fraction of the estimated serial fine solve (the issue's 15 %).
 BUDGET_FRACTION = 0.15
 
+#: Fewest coarse steps per slice considered (the step-limit bisection starts below slice / 10).
+MIN_STEPS = 10
+
 FINE_ADVICE = "reduce fine.dt (or choose a higher-order fine.scheme) before tuning"
 
 _LIMIT_MODEL = {"epsilon": 4.0, "viscosity": 1.0, "bending": -1.0, "stiffness": -1.0}
@@ -204,11 +207,12 @@ class _Search:
             system, x0 = self._grid_system(settings.grid)
             if corner:
                 system = system.with_params(**corner)
+            # at least MIN_STEPS steps per slice: a test over fewer steps cannot see growth
             span = self.pilot.slice_length
-            lo = self.pilot.fine.dt
+            lo, hi = self.pilot.fine.dt, span / MIN_STEPS
             try:
                 self.limits[key] = stability.step_limit(system, settings.scheme, x0,
-                                                        self.pilot.t0, span, lo, span)
+                                                        self.pilot.t0, span, lo, max(hi, 2 * lo))
             except ValueError:
                 self.limits[key] = math.nan
         return self.limits[key]
