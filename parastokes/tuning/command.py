@@ -1,5 +1,6 @@
 """``parastokes tune CONFIG.toml --cores N --target ETA --out TUNED.toml``: the command over
-:func:`~.search.tune` (the CLI's ``tune`` subcommand calls :func:`main`).
+:func:`~.search.tune` (the CLI's ``tune`` subcommand calls :func:`main`; the heavy imports wait
+until it runs, so that building the parser stays cheap).
 
 It loads and validates the configuration, builds the run's fine solver and, for rods longer than
 ``pilot_points`` nodes, a shortened pilot rod at the same grid spacing (the step limits do not
@@ -14,13 +15,6 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
-
-from .. import config as configuration
-from .. import integrate, io
-from ..config.schema import RodModel
-from .report import config_text, draw_curves, table
-from .search import Progress, tune
-from .space import Space, TuningError, parse_space, settings_from_config
 
 __all__ = ["add_arguments", "main"]
 
@@ -48,7 +42,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="configurations whose coarse solvers are measured too (never pruned)")
 
 
-class _Bar(Progress):
+class _Bar:
+    """The search's progress (``search.Progress``) on the console, with a tqdm bar on a
+    terminal."""
+
     def __init__(self, console: Any) -> None:
         self.console = console
         self.bar = None
@@ -77,6 +74,9 @@ class _Bar(Progress):
 
 def _pilot_system(cfg: Any, resolved: Any, points: int) -> Any:
     """The run's system, or for a longer rod the same rods shortened to ``points`` nodes."""
+    from .. import config as configuration
+    from ..config.schema import RodModel
+
     model = cfg.model
     if not isinstance(model, RodModel) or model.n_points <= points:
         return None
@@ -85,8 +85,10 @@ def _pilot_system(cfg: Any, resolved: Any, points: int) -> Any:
     return configuration.build_system(cfg.model_copy(update={"model": short}), resolved)
 
 
-def _space(cfg: Any, args: argparse.Namespace, compare: tuple) -> Space:
+def _space(cfg: Any, args: argparse.Namespace, compare: tuple) -> Any:
     """The config's [tune] table, narrowed further by the command line; ``compare`` added."""
+    from .space import parse_space
+
     options = {k: v for k, v in cfg.tune.model_dump().items()
                if k not in ("pilot_slices", "pilot_points")}
     flags = {
@@ -99,6 +101,12 @@ def _space(cfg: Any, args: argparse.Namespace, compare: tuple) -> Space:
 
 def main(args: argparse.Namespace, console: Any) -> int:
     """Run the command; returns 0, or 130 when the search was interrupted (results kept)."""
+    from .. import config as configuration
+    from .. import integrate, io
+    from .report import config_text, draw_curves, table
+    from .search import tune
+    from .space import TuningError, settings_from_config
+
     cfg, resolved = configuration.load(args.config, args.set)
     compare = []
     for path in args.compare:
