@@ -89,8 +89,32 @@ def tables(directory: Path) -> str:
             if key not in seen:
                 seen.add(key)
                 out.append(_row(c))
-        out.append("")
+        out += ["", *_by_target(report), ""]
     return "\n".join(out)
+
+
+def _by_target(report: dict) -> list[str]:
+    """Best measured, plain and best given solver per target, from the same measurements."""
+    curves = report["curves"]
+    given = {f"{c['label']} @ {c['dt']:.4g}" for c in report["candidates"] if c.get("given")}
+    plain = {f"{c['label']} @ {c['dt']:.4g}" for c in report["candidates"]
+             if c["label"] == report["baseline"]["label"] and c["dt"]}
+    lines = ["| η* | best measured (speedup) | plain G_{Θ⁰,τ} | best given | best / plain |",
+             "|---|---|---|---|---|"]
+    for i, eta in enumerate(curves["targets"]):
+        if f"{eta:g}" not in ("1e-06", "1e-08"):
+            continue
+        def top(keys: set[str], i: int = i) -> tuple[float | None, str]:
+            values = [(curves["speedup"][k][i], k) for k in keys
+                      if k in curves["speedup"] and curves["speedup"][k][i] is not None]
+            return max(values) if values else (None, "-")
+        best, label = top(set(curves["speedup"]))
+        base, _ = top(plain)
+        paper, paper_label = top(given)
+        ratio = None if best is None or base is None else best / base
+        lines.append(f"| {eta:g} | {_num(best, '.2f')} ({label}) | {_num(base, '.2f')} | "
+                     f"{_num(paper, '.2f')} ({paper_label}) | {_num(ratio, '.2f')} |")
+    return lines
 
 
 #: Pilot against real runs: the quick rod (M = 61, ε⁰ = 5σ_f) with slices of 2e-3 (2000 τ_f,
