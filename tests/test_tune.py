@@ -281,3 +281,18 @@ def test_settings_from_config_is_the_configured_coarse_solver():
     assert built.thetas == setup.coarse.thetas
     assert [p.dt for p in built.auxiliary[0]] == [p.dt for p in setup.coarse.auxiliary[0]]
     np.testing.assert_array_equal(built.lagrange_weights, setup.coarse.lagrange_weights)
+
+
+def test_coarse_grid_candidates_are_measured_on_the_coarse_rod():
+    fine = integrate.Propagator(small_rod(), "rk2", 1e-6)
+    space = Space(schemes=("euler",), parameters=(), richardson=(0,), grid_factors=(2,),
+                  step_fractions=(1.0,))
+    res = tuning.tune(fine, t0=0.0, t1=8e-3, n_slices=4, cores=4, target=1e-4, space=space,
+                      budget=1e6)
+    (cand,) = [c for c in res.candidates if c.settings.grid == 2]
+    assert cand.status == "accepted", cand.reason
+    assert cand.pilot_errors and cand.amplification <= cand.allowed_amplification
+    # 11 nodes instead of 21: the coarse rod's step limit and cost are its own
+    assert cand.step_limit != res.baseline.step_limit
+    assert isinstance(cand.settings.build(small_rod()), parareal.OnCoarseGrid)
+    assert cand.settings.coarse_table()["grid_factor"] == 2
