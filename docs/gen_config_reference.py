@@ -121,6 +121,7 @@ def render() -> str:
         ("execution", schema.Execution),
         ("output", schema.Output),
         ("run", schema.RunSection),
+        ("tune", schema.Tune),
     ]
     lines = [HEADER]
     for title, cls in sections:

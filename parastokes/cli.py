@@ -9,6 +9,7 @@
     parastokes check CONFIG.toml [CONFIG.toml ...] [--set KEY=VALUE ...]
     parastokes predict CONFIG.toml --cores N [N ...] [--workers W] [--ratio R | --measured DIR]
                        [--iterations K]
+    parastokes tune CONFIG.toml --cores N --target ETA --out TUNED.toml [--budget SECONDS]
 
 Exit codes (:class:`ExitCode`): 0 success; 1 unexpected error (a bug: please report the
 traceback); 2 bad configuration or usage, or an output directory or file that cannot be used
@@ -344,16 +345,12 @@ def cmd_predict(args: argparse.Namespace, console: Console) -> ExitCode:
 
     bad = [n for n in args.cores if n < 1]
     if bad:
-        raise ValueError(f"predict: --cores must be core counts >= 1, got {bad}")
+        raise ValueError(f"predict: --cores must be at least 1, got {bad}")
     if args.workers is not None and args.workers < 1:
-        raise ValueError(f"predict: --workers must be >= 1, got {args.workers}")
-    if args.iterations is not None and args.iterations < 1:
-        raise ValueError(f"predict: --iterations must be >= 1, got {args.iterations}")
-    cfg, resolved = _load(args.config, args.set)
-    if min(args.cores) < 1:
-        raise ValueError(f"predict: --cores must be at least 1, got {min(args.cores)}")
+        raise ValueError(f"predict: --workers must be at least 1, got {args.workers}")
     if args.iterations is not None and args.iterations < 1:
         raise ValueError(f"predict: --iterations must be at least 1, got {args.iterations}")
+    cfg, resolved = _load(args.config, args.set)
     measured = io.read_summary(Path(args.measured) / "summary.json") if args.measured else None
     if measured is not None and not measured.get("speedup"):
         raise ValueError(f"{args.measured} holds no Parareal run")
@@ -387,6 +384,12 @@ def cmd_predict(args: argparse.Namespace, console: Console) -> ExitCode:
             f" {row['pipelined_formula']:>7.3f} {row['pipelined']:>9.3f}"
         )
     return ExitCode.OK
+
+
+def cmd_tune(args: argparse.Namespace, console: Console) -> ExitCode:
+    from .tuning import command
+
+    return ExitCode(command.main(args, console))
 
 
 def cmd_plot(args: argparse.Namespace, console: Console) -> ExitCode:
@@ -479,6 +482,16 @@ def _parser() -> argparse.ArgumentParser:
     source.add_argument("--measured", metavar="DIR", help="take γ_G/γ_F from a run directory")
     p.add_argument("--iterations", type=int, help="N_it (default: measured, else max_iterations)")
     p.set_defaults(func=cmd_predict)
+
+    p = sub.add_parser(
+        "tune",
+        parents=[common, overrides],
+        help="choose the coarse solver for a core count and a target error (docs/tuning.md)",
+    )
+    from .tuning.command import add_arguments
+
+    add_arguments(p)
+    p.set_defaults(func=cmd_tune)
 
     p = sub.add_parser("plot", parents=[common], help="figures from run directories")
     p.add_argument("dirs", nargs="*", help="run directories (several: comparison figures)")

@@ -30,6 +30,7 @@ __all__ = [
     "Richardson",
     "RunSection",
     "Time",
+    "Tune",
 ]
 
 Scheme = Literal["euler", "rk2", "rk4"]
@@ -185,6 +186,34 @@ class RunSection(_Section):
     )
 
 
+class Tune(_Section):
+    """Narrows the search of ``parastokes tune`` (docs/tuning.md); omitted keys: the tuner's
+    defaults. Ignored by ``run``."""
+
+    schemes: list[Scheme] | None = Field(None, description="Schemes of the auxiliary solvers.")
+    parameters: list[str] | None = Field(
+        None, description="Parameters that may be extrapolated, in order (nested subsets); [] none."
+    )
+    reach: list[Literal[0, 1, 2]] | None = Field(None, description="Node distance levels.")
+    nodes: list[Annotated[int, Field(ge=1)]] | None = Field(
+        None, description="Node counts of the first parameter (the others at most 3)."
+    )
+    richardson: list[Annotated[int, Field(ge=0)]] | None = Field(
+        None, description="Richardson depths m to try."
+    )
+    grid_factors: list[Annotated[int, Field(ge=1)]] | None = Field(
+        None, description="Coarse-grid factors σ_c/σ_f to try (rods); [1] forbids the coarse grid."
+    )
+    step_fractions: list[Annotated[float, Field(gt=0, le=1)]] | None = Field(
+        None, description="Coarse steps as fractions of the largest safe step."
+    )
+    max_weight: Positive | None = Field(None, description="Largest Σ|w_j v_q| considered.")
+    pilot_slices: int | None = Field(None, ge=2, description="Slices of the pilot window.")
+    pilot_points: int | None = Field(
+        None, ge=3, description="Rods: nodes per rod of the shortened pilot rod (same σ_f)."
+    )
+
+
 class Config(_Section):
     """A whole run: model, time, fine and coarse solvers, Parareal, execution, output, run."""
 
@@ -200,6 +229,7 @@ class Config(_Section):
     execution: Execution = Field(default_factory=Execution)
     output: Output = Field(default_factory=Output)
     run: RunSection = Field(default_factory=RunSection)
+    tune: Tune = Field(default_factory=Tune)
 
     @field_validator("model", mode="before")
     @classmethod

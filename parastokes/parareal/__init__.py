@@ -48,4 +48,15 @@ __all__ = [
     "speedup_standard",
     "step_weights",
     "time_points",
+    "tune",
 ]
+
+
+def __getattr__(name: str):
+    """``tune`` (:func:`parastokes.tuning.tune`), imported on first use: the tuner builds on
+    this package."""
+    if name == "tune":
+        from ..tuning.search import tune
+
+        return tune
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

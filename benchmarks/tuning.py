@@ -1,0 +1,181 @@
+"""Targets of ``parastokes tune`` (docs/tuning.md): tuned vs the paper's hand-chosen coarse solvers
+and vs the plain coarse solver, at 40 cores and targets 1e-6 and 1e-8.
+
+Run from the repository root (each run is ``parastokes tune``; its TUNED.json/.toml/.png land in
+``--dir``; measurements run at low priority)::
+
+    PYTHONPATH=. nice python benchmarks/tuning.py --problems rod5 rod7 --targets 1e-6 1e-8
+    PYTHONPATH=. python benchmarks/tuning.py --tables            # Markdown tables from --dir
+    PYTHONPATH=. nice python benchmarks/tuning.py --validate 5 20 --targets 1e-6 1e-8 \\
+        --dir docs/figures/tuning/validate                      # pilot vs real runs
+
+Problems: ``rod5`` / ``rod7`` (Tables 4 / 5: ε⁰ = 5σ_f / 7σ_f, M = 301, T = 1; the search runs
+on a pilot rod of 61 nodes at the same σ_f and slice length), ``ves7`` / ``ves8`` (Tables 7 / 8,
+the 642-point vesicle, T = 100), and problems not in the paper: ``rod4`` (ε⁰ = 4σ_f),
+``ves_soft`` (Table 7's vesicle with half the spring stiffness), ``short5`` / ``short7`` (the
+61-node rod, ε⁰ = 5σ_f / 7σ_f, on 40 slices of 2e-3 instead of 0.025: T = 0.08). For the paper's
+problems the paper's solvers are measured the same way (``--compare``), at their own steps.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from collections.abc import Sequence
+from pathlib import Path
+
+from parastokes import cli
+
+
+def _tables(number: int, solvers: Sequence[int]) -> list[str]:
+    return [f"experiments/table{number}_g{i}.toml" for i in solvers]
+
+
+PROBLEMS = {
+    "rod5": ("experiments/table4_g1.toml", [], _tables(4, (1, 2, 3, 4))),
+    "rod7": ("experiments/table5_g1.toml", [], _tables(5, (1, 2, 3))),
+    "ves7": ("experiments/table7_g1.toml", [], _tables(7, (1, 2, 3, 4))),
+    "ves8": ("experiments/table8_g1.toml", [], _tables(8, (1, 2, 3))),
+    "rod4": ("experiments/table4_g1.toml", ["model.epsilon=4"], []),
+    "ves_soft": ("experiments/table7_g1.toml", ["model.stiffness=0.05"], []),
+    # short slices (2e-3 = 2000 τ_f, 40 of them), not in the paper: the quick rod (M = 61)
+    "short5": ("experiments/quick/table4_g1.toml", ["time.t1=0.08"], []),
+    "short7": ("experiments/quick/table5_g1.toml", ["time.t1=0.08"], []),
+}
+
+
+def run(problem: str, target: float, cores: int, out: Path, extra: Sequence[str]) -> int:
+    config, overrides, compare = PROBLEMS[problem]
+    argv = ["tune", config, "--cores", str(cores), "--target", f"{target:g}",
+            "--out", str(out / f"{problem}_{target:g}.toml")]
+    for item in overrides:
+        argv += ["--set", item]
+    if compare:
+        argv += ["--compare", *compare]
+    return cli.main([*argv, *extra])
+
+
+def _num(value: float | None, spec: str) -> str:
+    return "-" if value is None else format(value, spec)
+
+
+def _row(c: dict) -> str:
+    p = c["predicted"]
+    return (f"| {c['label']} | {_num(c.get('dt_ratio'), '.3g')} | {c['n_auxiliary']} | "
+            f"{_num(c['stability']['amplification'], '.3g')} | "
+            f"{_num(c['pilot']['eta1'], '.2e')} | {p['iterations'] or '-'} | "
+            f"{_num(p['gamma_ratio'], '.4f')} | {_num(p['speedup'], '.2f')} | {c['status']} |")
+
+
+def tables(directory: Path) -> str:
+    """Markdown: per run, the chosen, the baseline and the given (paper's) solvers."""
+    out = []
+    for path in sorted(directory.glob("*.json")):
+        report = json.loads(path.read_text())
+        cost, problem = report["cost"], report["problem"]
+        out += [f"### {path.stem}: η* = {problem['target']:g}, N_c = {problem['n_slices']}", "",
+                f"{report['pilot']['note']}; tuning {cost['cpu_seconds']:.0f} s CPU "
+                f"({cost['seconds']:.0f} s wall) = {cost['fraction']:.1%} of the estimated "
+                f"serial fine solve ({cost['serial_fine_estimate']:.0f} s CPU); search stopped: "
+                f"{report['search']['stopped']}; {report['extrapolation']['note']}", "",
+                "| solver | τ_c/τ_f | N_G | ‖DG‖ | η¹ pilot | N_it | γ_G/γ_F | speedup | status |",
+                "|---|---|---|---|---|---|---|---|---|"]
+        rows = [report["chosen"]] if report["chosen"] else []
+        rows.append(report["baseline"])
+        rows += [c for c in report["candidates"] if c.get("given")]
+        seen = set()
+        for c in rows:
+            key = (c["label"], c["dt"])
+            if key not in seen:
+                seen.add(key)
+                out.append(_row(c))
+        out += ["", *_by_target(report), ""]
+    return "\n".join(out)
+
+
+def _by_target(report: dict) -> list[str]:
+    """Best measured, plain and best given solver per target, from the same measurements."""
+    curves = report["curves"]
+    given = {f"{c['label']} @ {c['dt']:.4g}" for c in report["candidates"] if c.get("given")}
+    plain = {f"{c['label']} @ {c['dt']:.4g}" for c in report["candidates"]
+             if c["label"] == report["baseline"]["label"] and c["dt"]}
+    lines = ["| η* | best measured (speedup) | best of the search alone | plain G_{Θ⁰,τ} | "
+             "best given | best / plain |", "|---|---|---|---|---|---|"]
+    for i, eta in enumerate(curves["targets"]):
+        if f"{eta:g}" not in ("1e-06", "1e-08"):
+            continue
+        def top(keys: set[str], i: int = i) -> tuple[float | None, str]:
+            values = [(curves["speedup"][k][i], k) for k in keys
+                      if k in curves["speedup"] and curves["speedup"][k][i] is not None]
+            return max(values) if values else (None, "-")
+        best, label = top(set(curves["speedup"]))
+        base, _ = top(plain)
+        paper, paper_label = top(given)
+        searched, searched_label = top(set(curves["speedup"]) - given)
+        ratio = None if best is None or base is None else best / base
+        lines.append(f"| {eta:g} | {_num(best, '.2f')} ({label}) | {_num(searched, '.2f')} "
+                     f"({searched_label}) | {_num(base, '.2f')} | "
+                     f"{_num(paper, '.2f')} ({paper_label}) | {_num(ratio, '.2f')} |")
+    return lines
+
+
+#: Pilot against real runs: the quick rod (M = 61, ε⁰ = 5σ_f) with slices of 2e-3 (2000 τ_f,
+#: docs/validation.md's setup) on N_c = 5 and 20 slices, runs with the serial executor.
+VALIDATE = "experiments/quick/table4_g1.toml"
+
+
+def validate(target: float, cores: int, out: Path) -> dict:
+    """Tune, then run the tuned config to N_it + 1 iterations (mode both): predicted vs real η^k."""
+    from parastokes.tuning.cost import predicted_errors
+
+    stem = out / f"validate_{cores}_{target:g}"
+    t1 = 2e-3 * cores
+    code = cli.main(["tune", VALIDATE, "--cores", str(cores), "--target", f"{target:g}",
+                     "--out", f"{stem}.toml", "--set", f"time.t1={t1:g}", "-q"])
+    if code != 0:
+        return {"cores": cores, "target": target, "tune_exit": code}
+    report = json.loads(Path(f"{stem}.json").read_text())
+    chosen = report["chosen"]
+    n_it = chosen["predicted"]["iterations"]
+    run_dir = Path(f"{stem}_run")
+    cli.main(["run", f"{stem}.toml", "--out", str(run_dir), "-q",
+              "--set", f"parareal.max_iterations={n_it + 1}",
+              "--set", 'execution.executor="serial"', "--set", "execution.workers=1",
+              "--set", "output.trajectory=false", "--set", "output.figures=false"])
+    summary = json.loads((run_dir / "summary.json").read_text())
+    predicted = predicted_errors(chosen["pilot"]["eta"], report["pilot"]["slices"], cores,
+                                 n_it + 1)
+    return {"cores": cores, "target": target, "chosen": chosen["label"],
+            "predicted_iterations": n_it, "predicted_eta": predicted,
+            "measured_eta": summary["errors"],
+            "reached_at": next((k for k, e in enumerate(summary["errors"], 1) if e <= target),
+                               None),
+            "tuning_seconds": report["cost"]["seconds"]}
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--problems", nargs="+", choices=sorted(PROBLEMS), default=[])
+    parser.add_argument("--targets", type=float, nargs="+", default=[1e-6, 1e-8])
+    parser.add_argument("--cores", type=int, default=40)
+    parser.add_argument("--dir", type=Path, default=Path("docs/figures/tuning"))
+    parser.add_argument("--tables", action="store_true", help="print the Markdown tables")
+    parser.add_argument("--validate", type=int, nargs="*", metavar="N_C",
+                        help="pilot vs real runs of tuned quick-rod configs on N_C slices")
+    args, extra = parser.parse_known_args(argv)
+    args.dir.mkdir(parents=True, exist_ok=True)
+    for problem in args.problems:
+        for target in args.targets:
+            print(f"== {problem}, η* = {target:g}", flush=True)
+            run(problem, target, args.cores, args.dir, extra)
+    if args.validate:
+        rows = [validate(target, n, args.dir) for n in args.validate for target in args.targets]
+        (args.dir / "validate.json").write_text(json.dumps(rows, indent=1))
+        for row in rows:
+            print(json.dumps(row))
+    if args.tables:
+        print(tables(args.dir))
+
+
+if __name__ == "__main__":
+    main()

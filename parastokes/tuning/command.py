@@ -1,0 +1,159 @@
+"""``parastokes tune CONFIG.toml --cores N --target ETA --out TUNED.toml``: the command over
+:func:`~.search.tune` (the CLI's ``tune`` subcommand calls :func:`main`; the heavy imports wait
+until it runs, so that building the parser stays cheap).
+
+It loads and validates the configuration, builds the run's fine solver and, for rods longer than
+``pilot_points`` nodes, a shortened pilot rod at the same grid spacing (the step limits do not
+depend on the rod's length, docs/validation.md), runs the search with a tqdm bar on a terminal,
+and writes TUNED.toml, TUNED.json and TUNED.png (predicted speedup against the target error).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+__all__ = ["add_arguments", "main"]
+
+#: Nodes per rod of the pilot rod when the run's rod is longer (the quick variants' 61).
+PILOT_POINTS = 61
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """The options of ``parastokes tune``."""
+    p.add_argument("config", help="TOML configuration (its [coarse] is replaced)")
+    p.add_argument("--cores", type=int, required=True, help="cores N_c (= slices of the run)")
+    p.add_argument("--target", type=float, required=True, help="target relative error η* (eq. 34)")
+    p.add_argument("--out", required=True, help="TUNED.toml to write (TUNED.json, .png beside it)")
+    p.add_argument("--budget", type=float, help="wall-time limit of the search in seconds")
+    p.add_argument("--schemes", nargs="+", help="schemes of the auxiliary solvers")
+    p.add_argument("--parameters", nargs="*", help="parameters to extrapolate in (none: [])")
+    p.add_argument("--reach", type=int, nargs="+", help="node distance levels 0 1 2")
+    p.add_argument("--nodes", type=int, nargs="+", help="node counts of the first parameter")
+    p.add_argument("--richardson", type=int, nargs="+", help="Richardson depths m")
+    p.add_argument("--grid-factors", type=int, nargs="+", help="coarse-grid factors (rods)")
+    p.add_argument("--step-fractions", type=float, nargs="+", help="fractions of the safe step")
+    p.add_argument("--pilot-slices", type=int, help="slices of the pilot window (default 3)")
+    p.add_argument("--pilot-points", type=int, help="rods: nodes per pilot rod (default 61)")
+    p.add_argument("--compare", nargs="+", default=[], metavar="CONFIG",
+                   help="configurations whose coarse solvers are measured too (never pruned)")
+
+
+class _Bar:
+    """The search's progress (``search.Progress``) on the console, with a tqdm bar on a
+    terminal."""
+
+    def __init__(self, console: Any) -> None:
+        self.console = console
+        self.bar = None
+
+    def note(self, text: str) -> None:
+        self.console.print(text)
+
+    def start(self, total: int) -> None:
+        self.console.print(f"searching {total} candidates ...")
+        if self.console.bars:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=total, desc="tune", unit="candidate", leave=False,
+                            file=sys.stderr)
+
+    def advance(self, label: str) -> None:
+        if self.bar is not None:
+            self.bar.set_postfix_str(label[:40])
+            self.bar.update()
+
+    def finish(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+            self.bar = None
+
+
+def _pilot_system(cfg: Any, resolved: Any, points: int) -> Any:
+    """The run's system, or for a longer rod the same rods shortened to ``points`` nodes."""
+    from .. import config as configuration
+    from ..config.schema import RodModel
+
+    model = cfg.model
+    if not isinstance(model, RodModel) or model.n_points <= points:
+        return None
+    spacing = model.length / (model.n_points - 1)
+    short = model.model_copy(update={"n_points": points, "length": spacing * (points - 1)})
+    return configuration.build_system(cfg.model_copy(update={"model": short}), resolved)
+
+
+def _space(cfg: Any, args: argparse.Namespace, compare: tuple) -> Any:
+    """The config's [tune] table, narrowed further by the command line; ``compare`` added."""
+    from .space import parse_space
+
+    options = {k: v for k, v in cfg.tune.model_dump().items()
+               if k not in ("pilot_slices", "pilot_points")}
+    flags = {
+        "schemes": args.schemes, "parameters": args.parameters, "reach": args.reach,
+        "nodes": args.nodes, "richardson": args.richardson, "grid_factors": args.grid_factors,
+        "step_fractions": args.step_fractions,
+    }
+    return replace(parse_space(flags, parse_space(options)), extra=compare)
+
+
+def main(args: argparse.Namespace, console: Any) -> int:
+    """Run the command; returns 0, or 130 when the search was interrupted (results kept)."""
+    from .. import config as configuration
+    from .. import integrate, io
+    from .report import config_text, draw_curves, table
+    from .search import tune
+    from .space import TuningError, settings_from_config
+
+    cfg, resolved = configuration.load(args.config, args.set)
+    compare = []
+    for path in args.compare:
+        other, other_resolved = configuration.load(path)
+        compare.append(settings_from_config(other, other_resolved, name=Path(path).stem))
+    space = _space(cfg, args, tuple(compare))
+    pilot_slices = args.pilot_slices or cfg.tune.pilot_slices or 3
+    points = args.pilot_points or cfg.tune.pilot_points or PILOT_POINTS
+    system = configuration.build_system(cfg, resolved)
+    pilot = _pilot_system(cfg, resolved, points)
+    fine = integrate.Propagator(system, cfg.fine.scheme, cfg.fine.dt)
+    console.print(f"tuning {cfg.title or args.config}: {args.cores} cores, η* = {args.target:g}")
+    if pilot is not None:
+        console.print(f"pilot rod: {points} nodes per rod at the run's spacing σ_f (the run has "
+                      f"{cfg.model.n_points})")
+    bar = _Bar(console)
+    try:
+        result = tune(
+            fine, t0=cfg.time.t0, t1=cfg.time.t1, n_slices=args.cores, cores=args.cores,
+            target=args.target, space=space, budget=args.budget, pilot=pilot,
+            pilot_slices=pilot_slices, progress=bar,
+        )
+    except KeyboardInterrupt:  # before the search (Ctrl-C during it is handled by tune)
+        bar.finish()
+        print("interrupted before the search began (pilot reference or baseline): nothing was "
+              "written", file=sys.stderr)
+        return 130
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    report = result.report
+    report["config"] = str(args.config)
+    io.write_summary(out.with_suffix(".json"), report)
+    draw_curves(result, out.with_suffix(".png"), args.cores)
+    console.print(table(report))
+    search = report["search"]
+    if search["stopped"]:
+        console.print(f"search stopped ({search['stopped']}) after {search['evaluated']} of "
+                      f"{search['ordered']} candidates; what was measured is kept")
+    cost = report["cost"]
+    console.print(f"tuning took {cost['seconds']:.1f} s ({cost['cpu_seconds']:.1f} s CPU = "
+                  f"{cost['fraction']:.1%} of the estimated serial fine solve, "
+                  f"{cost['serial_fine_estimate']:.3g} s CPU)")
+    console.print(report["extrapolation"]["note"])
+    if result.chosen is None:
+        raise TuningError(f"no candidate is stable and reaches η* = {args.target:g}; see "
+                          f"{out.with_suffix('.json')} (raise --target or widen the search)")
+    dumped = cfg.model_dump(mode="json", exclude_none=True)
+    out.write_text(config_text(dumped, result, args.cores, args.config), encoding="utf-8")
+    console.print(f"wrote {out}, {out.with_suffix('.json')}, {out.with_suffix('.png')}")
+    return 130 if search["stopped"] == "interrupted" else 0

@@ -1,0 +1,98 @@
+"""Predictions from pilot measurements: iterations to reach η*, γ_G/γ_F, speedup (eqs. 12-15).
+
+- Iterations. The pilot gives η^k at T_P for k = 1..K. Errors of a stable coarse solver accumulate
+  along the run roughly in proportion to the number of slices crossed (each slice adds its local
+  defect), so η^k of the run is predicted as η^k_P N_c / P; beyond the measured iterations each
+  iteration contracts by the last measured ratio ρ = η^K / η^(K-1) (geometric, which is
+  conservative for Parareal's superlinear convergence). N_it is the first k with predicted
+  η^k <= η*. docs/tuning.md compares this with real runs.
+- Cost. γ_F is the pilot's fine slice time. γ_G is the time of one coarse call with its N_G
+  auxiliary solvers on ``cores`` workers: the serial call time per auxiliary solver (its share of
+  steps), times ceil(N_G / cores) waves of the slowest auxiliary solver.
+- Speedup: eq. 14 (``parareal.speedup``) with Υ_oh = 0.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+from .. import integrate, parareal
+from .space import Settings
+
+__all__ = ["estimated_ratio", "gamma_ratio", "predicted_errors", "predicted_iterations", "waves"]
+
+
+def waves(n_auxiliary: int, cores: int) -> int:
+    """Rounds of auxiliary solvers per coarse call: ceil(N_G / cores)."""
+    return math.ceil(n_auxiliary / cores)
+
+
+def _step_counts(settings: Settings, slice_length: float) -> list[int]:
+    r = settings.r or 1.0
+    return [integrate.n_steps(0.0, slice_length, settings.dt * r**q) for q in range(settings.m + 1)]
+
+
+def gamma_ratio(
+    settings: Settings, slice_length: float, coarse_seconds: float, gamma_f: float, cores: int
+) -> float:
+    """γ_G/γ_F on ``cores`` workers from the serial time of one coarse call (module docstring)."""
+    counts = _step_counts(settings, slice_length)
+    n_theta = settings.n_auxiliary // (settings.m + 1)
+    slowest = coarse_seconds * max(counts) / (n_theta * sum(counts))
+    return waves(settings.n_auxiliary, cores) * slowest / gamma_f
+
+
+def estimated_ratio(
+    settings: Settings,
+    slice_length: float,
+    fine_scheme: str,
+    fine_steps: int,
+    points: int,
+    coarse_points: int,
+    cores: int,
+) -> float:
+    """γ_G/γ_F from operation counts (stages x steps x points², like ``parastokes predict``): the
+    cheap estimate used to order and prune candidates before measuring them."""
+    stages = integrate.SCHEMES[settings.scheme].stages
+    fine = fine_steps * integrate.SCHEMES[fine_scheme].stages * points**2
+    slowest = max(_step_counts(settings, slice_length)) * stages * coarse_points**2
+    return waves(settings.n_auxiliary, cores) * slowest / fine
+
+
+def predicted_errors(
+    errors: Sequence[float], pilot_slices: int, n_slices: int, up_to: int
+) -> list[float]:
+    """η^k of the run for k = 1..``up_to`` from the pilot's η^k at T_P (module docstring)."""
+    scale = n_slices / pilot_slices
+    out = [e * scale for e in errors]
+    rho = errors[-1] / errors[-2] if len(errors) >= 2 and errors[-2] > 0 else 1.0
+    rho = min(rho, 1.0)
+    while len(out) < up_to:
+        out.append(out[-1] * rho)
+    return out[:up_to]
+
+
+def predicted_iterations(
+    errors: Sequence[float], pilot_slices: int, n_slices: int, target: float
+) -> int | None:
+    """The first k with predicted η^k <= η*; None if that takes N_c iterations or more (Parareal
+    then gives no speedup) or the pilot shows no contraction."""
+    if not errors or not all(e >= 0 for e in errors):
+        return None
+    for k, value in enumerate(predicted_errors(errors, pilot_slices, n_slices, n_slices), 1):
+        if value <= target:
+            return k if k < n_slices else None
+    return None
+
+
+def contraction(errors: Sequence[float]) -> float | None:
+    """ρ = η^K / η^(K-1) of the pilot (None with one iteration)."""
+    if len(errors) < 2 or errors[-2] <= 0:
+        return None
+    return errors[-1] / errors[-2]
+
+
+def speedup(ratio: float, iterations: int, n_slices: int) -> float:
+    """Eq. 14 with Υ_oh = 0."""
+    return parareal.speedup(ratio, 1.0, iterations, n_slices)

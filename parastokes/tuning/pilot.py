@@ -1,0 +1,144 @@
+"""The pilot window: the first few slices of the run, with the true fine reference.
+
+:meth:`Pilot.prepare` computes the serial fine solution on P slices of the run's slice length (the
+reference; it also proves that the fine solver is stable there and measures γ_F), and estimates
+the fine solver's own time-discretization error over the first slice (one run at 2τ_f,
+Richardson's estimate |F_τ - F_2τ| / (2^p - 1), eq. 34's measure). :meth:`Pilot.measure` runs
+Algorithm 1 itself (``parareal.run``) on the window for one coarse solver, giving η^k at T_P for
+k = 1..K and the measured cost of its coarse calls. Fine solves whose input is the reference
+(slices n <= k in iteration k) are taken from the reference instead of being recomputed. Costs
+(γ_F, γ_G) are CPU times of this process: on a shared machine they do not depend on what else
+runs, wall times do.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .. import integrate, parareal
+from .space import TuningError
+
+__all__ = ["Pilot", "PilotRun"]
+
+
+class _Reused:
+    """The fine propagator, answering from the reference when its input is a reference state."""
+
+    def __init__(self, fine: Any, times: np.ndarray, reference: np.ndarray) -> None:
+        self.fine, self.times, self.reference = fine, times, reference
+        self.calls = 0
+
+    def __call__(self, t_start: float, t_end: float, x: np.ndarray) -> np.ndarray:
+        n = int(np.argmin(np.abs(self.times - t_start)))
+        if n + 1 < len(self.times) and np.array_equal(x, self.reference[n]):
+            return self.reference[n + 1].copy()
+        self.calls += 1
+        return self.fine(t_start, t_end, x)
+
+
+class _Timed:
+    """A coarse propagator that records the wall time of each call (no ``with_executor``, so
+    ``parareal.run`` runs it as it is, in this process)."""
+
+    def __init__(self, coarse: Any) -> None:
+        self.coarse = coarse
+        self.seconds: list[float] = []
+
+    def __call__(self, t_start: float, t_end: float, x: np.ndarray) -> np.ndarray:
+        start = time.process_time()
+        out = self.coarse(t_start, t_end, x)
+        self.seconds.append(time.process_time() - start)
+        return out
+
+
+@dataclass
+class PilotRun:
+    """What one coarse solver did on the pilot window."""
+
+    errors: list[float]  # η^k at T_P, k = 1..K
+    coarse_seconds: float  # mean CPU time of one coarse call (all auxiliaries in this process)
+    fine_solves: int  # fine slice solves it needed beyond the reference
+    seconds: float  # wall time of the whole pilot run
+
+
+@dataclass
+class Pilot:
+    """The pilot window [t0, t0 + P ΔT] of ``system`` with its serial fine reference."""
+
+    system: Any
+    fine: integrate.Propagator
+    x0: np.ndarray
+    t0: float
+    slice_length: float
+    n_slices: int
+    reference: np.ndarray
+    gamma_f: float
+    fine_error: float
+    seconds: float
+
+    @property
+    def times(self) -> np.ndarray:
+        return parareal.time_points(self.t0, self.t0 + self.n_slices * self.slice_length,
+                                    self.n_slices)
+
+    @classmethod
+    def prepare(
+        cls, fine: integrate.Propagator, x0: np.ndarray, t0: float, slice_length: float,
+        n_slices: int,
+    ) -> Pilot:
+        """The reference on ``n_slices`` slices; raises TuningError if the fine solver blows up."""
+        start, cpu = time.perf_counter(), time.process_time()
+        system = fine.system
+        times = parareal.time_points(t0, t0 + n_slices * slice_length, n_slices)
+        states = [system.project(np.array(x0, dtype=float))]
+        worst = system.monitor(states[0])
+        try:
+            for n in range(n_slices):
+                run = integrate.run(
+                    system, states[-1], times[n], times[n + 1], fine.scheme, fine.dt
+                )
+                states.append(run.state)
+                worst = max(worst, run.max_monitor)
+        except integrate.BlowUpError as error:
+            raise TuningError(
+                f"the fine solver itself is unstable: {error}; reduce fine.dt (or choose a "
+                "higher-order fine.scheme) before tuning"
+            ) from None
+        if not worst <= system.monitor_limit:
+            raise TuningError(
+                f"the fine solver leaves the stability monitor's limit ({worst:.3g} > "
+                f"{system.monitor_limit:g}) on the first {n_slices} slices; reduce fine.dt"
+            )
+        gamma_f = (time.process_time() - cpu) / n_slices
+        reference = np.array(states)
+        double = integrate.propagate(system, reference[0], times[0], times[1], fine.scheme,
+                                     2.0 * fine.dt)
+        order = integrate.scheme_order(fine.scheme)
+        fine_error = parareal.relative_change(
+            double, reference[1], system.positions
+        ) / (2**order - 1)
+        return cls(system, fine, reference[0], t0, slice_length, n_slices, reference, gamma_f,
+                   fine_error, time.perf_counter() - start)
+
+    def measure(self, coarse: Any, iterations: int) -> PilotRun:
+        """Algorithm 1 on the window: η^k at T_P for k = 1..``iterations`` (< P)."""
+        start = time.perf_counter()
+        times = self.times
+        fine = _Reused(self.fine, times, self.reference)
+        timed = _Timed(coarse)
+        res = parareal.run(
+            fine, timed, self.x0, t0=float(times[0]), t1=float(times[-1]),
+            n_slices=self.n_slices, tol=0.0, max_iterations=iterations,
+            reference=self.reference, positions=self.system.positions,
+            project=self.system.project,
+        )
+        errors = [float(e) for e in res.errors]
+        if not all(math.isfinite(e) for e in errors):
+            raise integrate.BlowUpError(times[-1], 0, math.nan, self.x0, "non-finite iterate")
+        return PilotRun(errors, float(np.mean(timed.seconds)), fine.calls,
+                        time.perf_counter() - start)

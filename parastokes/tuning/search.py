@@ -1,0 +1,482 @@
+"""The tuner: search the coarse solvers of eq. 30 for the highest predicted speedup at η*.
+
+:func:`tune` (exported as ``parastokes.parareal.tune``) checks the input, computes the pilot
+reference, then walks the candidates of the :class:`~.space.Space` in the order of an optimistic
+speedup (N_it = 1, γ_G/γ_F from operation counts), skipping every candidate whose optimistic
+speedup cannot beat the best measured one. A candidate that may win gets, in this order: its step
+(the step limit of its most restrictive node, minus the derived margin, :mod:`.stability`), the
+stability verdict of its combined slice map (‖DG‖ by power iteration), the pilot run (η^k,
+:mod:`.pilot`) and the prediction (:mod:`.cost`). docs/tuning.md explains the choices and reports
+measurements.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from .. import integrate
+from ..parallel import TaskError
+from . import cost, stability
+from .pilot import Pilot
+from .space import Settings, Space, TuningError
+
+__all__ = ["Candidate", "Progress", "TuneResult", "tune"]
+
+#: Exponents of the step-limit model used only to order candidates before their limit is measured
+#: (the stiffest mode scales like bending/viscosity; ε relaxes it strongly, docs/validation.md).
+#: Default budget: this fraction of the estimated serial fine solve (the issue's 15 %).
+BUDGET_FRACTION = 0.15
+
+#: Fewest coarse steps per slice considered (the step-limit bisection starts below slice / 10).
+MIN_STEPS = 10
+
+FINE_ADVICE = "reduce fine.dt (or choose a higher-order fine.scheme) before tuning"
+
+_LIMIT_MODEL = {"epsilon": 4.0, "viscosity": 1.0, "bending": -1.0, "stiffness": -1.0}
+
+
+class Progress:
+    """Receives the tuner's progress (the CLI draws it with tqdm); this base class is silent."""
+
+    def note(self, text: str) -> None:
+        """A line of information."""
+
+    def start(self, total: int) -> None:
+        """The search over ``total`` candidates begins."""
+
+    def advance(self, label: str) -> None:
+        """One candidate is done."""
+
+    def finish(self) -> None:
+        """The search is over."""
+
+
+@dataclass
+class Candidate:
+    """One candidate and everything measured about it."""
+
+    settings: Settings
+    status: str = "pending"  # accepted | rejected | pruned | not reached
+    reason: str | None = None
+    weight_sum: float = 1.0
+    estimated_speedup: float | None = None
+    given: bool = False  # given explicitly (Space.extra): measured whatever its estimate
+    step_limit: float | None = None
+    margin: float | None = None  # 1 - step / step limit
+    required_margin: float | None = None  # δ derived by stability.step_margin
+    amplification: float | None = None
+    allowed_amplification: float | None = None
+    pilot_errors: list[float] = field(default_factory=list)
+    contraction: float | None = None
+    iterations: int | None = None
+    gamma_ratio: float | None = None
+    speedup: float | None = None
+    seconds: float = 0.0  # on the budget's clock (wall with --budget, else CPU)
+
+    @property
+    def stability_margin(self) -> float | None:
+        """allowed ‖DG‖ / measured ‖DG‖ - 1 (positive when stable)."""
+        if self.amplification is None or self.allowed_amplification is None:
+            return None
+        if self.amplification == 0 or not math.isfinite(self.amplification):
+            return -1.0 if not math.isfinite(self.amplification) else math.inf
+        return self.allowed_amplification / self.amplification - 1.0
+
+    def predicted(self) -> dict[str, Any]:
+        return {"speedup": self.speedup, "iterations": self.iterations,
+                "gamma_ratio": self.gamma_ratio}
+
+    def as_dict(self, fine_dt: float) -> dict[str, Any]:
+        stable = None if self.amplification is None else bool(
+            self.amplification <= self.allowed_amplification)
+        return {
+            **self.settings.as_dict(fine_dt),
+            "given": self.given,
+            "status": self.status,
+            "reason": self.reason,
+            "weight_sum": self.weight_sum,
+            "estimated_speedup": self.estimated_speedup,
+            "stability": {
+                "step_limit": self.step_limit,
+                "step_margin": self.margin,
+                "required_step_margin": self.required_margin,
+                "amplification": self.amplification,
+                "allowed_amplification": self.allowed_amplification,
+                "margin": self.stability_margin,
+                "stable": stable,
+            },
+            "pilot": {"eta": self.pilot_errors, "eta1": self.pilot_errors[0] if
+                      self.pilot_errors else None, "contraction": self.contraction},
+            "predicted": self.predicted(),
+            "seconds": self.seconds,
+        }
+
+
+@dataclass
+class TuneResult:
+    """The outcome of :func:`tune`: the chosen coarse propagator (on the run's system), its
+    settings, the plain baseline and the report (the content of TUNED.json)."""
+
+    coarse: Any
+    settings: Settings | None
+    chosen: Candidate | None
+    baseline: Candidate
+    candidates: list[Candidate]
+    report: dict[str, Any]
+    pilot: Pilot
+
+    def curves(self, n_slices: int) -> dict[str, Any]:
+        """Predicted speedup at the targets 1e-4 .. 1e-10 for every candidate measured on the
+        pilot (the same measurements serve every target; only the step margins were derived for
+        the requested one), and the best candidate per target."""
+        targets = [10.0**-e for e in range(4, 11)]
+        measured = [c for c in self.candidates if c.pilot_errors and c.gamma_ratio]
+        rows = {f"{c.settings.label()} @ {c.settings.coarse_dt:.4g}":
+                self.speedup_curve(c, np.array(targets), n_slices) for c in measured}
+        best = {}
+        for i, eta in enumerate(targets):
+            values = [(v[i], k) for k, v in rows.items() if v[i] is not None]
+            best[f"{eta:g}"] = None if not values else {"speedup": max(values)[0],
+                                                         "candidate": max(values)[1]}
+        return {"targets": targets, "speedup": rows, "best": best}
+
+    def speedup_curve(self, candidate: Candidate, targets: np.ndarray, n_slices: int) -> list:
+        """Predicted speedup (eq. 14) against η* for one measured candidate (Fig. 6b)."""
+        out = []
+        for eta in targets:
+            k = cost.predicted_iterations(candidate.pilot_errors, self.pilot.n_slices, n_slices,
+                                          float(eta))
+            out.append(None if k is None else cost.speedup(candidate.gamma_ratio, k, n_slices))
+        return out
+
+
+def _check_input(cores: Any, target: Any, n_slices: Any, t0: float, t1: float,
+                 budget: Any, pilot_slices: int) -> None:
+    if isinstance(cores, bool) or not isinstance(cores, int) or cores < 1:
+        raise TuningError(f"cores must be an integer >= 1, got {cores!r}")
+    if isinstance(n_slices, bool) or not isinstance(n_slices, int) or n_slices < 2:
+        raise TuningError(f"n_slices must be an integer >= 2, got {n_slices!r}")
+    if not (isinstance(target, int | float) and 0.0 < target < 1.0):
+        raise TuningError(f"target: the relative error η* must lie in (0, 1), got {target!r}")
+    if not t1 > t0:
+        raise TuningError(f"t1 must exceed t0, got [{t0}, {t1}]")
+    if budget is not None and not budget > 0:
+        raise TuningError(f"budget must be a positive number of seconds, got {budget!r}")
+    if not 2 <= pilot_slices <= n_slices:
+        raise TuningError(f"pilot_slices must lie in [2, n_slices = {n_slices}], got "
+                          f"{pilot_slices}")
+
+
+def _seconds_per_step(system: Any, scheme: str, dt: float, x0: np.ndarray, steps: int) -> float:
+    integrate.run(system, x0, 0.0, dt, scheme, dt)  # compiled code loaded
+    start = time.process_time()
+    integrate.run(system, x0, 0.0, steps * dt, scheme, dt)
+    return (time.process_time() - start) / steps
+
+
+class _Search:
+    """The state of one search (limits cache, pilot, best so far)."""
+
+    def __init__(self, pilot: Pilot, space: Space, n_slices: int, cores: int, target: float,
+                 points: int, clock: Callable[[], float]) -> None:
+        self.pilot, self.space, self.clock = pilot, space, clock
+        self.n_slices, self.cores, self.target = n_slices, cores, target
+        self.system = pilot.system
+        self.theta0 = dict(self.system.params)
+        self.points = points
+        self.limits: dict[tuple, float] = {}
+        self.reference_gain: float | None = None
+
+    # ---- step limits ----
+    def _grid_system(self, grid: int) -> tuple[Any, np.ndarray]:
+        if grid == 1:
+            return self.system, self.pilot.x0
+        coarse, transfer = self.system.coarsened(grid)
+        return coarse, transfer.restrict(self.pilot.x0)
+
+    def limit(self, settings: Settings) -> float:
+        corner = settings.corner()
+        key = (settings.scheme, settings.grid, tuple(sorted(corner.items())))
+        if key not in self.limits:
+            system, x0 = self._grid_system(settings.grid)
+            if corner:
+                system = system.with_params(**corner)
+            # at least MIN_STEPS steps per slice: a test over fewer steps cannot see growth
+            span = self.pilot.slice_length
+            lo, hi = self.pilot.fine.dt, span / MIN_STEPS
+            try:
+                self.limits[key] = stability.step_limit(system, settings.scheme, x0,
+                                                        self.pilot.t0, span, lo, max(hi, 2 * lo))
+            except ValueError:
+                self.limits[key] = math.nan
+        return self.limits[key]
+
+    def estimated_step(self, settings: Settings) -> float:
+        plain = self.limit(Settings(settings.scheme, grid=settings.grid))
+        factor = math.prod((value / self.theta0[name]) ** _LIMIT_MODEL[name]
+                           for name, value in settings.corner().items())
+        return plain * factor * settings.step_fraction
+
+    def coarse_points(self, grid: int) -> int:
+        system, x0 = self._grid_system(grid)
+        return len(system.positions(x0))
+
+    def estimate(self, settings: Settings, dt: float) -> float:
+        ratio = cost.estimated_ratio(
+            replace(settings, dt=dt), self.pilot.slice_length, self.pilot.fine.scheme,
+            integrate.n_steps(0.0, self.pilot.slice_length, self.pilot.fine.dt),
+            self.points, self.coarse_points(settings.grid), self.cores)
+        return cost.speedup(ratio, 1, self.n_slices)
+
+    # ---- one candidate ----
+    def evaluate(self, cand: Candidate, best: float) -> None:
+        start = self.clock()
+        try:
+            self._evaluate(cand, best)
+        finally:
+            cand.seconds = self.clock() - start
+
+    def _evaluate(self, cand: Candidate, best: float) -> None:
+        s = cand.settings
+        limit = self.limit(s)
+        cand.step_limit = limit
+        if not math.isfinite(limit):
+            cand.status, cand.reason = "rejected", "not stable even at the fine step τ_f"
+            return
+        _, cand.required_margin = stability.safe_step(limit, self.pilot.slice_length,
+                                                      cand.weight_sum, self.target)
+        if s.dt is None:  # the largest safe step, times the candidate's fraction
+            dt = limit * (1.0 - cand.required_margin) * s.step_fraction
+            dt = self.pilot.slice_length / math.ceil(self.pilot.slice_length / dt - 1e-9)
+            cand.settings = s = replace(s, dt=dt)
+        dt = s.dt
+        cand.margin = 1.0 - dt / limit
+        if s.m:
+            counts = [integrate.n_steps(0.0, self.pilot.slice_length, dt * s.r**q)
+                      for q in range(s.m + 1)]
+            if len(set(counts)) < len(counts):
+                cand.status, cand.reason = "rejected", f"Richardson steps coincide ({counts})"
+                return
+        cand.estimated_speedup = self.estimate(s, dt)
+        if cand.estimated_speedup <= best and not cand.given:
+            cand.status = "pruned"
+            cand.reason = (f"optimistic speedup {cand.estimated_speedup:.3g} at its step cannot "
+                           f"beat the best measured {best:.3g}")
+            return
+        coarse = s.build(self.system)
+        window = (self.pilot.t0, self.pilot.t0 + self.pilot.slice_length)
+        cand.amplification = stability.amplification(coarse, self.system, self.pilot.x0, *window)
+        cand.allowed_amplification = stability.allowed_amplification(self.reference_gain,
+                                                                      self.n_slices)
+        if not cand.amplification <= cand.allowed_amplification:
+            cand.status = "rejected"
+            cand.reason = (f"combined slice map unstable: ‖DG‖ = {cand.amplification:.3g} > "
+                           f"{cand.allowed_amplification:.3g} allowed over {self.n_slices} slices")
+            return
+        iterations = min(2, self.pilot.n_slices - 1)
+        try:
+            run = self.pilot.measure(coarse, iterations)
+        except (integrate.BlowUpError, TaskError) as error:
+            cand.status, cand.reason = "rejected", f"blew up in the pilot: {error}"
+            return
+        cand.pilot_errors = run.errors
+        cand.contraction = cost.contraction(run.errors)
+        cand.gamma_ratio = cost.gamma_ratio(s, self.pilot.slice_length, run.coarse_seconds,
+                                            self.pilot.gamma_f, self.cores)
+        cand.iterations = cost.predicted_iterations(run.errors, self.pilot.n_slices,
+                                                    self.n_slices, self.target)
+        if cand.iterations is None:
+            cand.status = "rejected"
+            cand.reason = (f"does not reach η* = {self.target:g} in fewer than N_c iterations "
+                           f"(pilot η^k = {', '.join(f'{e:.2e}' for e in run.errors)})")
+            return
+        cand.speedup = cost.speedup(cand.gamma_ratio, cand.iterations, self.n_slices)
+        cand.status = "accepted"
+
+    def baseline(self, scheme: str) -> Candidate:
+        """G_{Θ⁰,τ} at its largest safe step; also fixes the physics' own ‖DG‖ (half the limit)."""
+        settings = Settings(scheme)
+        limit = self.limit(settings)
+        if not math.isfinite(limit):
+            raise TuningError(f"the plain {scheme} coarse solver is unstable even at τ_f; "
+                              "choose another coarse scheme")
+        half = replace(settings, dt=self.pilot.slice_length /
+                       math.ceil(self.pilot.slice_length / (0.5 * limit)))
+        window = (self.pilot.t0, self.pilot.t0 + self.pilot.slice_length)
+        self.reference_gain = stability.amplification(half.build(self.system), self.system,
+                                                      self.pilot.x0, *window)
+        cand = Candidate(settings)
+        self.evaluate(cand, best=-math.inf)
+        return cand
+
+
+def tune(
+    fine: integrate.Propagator,
+    *,
+    t0: float,
+    t1: float,
+    n_slices: int,
+    cores: int,
+    target: float,
+    x0: np.ndarray | None = None,
+    space: Space | None = None,
+    budget: float | None = None,
+    pilot: Any = None,
+    pilot_slices: int = 3,
+    progress: Progress | None = None,
+    clock: Callable[[], float] | None = None,
+) -> TuneResult:
+    """Choose the coarse solver with the highest predicted speedup (eq. 14) that is stable and
+    reaches the relative error ``target`` (η*, eq. 34) on ``n_slices`` slices with ``cores``.
+
+    ``fine`` is the fine propagator F (its ``system`` is the run's); ``pilot`` an optional smaller
+    system with the same parameters, grid spacing and stiffness (a shortened rod) on which every
+    measurement is made, starting from its initial state (default: ``fine.system`` from ``x0``);
+    ``pilot_slices`` the slices of the pilot window (run's slice length); ``budget`` a wall-time
+    limit in seconds for the whole search (default: 15 % of the estimated serial fine solve in
+    CPU time of this process, or what a minimal search needs on small problems, said in
+    ``report["search"]["notes"]``). Costs are CPU times (``report["cost"]``: ``fraction`` is
+    CPU time spent over the serial fine solve's estimated CPU time; ``seconds`` is wall time).
+    Bad input raises :class:`TuningError` before the search.
+    Ctrl-C during the search stops it and keeps what was measured (``report["search"]``).
+    Returns a :class:`TuneResult`; its ``coarse`` is None when no candidate reaches η*.
+    """
+    if clock is None:  # a given budget is wall time; the default one is CPU time (see above)
+        clock = time.perf_counter if budget is not None else time.process_time
+    started, wall, cpu = clock(), time.perf_counter(), time.process_time()
+    _check_input(cores, target, n_slices, t0, t1, budget, pilot_slices)
+    space = space or Space()
+    progress = progress or Progress()
+    system = fine.system
+    pilot_system = pilot if pilot is not None else system
+    if x0 is None or pilot is not None:
+        start_state = pilot_system.initial_state()
+    else:
+        start_state = np.asarray(x0, dtype=float)
+
+    def grid_ok(factor: int) -> bool:
+        try:
+            for s in {id(system): system, id(pilot_system): pilot_system}.values():
+                s.coarsened(factor)
+        except (AttributeError, ValueError):
+            return False
+        return True
+
+    space.check(pilot_system.params, grid_ok)
+    slice_length = (t1 - t0) / n_slices
+    fine_steps = integrate.n_steps(0.0, slice_length, fine.dt)
+    pilot_fine = integrate.Propagator(pilot_system, fine.scheme, fine.dt)
+
+    probe = max(1, min(fine_steps, 50))
+    try:
+        step_full = _seconds_per_step(system, fine.scheme, fine.dt, system.initial_state(), probe)
+        step_pilot = (step_full if pilot_system is system else
+                      _seconds_per_step(pilot_system, fine.scheme, fine.dt, start_state, probe))
+    except integrate.BlowUpError as error:
+        raise TuningError(f"the fine solver itself is unstable: {error}; {FINE_ADVICE}") from None
+    serial_estimate = step_full * fine_steps * n_slices
+    slice_seconds = step_pilot * fine_steps
+    iterations = min(2, pilot_slices - 1)
+    # fine solves of a pilot run, plus about two slices' worth of coarse calls and bisection
+    one_candidate = slice_seconds * (sum(pilot_slices - k for k in range(1, iterations + 1)) + 2)
+    needed = slice_seconds * (pilot_slices + 0.5) + one_candidate
+    notes = []
+    if budget is None:  # 15 % of the serial fine solve, or what a minimal search needs
+        budget = max(BUDGET_FRACTION * serial_estimate, needed + 20 * one_candidate)
+        if budget > BUDGET_FRACTION * serial_estimate:
+            notes.append(f"the problem is too small for a search within {BUDGET_FRACTION:.0%} "
+                         f"of its serial fine solve ({serial_estimate:.3g} s); budget "
+                         f"{budget:.3g} s")
+    elif budget < needed:
+        raise TuningError(
+            f"budget: {budget:g} s is too small to test even one candidate; the pilot reference "
+            f"and one candidate need about {needed:.3g} s (fine solves of {slice_seconds:.3g} s "
+            "per slice); raise --budget or use fewer --pilot-slices"
+        )
+    progress.note(f"pilot: {pilot_slices} slices of {fine_steps} fine steps "
+                  f"(about {slice_seconds:.3g} s each)")
+    pilot_window = Pilot.prepare(pilot_fine, start_state, t0, slice_length, pilot_slices)
+    if target < pilot_window.fine_error:
+        raise TuningError(
+            f"target: η* = {target:g} is below the fine solver's own time-discretization error "
+            f"(about {pilot_window.fine_error:.2g} over the first slice); raise --target or "
+            "reduce fine.dt"
+        )
+    search = _Search(pilot_window, space, n_slices, cores, target,
+                     len(pilot_system.positions(start_state)), clock)
+    base_scheme = "euler" if "euler" in space.schemes else space.schemes[0]
+    progress.note(f"baseline: plain {base_scheme} at its largest safe step")
+    baseline = search.baseline(base_scheme)
+
+    candidates = [Candidate(s) for s in space.candidates(pilot_system.params)
+                  if s != Settings(base_scheme)]
+    candidates += [Candidate(s, given=True) for s in space.extra]
+    for cand in candidates:
+        cand.weight_sum = cand.settings.weight_sum(search.theta0)
+        if cand.weight_sum > space.max_weight:
+            cand.status = "pruned"
+            cand.reason = f"Σ|w_j v_q| = {cand.weight_sum:.3g} > {space.max_weight:g}"
+            continue
+        step = cand.settings.dt or search.estimated_step(cand.settings)
+        cand.estimated_speedup = (search.estimate(cand.settings, step)
+                                  if math.isfinite(step) else -math.inf)
+    order = sorted((c for c in candidates if c.status == "pending"),
+                   key=lambda c: (not c.given, -c.estimated_speedup))
+    best = baseline.speedup if baseline.status == "accepted" else -math.inf
+    stopped, done, spent = None, 0, []
+    progress.start(len(order))
+    try:
+        for cand in order:
+            typical = float(np.mean(spent)) if spent else one_candidate
+            if clock() - started + typical > budget and not cand.given:
+                stopped = "budget"
+                break
+            if cand.estimated_speedup <= best and not cand.given:
+                cand.status = "pruned"
+                cand.reason = (f"optimistic speedup {cand.estimated_speedup:.3g} (model step) "
+                               f"cannot beat the best measured {best:.3g}")
+            else:
+                search.evaluate(cand, best)
+                if cand.pilot_errors:
+                    spent.append(cand.seconds)
+                if cand.status == "accepted" and cand.speedup > best:
+                    best = cand.speedup
+            done += 1
+            progress.advance(cand.settings.label())
+    except KeyboardInterrupt:
+        stopped = "interrupted"
+    finally:
+        progress.finish()
+    for cand in order:
+        if cand.status == "pending":
+            cand.status, cand.reason = "not reached", f"search stopped ({stopped})"
+
+    everything = [baseline, *candidates]
+    accepted = [c for c in everything if c.status == "accepted"]
+    chosen = max(accepted, key=lambda c: c.speedup) if accepted else None
+    seconds, cpu = time.perf_counter() - wall, time.process_time() - cpu
+    from .report import build_report
+
+    report = build_report(
+        chosen=chosen, baseline=baseline, candidates=everything, fine=fine, pilot=pilot_window,
+        n_slices=n_slices, cores=cores, target=target, t0=t0, t1=t1,
+        cost={"seconds": seconds, "cpu_seconds": cpu, "serial_fine_estimate": serial_estimate,
+              "fraction": cpu / serial_estimate, "budget": budget},
+        search={"stopped": stopped, "evaluated": done, "ordered": len(order),
+                "total": len(everything), "reference_amplification": search.reference_gain,
+                "notes": notes},
+        full_points=len(system.positions(system.initial_state())),
+    )
+    result = TuneResult(None, chosen.settings if chosen else None, chosen, baseline, everything,
+                        report, pilot_window)
+    report["curves"] = result.curves(n_slices)
+    if chosen is not None:
+        result.coarse = chosen.settings.build(system)
+    return result
+

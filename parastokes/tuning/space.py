@@ -1,0 +1,277 @@
+"""The search space of ``parastokes tune``: the coarse solvers of eq. 30 that the tuner considers.
+
+A candidate (:class:`Settings`) is a scheme for the auxiliary solvers, Lagrange nodes for a subset
+of the parameters Θ (eqs. 17-25), Richardson depth m and ratio r (eqs. 26-28), a coarse-grid factor
+(rods, eqs. 32-33) and, once the stability analysis has chosen it, the base step τ. Nodes are placed
+on the side of θ⁰ that relaxes the step limit (larger ε and μ, smaller bending modulus or spring
+stiffness, as in Tables 3-8), starting at a relative distance ``reach`` from θ⁰ with spacing
+reach / 4 (the paper's Table 4 G¹: ε from 5.2σ_f in steps of 0.05σ_f for ε⁰ = 5σ_f).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from .. import integrate, parareal
+
+__all__ = ["DIRECTION", "REACH", "Settings", "Space", "TuningError"]
+
+#: The side of θ⁰ on which a parameter's nodes relax the step limit (+1 above, -1 below).
+DIRECTION = {"epsilon": 1, "viscosity": 1, "bending": -1, "stiffness": -1}
+
+#: Relative distance of the first node from θ⁰, per reach level 0, 1, 2.
+REACH = {
+    "epsilon": (0.02, 0.04, 0.08),
+    "viscosity": (0.1, 0.3, 0.6),
+    "bending": (0.05, 0.1, 0.2),
+    "stiffness": (0.05, 0.1, 0.2),
+}
+
+
+class TuningError(ValueError):
+    """Bad input to the tuner, found before the search: the message names what to change."""
+
+
+@dataclass(frozen=True)
+class Settings:
+    """One coarse solver of eq. 30 (``dt`` is the base step τ of eq. 26; None before it is set)."""
+
+    scheme: str
+    lagrange: tuple[tuple[str, tuple[float, ...]], ...] = ()
+    m: int = 0
+    r: float | None = None
+    grid: int = 1
+    dt: float | None = None
+    reach: int | None = None
+    step_fraction: float = 1.0
+    name: str | None = field(default=None, compare=False)
+
+    @property
+    def n_auxiliary(self) -> int:
+        """N_G = N_θ1 N_θ2 N_θ3 (m + 1)."""
+        return math.prod(len(nodes) for _, nodes in self.lagrange) * (self.m + 1)
+
+    @property
+    def coarse_dt(self) -> float:
+        """τ_c = r^m τ, the smallest auxiliary step (the tables' convention, section 5.1)."""
+        assert self.dt is not None
+        return self.dt * (self.r or 1.0) ** self.m
+
+    @property
+    def plain(self) -> bool:
+        """True for G_{Θ⁰,τ} itself: no extrapolation, the fine grid."""
+        return not self.lagrange and self.m == 0 and self.grid == 1
+
+    def weight_sum(self, theta0: Mapping[str, float]) -> float:
+        """Σ_j Σ_q |w_j v_q| for geometric steps (eqs. 22, 27): how much the combination amplifies
+        what its members leave undamped."""
+        w = 1.0
+        if self.lagrange:
+            names = [name for name, _ in self.lagrange]
+            nodes = [list(values) for _, values in self.lagrange]
+            w = float(np.abs(parareal.lagrange_weights([theta0[n] for n in names], nodes)).sum())
+        v = 1.0
+        if self.m:
+            order = integrate.scheme_order(self.scheme)
+            v = float(np.abs(parareal.richardson_weights(self.m, self.r, order)).sum())
+        return w * v
+
+    def corner(self) -> dict[str, float]:
+        """The most restrictive node: for each parameter the node nearest θ⁰ (its step limit
+        bounds every auxiliary solver's)."""
+        return {
+            name: (values[0] if DIRECTION[name] > 0 else values[-1])
+            for name, values in self.lagrange
+        }
+
+    def label(self) -> str:
+        parts = [self.scheme]
+        for name, values in self.lagrange:
+            parts.append(f"{name}×{len(values)}")
+        if self.reach is not None and self.lagrange:
+            parts.append(f"reach {self.reach}")
+        if self.m:
+            parts.append(f"m={self.m} r={self.r:g}")
+        if self.grid > 1:
+            parts.append(f"grid {self.grid}")
+        if self.step_fraction != 1.0:
+            parts.append(f"{self.step_fraction:g}·τ_safe")
+        text = ", ".join(parts) if len(parts) > 1 else f"{self.scheme}, plain"
+        return text if self.name is None else f"{self.name}: {text}"
+
+    def build(self, system: Any) -> Any:
+        """The propagator of eq. 30 on ``system`` (``parareal.extrapolated``)."""
+        assert self.dt is not None
+        return parareal.extrapolated(
+            system,
+            self.scheme,
+            self.dt,
+            lagrange={name: list(values) for name, values in self.lagrange} or None,
+            richardson={"m": self.m, "r": self.r} if self.m else None,
+            grid=self.grid if self.grid > 1 else None,
+        )
+
+    def as_dict(self, fine_dt: float | None = None) -> dict[str, Any]:
+        """JSON-ready settings: the [coarse] keys plus N_G and the base step."""
+        out: dict[str, Any] = {
+            "label": self.label(),
+            "scheme": self.scheme,
+            "dt": None if self.dt is None else self.coarse_dt,
+            "base_dt": self.dt,
+            "lagrange": {name: list(values) for name, values in self.lagrange},
+            "richardson": {"m": self.m, "r": self.r},
+            "grid_factor": self.grid,
+            "n_auxiliary": self.n_auxiliary,
+        }
+        if fine_dt is not None and self.dt is not None:
+            out["dt_ratio"] = self.coarse_dt / fine_dt
+        return out
+
+    def coarse_table(self) -> dict[str, Any]:
+        """The [coarse] section of a configuration (nodes in absolute units)."""
+        table: dict[str, Any] = {"scheme": self.scheme, "dt": self.coarse_dt}
+        if self.lagrange:
+            table["lagrange"] = {
+                name: {"nodes": list(values), "unit": "absolute"} for name, values in self.lagrange
+            }
+        if self.m:
+            table["richardson"] = {"m": self.m, "r": self.r}
+        if self.grid > 1:
+            table["grid_factor"] = self.grid
+        return table
+
+
+def nodes_for(name: str, theta0: float, reach: float, count: int) -> tuple[float, ...]:
+    """``count`` nodes from θ⁰(1 ± reach) away from θ⁰ in steps of θ⁰·reach/4, increasing."""
+    sign = DIRECTION[name]
+    values = [theta0 * (1.0 + sign * reach * (1.0 + 0.25 * i)) for i in range(count)]
+    return tuple(sorted(float(f"{v:.12g}") for v in values))
+
+
+@dataclass(frozen=True)
+class Space:
+    """What the tuner may choose; every field narrows the search (``parastokes tune`` options and
+    the config's optional ``[tune]`` table set them).
+
+    - ``schemes``: schemes of the auxiliary solvers;
+    - ``parameters``: the parameters that may be extrapolated (subsets are nested prefixes of this
+      order, e.g. (ε), (ε, a), (ε, a, μ)); empty: no Lagrange extrapolation;
+    - ``reach``: node distance levels (:data:`REACH`); ``nodes``: node counts of the first
+      parameter (the others use at most 3);
+    - ``richardson``: depths m to try, with ratio ``r``; ``grid_factors``: coarse grids (rods);
+    - ``step_fractions``: coarse steps as fractions of the largest safe step;
+    - ``max_weight``: candidates with Σ|w_j v_q| above it are pruned before any measurement;
+    - ``extra``: solvers with their own step (e.g. the paper's, :func:`settings_from_config`),
+      always measured, never pruned.
+    """
+
+    schemes: tuple[str, ...] = ("euler", "rk2")
+    parameters: tuple[str, ...] | None = None
+    reach: tuple[int, ...] = (0, 1, 2)
+    nodes: tuple[int, ...] = (2, 3, 4)
+    richardson: tuple[int, ...] = (0, 1)
+    r: float = 0.83
+    grid_factors: tuple[int, ...] = (1,)
+    step_fractions: tuple[float, ...] = (1.0, 0.6)
+    max_weight: float = 1e6
+    extra: tuple[Settings, ...] = field(default=())
+
+    def check(self, params: Mapping[str, float], grid_ok: Any) -> None:
+        """Raise :class:`TuningError` for choices the system cannot take."""
+        for scheme in self.schemes:
+            if scheme not in integrate.SCHEMES:
+                known = sorted(integrate.SCHEMES)
+                raise TuningError(f"tune: unknown scheme {scheme!r}; use one of {known}")
+        for name in self.parameters or ():
+            if name not in params or name not in DIRECTION:
+                known = sorted(set(params) & set(DIRECTION))
+                raise TuningError(f"tune: cannot extrapolate in {name!r}; this system has {known}")
+        if any(level not in (0, 1, 2) for level in self.reach):
+            raise TuningError(f"tune: reach levels are 0, 1, 2, got {list(self.reach)}")
+        if any(n < 1 for n in self.nodes) or any(m < 0 for m in self.richardson):
+            raise TuningError("tune: node counts must be >= 1 and Richardson depths >= 0")
+        if not 0.0 < self.r < 1.0:
+            raise TuningError(f"tune: the Richardson ratio r must lie in (0, 1), got {self.r}")
+        if any(not 0.0 < f <= 1.0 for f in self.step_fractions):
+            raise TuningError("tune: step fractions must lie in (0, 1]")
+        for factor in self.grid_factors:
+            if factor > 1 and not grid_ok(factor):
+                raise TuningError(
+                    f"tune: grid factor {factor} does not fit this system (it must divide the "
+                    "number of rod segments of the run and of the pilot); drop it"
+                )
+
+    def subsets(self, params: Mapping[str, float]) -> list[tuple[str, ...]]:
+        order = self.parameters
+        if order is None:
+            order = tuple(name for name in params if name in DIRECTION)
+            order = tuple(sorted(order, key=lambda n: n != "epsilon"))
+        return [tuple(order[:k]) for k in range(len(order) + 1)]
+
+    def candidates(self, params: Mapping[str, float]) -> Iterator[Settings]:
+        """Every structure of the space (without step), plain solvers first."""
+        seen: set[Settings] = set()
+        for scheme, subset, m, grid in itertools.product(
+            self.schemes, self.subsets(params), self.richardson, self.grid_factors
+        ):
+            r = self.r if m else None
+            if not subset:
+                found = [Settings(scheme, (), m, r, grid)]
+            else:
+                found = [
+                    Settings(
+                        scheme,
+                        tuple(
+                            (name, nodes_for(name, params[name], REACH[name][level],
+                                             count if i == 0 else min(count, 3)))
+                            for i, name in enumerate(subset)
+                        ),
+                        m,
+                        r,
+                        grid,
+                        reach=level,
+                    )
+                    for level, count in itertools.product(self.reach, self.nodes)
+                ]
+            for settings in found:
+                for fraction in self.step_fractions:
+                    item = replace(settings, step_fraction=fraction)
+                    if item not in seen:
+                        seen.add(item)
+                        yield item
+
+
+def parse_space(options: Mapping[str, Any], base: Space | None = None) -> Space:
+    """A :class:`Space` from a mapping of its field names (the ``[tune]`` table or CLI flags)."""
+    base = base or Space()
+    values: dict[str, Any] = {}
+    for key, value in options.items():
+        if value is None:
+            continue
+        if key not in Space.__dataclass_fields__ or key == "extra":
+            raise TuningError(f"tune: unknown option {key!r}")
+        if isinstance(value, Sequence) and not isinstance(value, str):
+            value = tuple(value)
+        values[key] = value
+    return replace(base, **values)
+
+
+def settings_from_config(cfg: Any, resolved: Any, name: str | None = None) -> Settings:
+    """The coarse solver of a validated configuration (``config.load``), with its own step."""
+    coarse = cfg.coarse
+    m, r = coarse.richardson.m, coarse.richardson.r
+    return Settings(
+        coarse.scheme,
+        tuple((name, tuple(values)) for name, values in resolved.lagrange.items()),
+        m,
+        r if m else None,
+        coarse.grid_factor,
+        dt=resolved.coarse_base_dt,
+        name=name,
+    )

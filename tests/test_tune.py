@@ -1,0 +1,298 @@
+"""``parastokes tune`` / ``parareal.tune`` (docs/tuning.md) on small rods (21 nodes, σ_f = 0.2).
+
+What is asserted: bad input stops before the search with a message naming the problem; a
+candidate whose every member is stable but whose combination amplifies perturbations is rejected
+by the combined-slice-map check (and really blows up); the derived step margin solves its
+defining equation; budget and Ctrl-C keep what was measured; TUNED.toml is accepted by ``check``
+and a real run of it reaches η* within the predicted N_it + 1 iterations.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import tomllib
+
+import numpy as np
+import pytest
+
+from parastokes import cli, integrate, models, parareal, tuning
+from parastokes.tuning import Settings, Space, TuningError, stability
+from parastokes.tuning.report import toml_dumps
+
+SIGMA = 0.2  # grid spacing of the 21-node, 4 μm rod (the paper's σ_f)
+
+#: The narrowest space: only the plain baseline is measured.
+PLAIN = Space(schemes=("euler",), parameters=(), richardson=(0,), step_fractions=(1.0,))
+
+
+def small_rod(epsilon_sigma: float = 5.0):
+    return models.rod_swimmer(n_points=21, length=4.0, epsilon=epsilon_sigma * SIGMA)
+
+
+class Spy(tuning.Progress):
+    """Records whether the search started; optionally interrupts after some candidates."""
+
+    def __init__(self, interrupt_after: int | None = None) -> None:
+        self.started = False
+        self.done = 0
+        self.interrupt_after = interrupt_after
+
+    def start(self, total: int) -> None:
+        self.started = True
+
+    def advance(self, label: str) -> None:
+        self.done += 1
+        if self.interrupt_after is not None and self.done >= self.interrupt_after:
+            raise KeyboardInterrupt
+
+
+# ---- bad input -----------------------------------------------------------------------------
+@pytest.mark.parametrize(
+    ("changes", "message"),
+    [
+        ({"cores": 0}, "cores must be an integer >= 1"),
+        ({"target": 0.0}, "target"),
+        ({"target": 2.0}, "target"),
+        ({"budget": 1e-4}, "too small to test even one candidate"),
+        ({"fine_dt": 4e-5}, "fine solver itself is unstable"),
+        ({"target": 1e-16}, "below the fine solver's own time-discretization error"),
+        ({"space": Space(parameters=("shear",))}, "cannot extrapolate in 'shear'"),
+        ({"space": Space(grid_factors=(7,))}, "grid factor 7 does not fit"),
+    ],
+)
+def test_bad_input_stops_before_the_search(changes, message):
+    rod = small_rod()
+    fine = integrate.Propagator(rod, "rk2", changes.pop("fine_dt", 1e-6))
+    spy = Spy()
+    kwargs = {"t0": 0.0, "t1": 8e-4, "n_slices": 4, "cores": 4, "target": 1e-6, "space": PLAIN}
+    kwargs.update(changes)
+    with pytest.raises(TuningError, match=message):
+        tuning.tune(fine, progress=spy, **kwargs)
+    assert not spy.started
+
+
+def test_library_name_is_the_tuner():
+    assert parareal.tune is tuning.tune
+
+
+# ---- stability of the combined slice map ---------------------------------------------------
+def table5_g1(theta0: dict) -> Settings:
+    """Table 5 G¹ (36 auxiliary solvers, τ_c = 70 τ_f) for ε⁰ = 7σ_f."""
+    return Settings(
+        "euler",
+        (
+            ("epsilon", tuple(SIGMA * e for e in (7.2, 7.25, 7.3, 7.35))),
+            ("bending", tuple(theta0["bending"] * a for a in (0.7, 0.75, 0.8))),
+            ("viscosity", tuple(theta0["viscosity"] * m for m in (1.3, 1.45, 1.6))),
+        ),
+        dt=70e-6,
+        name="Table 5 G1",
+    )
+
+
+def test_combination_of_stable_members_is_rejected_when_it_amplifies():
+    """Short slices (14 coarse steps): every member damps, the Lagrange combination (Σ|w| ~ 1e4)
+    amplifies (docs/validation.md, section 3). The tuner must reject it on the combined map,
+    before its pilot run; a real initial sweep confirms that it blows up."""
+    rod = small_rod(7.0)
+    fine = integrate.Propagator(rod, "rk2", 1e-6)
+    settings = table5_g1(rod.params)
+    space = Space(schemes=("euler",), parameters=(), richardson=(0,), step_fractions=(1.0,),
+                  extra=(settings,))
+    res = tuning.tune(fine, t0=0.0, t1=4e-3, n_slices=4, cores=40, target=1e-6, space=space)
+    (cand,) = [c for c in res.candidates if c.settings.name == "Table 5 G1"]
+    assert cand.status == "rejected"
+    assert "combined slice map unstable" in cand.reason
+    assert cand.pilot_errors == []  # rejected before the pilot
+    assert cand.amplification > cand.allowed_amplification
+    coarse = settings.build(rod)
+    x0 = rod.initial_state()
+    members = [stability.amplification(p, rod, x0, 0.0, 1e-3)
+               for row in coarse.auxiliary for p in row]
+    assert max(members) < cand.allowed_amplification  # each member alone passes
+    # the same check accepts the same solver over the paper's slice length
+    assert stability.amplification(coarse, rod, x0, 0.0, 4e-3) < cand.allowed_amplification
+    # checked against a real run: the initial coarse sweep over the short slices blows up
+    with pytest.raises(integrate.BlowUpError):
+        for n in range(4):
+            x0 = coarse(n * 1e-3, (n + 1) * 1e-3, x0)
+
+
+def test_step_margin_solves_its_equation():
+    for steps, weights, target in [(113, 49.0, 1e-8), (60, 3249.0, 1e-6), (1400, 1e5, 1e-8)]:
+        delta = stability.step_margin(steps, weights, target)
+        assert weights * (1 - 2 * delta) ** steps == pytest.approx(target / 10, rel=1e-9)
+    # short slices and large weights need larger margins (docs/validation.md: 5-10 %)
+    assert stability.step_margin(60, 3249.0, 1e-8) > stability.step_margin(1400, 3249.0, 1e-8)
+    assert 0.05 < stability.step_margin(113, 49.0, 1e-8) < 0.15
+    assert stability.step_margin(2000, 49.0, 1e-8) < 0.01
+
+
+def test_safe_step_divides_the_slice_below_the_margin():
+    step, delta = stability.safe_step(1.3e-5, 2e-3, 49.0, 1e-8)
+    n = round(2e-3 / step)
+    assert n * step == pytest.approx(2e-3)
+    assert step <= 1.3e-5 * (1 - delta) * (1 + 1e-12)
+    assert delta == pytest.approx(stability.step_margin(n, 49.0, 1e-8))
+
+
+# ---- budget and Ctrl-C ---------------------------------------------------------------------
+SMALL = Space(schemes=("euler",), parameters=("epsilon",), reach=(1,), nodes=(2, 3),
+              richardson=(0,), step_fractions=(1.0,))
+
+
+def test_budget_stops_the_search_and_keeps_the_baseline():
+    fine = integrate.Propagator(small_rod(), "rk2", 1e-6)
+    t = [0.0]
+
+    def clock() -> float:  # every reading is an hour later
+        t[0] += 3600.0
+        return t[0]
+
+    res = tuning.tune(fine, t0=0.0, t1=8e-3, n_slices=4, cores=4, target=1e-6, space=SMALL,
+                      budget=10.0, clock=clock)
+    assert res.report["search"]["stopped"] == "budget"
+    assert res.baseline.status == "accepted" and res.chosen is res.baseline
+    assert {c.status for c in res.candidates[1:]} <= {"not reached", "pruned"}
+
+
+def test_interrupt_keeps_what_was_measured():
+    fine = integrate.Propagator(small_rod(), "rk2", 1e-6)
+    res = tuning.tune(fine, t0=0.0, t1=8e-3, n_slices=4, cores=4, target=1e-6, space=SMALL,
+                      budget=1e6, progress=Spy(interrupt_after=1))
+    search = res.report["search"]
+    assert search["stopped"] == "interrupted" and search["evaluated"] == 1
+    assert res.baseline.pilot_errors and res.chosen is not None
+    assert any(c.status == "not reached" for c in res.candidates)
+
+
+# ---- the command, end to end ---------------------------------------------------------------
+CONFIG = """
+title = "small rod for tune"
+[model]
+kind = "rod"
+n_points = 21
+length = 4.0
+epsilon = 5.0
+[time]
+t1 = 0.008
+[fine]
+dt = 1e-6
+[coarse]
+dt_ratio = 10
+[parareal]
+n_slices = 2
+[execution]
+executor = "serial"
+[run]
+mode = "both"
+[tune]
+schemes = ["euler"]
+parameters = ["epsilon"]
+reach = [1]
+nodes = [2, 3]
+step_fractions = [1.0]
+"""
+
+
+def test_tune_command_writes_a_config_that_runs_to_the_target(tmp_path):
+    target = 1e-8
+    source = tmp_path / "rod.toml"
+    source.write_text(CONFIG)
+    out = tmp_path / "TUNED.toml"
+    assert cli.main(["tune", str(source), "--cores", "4", "--target", f"{target:g}", "--out",
+                     str(out), "-q", "--richardson", "0", "1"]) == 0
+    report = json.loads(out.with_suffix(".json").read_text())
+    for key in ("chosen", "baseline"):
+        assert set(report[key]["predicted"]) >= {"speedup", "iterations", "gamma_ratio"}
+    assert report["candidates"] and {"seconds", "fraction"} <= set(report["cost"])
+    assert out.with_suffix(".png").stat().st_size > 0
+    for cand in report["candidates"]:
+        assert cand["status"] in ("accepted", "rejected", "pruned", "not reached")
+        assert cand["status"] == "accepted" or cand["reason"]
+    chosen = report["chosen"]
+    assert chosen["stability"]["stable"] and chosen["stability"]["margin"] > 0
+    assert chosen["predicted"]["speedup"] >= report["baseline"]["predicted"]["speedup"]
+    tuned = tomllib.loads(out.read_text())
+    assert tuned["parareal"]["n_slices"] == 4
+    assert tuned["parareal"]["max_iterations"] == chosen["predicted"]["iterations"]
+    assert tuned["fine"] == {"scheme": "rk2", "dt": 1e-6} and tuned["time"]["t1"] == 0.008
+    assert cli.main(["check", str(out), "-q"]) == 0
+    # a real run of the tuned configuration reaches η* within the predicted N_it + 1
+    n_it = chosen["predicted"]["iterations"]
+    run_dir = tmp_path / "run"
+    assert cli.main(["run", str(out), "--out", str(run_dir), "-q",
+                     "--set", f"parareal.max_iterations={n_it + 1}",
+                     "--set", "output.trajectory=false", "--set", "output.figures=false"]) == 0
+    errors = json.loads((run_dir / "summary.json").read_text())["errors"]
+    assert min(errors[: n_it + 1]) <= target
+
+
+def test_toml_writer_round_trips():
+    data = {"title": 'a "b"', "model": {"kind": "rod", "n": 3, "x": 1e-6, "flag": True,
+                                        "shear": [0.6, 0.6]},
+            "coarse": {"lagrange": {"epsilon": {"nodes": [1.04, 1.05], "unit": "absolute"}}}}
+    assert tomllib.loads(toml_dumps(data, "header\nline")) == data
+    with pytest.raises(ValueError):
+        toml_dumps({"a": {"b": math.inf}})
+
+
+def test_settings_weights_and_corner():
+    theta0 = {"epsilon": 1.0, "bending": 1.0, "viscosity": 1e-6}
+    s = Settings("euler", (("epsilon", (1.04, 1.05)), ("bending", (0.8, 0.9))), m=1, r=0.5)
+    w = np.abs(parareal.lagrange_weights([1.0, 1.0], [[1.04, 1.05], [0.8, 0.9]])).sum()
+    v = np.abs(parareal.richardson_weights(1, 0.5, 1)).sum()
+    assert s.weight_sum(theta0) == pytest.approx(w * v)
+    assert s.corner() == {"epsilon": 1.04, "bending": 0.9}
+    assert s.n_auxiliary == 8
+
+
+# ---- predictions and configurations --------------------------------------------------------
+def test_predicted_iterations_scale_with_slices_and_contract_geometrically():
+    from parastokes.tuning import cost
+
+    # pilot η^1, η^2 at T_3; the run has 30 slices: 1e-5, 1e-7, then x 1e-2 per iteration
+    assert cost.predicted_errors([1e-6, 1e-8], 3, 30, 4) == pytest.approx(
+        [1e-5, 1e-7, 1e-9, 1e-11])
+    assert cost.predicted_iterations([1e-6, 1e-8], 3, 30, 1e-8) == 3
+    assert cost.predicted_iterations([1e-6, 1e-8], 3, 30, 1e-4) == 1
+    assert cost.predicted_iterations([1e-6, 2e-6], 3, 30, 1e-8) is None  # no contraction
+    assert cost.predicted_iterations([1e-6, 1e-8], 3, 3, 1e-10) is None  # needs N_c iterations
+
+
+def test_gamma_ratio_counts_waves_of_the_slowest_auxiliary_solver():
+    from parastokes.tuning import cost
+
+    s = Settings("euler", (("epsilon", (1.04, 1.05, 1.06, 1.07)),), m=1, r=0.5, dt=2e-5)
+    # steps per slice 1e-3: 50 (τ) and 100 (τ/2): the slowest holds 100/150 of a row's work
+    one_wave = cost.gamma_ratio(s, 1e-3, coarse_seconds=1.2, gamma_f=10.0, cores=8)
+    assert one_wave == pytest.approx(1.2 * 100 / (4 * 150) / 10.0)
+    assert cost.gamma_ratio(s, 1e-3, 1.2, 10.0, cores=3) == pytest.approx(3 * one_wave)
+
+
+def test_settings_from_config_is_the_configured_coarse_solver():
+    from parastokes import config
+    from parastokes.tuning.space import settings_from_config
+
+    cfg, resolved = config.load("experiments/quick/table4_g3.toml")
+    setup = config.build(cfg, resolved, executor=False)
+    built = settings_from_config(cfg, resolved).build(setup.system)
+    assert built.thetas == setup.coarse.thetas
+    assert [p.dt for p in built.auxiliary[0]] == [p.dt for p in setup.coarse.auxiliary[0]]
+    np.testing.assert_array_equal(built.lagrange_weights, setup.coarse.lagrange_weights)
+
+
+def test_coarse_grid_candidates_are_measured_on_the_coarse_rod():
+    fine = integrate.Propagator(small_rod(), "rk2", 1e-6)
+    space = Space(schemes=("euler",), parameters=(), richardson=(0,), grid_factors=(2,),
+                  step_fractions=(1.0,))
+    res = tuning.tune(fine, t0=0.0, t1=8e-3, n_slices=4, cores=4, target=1e-4, space=space,
+                      budget=1e6)
+    (cand,) = [c for c in res.candidates if c.settings.grid == 2]
+    assert cand.status == "accepted", cand.reason
+    assert cand.pilot_errors and cand.amplification <= cand.allowed_amplification
+    # 11 nodes instead of 21: the coarse rod's step limit and cost are its own
+    assert cand.step_limit != res.baseline.step_limit
+    assert isinstance(cand.settings.build(small_rod()), parareal.OnCoarseGrid)
+    assert cand.settings.coarse_table()["grid_factor"] == 2
