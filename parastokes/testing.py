@@ -23,7 +23,8 @@
 
 The order check needs a state whose dynamics are active and a horizon on which the steps are in
 the asymptotic regime: pass ``state`` and ``horizon`` where the defaults (the initial state, a
-fifth of the time the fastest point takes to cross the body) do not fit.
+fifth of the time the fastest point takes to cross the body, shortened until every scheme's
+coarsest step is stable, as stiff bodies need) do not fit.
 """
 
 from __future__ import annotations
@@ -208,6 +209,26 @@ def _default_horizon(system: Any, x: np.ndarray, t: float) -> float:
     return 0.2 * extent / speed
 
 
+def _stable_horizon(system: Any, x: np.ndarray, t: float, horizon: float,
+                    counts: Sequence[int], given: bool) -> float:
+    """``horizon``, shrunk (by 4, at most 10 times) until the coarsest step of every scheme in the
+    order check stays stable; a horizon the user ``given`` is not shrunk: its blow-up is named."""
+    ok = _Part(system, "order")
+    for _ in range(10):
+        try:
+            for name, scheme in integrate.SCHEMES.items():
+                steps = 2 * min(counts) if scheme.order == 1 else min(counts)
+                integrate.run(system, x, t, t + horizon, name, horizon / steps)
+            return horizon
+        except integrate.BlowUpError as error:
+            ok(not given, f"{name} blows up with {steps} steps on the horizon {horizon:g} "
+               f"({error}); pass a shorter horizon")
+            horizon /= 4.0
+    ok(False, f"every scheme tried blows up, down to the horizon {horizon:g}: the system is "
+       "unstable at any step tried; pass state/horizon where it is stable")
+    return horizon
+
+
 def check_system(
     system: Any,
     state: np.ndarray | None = None,
@@ -230,7 +251,9 @@ def check_system(
     _check_state(system, x0)
     x = x0 if state is None else np.ascontiguousarray(state, dtype=float)
     _check_state(system, x)
-    horizon = _default_horizon(system, x, t) if horizon is None else float(horizon)
+    given = horizon is not None
+    horizon = float(horizon) if given else _default_horizon(system, x, t)
+    horizon = _stable_horizon(system, x, t, horizon, counts, given)
     dt = horizon / max(counts)
     r = _check_rates(system, x, t, dt)
     _check_monitor(system, x)

@@ -139,3 +139,23 @@ def test_the_rule_n_g_at_most_n_c_lives_in_one_place(n_auxiliary, workers, ok):
     assert (problem is None) == ok
     if not ok:
         assert f"N_G = {n_auxiliary}" in problem and f"N_c = {workers}" in problem
+
+
+@dataclasses.dataclass(frozen=True)
+class StiffCloud(SedimentingCloud):
+    """The cloud with every point tied to its start by a spring relaxing at the rate 1e4: the
+    default horizon (from the sedimentation speed) is far beyond the schemes' stability limit."""
+
+    def rates(self, t, state):
+        return super().rates(t, state) - 1e4 * (state - self.initial_state())
+
+
+def test_a_stiff_system_is_checked_on_a_stable_horizon_and_a_given_unstable_one_is_named():
+    """No blow-up escapes as such: the default horizon (about 0.3 here, where every scheme blows
+    up) is shortened until all are stable, where the spring pins the points and the order check
+    names the round-off; a horizon given by the user is kept and its blow-up named."""
+    with pytest.raises(AssertionError, match=r"order: euler: the errors are at round-off level"
+                       r" \(steps \[16, 32, 64, 128\] on a horizon of 0\.00"):
+        check_system(StiffCloud(n_points=16))
+    with pytest.raises(AssertionError, match=r"order: .* blows up .* pass a shorter horizon"):
+        check_system(StiffCloud(n_points=16), horizon=1.0)
