@@ -1,4 +1,4 @@
-"""GPU backend (issue 15): builds, checks against the CPU, and measures, in one command.
+"""GPU backend: builds, checks against the CPU, and measures, in one command.
 
 Run from the repository root on a machine with an NVIDIA GPU (``pip install ".[gpu]"``)::
 

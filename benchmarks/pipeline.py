@@ -1,4 +1,4 @@
-"""Pipelined against standard Parareal (issue 12): emulation, real runs, and the P = 40 comparison.
+"""Pipelined against standard Parareal: emulation, real runs, and the P = 40 comparison.
 
 Run from the repository root::
 

@@ -12,7 +12,7 @@ bit-identical for any thread count.
 
 The sources, forces and torques are read as they come, (B, N, 3) (one source at a time: no
 vector loads), and u and w are written as (B, M, 3), already divided by 8πμ: the caller packs only
-the targets. Formulas: ``shared/physics.md`` (1)-(8), the paper's eqs. 3-6.
+the targets. Formulas: the physics notes (docs/kernels.md) (1)-(8), the paper's eqs. 3-6.
 
 Kernels:
 

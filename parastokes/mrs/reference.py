@@ -1,8 +1,8 @@
 """Plain-numpy regularized Stokeslet kernels: the readable oracle.
 
-Every formula is written once, as in ``shared/physics.md`` (numbers in brackets refer to that note,
-"eq. N" to Liu & Rostami). Each function takes the pair differences of a set of targets and sources
-as ``(M, N, 3)`` arrays and returns the velocity contribution summed over sources, multiplied by μ
+Every formula is written once, as in the physics notes of docs/kernels.md (numbers in brackets
+refer to them, "eq. N" to Liu & Rostami). Each function takes the pair differences of a set of
+targets and sources as ``(M, N, 3)`` arrays and returns the velocity contribution summed over sources, multiplied by μ
 (so the caller divides by the viscosity once). The compiled kernels in
 :mod:`parastokes.mrs.compiled` must agree with these to round-off; the tests check it.
 

@@ -132,7 +132,7 @@ def velocity(
     """Fluid velocity at ``targets`` from regularized point forces (and torques) at ``sources``.
 
     Free space: the regularized Stokeslet sum of eq. 6 (blob eq. 3), plus the regularized rotlet
-    for torques (``shared/physics.md`` [1]-[4]). With ``wall=True`` the fluid is bounded by a
+    for torques ([1]-[4] of docs/kernels.md). With ``wall=True`` the fluid is bounded by a
     no-slip plane wall at z = 0 and the image systems [5]-[8] are added (method of images, the
     paper's ref. [48]).
 
