@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 from configs import small_rod
 from mpi_scripts.launch import SKIP_REASON, mpiexec
+from test_io import rod_layout
 
 from parastokes import cli, io, rundir, runner
 
@@ -259,7 +260,7 @@ def test_trajectories_need_no_hdf5_file_locking(tmp_path):
     """The directory's own lock keeps other runs out, so the writer takes no HDF5 lock (file
     systems without locking work): another handle can open the file while it is written."""
     path = tmp_path / "trajectory.h5"
-    with io.TrajectoryWriter(path, kind="rod", n_bodies=1, n_points=3, config={}) as writer:
+    with io.TrajectoryWriter(path, rod_layout(1, 3), config={}) as writer:
         writer.append("serial", 0.0, np.zeros((3, 12)))
         opened = f"h5py.File({str(path)!r}, 'r', locking=True)"
         reader = f"import h5py; print({opened}['serial/time'].shape)"

@@ -2,8 +2,8 @@
 
 Every formula is written once, as in the physics notes of docs/kernels.md (numbers in brackets
 refer to them, "eq. N" to Liu & Rostami). Each function takes the pair differences of a set of
-targets and sources as ``(M, N, 3)`` arrays and returns the velocity contribution summed over sources, multiplied by μ
-(so the caller divides by the viscosity once). The compiled kernels in
+targets and sources as ``(M, N, 3)`` arrays and returns the velocity contribution summed over
+sources, multiplied by μ (so the caller divides by the viscosity once). The compiled kernels in
 :mod:`parastokes.mrs.compiled` must agree with these to round-off; the tests check it.
 
 Blob: φ_ε(r) = 15 ε⁴ / (8π r_ε⁷) (eq. 3); torque parts regularized with ψ_ε(r) = 3ε²/(4π r_ε⁵)
