@@ -133,12 +133,15 @@ def plan() -> list[Job]:
     ]
 
 
-def select(jobs: Sequence[Job], only: Sequence[str] | None) -> list[Job]:
+def select(
+    jobs: Sequence[Job], only: Sequence[str] | None, optional: bool = False
+) -> list[Job]:
     """The jobs named in ``only`` (names or figure groups) with their references, in plan order;
-    without ``only`` every required, reachable job. Raises ValueError naming unknown names."""
+    without ``only`` every required, reachable job (and the optional ones with ``optional``).
+    Raises ValueError naming unknown names."""
     by_name = {j.name: j for j in jobs}
     if not only:
-        return [j for j in jobs if j.reachable and not j.optional]
+        return [j for j in jobs if j.reachable and (optional or not j.optional)]
     groups = {j.group for j in jobs}
     unknown = sorted(set(only) - set(by_name) - groups)
     if unknown:
@@ -646,6 +649,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     parser.add_argument("--out", type=Path, default=DEFAULT_ROOT, help="output root (not in git)")
     parser.add_argument("--only", nargs="+", metavar="NAME", help="runs, references or groups")
+    parser.add_argument(
+        "--all", action="store_true", help="also the optional runs (Table 3 G1-G2, Table 6 3σ_f)"
+    )
     parser.add_argument("--resume", action="store_true", help="continue earlier work in --out")
     parser.add_argument("--dry-run", action="store_true", help="print each job's cost and stop")
     parser.add_argument("--jobs", type=int, default=1, help="jobs at once (one core each)")
@@ -667,7 +673,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.one:
         return _one(args.one, layout)
     try:
-        jobs = select(plan(), args.only)
+        jobs = select(plan(), args.only, args.all)
         if args.jobs < 1:
             raise ValueError(f"--jobs must be at least 1, got {args.jobs}")
     except ValueError as error:
