@@ -667,6 +667,9 @@ def schedule(jobs: Sequence[Job], layout: Layout, n_jobs: int, poll: float = 5.0
 
 def _one(name: str, layout: Layout) -> int:
     """The child process of one job; a failure is recorded in ``failed.json`` for --status."""
+    # a process started in the background (nohup ... &) inherits SIGINT ignored: restore Python's
+    # handler, so that the scheduler's SIGINT makes the runner checkpoint and exit
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     job = {j.name: j for j in plan()}[name]
     directory = layout.directory(job)
     directory.mkdir(parents=True, exist_ok=True)
