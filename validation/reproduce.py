@@ -409,7 +409,9 @@ def speedup_curve(errors: Sequence[float], ratio: float, n_slices: int) -> dict[
     return {"n_cores": n_slices, "iterations": ks, "speedup": speedups, "steps": steps}
 
 
-def result_summary(job: Job, summary: dict[str, Any], found: dict[str, Any]) -> dict[str, Any]:
+def result_summary(
+    job: Job, layout: Layout, summary: dict[str, Any], found: dict[str, Any]
+) -> dict[str, Any]:
     """The compact record of a finished run (``docs/reproduction/NAME.json``)."""
     conf = summary["config"]
     timings = summary["timings"]
@@ -422,8 +424,8 @@ def result_summary(job: Job, summary: dict[str, Any], found: dict[str, Any]) -> 
         "name": job.name,
         "group": job.group,
         "title": summary["title"],
-        "config": f"experiments/{job.config}",
-        "overrides": list(OVERRIDES + job.overrides),
+        "config": _shown(layout.experiments / job.config),
+        "overrides": [*OVERRIDES, *job.overrides, *layout.overrides],
         "problem": {
             key: conf.get(key)
             for key in ("model", "time", "fine", "coarse", "parareal")
@@ -492,6 +494,14 @@ def serial_reference(cfg: Any, resolved: Any, directory: Path, reporter: Progres
     return wall
 
 
+def _shown(path: Path) -> str:
+    """A path relative to the repository when inside it."""
+    try:
+        return str(path.resolve().relative_to(REPO))
+    except ValueError:
+        return str(path)
+
+
 def run_job(job: Job, layout: Layout) -> None:
     """Do one job to the end, resuming whatever its directory holds (the runner's checkpoint, a
     finished reference, a finished probe)."""
@@ -525,7 +535,7 @@ def run_job(job: Job, layout: Layout) -> None:
         with build(cfg, resolved, executor=False) as setup:
             found = probe(setup, times, setup.system.initial_state())
         _write_json(probe_path, found)
-    _write_json(layout.done(job), result_summary(job, summary, found))
+    _write_json(layout.done(job), result_summary(job, layout, summary, found))
     print(f"{job.name}: done (η^k = {summary['errors']})", flush=True)
 
 
