@@ -334,8 +334,8 @@ class ProgressFile:
     def note(self, text: str) -> None:
         print(text, flush=True)
 
-    def start(self, what: str, total: int) -> None:
-        self.state.update(phase=what, done=0, total=total)
+    def start(self, what: str, total: int, done: int = 0) -> None:
+        self.state.update(phase=what, done=done, total=total)
         print(f"{what}: {total} {'slices' if what == 'serial' else 'iterations'}", flush=True)
         self._save()
 
@@ -484,8 +484,7 @@ def serial_reference(cfg: Any, resolved: Any, directory: Path, reporter: Progres
                 reporter.note(f"serial fine solution resumed after slice {done}")
         if done == 0:
             states[0] = setup.system.initial_state()
-        reporter.start("serial", len(times) - 1)
-        reporter.state["done"] = done
+        reporter.start("serial", len(times) - 1, done)
         for n in range(done + 1, len(times)):
             states[n], seconds = _timed(setup.fine, times[n - 1], times[n], states[n - 1])
             wall += seconds

@@ -28,32 +28,22 @@ Records = dict[str, dict[str, Any]]
 #: The desired errors on which Fig. 6b-style curves and the claims are evaluated.
 ERROR_GRID = np.logspace(-13, -1, 241)
 
+def _solvers(table: int, count: int) -> dict[str, str]:
+    """The paper's names G¹.. of a table's solvers and our run names."""
+    return {f"G{sup}": f"table{table}_g{i}" for i, sup in enumerate("¹²³⁴"[:count], 1)}
+
+
 #: Figure groups with the paper's solver names, in the paper's order.
 FIGURES: dict[str, dict[str, Any]] = {
-    "fig4": {
-        "title": "Fig. 4 (Table 3, rod ε⁰ = 5σ_f)",
-        "runs": {"G¹": "table3_g1", "G²": "table3_g2"},
-    },
-    "fig6": {
-        "title": "Fig. 6 (Table 4, rod ε⁰ = 5σ_f)",
-        "runs": {f"G{s}": f"table4_g{i}" for i, s in enumerate("¹²³⁴", 1)},
-    },
-    "fig7": {
-        "title": "Fig. 7 (Table 5, rod ε⁰ = 7σ_f)",
-        "runs": {f"G{s}": f"table5_g{i}" for i, s in enumerate("¹²³", 1)},
-    },
+    "fig4": {"title": "Fig. 4 (Table 3, rod ε⁰ = 5σ_f)", "runs": _solvers(3, 2)},
+    "fig6": {"title": "Fig. 6 (Table 4, rod ε⁰ = 5σ_f)", "runs": _solvers(4, 4)},
+    "fig7": {"title": "Fig. 7 (Table 5, rod ε⁰ = 7σ_f)", "runs": _solvers(5, 3)},
     "fig8": {
         "title": "Fig. 8 (Table 6, rod, coarse grid σ_c = 6σ_f)",
         "runs": {"ε⁰ = 3σ_f": "table6_eps3", "ε⁰ = 2σ_f": "table6_eps2"},
     },
-    "fig12": {
-        "title": "Fig. 12 (Table 7, vesicle ε⁰ = 0.3 l_max, RK2)",
-        "runs": {f"G{s}": f"table7_g{i}" for i, s in enumerate("¹²³⁴", 1)},
-    },
-    "fig13": {
-        "title": "Fig. 13 (Table 8, vesicle ε⁰ = 0.5 l_max, RK4)",
-        "runs": {f"G{s}": f"table8_g{i}" for i, s in enumerate("¹²³", 1)},
-    },
+    "fig12": {"title": "Fig. 12 (Table 7, vesicle ε⁰ = 0.3 l_max, RK2)", "runs": _solvers(7, 4)},
+    "fig13": {"title": "Fig. 13 (Table 8, vesicle ε⁰ = 0.5 l_max, RK4)", "runs": _solvers(8, 3)},
 }
 FIG5_NODES = range(2, 7)
 
