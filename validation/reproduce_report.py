@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 import math
 import re
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -240,7 +241,13 @@ def status_table(jobs: Sequence[reproduce.Job], layout: reproduce.Layout, record
     """Every job: done (its record is committed) / running / started / failed / not started."""
     sched = reproduce._read_json(layout.scheduler) or {}
     running = sched.get("running", {}) if reproduce._alive(sched.get("pid")) else {}
-    lines = ["| job | figure | state | command |", "|---|---|---|---|"]
+    when = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
+    lines = [
+        f"As of {when} (`--collect`); live: `python -m validation.reproduce --status --all`.",
+        "",
+        "| job | figure | state | command |",
+        "|---|---|---|---|",
+    ]
     for job in jobs:
         if job.name in records:
             state = f"done ({records[job.name]['finished']})"
