@@ -215,3 +215,28 @@ def test_scheduler_runs_a_reference_and_its_run_in_child_processes(tmp_path):
     assert "reloaded" in layout.log(_job("table4_g4")).read_text()
     sched = json.loads(layout.scheduler.read_text())
     assert sched["state"] == "finished" and sched["running"] == {}
+
+
+def test_an_interrupted_parareal_run_resumes_to_the_same_iterates(finished, tmp_path, monkeypatch):
+    layout, _ = finished
+    run = _job("table4_g4")
+    other = reproduce.Layout(tmp_path, layout.experiments, layout.overrides)
+    ref_dir = other.directory(_job("ref_rod_eps5"))
+    shutil.copytree(layout.directory(_job("ref_rod_eps5")), ref_dir)
+
+    class StopAtFirstIteration(reproduce.ProgressFile):
+        def iteration(self, k, increment, error, elapsed):
+            super().iteration(k, increment, error, elapsed)
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(reproduce, "ProgressFile", StopAtFirstIteration)
+    with pytest.raises(KeyboardInterrupt):
+        reproduce.run_job(run, other)
+    assert not other.done(run).exists()
+    assert (other.directory(run) / runner.CHECKPOINT).exists()  # iteration 1 kept
+    monkeypatch.undo()
+    reproduce.run_job(run, other)
+    resumed = json.loads(other.done(run).read_text())
+    original = json.loads(layout.done(run).read_text())
+    assert resumed["errors"] == original["errors"]
+    assert resumed["increments"] == original["increments"]
