@@ -240,3 +240,29 @@ def test_an_interrupted_parareal_run_resumes_to_the_same_iterates(finished, tmp_
     original = json.loads(layout.done(run).read_text())
     assert resumed["errors"] == original["errors"]
     assert resumed["increments"] == original["increments"]
+
+
+def test_collect_commit_commits_only_the_page_and_its_records(finished, tmp_path):
+    layout, _ = finished
+    docs = tmp_path / "docs"
+    docs.mkdir()
+    shutil.copy(REPO / "docs" / "reproduction.md", docs)
+    (tmp_path / "other.txt").write_text("not ours")
+
+    def git(*args):
+        return subprocess.run(["git", *args], cwd=tmp_path, check=True, capture_output=True,
+                              text=True).stdout
+
+    git("init", "-q")
+    git("-c", "user.name=t", "-c", "user.email=t@t", "commit", "-q", "--allow-empty", "-m", "0")
+    argv = ["--out", str(layout.root), "--experiments", str(layout.experiments),
+            "--docs", str(docs), "--collect", "--commit"]
+    env_user = {"GIT_AUTHOR_NAME": "t", "GIT_AUTHOR_EMAIL": "t@t", "GIT_COMMITTER_NAME": "t",
+                "GIT_COMMITTER_EMAIL": "t@t"}
+    with pytest.MonkeyPatch.context() as mp:
+        for key, value in env_user.items():
+            mp.setenv(key, value)
+        assert reproduce.main(argv) == 0
+    assert "full-scale runs collected (table4_g4)" in git("log", "-1", "--format=%s")
+    committed = git("show", "--name-only", "--format=", "HEAD").split()
+    assert "docs/reproduction/table4_g4.json" in committed and "other.txt" not in committed

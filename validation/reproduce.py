@@ -701,6 +701,19 @@ def _one(name: str, layout: Layout) -> int:
     return 0
 
 
+def commit(docs: Path, changed: Sequence[str]) -> None:
+    """Commit the page and its records (only those paths) in the repository holding ``docs``."""
+    paths = [str(docs / "reproduction"), str(docs / "reproduction.md")]
+    subprocess.run(["git", "add", *paths], cwd=docs, check=True)
+    staged = subprocess.run(["git", "diff", "--cached", "--quiet", "--", *paths], cwd=docs)
+    if staged.returncode == 0:
+        print("nothing new to commit")
+        return
+    runs = ", ".join(changed) if changed else "status"
+    message = f"docs/reproduction: full-scale runs collected ({runs})"
+    subprocess.run(["git", "commit", "-m", message, "--", *paths], cwd=docs, check=True)
+
+
 # ---- command line ------------------------------------------------------------------------------
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
@@ -722,6 +735,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     parser.add_argument("--docs", type=Path, default=REPO / "docs", help="docs folder (--collect)")
     parser.add_argument(
+        "--commit", action="store_true", help="with --collect: git commit the page and records"
+    )
+    parser.add_argument(
         "--experiments", type=Path, default=EXPERIMENTS, help="folder of the configurations"
     )
     parser.add_argument(
@@ -739,12 +755,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     except ValueError as error:
         parser.error(str(error))
     if args.status:
-        print("\n".join(status_lines(jobs, layout)))
+        print("\n".join(status_lines(select(plan(), args.only, optional=True), layout)))
         return 0
     if args.collect:
         from .reproduce_report import collect
 
-        collect(plan(), layout, args.docs)
+        changed = collect(plan(), layout, args.docs)
+        if args.commit:
+            commit(args.docs, changed)
         return 0
     if args.dry_run:
         dry_run(jobs, layout)

@@ -243,7 +243,7 @@ def status_table(jobs: Sequence[reproduce.Job], layout: reproduce.Layout, record
     running = sched.get("running", {}) if reproduce._alive(sched.get("pid")) else {}
     when = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
     lines = [
-        f"As of {when} (`--collect`); live: `python -m validation.reproduce --status --all`.",
+        f"As of {when} (`--collect`); live: `python -m validation.reproduce --status`.",
         "",
         "| job | figure | state | command |",
         "|---|---|---|---|",
@@ -506,8 +506,9 @@ def replace_block(text: str, name: str, content: str) -> str:
     return pattern.sub(lambda m: m.group(1) + content.rstrip() + "\n" + m.group(2), text)
 
 
-def collect(jobs: Sequence[reproduce.Job], layout: reproduce.Layout, docs: Path) -> None:
-    """Gather finished runs, redraw the figures, regenerate the page's blocks; print a summary."""
+def collect(jobs: Sequence[reproduce.Job], layout: reproduce.Layout, docs: Path) -> list[str]:
+    """Gather finished runs, redraw the figures, regenerate the page's blocks; print a summary and
+    return the runs whose records are new or changed."""
     folder = docs / "reproduction"
     changed = gather(jobs, layout, folder)
     records = load_records(folder)
@@ -523,3 +524,4 @@ def collect(jobs: Sequence[reproduce.Job], layout: reproduce.Layout, docs: Path)
     print(f"records: {len(records)} in {folder} (new or changed: {', '.join(changed) or 'none'})")
     print(f"figures: {', '.join(p.name for p in drawn if p is not None) or 'none yet'}")
     print(f"page: {page} regenerated; commit with: git add {folder} {page}")
+    return changed
