@@ -580,18 +580,24 @@ def status_lines(jobs: Sequence[Job], layout: Layout) -> list[str]:
     lines = [f"{head}; root {layout.root}; {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}"]
     for job in jobs:
         state = job_state(job, layout, running)
-        progress = _read_json(layout.directory(job) / "progress.json") or {}
-        detail = ""
-        if state != "done" and progress.get("phase"):
-            detail = f"{progress['phase']} {progress['done']}/{progress['total']}"
-        if progress.get("iterations"):
-            detail += "  η^k: " + " ".join(
-                "-" if r["error"] is None else f"{r['error']:.2e}" for r in progress["iterations"]
-            )
-        if state == "failed":
-            detail = (_read_json(layout.directory(job) / "failed.json") or {}).get("error", "")
+        detail = progress_text(job, layout, state)
         lines.append(f"{job.name:<16} {job.group:<6} {state:<12} {detail}")
     return lines
+
+
+def progress_text(job: Job, layout: Layout, state: str) -> str:
+    """Where an unfinished job stands (phase, slices or iterations, η^k so far), or its error."""
+    if state == "failed":
+        return (_read_json(layout.directory(job) / "failed.json") or {}).get("error", "")
+    progress = _read_json(layout.directory(job) / "progress.json") or {}
+    detail = ""
+    if state != "done" and progress.get("phase"):
+        detail = f"{progress['phase']} {progress['done']}/{progress['total']}"
+    if progress.get("iterations"):
+        detail += "  η^k: " + " ".join(
+            "-" if r["error"] is None else f"{r['error']:.2e}" for r in progress["iterations"]
+        )
+    return detail.strip()
 
 
 def _write_status(jobs: Sequence[Job], layout: Layout) -> None:

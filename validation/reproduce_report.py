@@ -245,18 +245,20 @@ def status_table(jobs: Sequence[reproduce.Job], layout: reproduce.Layout, record
     lines = [
         f"As of {when} (`--collect`); live: `python -m validation.reproduce --status`.",
         "",
-        "| job | figure | state | command |",
-        "|---|---|---|---|",
+        "| job | figure | state | progress (unfinished) | command |",
+        "|---|---|---|---|---|",
     ]
     for job in jobs:
+        progress = ""
         if job.name in records:
             state = f"done ({records[job.name]['finished']})"
         else:
             state = reproduce.job_state(job, layout, running)
+            progress = reproduce.progress_text(job, layout, state)
             if not job.reachable:
                 state = "out of reach on 2 cores"
         command = f"`python -m validation.reproduce --resume --only {job.name}`"
-        lines.append(f"| `{job.name}` | {job.group} | {state} | {command} |")
+        lines.append(f"| `{job.name}` | {job.group} | {state} | {progress} | {command} |")
     return "\n".join(lines)
 
 
