@@ -246,6 +246,7 @@ def measure_rates(setup: Any, fine_steps: int = 20, coarse_steps: int = 12) -> d
 def cost(job: Job, layout: Layout, rates_cache: dict[str, dict[str, float]]) -> dict[str, Any]:
     """The job's work, CPU time on one core (from rates measured here and now), memory, and for
     runs the 40-core picture (eq. 12 wall time, core-hours)."""
+    from parastokes import parareal
     from parastokes.config import build
 
     cfg, resolved = load_config(job, layout)
@@ -253,13 +254,14 @@ def cost(job: Job, layout: Layout, rates_cache: dict[str, dict[str, float]]) -> 
     key = job.config
     if key not in rates_cache:
         with build(cfg, resolved, executor=False) as setup:
-            rates_cache[key] = measure_rates(setup)
+            size = setup.system.initial_state().size
+            rates_cache[key] = {**measure_rates(setup), "state_size": size}
     rates = rates_cache[key]
     slice_length = (cfg.time.t1 - cfg.time.t0) / cfg.parareal.n_slices
     fine_s = w["fine_steps"] * rates["fine_step"]
     coarse_call = rates["coarse_per_time"] * slice_length
     cpu = fine_s + w["coarse_calls"] * coarse_call
-    state_bytes = 8 * setup_state_size(cfg, resolved)
+    state_bytes = 8 * rates["state_size"]
     out: dict[str, Any] = {
         "name": job.name,
         "kind": "reference" if job.is_reference else "parareal",
@@ -274,19 +276,10 @@ def cost(job: Job, layout: Layout, rates_cache: dict[str, dict[str, float]]) -> 
         gamma_f = resolved.fine_steps * rates["fine_step"]
         gamma_g = coarse_call / resolved.n_auxiliary  # its N_G solvers at once on 40 cores
         k = min(cfg.parareal.max_iterations, cfg.parareal.n_slices)
-        from parastokes import parareal
-
         wall = parareal.parareal_runtime(gamma_g, gamma_f, k, cfg.parareal.n_slices)
         out["wall_hours_40cores"] = wall / 3600
         out["core_hours_40cores"] = PAPER_CORES * wall / 3600
     return out
-
-
-def setup_state_size(cfg: Any, resolved: Any) -> int:
-    """Numbers in one state of the system (positions, plus frames for rods)."""
-    from parastokes.config import build_system
-
-    return int(build_system(cfg, resolved).initial_state().size)
 
 
 def dry_run(jobs: Sequence[Job], layout: Layout) -> list[dict[str, Any]]:
@@ -310,8 +303,8 @@ def dry_run(jobs: Sequence[Job], layout: Layout) -> list[dict[str, Any]]:
     todo = [r for j, r in zip(jobs, rows, strict=True) if j.reachable and not r["done"]]
     print(
         f"to do here: {len(todo)} jobs, {sum(r['cpu_hours_1core'] for r in todo):.1f} CPU hours "
-        f"on one core at this moment's speed; process memory {rss:.0f} MB after building the "
-        "largest system (one process per job; a 40-core run holds one such process per core)"
+        f"on one core at this moment's speed; peak memory of this process {rss:.0f} MB (one "
+        "process per job here; a 40-core run holds one such process per core)"
     )
     return rows
 
