@@ -268,3 +268,27 @@ def test_collect_commit_commits_only_the_page_and_its_records(finished, tmp_path
     assert "full-scale runs collected (table4_g4)" in git("log", "-1", "--format=%s")
     committed = git("show", "--name-only", "--format=", "HEAD").split()
     assert "docs/reproduction/table4_g4.json" in committed and "other.txt" not in committed
+
+
+@pytest.mark.parametrize(
+    ("name", "overrides"),
+    [
+        ("table4_g3", TINY),  # Lagrange in ε, a and Richardson: 30 auxiliary solvers
+        ("table6_eps3", TINY),  # on the coarse grid σ_c = 6σ_f (grid transfer)
+        ("table8_g2", ("time.t1=1.0", "parareal.n_slices=2")),  # vesicle, RK4, Richardson
+    ],
+)
+def test_probe_times_every_auxiliary_solver_of_each_kind_of_coarse_solver(name, overrides):
+    from parastokes.config import build
+
+    layout = reproduce.Layout(Path("unused"), REPO / "experiments" / "quick", overrides)
+    cfg, resolved = reproduce.load_config(_job(name), layout)
+    times = parareal.time_points(cfg.time.t0, cfg.time.t1, cfg.parareal.n_slices)
+    with build(cfg, resolved, executor=False) as setup:
+        found = reproduce.probe(setup, times, setup.system.initial_state())
+    assert found["n_auxiliary"] == resolved.n_auxiliary == len(found["auxiliary_times"][0])
+    aux = np.array(found["auxiliary_times"][0])
+    # on 40 cores: the slowest auxiliary plus what the combinator adds to their sum
+    combine = max(0.0, float(np.mean(found["combinator_times"])) - aux.sum())
+    assert found["gamma_G_parallel"] == aux.max() + combine
+    assert found["gamma_ratio"] == found["gamma_G_parallel"] / found["gamma_F"] > 0
