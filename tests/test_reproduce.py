@@ -244,32 +244,6 @@ def test_an_interrupted_parareal_run_resumes_to_the_same_iterates(finished, tmp_
     assert resumed["increments"] == original["increments"]
 
 
-def test_collect_commit_commits_only_the_page_and_its_records(finished, tmp_path):
-    layout, _ = finished
-    docs = tmp_path / "docs"
-    docs.mkdir()
-    shutil.copy(REPO / "docs" / "reproduction.md", docs)
-    (tmp_path / "other.txt").write_text("not ours")
-
-    def git(*args):
-        return subprocess.run(["git", *args], cwd=tmp_path, check=True, capture_output=True,
-                              text=True).stdout
-
-    git("init", "-q")
-    git("-c", "user.name=t", "-c", "user.email=t@t", "commit", "-q", "--allow-empty", "-m", "0")
-    argv = ["--out", str(layout.root), "--experiments", str(layout.experiments),
-            "--docs", str(docs), "--collect", "--commit"]
-    env_user = {"GIT_AUTHOR_NAME": "t", "GIT_AUTHOR_EMAIL": "t@t", "GIT_COMMITTER_NAME": "t",
-                "GIT_COMMITTER_EMAIL": "t@t"}
-    with pytest.MonkeyPatch.context() as mp:
-        for key, value in env_user.items():
-            mp.setenv(key, value)
-        assert reproduce.main(argv) == 0
-    assert "full-scale runs collected (table4_g4)" in git("log", "-1", "--format=%s")
-    committed = git("show", "--name-only", "--format=", "HEAD").split()
-    assert "docs/reproduction/table4_g4.json" in committed and "other.txt" not in committed
-
-
 @pytest.mark.parametrize(
     ("name", "overrides"),
     [
@@ -292,3 +266,41 @@ def test_probe_times_every_auxiliary_solver_of_each_kind_of_coarse_solver(name, 
     combine = max(0.0, float(np.mean(found["combinator_times"])) - aux.sum())
     assert found["gamma_G_parallel"] == aux.max() + combine
     assert found["gamma_ratio"] == found["gamma_G_parallel"] / found["gamma_F"] > 0
+
+
+@pytest.fixture
+def repo(tmp_path, monkeypatch):
+    """A git repository holding a copy of docs/reproduction.md; returns ``git(*args) -> stdout``."""
+    (tmp_path / "docs").mkdir()
+    shutil.copy(REPO / "docs" / "reproduction.md", tmp_path / "docs")
+    for key in ("AUTHOR", "COMMITTER"):
+        monkeypatch.setenv(f"GIT_{key}_NAME", "t")
+        monkeypatch.setenv(f"GIT_{key}_EMAIL", "t@t")
+
+    def git(*args):
+        return subprocess.run(["git", *args], cwd=tmp_path, check=True, capture_output=True,
+                              text=True).stdout
+
+    git("init", "-q")
+    git("commit", "-q", "--allow-empty", "-m", "0")
+    return git
+
+
+def test_collect_commit_commits_only_the_page_and_its_records(finished, tmp_path, repo):
+    layout, _ = finished
+    (tmp_path / "other.txt").write_text("not ours")
+    argv = ["--out", str(layout.root), "--experiments", str(layout.experiments),
+            "--docs", str(tmp_path / "docs"), "--collect", "--commit"]
+    assert reproduce.main(argv) == 0
+    assert "full-scale runs collected (table4_g4)" in repo("log", "-1", "--format=%s")
+    committed = repo("show", "--name-only", "--format=", "HEAD").split()
+    assert "docs/reproduction/table4_g4.json" in committed and "other.txt" not in committed
+
+
+def test_collect_commit_without_finished_runs_commits_the_status(tmp_path, repo):
+    argv = ["--out", str(tmp_path / "runs"), "--docs", str(tmp_path / "docs"), "--collect",
+            "--commit"]
+    assert reproduce.main(argv) == 0
+    subject = repo("log", "-1", "--format=%s").strip()
+    assert subject == "docs/reproduction: full-scale runs collected (status)"
+    assert repo("show", "--name-only", "--format=", "HEAD").split() == ["docs/reproduction.md"]

@@ -702,7 +702,10 @@ def _one(name: str, layout: Layout) -> int:
 
 def commit(docs: Path, changed: Sequence[str]) -> None:
     """Commit the page and its records (only those paths) in the repository holding ``docs``."""
-    paths = [str(docs / "reproduction"), str(docs / "reproduction.md")]
+    folder = docs / "reproduction"
+    paths = [str(docs / "reproduction.md")]
+    if folder.is_dir() and any(folder.iterdir()):  # git knows no empty folder
+        paths.append(str(folder))
     subprocess.run(["git", "add", *paths], cwd=docs, check=True)
     staged = subprocess.run(["git", "diff", "--cached", "--quiet", "--", *paths], cwd=docs)
     if staged.returncode == 0:
