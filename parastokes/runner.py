@@ -48,6 +48,7 @@ __all__ = [
     "REFERENCE",
     "Reporter",
     "execute",
+    "fine_identity",
     "identity",
     "speedup_table",
 ]
@@ -110,6 +111,14 @@ def identity(cfg: Config) -> dict[str, Any]:
     return {**flat, "version": __version__}
 
 
+def fine_identity(cfg: Config) -> dict[str, Any]:
+    """What determines the serial fine solution (the reference file): :func:`identity` without the
+    coarse solver and the run mode, so runs that differ only in their coarse solver can share one
+    reference (``reference.npz`` copied from one run directory into another is accepted)."""
+    fine = ("model.", "time.", "fine.", "parareal.n_slices", "version")
+    return {k: v for k, v in identity(cfg).items() if k.startswith(fine)}
+
+
 def _same_run(path: Path, saved: Any, now: dict[str, Any]) -> None:
     """Refuse to resume from ``path`` (written with identity ``saved``) unless it matches ``now``:
     a :class:`ConfigError` names every differing key."""
@@ -129,9 +138,11 @@ def _same_run(path: Path, saved: Any, now: dict[str, Any]) -> None:
         raise ConfigError([*issues, ("--resume", hint)], f"{path} (the run to resume)")
 
 
-def _check_resumable(out: Path, key: dict[str, Any]) -> None:
-    """Before any work: every resume file in ``out`` is readable and of this run (``key``)."""
-    for name in (REFERENCE, HISTORY, CHECKPOINT):
+def _check_resumable(out: Path, cfg: Config) -> None:
+    """Before any work: every resume file in ``out`` is readable and of this run (the reference:
+    of its fine problem, :func:`fine_identity`; the others: of the whole run, :func:`identity`)."""
+    for name, key in ((REFERENCE, fine_identity(cfg)), (HISTORY, identity(cfg)),
+                      (CHECKPOINT, identity(cfg))):
         path = out / name
         if path.exists():
             _same_run(path, io.load_arrays(path)[0].get("key"), key)
@@ -234,7 +245,8 @@ def _serial(
 ) -> tuple[np.ndarray, float]:
     """The serial fine solution F(T_n, T_0, x0) at every T_n (as ``parareal.serial_solution``) and
     its wall time. Saved to ``out/REFERENCE`` after every slice, and continued from there when
-    that file holds the same run (``key``), so an interrupted serial run loses at most a slice."""
+    that file holds the same fine problem (``key``, :func:`fine_identity`), so an interrupted
+    serial run loses at most a slice and a finished one can serve other runs of that problem."""
     path = out / REFERENCE
     n_slices = len(times) - 1
     states = np.full((n_slices + 1, *x0.shape), np.nan)
@@ -438,7 +450,7 @@ def _execute(
     out, staging = directory.path, directory.staging
     conf = resolved_dict(cfg, resolved)
     key = identity(cfg)
-    _check_resumable(out, key)
+    _check_resumable(out, cfg)
     mode = cfg.run.mode
     start = time.perf_counter()
     if not _kernels_cached():
@@ -451,7 +463,9 @@ def _execute(
         try:
             reference = serial_time = result = record = None
             if mode in ("serial", "both"):
-                reference, serial_time = _serial(setup, x0, times, out, key, reporter)
+                reference, serial_time = _serial(
+                    setup, x0, times, out, fine_identity(cfg), reporter
+                )
                 if writer is not None:
                     _append_frames(writer, "serial", setup, times, reference)
             if mode in ("parareal", "both"):

@@ -454,9 +454,9 @@ def serial_reference(cfg: Any, resolved: Any, directory: Path, reporter: Progres
     slice by slice with ``partial.npz`` saved after each, so that a stop loses at most one slice.
 
     The states are those of the runner's serial run bit for bit (the same fine propagator on the
-    same slices). The key comes from the runner's private ``_keys``: if that ever changes, the
-    runner no longer recognises the file and recomputes the reference inside each run (slower,
-    never wrong). Returns the wall time of the whole solve (summed over sessions).
+    same slices), under the key of the fine problem (``runner.fine_identity``), which the runner
+    accepts in every run of that problem, whatever its coarse solver. Returns the wall time of
+    the whole solve (summed over sessions).
     """
     from parastokes import io, parareal, runner
     from parastokes.config import build
@@ -465,7 +465,7 @@ def serial_reference(cfg: Any, resolved: Any, directory: Path, reporter: Progres
     if path.exists():
         return float(io.load_arrays(path)[0]["wall_time"])
     times = parareal.time_points(cfg.time.t0, cfg.time.t1, cfg.parareal.n_slices)
-    fine_key = runner._keys(cfg)[0]
+    fine_key = runner.fine_identity(cfg)
     with build(cfg, resolved, executor=False) as setup:
         states = np.empty((len(times), *setup.system.initial_state().shape))
         done, wall = 0, 0.0
@@ -485,7 +485,8 @@ def serial_reference(cfg: Any, resolved: Any, directory: Path, reporter: Progres
             io.save_arrays(partial, meta, states=states[: n + 1])
             reporter.advance()
         reporter.finish()
-    io.save_arrays(path, {"key": fine_key, "wall_time": wall}, states=states)
+    meta = {"key": fine_key, "done": len(times) - 1, "wall_time": wall}
+    io.save_arrays(path, meta, states=states)
     partial.unlink()
     return wall
 
