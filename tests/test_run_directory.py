@@ -172,6 +172,27 @@ def test_resume_with_a_changed_key_is_refused_naming_it(finished, tmp_path, caps
     assert io.read_summary(out / "summary.json")["iterations"] == 3
 
 
+def test_a_reference_serves_every_run_of_its_fine_problem_and_no_other(finished, tmp_path, capsys):
+    """reference.npz is keyed by the fine problem only (runner.fine_identity): a run with another
+    coarse solver reuses it (same serial solution, no fine run), a run with another fine step
+    refuses it naming the key."""
+    path, source = finished
+    out = tmp_path / "other_coarse"
+    out.mkdir()
+    shutil.copy(source / runner.REFERENCE, out / runner.REFERENCE)
+    assert cli.main(["run", str(path), "--out", str(out), "--resume",
+                     "--set", "coarse.dt_ratio=12"]) == 0
+    assert "serial fine solution reloaded from reference.npz" in capsys.readouterr().out
+    assert len(io.read_summary(out / "summary.json")["errors"]) >= 1  # η^k against it
+    assert np.array_equal(io.load_arrays(out / runner.REFERENCE)[1]["states"],
+                          io.load_arrays(source / runner.REFERENCE)[1]["states"])
+    other = tmp_path / "other_fine"
+    other.mkdir()
+    shutil.copy(source / runner.REFERENCE, other / runner.REFERENCE)
+    assert _run(path, "--out", other, "--resume", "--set", "fine.dt=5e-7") == 2
+    assert "fine.dt: 5e-07 now" in capsys.readouterr().err
+
+
 def test_a_commit_cut_short_is_completed_by_the_next_claim(tmp_path):
     out = tmp_path / "out"
     out.mkdir()

@@ -332,6 +332,9 @@ class ProgressFile:
         print(f"{what}: {total} {'slices' if what == 'serial' else 'iterations'}", flush=True)
         self._save()
 
+    def expect(self, seconds: float) -> None:
+        """The runner's estimate of one step (for an ETA): the log's timestamps tell it here."""
+
     def advance(self) -> None:
         self.state["done"] += 1
         self._save()
