@@ -26,7 +26,9 @@ def test_pipelined_without_waiting_is_the_critical_path(n, k, alpha):
         assert sim.wall == pytest.approx(parareal.pipelined_runtime(alpha, 1.0, k, n), rel=1e-12)
 
 
-@pytest.mark.parametrize(("n", "k", "alpha"), list(itertools.product([8, 40], [1, 2, 4], [0.01, 0.3])))
+@pytest.mark.parametrize(
+    ("n", "k", "alpha"), list(itertools.product([8, 40], [1, 2, 4], [0.01, 0.3]))
+)
 def test_pipelined_on_p_workers_between_critical_path_and_closed_formula(n, k, alpha):
     sim = simulate("pipelined", n, k, n, alpha)
     critical = parareal.pipelined_runtime(alpha, 1.0, k, n)
