@@ -35,7 +35,9 @@ _DEFAULTS = {"wall": False, "shear_rate": 0.0}
 
 
 class SceneSettings(BaseModel):
-    """The fluid all ``[[bodies]]`` share (omitted: from the bodies, see the module docstring)."""
+    """The fluid all `[[bodies]]` share; body tables that omit these keys get them. A key left out
+    here is taken from the bodies (the first that states it, else the first whose kind has it, with
+    that kind's default), else wall = false and shear_rate = 0."""
 
     model_config = ConfigDict(extra="forbid", strict=True, validate_default=True)
 
