@@ -20,14 +20,14 @@ dt = 1e-4
 [coarse]
 dt_ratio = 5
 lagrange = {lagrange}
-[parareal]
-n_slices = 4
-max_iterations = 4
+[output]
+formats = ["png"]
 [execution]
 executor = "serial"
 allow_oversubscribe = true
-[output]
-formats = ["png"]
+[parareal]
+n_slices = 4
+max_iterations = 4
 """
 
 ROD = """
