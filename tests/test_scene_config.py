@@ -226,3 +226,17 @@ def test_scene_without_bodies_and_bad_names_are_named():
     found = issues(scene_text(bodies=ROD + "name = 'a'\n" + VESICLE + "name = 'a'\n"))
     assert "distinct" in found["bodies[1].name"]
     assert "did you mean" in issues(scene_text(fluid="wal = true"))["scene.wal"]
+
+
+def test_tune_writes_a_scene_config_that_loads_as_the_same_scene(tmp_path):
+    path = tmp_path / "scene.toml"
+    path.write_text(scene_text())
+    out = tmp_path / "tuned" / "scene.toml"
+    status = cli.main(["tune", str(path), "--cores", "4", "--target", "1e-6", "--out", str(out),
+                       "--budget", "30", "-q"])
+    assert status == 0
+    text = out.read_text()
+    assert text.count("[[bodies]]") == 2 and "[scene]" in text and "[model]" not in text
+    tuned, _ = loads(text)
+    original, _ = loads(scene_text())
+    assert tuned.model == original.model

@@ -115,6 +115,10 @@ class BodySection(BaseModel):
         grid = {body.grid_unit: body.grid_spacing} if body.grid_unit is not None else {}
         return getattr(self, "epsilon_unit", "absolute"), grid
 
+    def tables(self) -> dict[str, Any]:
+        """The configuration tables this section is written as (``{"model": {...}}``)."""
+        return {"model": self.model_dump(mode="json", exclude_none=True)}
+
     def tracks_points(self) -> bool:
         """Whether ``output.tracked_points`` applies (its kind's ``tracks_points``)."""
         return get(self.kind).tracks_points

@@ -82,6 +82,13 @@ class SceneModel(BodySection):
     def tracks_points(self) -> bool:
         return False
 
+    def tables(self) -> dict[str, Any]:
+        """``[scene]`` and one ``[[bodies]]`` table per body, named."""
+        fluid = {key: getattr(self, key) for key in FLUID}
+        bodies = [{"name": name, **body.tables()["model"]}
+                  for name, body in zip(self.names, self.bodies, strict=True)]
+        return {"scene": fluid, "bodies": bodies}
+
     def layout(self, system: Any, frames: bool, tracked: Sequence[int] | None
                ) -> list[BodyLayout]:
         """Every body's layout, rows offset by the bodies before it, named after its body."""
