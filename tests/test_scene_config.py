@@ -240,3 +240,15 @@ def test_tune_writes_a_scene_config_that_loads_as_the_same_scene(tmp_path):
     tuned, _ = loads(text)
     original, _ = loads(scene_text())
     assert tuned.model == original.model
+
+
+def test_repeated_kinds_are_numbered_and_each_extrapolated_in_its_own_units():
+    """Two rods of different grid spacings: rod0 and rod1; σ_f nodes scale with each rod's σ_f."""
+    second = ROD.replace("n_points = 11", "n_points = 21").replace("height = 3.0", "height = 5.0")
+    cfg, resolved = loads(scene_text(bodies=ROD + second,
+                                     lagrange='{ "rod1.epsilon" = [5.6, 5.8] }'))
+    assert cfg.model.names == ["rod0", "rod1"]
+    assert resolved.lagrange["rod1.epsilon"] == pytest.approx([5.6 * 0.3, 5.8 * 0.3])
+    assert resolved.theta0["rod0.epsilon"] == pytest.approx(5 * 0.6)
+    layout = cfg.model.layout(build(cfg, resolved, executor=False).system, False, None)
+    assert [(b.name, b.first, b.rows) for b in layout] == [("rod0", 0, 11), ("rod1", 11, 21)]
