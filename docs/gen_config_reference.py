@@ -20,6 +20,7 @@ sys.path.insert(0, str(ROOT))
 
 from parastokes.bodies import registry  # noqa: E402
 from parastokes.config import schema  # noqa: E402
+from parastokes.config.scene import SceneSettings  # noqa: E402
 
 HEADER = """\
 # Configuration reference
@@ -43,6 +44,15 @@ Two more things the loader understands:
   this way.
 - `--set KEY=VALUE` on the command line (repeatable) overrides any key with a TOML value, e.g.
   `--set parareal.n_slices=8 --set fine.scheme='"rk4"'`.
+
+Several bodies in one fluid (a scene, `parastokes.scene.Scene`): instead of `[model]`, one
+`[[bodies]]` table per body, each a section of its kind (the `model (kind = ...)` sections below)
+plus an optional `name` (default: its kind, numbered when it repeats: `rod0`, `rod1`), and a
+`[scene]` table with the fluid they share. A body table may omit `viscosity`, `wall` and
+`shear_rate` (it gets the scene's); one that states another value than `[scene]` is an error.
+Lagrange nodes then name `"body.parameter"` (`coarse.lagrange."rod.epsilon"`, in that body's
+units) or `viscosity` (the one fluid's). Giving both `[model]` and `[[bodies]]` is an error.
+See docs/tutorial.md, "Several bodies in one flow".
 
 Units: μm, s, g. The coarse step τ_c is the smallest auxiliary step r^m τ, as in the paper
 (section 5.1); the base step of eq. 26 is τ = τ_c / r^m.
@@ -112,6 +122,7 @@ def render() -> str:
     sections = [
         ("(top level)", schema.Config),
         *((f'model (kind = "{name}")', registry.get(name).section) for name in registry.BUILTIN),
+        ("scene", SceneSettings),
         ("time", schema.Time),
         ("fine", schema.Fine),
         ("coarse", schema.Coarse),

@@ -12,7 +12,8 @@ From one run directory (:func:`draw_run`):
 - ``structure``: the bodies drawn by their kinds (registry): rods in the x-y and x-z planes over
   time (z: the distance to the wall; each title states how much its vertical axis is stretched);
   the vesicle projected on the x-z plane at the first and last frame with its tracked points
-  (Fig. 11);
+  (Fig. 11); a scene of several kinds also gets ``structure`` itself: all bodies together in the
+  x-z plane at four times, centred on the first body (``structure_<kind>`` per kind);
 - ``gantt``: which worker ran which task when (:mod:`parastokes.plots_gantt`), when the summary
   holds per-task timings.
 
@@ -384,7 +385,49 @@ def structure(
         registry.get(kind).draw(fig, bodies, data["time"], data["run"])
         name = stem if len(by_kind) == 1 else stem.with_name(f"{stem.name}_{kind.split(':')[-1]}")
         written += _save(fig, name, formats)
+    if len(by_kind) > 1:
+        fig = Figure()
+        scene_snapshots(fig, data["bodies"], data["time"], data["run"])
+        written += _save(fig, stem, formats)
     return written
+
+
+def _edges(body: dict[str, Any], frame: int, i: int, j: int) -> np.ndarray:
+    """The segments of one frame of ``body`` projected on the plane (i, j): its triangles' edges,
+    its polyline's segments, or zero-length segments at its points."""
+    points = body["positions"][frame][:, [i, j]]
+    cells = np.asarray(body["connectivity"])
+    pairs = {3: [0, 1, 1, 2, 2, 0], 2: [0, 1], 1: [0, 0]}[cells.shape[1]]
+    return points[cells[:, pairs].reshape(-1, 2)]
+
+
+def scene_snapshots(fig: Figure, bodies: dict[str, dict[str, Any]], times: np.ndarray, run: str,
+                    count: int = 4) -> None:
+    """Bodies of several kinds together: the x-z plane at ``count`` times, one axes each, centred
+    on the first body (so that the others are seen passing it), at true scale."""
+    from matplotlib.collections import LineCollection
+
+    frames = sorted(set(np.linspace(0, len(times) - 1, count).round().astype(int).tolist()))
+    first = next(iter(bodies.values()))
+    centres = [float(first["positions"][f][:, 0].mean()) for f in frames]
+    reach = max(float(np.abs(b["positions"][f][:, 0] - c).max())
+                for b in bodies.values() for f, c in zip(frames, centres, strict=True))
+    fig.set_size_inches(7, 1.6 + 1.4 * len(frames))
+    fig.set_layout_engine("constrained")
+    axes = fig.subplots(len(frames), 1, squeeze=False)[:, 0]
+    for ax, frame, centre in zip(axes, frames, centres, strict=True):
+        for index, (name, body) in enumerate(bodies.items()):
+            width = 1.5 if body["connectivity"].shape[1] == 2 else 0.4
+            ax.add_collection(LineCollection(_edges(body, frame, 0, 2), colors=f"C{index}",
+                                             linewidths=width, label=name))
+        ax.set_xlim(centre - 1.05 * reach, centre + 1.05 * reach)
+        ax.set_aspect("equal")
+        ax.autoscale_view(scalex=False)
+        ax.set_ylabel("z (μm)")
+        ax.set_title(f"t = {times[frame]:.4g} s ({run}); centred on {next(iter(bodies))}",
+                     fontsize=8)
+    axes[-1].set_xlabel("x (μm)")
+    axes[0].legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
 
 
 # ---- entry points ----------------------------------------------------------------------------

@@ -33,7 +33,6 @@ from typing import Any
 import numpy as np
 
 from . import __version__, io, parareal, rundir
-from .bodies import registry
 from .config import Config, ConfigError, Resolved, Setup, build, resolved_dict
 from .config.checks import estimated_fine_seconds
 from .files import CorruptFileError, atomic_write
@@ -395,8 +394,7 @@ def _monitor(system: Any, states: np.ndarray) -> dict[str, float]:
 
 def _writer(cfg: Config, setup: Setup, conf: dict[str, Any], out: Path) -> io.TrajectoryWriter:
     """The trajectory writer of the layout that the body's kind gives (registry)."""
-    kind = registry.get(cfg.model.kind)
-    layout = kind.layout(cfg.model, setup.system, cfg.output.frames, cfg.output.tracked_points)
+    layout = cfg.model.layout(setup.system, cfg.output.frames, cfg.output.tracked_points)
     return io.TrajectoryWriter(out / TRAJECTORY, layout, config=conf)
 
 

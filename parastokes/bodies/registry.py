@@ -105,6 +105,29 @@ class BodySection(BaseModel):
         """State rows on the grid ``factor`` times coarser; ValueError naming why not."""
         raise ValueError(f"the {self.kind!r} kind has no coarser grid; use 1")
 
+    def parameter_units(self, name: str) -> tuple[str, dict[str, float]]:
+        """The unit Lagrange nodes of parameter ``name`` default to (ε: the section's
+        ``epsilon_unit``; others: ``"absolute"``), and the grid-length units ε may also be given
+        in (name -> length)."""
+        if name != "epsilon":
+            return "absolute", {}
+        body = self.resolve()
+        grid = {body.grid_unit: body.grid_spacing} if body.grid_unit is not None else {}
+        return getattr(self, "epsilon_unit", "absolute"), grid
+
+    def tables(self) -> dict[str, Any]:
+        """The configuration tables this section is written as (``{"model": {...}}``)."""
+        return {"model": self.model_dump(mode="json", exclude_none=True)}
+
+    def tracks_points(self) -> bool:
+        """Whether ``output.tracked_points`` applies (its kind's ``tracks_points``)."""
+        return get(self.kind).tracks_points
+
+    def layout(self, system: Any, frames: bool, tracked: Sequence[int] | None
+               ) -> list[BodyLayout]:
+        """The output layout of ``system`` built from this section (its kind's ``layout``)."""
+        return get(self.kind).layout(self, system, frames, tracked)
+
 
 @dataclass(frozen=True)
 class BodyLayout:

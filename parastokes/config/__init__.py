@@ -25,6 +25,7 @@ from ..bodies import registry
 from .build import Setup, build, build_system
 from .checks import Resolved, resolve, resolved_dict
 from .errors import ConfigError, from_validation_error
+from .scene import scene_section
 from .schema import Config
 
 __all__ = [
@@ -158,15 +159,36 @@ def _model_section(data: dict[str, Any], issues: list[tuple[str, str]], source: 
         return None
 
 
+def _scene_data(data: dict[str, Any], issues: list[tuple[str, str]], source: str
+                ) -> dict[str, Any]:
+    """``data`` with its ``[[bodies]]`` and ``[scene]`` replaced by their scene section as the
+    ``model`` (:mod:`.scene`); issues for a ``[scene]`` without bodies or both forms at once."""
+    rest = {k: v for k, v in data.items() if k not in ("bodies", "scene")}
+    if "bodies" not in data:
+        issues.append(("scene", "[scene] sets the fluid of [[bodies]] tables; add them, or move "
+                                "its keys into [model]"))
+        return rest
+    if "model" in data:
+        issues.append(("model", "give either [model] (one body) or [[bodies]] tables (a scene), "
+                                "not both; move [model] into a [[bodies]] table"))
+        issues.append(("bodies", "given together with [model]; keep one of the two"))
+        return rest
+    section = scene_section(data, issues, source)
+    return rest | {"model": section} if section is not None else rest
+
+
 def parse(data: dict[str, Any], source: str = "") -> Config:
     """Validate the schema of a configuration dictionary; raise :class:`ConfigError`.
 
     The ``[model]`` table is validated by the section of its kind
     (:mod:`parastokes.bodies.registry`; an unknown kind is an error listing the registered ones),
-    the rest by :class:`Config`, and the issues of both are reported together.
+    ``[[bodies]]`` tables and ``[scene]`` make one scene section (:mod:`.scene`), the rest is
+    validated by :class:`Config`, and the issues of all are reported together.
     """
     issues: list[tuple[str, str]] = []
-    if isinstance(data, dict) and isinstance(data.get("model"), dict):
+    if isinstance(data, dict) and ("bodies" in data or "scene" in data):
+        data = _scene_data(data, issues, source)
+    elif isinstance(data, dict) and isinstance(data.get("model"), dict):
         section = _model_section(data, issues, source)
         data = {**data, "model": section} if section is not None else data
     try:

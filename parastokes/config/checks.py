@@ -29,7 +29,6 @@ from dataclasses import asdict, dataclass, field
 from typing import Any
 
 from .. import integrate
-from ..bodies import registry
 from ..contracts import oversubscription
 from ..parallel import available_cores
 from ..parareal import weights
@@ -78,17 +77,14 @@ class Resolved:
 
 
 def _node_values(
-    cfg: Config, name: str, theta0: float, body: registry.BodyResolution,
-    issues: list[tuple[str, str]]
+    cfg: Config, name: str, theta0: float, issues: list[tuple[str, str]]
 ) -> list[float]:
     """The absolute nodes of parameter ``name``; appends issues for bad units and orderings."""
     path = f"coarse.lagrange.{name}"
     spec = cfg.coarse.lagrange[name]
-    model_unit = getattr(cfg.model, "epsilon_unit", "absolute") if name == "epsilon" else "absolute"
+    model_unit, grid = cfg.model.parameter_units(name)
     unit = spec.unit or model_unit
-    factors = {"absolute": 1.0, "relative": theta0}
-    if name == "epsilon" and body.grid_unit is not None:
-        factors[body.grid_unit] = body.grid_spacing
+    factors = {"absolute": 1.0, "relative": theta0, **grid}
     if unit not in factors:
         issues.append(
             (
@@ -296,7 +292,7 @@ def resolve(cfg: Config, source: str = "") -> Resolved:
                 )
             )
             continue
-        lagrange[name] = _node_values(cfg, name, theta0[name], body, issues)
+        lagrange[name] = _node_values(cfg, name, theta0[name], issues)
     n_auxiliary = math.prod(len(spec.nodes) for spec in coarse.lagrange.values()) * (m + 1)
     weight_sum = 1.0
     if not issues:
@@ -320,7 +316,7 @@ def resolve(cfg: Config, source: str = "") -> Resolved:
         )
     tracked = cfg.output.tracked_points
     if tracked:
-        if not registry.get(model.kind).tracks_points:
+        if not model.tracks_points():
             issues.append(
                 ("output.tracked_points", f"a {model.kind} model marks no points (vesicles only)")
             )

@@ -63,6 +63,15 @@ def _section_class(loc: tuple[Any, ...], data: Any) -> type[BaseModel] | None:
             return registry.get(model["kind"]).section  # type: ignore[index]
         except (TypeError, KeyError, registry.UnknownKindError):
             return None
+    if len(loc) == 2 and loc[0] == "bodies":  # a [[bodies]] table: its kind's section
+        try:
+            return registry.get(data["bodies"][loc[1]]["kind"]).section
+        except (TypeError, KeyError, IndexError, registry.UnknownKindError):
+            return None
+    if loc == ("scene",):
+        from .scene import SceneSettings
+
+        return SceneSettings
     if len(loc) == 3 and loc[:2] == ("coarse", "lagrange"):
         return schema.LagrangeNodes
     return _SECTIONS.get(loc)

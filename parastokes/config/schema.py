@@ -93,7 +93,8 @@ class Coarse(_Section):
     lagrange: dict[str, LagrangeNodes] = Field(
         default_factory=dict,
         description="Parameter name -> nodes (rods: epsilon, bending, viscosity; vesicles: "
-        "epsilon, stiffness, viscosity). A plain list is short for {nodes = [...]}.",
+        'epsilon, stiffness, viscosity; scenes: "body.parameter", e.g. "rod.epsilon", or '
+        "viscosity). A plain list is short for {nodes = [...]}.",
     )
     richardson: Richardson = Field(
         default_factory=Richardson, description="Richardson extrapolation {m, r}."

@@ -153,7 +153,8 @@ def main(args: argparse.Namespace, console: Any) -> int:
     if result.chosen is None:
         raise TuningError(f"no candidate is stable and reaches η* = {args.target:g}; see "
                           f"{out.with_suffix('.json')} (raise --target or widen the search)")
-    dumped = cfg.model_dump(mode="json", exclude_none=True)
+    dumped = {k: v for k, v in cfg.model_dump(mode="json", exclude_none=True).items()
+              if k != "model"} | cfg.model.tables()
     out.write_text(config_text(dumped, result, args.cores, args.config), encoding="utf-8")
     console.print(f"wrote {out}, {out.with_suffix('.json')}, {out.with_suffix('.png')}")
     return 130 if search["stopped"] == "interrupted" else 0

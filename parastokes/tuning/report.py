@@ -86,14 +86,22 @@ def _toml_value(value: Any) -> str:
 
 
 def toml_dumps(data: Mapping[str, Any], header: str = "") -> str:
-    """TOML text of a two-level table (top-level keys, then one [section] per sub-table; deeper
-    tables inline), which is all a configuration holds."""
+    """TOML text of a two-level table (top-level keys, then one [section] per sub-table and one
+    [[section]] per table of a list of tables; deeper tables inline), which is all a
+    configuration holds."""
     lines = [f"# {line}" for line in header.splitlines()]
-    scalars = {k: v for k, v in data.items() if not isinstance(v, Mapping)}
+
+    def is_tables(value: Any) -> bool:
+        return isinstance(value, list) and bool(value) and all(isinstance(v, Mapping)
+                                                               for v in value)
+
+    scalars = {k: v for k, v in data.items() if not isinstance(v, Mapping) and not is_tables(v)}
     lines += [f"{k} = {_toml_value(v)}" for k, v in scalars.items()]
-    for key, table in data.items():
-        if isinstance(table, Mapping):
-            lines += ["", f"[{key}]"]
+    for key, value in data.items():
+        tables = [(f"[{key}]", value)] if isinstance(value, Mapping) else (
+            [(f"[[{key}]]", v) for v in value] if is_tables(value) else [])
+        for title, table in tables:
+            lines += ["", title]
             lines += [f"{k} = {_toml_value(v)}" for k, v in table.items()]
     return "\n".join(lines) + "\n"
 

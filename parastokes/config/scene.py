@@ -1,0 +1,184 @@
+"""Scenes from a config file: ``[[bodies]]`` tables and the scene-wide ``[scene]`` fluid settings.
+
+Each ``[[bodies]]`` table is one body, validated by the section of its ``kind`` (the registry), as
+``[model]`` is; an optional ``name`` labels it in Θ (default: its kind, numbered when the kind
+repeats: ``rod0``, ``rod1``; :class:`parastokes.scene.Scene`). ``[scene]`` holds what the bodies
+share: ``viscosity``, ``wall``, ``shear_rate`` (one fluid, one background flow). A body table that
+omits one of these keys gets the scene's; one that states a different value is an error naming
+both keys. A ``[scene]`` key left out is taken from the bodies (the first that states it, else the
+first whose section has it, with that section's default), else ``wall = false`` and
+``shear_rate = 0``.
+
+:func:`scene_section` turns the tables into one :class:`SceneModel`, the ``model`` of the
+configuration: its Θ⁰ names parameters as :attr:`parastokes.scene.Scene.params` does
+(``"viscosity"``, ``"rod.epsilon"``, ``"vesicle.stiffness"``), its output layout is the layouts of
+all bodies with their rows offset, and it builds a :class:`~parastokes.scene.Scene`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, SerializeAsAny, ValidationError
+
+from ..bodies import registry
+from ..bodies.registry import BodyLayout, BodyResolution, BodySection, Positive
+from .errors import from_validation_error
+
+__all__ = ["FLUID", "SceneModel", "SceneSettings", "scene_section"]
+
+#: The scene-wide keys: one fluid (μ, wall) and one background shear flow.
+FLUID = ("viscosity", "wall", "shear_rate")
+_DEFAULTS = {"wall": False, "shear_rate": 0.0}
+
+
+class SceneSettings(BaseModel):
+    """The fluid all `[[bodies]]` share; body tables that omit these keys get them. A key left out
+    here is taken from the bodies (the first that states it, else the first whose kind has it, with
+    that kind's default), else wall = false and shear_rate = 0."""
+
+    model_config = ConfigDict(extra="forbid", strict=True, validate_default=True)
+
+    viscosity: Positive | None = Field(None, description="Fluid viscosity μ⁰ (g μm⁻¹ s⁻¹).")
+    wall: bool | None = Field(None, description="Plane wall at z = 0 (method of images).")
+    shear_rate: float | None = Field(
+        None, allow_inf_nan=False, description="Shear rate γ̇ of u∞ = (γ̇ z, 0, 0) (1/s)."
+    )
+
+
+class SceneModel(BodySection):
+    """Several bodies in one fluid (:class:`parastokes.scene.Scene`), made from ``[[bodies]]``."""
+
+    kind: Literal["scene"] = Field("scene", description="A scene of ``[[bodies]]``.")
+    bodies: list[SerializeAsAny[BodySection]] = Field(min_length=1)
+    names: list[str]
+    viscosity: Positive
+    wall: bool
+    shear_rate: float = Field(allow_inf_nan=False)
+
+    def resolve(self) -> BodyResolution:
+        """Θ⁰ named as :attr:`Scene.params`; the rows of all bodies."""
+        parts = [body.resolve() for body in self.bodies]
+        theta0 = {"viscosity": float(self.viscosity)}
+        for name, part in zip(self.names, parts, strict=True):
+            theta0 |= {f"{name}.{k}": v for k, v in part.theta0.items() if k != "viscosity"}
+        return BodyResolution(theta0, sum(part.n_points for part in parts))
+
+    def build(self, threads: int = 1) -> Any:
+        from ..scene import Scene
+
+        return Scene(tuple(body.build(threads) for body in self.bodies), self.viscosity,
+                     self.wall, self.shear_rate, tuple(self.names), n_threads=threads)
+
+    def parameter_units(self, name: str) -> tuple[str, dict[str, float]]:
+        """Those of the body that ``name`` (``"body.param"``) belongs to."""
+        body, _, param = name.partition(".")
+        if param and body in self.names:
+            return self.bodies[self.names.index(body)].parameter_units(param)
+        return "absolute", {}
+
+    def tracks_points(self) -> bool:
+        return False
+
+    def tables(self) -> dict[str, Any]:
+        """``[scene]`` and one ``[[bodies]]`` table per body, named."""
+        fluid = {key: getattr(self, key) for key in FLUID}
+        bodies = [{"name": name, **body.tables()["model"]}
+                  for name, body in zip(self.names, self.bodies, strict=True)]
+        return {"scene": fluid, "bodies": bodies}
+
+    def layout(self, system: Any, frames: bool, tracked: Sequence[int] | None
+               ) -> list[BodyLayout]:
+        """Every body's layout, rows offset by the bodies before it, named after its body."""
+        out, first = [], 0
+        for name, section, body in zip(self.names, self.bodies, system.bodies, strict=True):
+            parts = section.layout(body, frames, None)
+            for part in parts:
+                label = name if len(parts) == 1 else f"{name}_{part.name}"
+                out.append(dataclasses.replace(part, name=label, first=first + part.first))
+            first += len(body.initial_state())
+        return out
+
+
+def _default_names(kinds: list[str]) -> list[str]:
+    short = [k.rpartition(":")[2].lower() for k in kinds]
+    return [k if short.count(k) == 1 else f"{k}{short[:i].count(k)}" for i, k in enumerate(short)]
+
+
+def _fluid(tables: list[dict[str, Any]], sections: list[type[BodySection]],
+           settings: SceneSettings, issues: list[tuple[str, str]]) -> dict[str, Any]:
+    """The scene's fluid values; fills them into the body tables that omit them, and appends an
+    issue for each body table that contradicts them."""
+    out: dict[str, Any] = {}
+    for key in FLUID:
+        value, where = getattr(settings, key), f"scene.{key}"
+        if value is None:
+            stated = [(i, t[key]) for i, t in enumerate(tables) if key in t]
+            having = [i for i, s in enumerate(sections) if key in s.model_fields]
+            if stated:
+                value, where = stated[0][1], f"bodies[{stated[0][0]}].{key}"
+            elif having:
+                value, where = sections[having[0]].model_fields[key].default, where
+            elif key in _DEFAULTS:
+                value = _DEFAULTS[key]
+            else:
+                issues.append((where, "required key is missing (no body has a viscosity)"))
+                continue
+        out[key] = value
+        for i, (table, section) in enumerate(zip(tables, sections, strict=True)):
+            if key not in section.model_fields:
+                continue
+            if key not in table:
+                table[key] = value
+            elif table[key] != value:
+                issues.append((f"bodies[{i}].{key}",
+                               f"{table[key]!r} differs from {where} = {value!r} (the bodies "
+                               "share one fluid and one background flow); remove one or make "
+                               "them agree"))
+    return out
+
+
+def scene_section(data: dict[str, Any], issues: list[tuple[str, str]], source: str
+                  ) -> SceneModel | None:
+    """The :class:`SceneModel` of ``data``'s ``[[bodies]]`` and ``[scene]`` (None, with issues,
+    if they are not valid)."""
+    tables = data["bodies"]
+    if not isinstance(tables, list) or not tables or not all(isinstance(t, dict) for t in tables):
+        issues.append(("bodies", "must be one or more [[bodies]] tables"))
+        return None
+    try:
+        settings = SceneSettings.model_validate(data.get("scene", {}))
+    except ValidationError as error:
+        issues += from_validation_error(error, data, source, ("scene",)).issues
+        return None
+    tables = [dict(t) for t in tables]
+    names = [t.pop("name", None) for t in tables]
+    sections: list[type[BodySection]] = []
+    for i, table in enumerate(tables):
+        try:
+            sections.append(registry.get(table.get("kind", "")).section)
+        except registry.UnknownKindError as error:
+            issues.append((f"bodies[{i}].kind",
+                           "required key is missing" if "kind" not in table else str(error)))
+    if len(sections) < len(tables):
+        return None
+    fluid = _fluid(tables, sections, settings, issues)
+    bodies = []
+    for i, (table, section) in enumerate(zip(tables, sections, strict=True)):
+        try:
+            bodies.append(section.model_validate(table))
+        except ValidationError as error:
+            issues += from_validation_error(error, data, source, ("bodies", i)).issues
+    if len(bodies) < len(tables) or len(fluid) < len(FLUID):
+        return None
+    default = _default_names([t["kind"] for t in tables])
+    names = [n if n is not None else d for n, d in zip(names, default, strict=True)]
+    bad = [f"bodies[{i}].name" for i, n in enumerate(names)
+           if not isinstance(n, str) or not n or "." in n or names.count(n) > 1]
+    if bad:
+        issues += [(path, f"names must be distinct strings without '.', got {names}")
+                   for path in bad]
+        return None
+    return SceneModel(bodies=bodies, names=names, **fluid)
