@@ -33,7 +33,7 @@ from pathlib import Path
 
 from .files import atomic_write
 
-__all__ = ["DirectoryInUse", "RunDirectory", "RunDirectoryError", "claim"]
+__all__ = ["DirectoryInUse", "RunDirectory", "RunDirectoryError", "claim", "process_alive"]
 
 LOCK = ".parastokes.lock"
 STAGING = ".partial"
@@ -82,8 +82,9 @@ def _process_start(pid: int) -> str | None:
     return text.rsplit(")", 1)[1].split()[19]
 
 
-def _alive(pid: int, started: str | None) -> bool:
-    """Whether process ``pid`` of this host runs (not a zombie) and is the one that ``started``."""
+def process_alive(pid: int, started: str | None = None) -> bool:
+    """Whether process ``pid`` of this host runs (not a zombie) and, given ``started`` (its start
+    time from /proc), is the one that started then (not a later process reusing the PID)."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
@@ -109,7 +110,7 @@ def _owner(path: Path) -> dict | None:
 def _stale(owner: dict) -> bool:
     if owner.get("host") != socket.gethostname() or not isinstance(owner.get("pid"), int):
         return False
-    return not _alive(owner["pid"], owner.get("started"))
+    return not process_alive(owner["pid"], owner.get("started"))
 
 
 def _take_over(path: Path, owner: dict) -> None:

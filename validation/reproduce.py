@@ -541,15 +541,9 @@ def run_job(job: Job, layout: Layout) -> None:
 
 # ---- the scheduler -----------------------------------------------------------------------------
 def _alive(pid: int | None) -> bool:
-    if not pid:
-        return False
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
+    from parastokes.rundir import process_alive
+
+    return bool(pid) and process_alive(pid)
 
 
 def job_state(job: Job, layout: Layout, running: dict[str, int]) -> str:
