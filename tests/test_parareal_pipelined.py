@@ -529,3 +529,28 @@ def test_check_accepts_more_auxiliary_solves_than_workers_when_pipelined(tmp_pat
         config.load(path)
     cfg, resolved = config.load(path, ['parareal.schedule="pipelined"'])
     assert cfg.parareal.schedule == "pipelined" and resolved.n_auxiliary == 4
+
+
+def test_a_pipelined_runs_theoretical_speedup_is_its_schedules_model():
+    """speedup(): eqs. 14-15 for Algorithm 1; for the pipelined schedule the simulation on N_c
+    workers and its critical path, fed with the same measured gamma_G, gamma_F (and the same for
+    every iteration in the runner's report)."""
+    fine, coarse = _solvers(PROBLEMS["logistic"][0])
+    (standard, pipelined), _ = _both(
+        fine, coarse, PROBLEMS["logistic"][1], 8, Pool(8), tol=0.0, max_iterations=3
+    )
+    for res, schedule in ((standard, "standard"), (pipelined, "pipelined")):
+        s = res.speedup()
+        g, f, k, n = s["gamma_G"], s["gamma_F"], res.iterations, res.n_slices
+        assert s["schedule"] == schedule
+        if schedule == "standard":
+            assert s["theoretical"] == parareal.speedup(g, f, k, n)
+            assert s["bound"] == parareal.speedup_bound(g / f, k, n)
+        else:
+            assert s["theoretical"] == pytest.approx(
+                n / parareal.simulate("pipelined", n, k, n, g / f).wall, rel=1e-12
+            )
+            assert s["bound"] == pytest.approx(n * f / (k * f + (n - k) * g), rel=1e-12)
+            # the pipelined model beats Algorithm 1's at the same gammas, and stays below its
+            # critical path
+            assert parareal.speedup(g, f, k, n) < s["theoretical"] <= s["bound"] * (1 + 1e-12)

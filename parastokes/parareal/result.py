@@ -49,22 +49,26 @@ class PararealResult:
         - ``measured``: Upsilon_F / Upsilon_pr, with Upsilon_pr the measured total and Upsilon_F the
           measured serial fine time ``serial_time`` when given, else N_c gamma_F (eq. 13);
         - ``theoretical``: eq. 14 with Upsilon_oh = 0 and the measured gamma_G, gamma_F;
-        - ``bound``: eq. 15.
-        Also returned: gamma_G, gamma_F, their ratio, the overhead Upsilon_oh of eq. 12 and whether
-        the serial time was estimated.
+        - ``bound``: eq. 15;
+        for a run of the pipelined schedule their counterparts for that schedule
+        (:func:`~parastokes.parareal.speedup.schedule_speedups`).
+        Also returned: gamma_G, gamma_F, their ratio, the overhead Upsilon_oh of eq. 12, whether
+        the serial time was estimated and the schedule.
         """
         t = self.timings
         n, k = self.n_slices, self.iterations
         estimated = serial_time is None
         serial = n * t.gamma_f if estimated else float(serial_time)
+        theoretical, bound = model.schedule_speedups(t.schedule, t.gamma_g, t.gamma_f, k, n)
         return {
             "measured": serial / t.total,
-            "theoretical": model.speedup(t.gamma_g, t.gamma_f, k, n),
-            "bound": model.speedup_bound(t.gamma_g / t.gamma_f, k, n),
+            "theoretical": theoretical,
+            "bound": bound,
             "gamma_G": t.gamma_g,
             "gamma_F": t.gamma_f,
             "gamma_ratio": t.gamma_g / t.gamma_f,
             "overhead": t.overhead(n),
             "serial_time": serial,
             "serial_time_estimated": estimated,
+            "schedule": t.schedule,
         }

@@ -80,6 +80,27 @@ def pipelined_runtime(gamma_g: float, gamma_f: float, iterations: int, n_slices:
     return iterations * gamma_f + (n_slices - iterations) * gamma_g
 
 
+def schedule_speedups(
+    schedule: str, gamma_g: float, gamma_f: float, iterations: int, n_slices: int
+) -> tuple[float, float]:
+    """(theoretical speedup, its bound) of a run of ``schedule`` with one worker per slice and no
+    overhead: Algorithm 1's eqs. 14 and 15 for ``"standard"``; for ``"pipelined"`` the simulated
+    wall time of that schedule on N_c workers (:func:`~parastokes.parareal.simulate`) and the
+    speedup of its critical path (:func:`pipelined_runtime`: no task waits for a worker)."""
+    if schedule == "pipelined":
+        from .schedule_model import simulate  # (it imports the schedules, which import this)
+
+        ratio = gamma_g / gamma_f
+        wall = simulate("pipelined", n_slices, iterations, n_slices, ratio).wall
+        return n_slices / wall, n_slices * gamma_f / pipelined_runtime(
+            gamma_g, gamma_f, iterations, n_slices
+        )
+    return (
+        speedup(gamma_g, gamma_f, iterations, n_slices),
+        speedup_bound(gamma_g / gamma_f, iterations, n_slices),
+    )
+
+
 def predict(
     gamma_ratio: float, iterations: int, cores: Iterable[int]
 ) -> list[tuple[int, float, float]]:
