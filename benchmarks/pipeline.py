@@ -16,7 +16,8 @@ Sections:
   formula and against the simulation (:func:`parastokes.parareal.simulate`) fed with the task
   costs measured in that run (mean fine and coarse task durations, which include the per-task
   overhead of the thread pool) and, for the pipelined schedule, the measured hand-over latency of
-  the manager per task (:func:`dispatch_latency`), which the simulation adds to every task.
+  the manager per task (:func:`parastokes.parareal.handover_latency`), which the simulation adds
+  to every task.
 - ``real``: a rod (Table 6 coarse solver, N_G = 2) and a vesicle (Table 7's G^3 reduced to N_G = 2)
   on 2 worker processes, 4 slices, K = 2, both schedules interleaved; same iterates (asserted), wall
   time against the simulation for W = 2 with the run's measured gamma_F and gamma_G.
@@ -145,35 +146,6 @@ def _mean_task(res: parareal.PararealResult, kinds: set[str]) -> float:
     return float(np.mean(durations))
 
 
-def dispatch_latency(tasks: Sequence[Sequence[Any]]) -> float:
-    """The median time from a coarse step's inputs being complete to its start, in a pipelined
-    run's task records (``[kind, n, k, start, end, worker]``): the manager's hand-over (the
-    correction of eq. 11, queueing the step, a free thread picking it up), which the measured task
-    durations do not contain and the simulation adds to every task as its ``overhead``.
-
-    The input X_{n-1}^k of the coarse step G(n, k) is complete when G(n-1, 0) ends (k = 0), when
-    F(n-1, k) ends (n - 1 = k, exact), or when F(n-1, k), G(n-1, k) and G(n-1, k-1) have all ended.
-    """
-    ends: dict[tuple[str, int, int], float] = {}
-    starts: dict[tuple[int, int], float] = {}
-    for kind, n, k, start, end, _ in tasks:
-        key = ("G" if kind in ("coarse", "auxiliary") else "F", n, k)
-        ends[key] = max(ends.get(key, -math.inf), end)
-        if key[0] == "G":
-            starts[n, k] = min(starts.get((n, k), math.inf), start)
-    gaps = []
-    for (n, k), start in starts.items():
-        if k == 0:
-            inputs = [("G", n - 1, 0)]
-        elif n - 1 == k:
-            inputs = [("F", n - 1, k)]
-        else:
-            inputs = [("F", n - 1, k), ("G", n - 1, k), ("G", n - 1, k - 1)]
-        if n > 1 and all(key in ends for key in inputs):
-            gaps.append(start - max(ends[key] for key in inputs))
-    return float(np.median(gaps)) if gaps else 0.0
-
-
 def emulation_case(
     workers: int, alpha: float, iterations: int, fine_s: float, n_auxiliary: int = 1
 ) -> dict[str, Any]:
@@ -214,7 +186,8 @@ def emulation_case(
                 g_cost /= math.ceil(n_auxiliary / workers)  # a step = ceil(N_G / W) rounds
             # the standard schedule runs its coarse sweep on the manager and sends its fine
             # solves in one batch: no hand-over per task to model
-            latency = 0.0 if schedule == "standard" else dispatch_latency(res.timings.tasks)
+            tasks = res.timings.tasks
+            latency = 0.0 if schedule == "standard" else parareal.handover_latency(tasks)
             sim = parareal.simulate(
                 schedule, workers, iterations, workers, g_cost / f_cost, 1.0, n_auxiliary,
                 latency / f_cost,
@@ -286,7 +259,8 @@ def emulation(args: argparse.Namespace) -> tuple[str, Any]:
         "with sleeping tasks), not speedups of the physics. 'sim' is the simulation with the "
         "nominal alpha; 'wall/sim' the measured wall over the simulation fed with the run's "
         "measured mean task durations and, for the pipelined schedule, its measured hand-over "
-        "latency per task ('latency', see dispatch_latency); 'wall/bare' the same without it.",
+        "latency per task ('latency', see parareal.handover_latency); 'wall/bare' the same "
+        "without it.",
         "",
     ]
     headers = [

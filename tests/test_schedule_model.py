@@ -128,3 +128,23 @@ def test_bad_input():
         simulate("standard", 4, 1, 4, 0.1, n_auxiliary=0)
     with pytest.raises(ValueError, match="core counts"):
         parareal.predict_schedules(0.1, 1, [0])
+
+
+def test_the_handover_latency_is_the_median_wait_of_coarse_steps_for_their_inputs():
+    """Hand-computed records ``[kind, n, k, start, end, worker]``: G(2, 0) waits 0.1 after G(1, 0);
+    G(3, 1) waits 0.3 after the last of F(2, 1), G(2, 1), G(2, 0); G(3, 2) 0.2 after F(2, 2)
+    (exact); G(2, 1) has no complete recorded input (slice 1 of iteration 1 is exact) and G(1, *)
+    none at all: the median of (0.1, 0.3, 0.2) is 0.2. A split step counts from its first
+    auxiliary solve's start and its last one's end."""
+    tasks = [
+        ["coarse", 1, 0, 0.0, 1.0, 0],
+        ["auxiliary", 2, 0, 1.1, 1.5, 0],
+        ["auxiliary", 2, 0, 1.2, 2.0, 1],
+        ["fine", 2, 1, 0.5, 2.5, 1],
+        ["coarse", 2, 1, 2.0, 2.6, 0],
+        ["coarse", 3, 1, 2.9, 3.0, 0],
+        ["fine", 2, 2, 3.0, 4.0, 1],
+        ["coarse", 3, 2, 4.2, 4.5, 0],
+    ]
+    assert parareal.handover_latency(tasks) == pytest.approx(0.2)
+    assert parareal.handover_latency([]) == 0.0

@@ -8,7 +8,7 @@ from .algorithm import SCHEDULES, IterationReport, run, serial_solution, time_po
 from .extrapolation import Extrapolated, extrapolated
 from .metrics import relative_change
 from .result import PararealResult
-from .schedule_model import Simulation, predict_schedules, simulate
+from .schedule_model import Simulation, handover_latency, predict_schedules, simulate
 from .speedup import (
     parareal_runtime,
     pipelined_runtime,
@@ -32,6 +32,7 @@ __all__ = [
     "Timings",
     "Transfer",
     "extrapolated",
+    "handover_latency",
     "lagrange_weights",
     "parareal_runtime",
     "pipelined_runtime",

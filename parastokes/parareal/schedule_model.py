@@ -18,11 +18,14 @@ from __future__ import annotations
 
 import heapq
 import math
+import statistics
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 from .pipelined import AUXILIARY, FINE, priority
 
-__all__ = ["Simulation", "predict_schedules", "simulate"]
+__all__ = ["Simulation", "handover_latency", "predict_schedules", "simulate"]
 
 
 @dataclass(frozen=True)
@@ -224,3 +227,32 @@ def predict_schedules(
             row[schedule] = sim.speedup
         rows.append(row)
     return rows
+
+
+def handover_latency(tasks: Sequence[Sequence[Any]]) -> float:
+    """The median time from a coarse step's inputs being complete to its start, in a pipelined
+    run's task records (``[kind, n, k, start, end, worker]``): the manager's hand-over (the
+    correction of eq. 11, queueing the step, a free thread picking it up), which the measured task
+    durations do not contain and the simulation adds to every task as its ``overhead``.
+
+    The input X_{n-1}^k of the coarse step G(n, k) is complete when G(n-1, 0) ends (k = 0), when
+    F(n-1, k) ends (n - 1 = k, exact), or when F(n-1, k), G(n-1, k) and G(n-1, k-1) have all ended.
+    """
+    ends: dict[tuple[str, int, int], float] = {}
+    starts: dict[tuple[int, int], float] = {}
+    for kind, n, k, start, end, _ in tasks:
+        key = ("G" if kind in ("coarse", "auxiliary") else "F", n, k)
+        ends[key] = max(ends.get(key, -math.inf), end)
+        if key[0] == "G":
+            starts[n, k] = min(starts.get((n, k), math.inf), start)
+    gaps = []
+    for (n, k), start in starts.items():
+        if k == 0:
+            inputs = [("G", n - 1, 0)]
+        elif n - 1 == k:
+            inputs = [("F", n - 1, k)]
+        else:
+            inputs = [("F", n - 1, k), ("G", n - 1, k), ("G", n - 1, k - 1)]
+        if n > 1 and all(key in ends for key in inputs):
+            gaps.append(start - max(ends[key] for key in inputs))
+    return float(statistics.median(gaps)) if gaps else 0.0
