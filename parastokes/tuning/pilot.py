@@ -31,13 +31,11 @@ class _Reused:
 
     def __init__(self, fine: Any, times: np.ndarray, reference: np.ndarray) -> None:
         self.fine, self.times, self.reference = fine, times, reference
-        self.calls = 0
 
     def __call__(self, t_start: float, t_end: float, x: np.ndarray) -> np.ndarray:
         n = int(np.argmin(np.abs(self.times - t_start)))
         if n + 1 < len(self.times) and np.array_equal(x, self.reference[n]):
             return self.reference[n + 1].copy()
-        self.calls += 1
         return self.fine(t_start, t_end, x)
 
 
@@ -62,7 +60,6 @@ class PilotRun:
 
     errors: list[float]  # η^k at T_P, k = 1..K
     coarse_seconds: float  # mean CPU time of one coarse call (all auxiliaries in this process)
-    fine_solves: int  # fine slice solves it needed beyond the reference
     seconds: float  # wall time of the whole pilot run
 
 
@@ -140,5 +137,4 @@ class Pilot:
         errors = [float(e) for e in res.errors]
         if not all(math.isfinite(e) for e in errors):
             raise integrate.BlowUpError(times[-1], 0, math.nan, self.x0, "non-finite iterate")
-        return PilotRun(errors, float(np.mean(timed.seconds)), fine.calls,
-                        time.perf_counter() - start)
+        return PilotRun(errors, float(np.mean(timed.seconds)), time.perf_counter() - start)
