@@ -96,12 +96,15 @@ class SizedExecutor(Protocol):
     def submit(self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> Any: ...
 
 
-def oversubscription(n_auxiliary: int, workers: int | None) -> str | None:
+def oversubscription(
+    n_auxiliary: int, workers: int | None, schedule: str = "standard"
+) -> str | None:
     """Why ``n_auxiliary`` auxiliary coarse solvers cannot all run at once on ``workers``
     workers (Algorithm 1's input condition N_G <= N_c), or None when they can. One worker (the
-    serial reference) and an unknown count (``None``: every task at once) are never oversubscribed.
+    serial reference) and an unknown count (``None``: every task at once) are never oversubscribed,
+    nor is the pipelined ``schedule``, whose auxiliary solves wait for workers like any task.
     """
-    if workers is None or workers == 1 or n_auxiliary <= workers:
+    if schedule == "pipelined" or workers is None or workers == 1 or n_auxiliary <= workers:
         return None
     return (
         f"the coarse solver has N_G = {n_auxiliary} auxiliary solvers but there are only "

@@ -92,9 +92,8 @@ def build(cfg: Config, resolved: Resolved, *, executor: bool = True) -> Setup:
             warmup=WarmUp(system),
             **options,
         )
-        problem = oversubscription(resolved.n_auxiliary, pool.workers)
-        queued = ex.allow_oversubscribe or cfg.parareal.schedule == "pipelined"
-        if resolved.workers is None and problem and not queued:
+        problem = oversubscription(resolved.n_auxiliary, pool.workers, cfg.parareal.schedule)
+        if resolved.workers is None and problem and not ex.allow_oversubscribe:
             pool.shutdown()
             raise ConfigError(
                 [

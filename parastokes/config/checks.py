@@ -199,9 +199,8 @@ def _workers(cfg: Config, n_auxiliary: int, issues: list, warnings: list) -> int
     if workers is None:  # mpi: all ranks of the launch, known only when the executor exists
         return None
     _cores(cfg, workers, warnings)
-    problem = oversubscription(n_auxiliary, workers)
-    queued = ex.allow_oversubscribe or cfg.parareal.schedule == "pipelined"  # (as tasks)
-    if problem and not queued and cfg.run.mode != "serial":
+    problem = oversubscription(n_auxiliary, workers, cfg.parareal.schedule)
+    if problem and not ex.allow_oversubscribe and cfg.run.mode != "serial":
         issues.append(
             (
                 "execution.workers",
