@@ -34,7 +34,7 @@ import numpy as np
 from . import integrate
 from .contracts import PropagatorLike
 from .fluid import TargetBlocks
-from .system import RodSystem, VesicleSystem
+from .models import RodSystem, VesicleSystem
 
 __all__ = ["SpatialSpeedup", "TargetBlocks", "fine_solver", "measure_speedup", "threaded"]
 

@@ -18,8 +18,8 @@ from rods import helix_rod
 from parastokes import integrate, models
 from parastokes.fluid import MRS
 from parastokes.integrate import SCHEMES, BlowUpError
+from parastokes.kinds.rod.compiled import rod_data
 from parastokes.stepping import loop, registry
-from parastokes.stepping.rod import rod_data
 
 
 def swimmers(**kw):

@@ -10,9 +10,10 @@ from rods import helix_rod
 from scipy.spatial.transform import Rotation
 
 from parastokes import integrate, models, mrs
-from parastokes.bodies import frames, reference
-from parastokes.bodies.rod import rod_loads
-from parastokes.system import RodSystem
+from parastokes.bodies import frames
+from parastokes.kinds.rod import reference
+from parastokes.kinds.rod.mechanics import rod_loads
+from parastokes.kinds.rod.system import RodSystem
 
 
 def bent_state(system, seed=0, size=0.05):

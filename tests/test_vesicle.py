@@ -5,8 +5,9 @@ import numpy as np
 import pytest
 
 from parastokes import integrate, models, mrs
-from parastokes.bodies import geometry, reference
-from parastokes.bodies.vesicle import spring_forces
+from parastokes.bodies import geometry
+from parastokes.kinds.vesicle import reference
+from parastokes.kinds.vesicle.mechanics import spring_forces
 
 
 def deformed(ves, seed=0, size=0.02):

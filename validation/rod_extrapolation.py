@@ -41,7 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from parastokes import integrate, models, parareal
-from parastokes.system import RodSystem
+from parastokes.kinds.rod.system import RodSystem
 from validation.report import print_claims, write_results
 
 __all__ = [

@@ -1,16 +1,12 @@
-"""Elastic bodies: Kirchhoff rods, spring-network vesicles, their geometry and grid transfer.
+"""What every body kind builds on (the kinds themselves live in :mod:`parastokes.kinds`).
 
-- :mod:`.rod`: discrete Kirchhoff rod mechanics (paper eqs. 10-12, 36), compiled.
-- :mod:`.vesicle`: Hookean spring network on a triangulated surface (physics.md (14)), compiled.
-- :mod:`.frames`: Rodrigues rotation of frames (eq. 13) and re-orthonormalization.
-- :mod:`.geometry`: straight rods, icospheres, mesh edges and areas.
-- :mod:`.rod_transfer`: cubic-spline restriction/prolongation between rod grids (Remark 4).
-- :mod:`.reference`: plain-numpy oracles of the compiled functions (for tests).
-
-The systems built from them live in :mod:`parastokes.system`; the public factories in
-:mod:`parastokes.models`.
+- :mod:`.base`: ``FluidBody`` (a body's fluid and compiled loop), ``PointsInShear`` (points moved
+  by their forces in shear flow), ``replace_params``, ``require_positive``;
+- :mod:`.frames`: Rodrigues rotation of frames (eq. 13) and re-orthonormalization;
+- :mod:`.geometry`: straight rods, icospheres, mesh edges and areas;
+- :mod:`.registry`: the body registry (how config, run, output and plots find a kind).
 """
 
-from . import frames, geometry, reference, rod, rod_transfer, vesicle
+from . import frames, geometry
 
-__all__ = ["frames", "geometry", "reference", "rod", "rod_transfer", "vesicle"]
+__all__ = ["frames", "geometry"]

@@ -50,8 +50,8 @@ __all__ = [
 
 #: The package's own kinds: name -> ``"module:attribute"`` of their :class:`BodyKind`.
 BUILTIN: dict[str, str] = {
-    "rod": "parastokes.kinds.rod:KIND",
-    "vesicle": "parastokes.kinds.vesicle:KIND",
+    "rod": "parastokes.kinds.rod.kind:KIND",
+    "vesicle": "parastokes.kinds.vesicle.kind:KIND",
     "chain": "parastokes.kinds.chain:KIND",
 }
 

@@ -7,7 +7,7 @@ against the slice length, auxiliary solvers against workers) live in :mod:`.chec
 
 Units follow the paper: μm, s, g. Defaults are the paper's values (Table 2 for rods, section 5.2 for
 the vesicle). The ``[model]`` section is the section of its body kind, found through
-:mod:`parastokes.bodies.registry` (the rod's and the vesicle's live in :mod:`parastokes.kinds`).
+:mod:`parastokes.bodies.registry` (the package's own live in :mod:`parastokes.kinds`).
 """
 
 from __future__ import annotations

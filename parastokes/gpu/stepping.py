@@ -34,9 +34,9 @@ from numba import cuda
 
 from ..bodies.frames import advance_node
 from ..bodies.geometry import triangle_area2
-from ..bodies.rod import segment_loads
-from ..bodies.vesicle import spring_pull
 from ..integrate import BEYOND, DONE, NON_FINITE, Scheme
+from ..kinds.rod.mechanics import segment_loads
+from ..kinds.vesicle.mechanics import spring_pull
 from ..mrs.velocity import EIGHT_PI
 from ..stepping.loop import tableau_arrays
 from . import device
@@ -138,7 +138,8 @@ def _body_kernels(kind: str, threads: int) -> tuple:
 
     @jit
     def rod_loads(x, b, t, tid, theta, body, f, tq):
-        """f, tq at the points of member b (eq. 12), summed as ``bodies.rod.rod_loads`` does."""
+        """f, tq at the points of member b (eq. 12), summed as ``kinds.rod.mechanics.rod_loads``
+        does."""
         m = body[2]
         for p in range(tid, x.shape[1], threads):
             kk = p % m
@@ -169,7 +170,7 @@ def _body_kernels(kind: str, threads: int) -> tuple:
     @jit
     def vesicle_loads(x, b, t, tid, theta, body, f, tq):
         """Spring forces at the vertices of member b (physics.md (14)), each vertex summing its
-        springs in edge order, as ``bodies.vesicle.spring_forces`` does."""
+        springs in edge order, as ``kinds.vesicle.mechanics.spring_forces`` does."""
         offsets, incident, edges, rest = body[0], body[1], body[2], body[3]
         two = cuda.local.array((2, 3), float64)
         for p in range(tid, x.shape[1], threads):
@@ -416,7 +417,7 @@ KINDS = {
 def kind_of(system: Any) -> str | None:
     """The batched kind of ``system`` ("RodSystem", "VesicleSystem"), or None when the GPU path
     does not reproduce it (another class, or a subclass, whose physics may differ)."""
-    from ..system import RodSystem, VesicleSystem
+    from ..models import RodSystem, VesicleSystem
 
     cls = type(system)
     return cls.__name__ if cls in (RodSystem, VesicleSystem) else None

@@ -25,6 +25,7 @@ import numpy as np
 from numba import njit
 from pydantic import Field
 
+from ..bodies.base import PointsInShear, replace_params
 from ..bodies.registry import (
     BodyKind,
     BodyLayout,
@@ -36,7 +37,6 @@ from ..bodies.registry import (
 )
 from ..fluid import TargetBlocks
 from ..mrs.velocity import thread_count
-from ..system import PointsInShear, replace_params
 
 __all__ = ["KIND", "ChainModel", "ChainSystem", "chain_energy", "chain_forces"]
 

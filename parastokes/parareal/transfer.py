@@ -7,7 +7,7 @@ A model plugs in its own grids through a ``transfer`` object with two methods:
   returning a valid fine-grid state (e.g. with re-orthonormalized frames).
 
 Models expose them as ``system.coarsened(factor) -> (coarse_system, transfer)`` (rods: cubic splines
-in arclength, ``parastokes/bodies/rod_transfer.py``).
+in arclength, ``parastokes/kinds/rod/transfer.py``).
 """
 
 from __future__ import annotations

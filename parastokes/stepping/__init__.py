@@ -2,12 +2,11 @@
 
 - :mod:`.registry`: which system types have a compiled loop (exact type, no inheritance);
 - :mod:`.loop`: the generic loop (any :class:`parastokes.integrate.Scheme` tableau, the per-step
-  checks) over four compiled parts that each system supplies for its own data type;
-- :mod:`.rod`: the rod system's parts (mechanics, wall kernel, frame rotations, length monitor);
-- :mod:`.vesicle`: the vesicle's parts (springs, free-space kernel, shear flow, area monitor).
+  checks) over four compiled parts that each system supplies for its own data type.
 
-Importing this package loads only the registry; a system module imports its parts and registers
-its type (:mod:`parastokes.system`).
+A body's compiled parts live with the body (e.g. :mod:`parastokes.kinds.rod.compiled`); its
+system module registers its type here when imported. Importing this package loads only the
+registry, so the loop never names a body.
 """
 
 from . import registry

@@ -18,7 +18,7 @@ What is specific to a system are four compiled parts, chosen by the type of the 
 ``data`` (a ``NamedTuple`` of arrays and numbers built once per call) through
 ``numba.extending.overload``: :func:`rates_into`, :func:`advance`, :func:`monitor` and
 :func:`bracket_into`; and :func:`workspace`, the scratch arrays that ``rates_into`` reuses. A system
-registers them for its data type (:mod:`parastokes.stepping.rod`, :mod:`.vesicle`) and must run
+registers them for its data type (e.g. :mod:`parastokes.kinds.rod.compiled`) and must run
 the same compiled functions as its Python ``rates``/``advance``/``monitor``, so that both loops
 agree bit for bit (tested).
 

@@ -1,6 +1,6 @@
 """The rod system's compiled parts for the loop of :mod:`parastokes.stepping.loop`.
 
-The same compiled functions as :class:`parastokes.system.RodSystem`'s Python methods, in the
+The same compiled functions as :class:`.system.RodSystem`'s Python methods, in the
 same order, so both loops give the same bits:
 
 - rates: the preferred strain (eq. 36), the rod loads (eqs. 10-12), and ``u``, ``w`` from the
@@ -16,16 +16,16 @@ from typing import Any, NamedTuple
 import numpy as np
 from numba.extending import overload
 
-from ..bodies.frames import advance_rod
-from ..bodies.rod import length_change, preferred_strain, rod_loads
-from ..mrs import compiled
-from . import loop
+from ...bodies.frames import advance_rod
+from ...mrs import compiled
+from ...stepping import loop
+from .mechanics import length_change, preferred_strain, rod_loads
 
 __all__ = ["RodData", "rod_data"]
 
 
 class RodData(NamedTuple):
-    """What the compiled parts of a :class:`parastokes.system.RodSystem` need."""
+    """What the compiled parts of a :class:`.system.RodSystem` need."""
 
     mechanics: tuple  # RodSystem.mechanics (n_rods first)
     eps: np.ndarray  # (1,)

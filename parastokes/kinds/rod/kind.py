@@ -1,6 +1,6 @@
 """The rod kind: Kirchhoff rod swimmers (section 5.1, Table 2, eq. 36) as a registered body.
 
-Its config section (:class:`RodModel`), factory (:func:`parastokes.models.rod_swimmer`), output
+Its config section (:class:`RodModel`), factory (:func:`.system.rod_swimmer`), output
 layout (one Polyline per rod, the frames D1, D2, D3 as node vectors) and drawing (every frame in
 the x-y plane, coloured by time).
 """
@@ -14,8 +14,7 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import Field
 
-from .. import models
-from ..bodies.registry import (
+from ...bodies.registry import (
     BodyKind,
     BodyLayout,
     BodyResolution,
@@ -24,7 +23,7 @@ from ..bodies.registry import (
     draw_over_time,
     polyline,
 )
-from ..system import RodSystem
+from .system import RodSystem, rod_swimmer
 
 __all__ = ["KIND", "RodModel"]
 
@@ -78,7 +77,7 @@ class RodModel(BodySection):
         return BodyResolution(theta0, self.n_rods * self.n_points, self.sigma, "sigma_f")
 
     def build(self, threads: int = 1) -> RodSystem:
-        return models.rod_swimmer(
+        return rod_swimmer(
             n_rods=self.n_rods,
             n_points=self.n_points,
             epsilon=self.resolve().theta0["epsilon"],
@@ -127,7 +126,7 @@ def draw(fig: Any, bodies: Mapping[str, Mapping[str, np.ndarray]], times: np.nda
 
 def example() -> tuple[RodSystem, np.ndarray, float | None]:
     """Two short swimmers side by side above the wall (travelling wave of eq. 36), at rest."""
-    system = models.rod_swimmer(2, 31, 1.0, length=6.0, wavelength=3.0)
+    system = rod_swimmer(2, 31, 1.0, length=6.0, wavelength=3.0)
     return system, system.initial_state(), None
 
 

@@ -22,7 +22,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .frames import rodrigues
+from ...bodies.frames import rodrigues
 
 _OPTS = dict(cache=True, error_model="numpy")
 

@@ -1,8 +1,9 @@
-"""Plain-numpy oracles of the compiled body functions (readable, slow; used by the tests).
+"""Plain-numpy oracles of the rod's compiled functions (readable, slow; used by the tests).
 
 Each function restates a formula of the paper / physics.md with whole-array operations and a
-different route where one exists (scipy's ``Rotation`` for the half-point frames and the Rodrigues
-update), so that agreement with the compiled code is evidence for both.
+different route (scipy's ``Rotation`` for the half-point frames and the Rodrigues update), so that
+agreement with the compiled code (:mod:`.mechanics`, :func:`parastokes.bodies.frames.advance_rod`)
+is evidence for both.
 """
 
 from __future__ import annotations
@@ -68,15 +69,3 @@ def advance_rod(state: np.ndarray, rates: np.ndarray, dt: float) -> np.ndarray:
         out[:, 3 + 3 * i : 6 + 3 * i] = rot.apply(state[:, 3 + 3 * i : 6 + 3 * i])
     return out
 
-
-def spring_forces(
-    points: np.ndarray, edges: np.ndarray, rest: np.ndarray, stiffness: float
-) -> np.ndarray:
-    """Hookean edge springs, physics.md (14)."""
-    d = points[edges[:, 1]] - points[edges[:, 0]]
-    length = np.linalg.norm(d, axis=1, keepdims=True)
-    pull = stiffness * (length - rest[:, None]) * d / length
-    out = np.zeros_like(points)
-    np.add.at(out, edges[:, 0], pull)
-    np.add.at(out, edges[:, 1], -pull)
-    return out

@@ -1,13 +1,10 @@
-"""Systems: bodies + fluid + background flow + physical parameters Θ (docs/contracts.md).
+"""The rod system: Kirchhoff rods in Stokes flow (paper section 5.1; physics.md section 3), and its
+public factories (:func:`rod`, :func:`rod_swimmer`, defaults = Table 2).
 
-- :class:`RodSystem`: Kirchhoff rods (paper section 5.1; physics.md section 3) in free space or
-  above the no-slip wall z = 0; point forces and torques (eq. 12) drive u and w through the
-  regularized Stokeslet/rotlet kernels with images (physics.md (1)-(8)); Θ = (ε, μ, a).
-- :class:`VesicleSystem`: the spring-network sphere (section 5.2; physics.md section 4) in free
-  space and the shear flow u∞ = (γ̇ z, 0, 0) (eq. 6 and physics.md (15)); Θ = (ε, μ, κ).
-
-Systems are frozen dataclasses of scalars (the rod's initial shape and the vesicle's mesh are
-rebuilt from them on demand, the mesh cached per process), so they pickle in a few hundred bytes.
+Rods in free space or above the no-slip wall z = 0; point forces and torques (eq. 12) drive u and w
+through the regularized Stokeslet/rotlet kernels with images (physics.md (1)-(8)); Θ = (ε, μ, a).
+The system is a frozen dataclass of scalars (the initial shape is rebuilt on demand), so it pickles
+in a few hundred bytes. Importing this module registers its compiled loop (:mod:`.compiled`).
 """
 
 from __future__ import annotations
@@ -17,91 +14,27 @@ import functools
 import math
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Any, ClassVar
+from typing import ClassVar
 
 import numpy as np
 
-from .bodies import frames, geometry, rod, vesicle
-from .bodies.rod_transfer import RodTransfer
-from .fluid import MRS, BlockedMRS, TargetBlocks
-from .mrs.velocity import thread_count
-from .stepping import loop, registry
-from .stepping.registry import RunSteps
-from .stepping.rod import rod_data
-from .stepping.vesicle import vesicle_data
+from ...bodies import frames, geometry
+from ...bodies.base import FluidBody, replace_params, require_positive
+from ...fluid import MRS, TargetBlocks
+from ...mrs.velocity import thread_count
+from ...stepping import loop, registry
+from . import mechanics as kirchhoff
+from .compiled import rod_data
+from .transfer import RodTransfer
 
-__all__ = ["FluidBody", "PointsInShear", "RodSystem", "VesicleSystem", "replace_params"]
-
-
-def _require_positive(**values: float) -> None:
-    for name, value in values.items():
-        if not (isinstance(value, int | float | np.number) and math.isfinite(value) and value > 0):
-            raise ValueError(f"{name}: must be a finite number > 0, got {value!r}")
+__all__ = ["TABLE2", "RodSystem", "rod", "rod_swimmer"]
 
 
 @lru_cache(maxsize=64)
 def _wave_table(n_half: int, ds: float, wavenumber: float) -> np.ndarray:
-    table = rod.wave_table(n_half, ds, wavenumber)
+    table = kirchhoff.wave_table(n_half, ds, wavenumber)
     table.flags.writeable = False
     return table
-
-
-class FluidBody:
-    """A body whose point loads act on the MRS fluid of its ``viscosity``, ``wall`` (if it has
-    one), ``n_threads`` and ``target_blocks`` (:mod:`parastokes.fluid`)."""
-
-    @property
-    def fluid(self) -> MRS:
-        """:class:`~parastokes.fluid.MRS`, or :class:`~parastokes.fluid.BlockedMRS` with
-        ``target_blocks`` (the spatially parallel fine solver of Remark 1)."""
-        wall = bool(getattr(self, "wall", False))
-        if self.target_blocks is None:
-            return MRS(self.viscosity, wall, self.n_threads)
-        return BlockedMRS(self.viscosity, wall, self.n_threads, self.target_blocks)
-
-
-class PointsInShear(FluidBody):
-    """Points that move with the fluid under the forces ``forces(state)`` they exert (no frames,
-    no torques), in the background shear u∞ = (γ̇ z, 0, 0), γ̇ = ``shear_rate`` (physics.md (15)).
-    The state is the positions, ``project`` the identity."""
-
-    #: Rates are velocities only (no angular part); for :class:`parastokes.scene.Scene`.
-    angular: ClassVar[bool] = False
-
-    def loads(self, t: float, state: np.ndarray) -> tuple[np.ndarray, None]:
-        """The point forces on the fluid, no torques."""
-        return self.forces(state), None
-
-    @staticmethod
-    def body_rates(u: np.ndarray, w: np.ndarray) -> np.ndarray:
-        """The rates from the fluid velocity at the points (background included): ``u``."""
-        return u
-
-    def rates(self, t: float, state: np.ndarray) -> np.ndarray:
-        """u∞(X) + Stokeslet velocities (eq. 6) of the forces."""
-        u = self.fluid.velocity(state, self.forces(state), epsilon=self.epsilon)
-        u[:, 0] += self.shear_rate * state[:, 2]
-        return u
-
-    def advance(self, state: np.ndarray, rates: np.ndarray, dt: float) -> np.ndarray:
-        return state + dt * rates
-
-    def project(self, state: np.ndarray) -> np.ndarray:
-        """The identity (no frames); returns ``state`` itself."""
-        return state
-
-    def positions(self, state: np.ndarray) -> np.ndarray:
-        return np.array(state)
-
-
-def replace_params(system: Any, theta: dict[str, float]) -> Any:
-    """``dataclasses.replace`` restricted to the names of ``system.params``."""
-    unknown = sorted(set(theta) - set(system.params))
-    if unknown:
-        raise ValueError(
-            f"with_params: unknown parameter(s) {unknown}; allowed: {sorted(system.params)}"
-        )
-    return dataclasses.replace(system, **{k: float(v) for k, v in theta.items()})
 
 
 @dataclass(frozen=True)
@@ -138,7 +71,7 @@ class RodSystem(FluidBody):
                 raise ValueError(
                     f"{name}: must be an integer >= {1 if name == 'n_rods' else 3}, got {value!r}"
                 )
-        _require_positive(
+        require_positive(
             length=self.length,
             epsilon=self.epsilon,
             viscosity=self.viscosity,
@@ -151,7 +84,7 @@ class RodSystem(FluidBody):
         if len(self.preferred) != 3:
             raise ValueError(f"preferred: need three strains, got {self.preferred!r}")
         if self.wall:
-            _require_positive(height=self.height)
+            require_positive(height=self.height)
         thread_count(self.n_threads)  # ValueError now, not at the first step
 
     # ---- geometry --------------------------------------------------------------------------
@@ -164,8 +97,8 @@ class RodSystem(FluidBody):
     def mechanics(self) -> tuple:
         """The arguments of the compiled mechanics: ``(n_rods, ds, a, b, table, constant,
         amplitude, wavenumber, frequency)``, with a = (a, a, a) and b the moduli, ``table`` the
-        cached (read-only) :func:`parastokes.bodies.rod.wave_table` of the half points and the
-        rest those of :func:`parastokes.bodies.rod.preferred_strain` (eq. 36)."""
+        cached (read-only) :func:`.mechanics.wave_table` of the half points and the rest those of
+        :func:`.mechanics.preferred_strain` (eq. 36)."""
         wavenumber = 2.0 * math.pi / self.wavelength
         return (
             self.n_rods,
@@ -182,7 +115,7 @@ class RodSystem(FluidBody):
     def preferred_strain(self, t: float) -> np.ndarray:
         """Ω̂ at the half points s_{k+½} at time t, shape (M - 1, 3) (eq. 36)."""
         table, *wave = self.mechanics[4:]
-        return rod.preferred_strain(table, float(t), *wave)
+        return kirchhoff.preferred_strain(table, float(t), *wave)
 
     def initial_state(self) -> np.ndarray:
         return geometry.straight_rods(
@@ -196,7 +129,8 @@ class RodSystem(FluidBody):
     def loads(self, t: float, state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Point forces and torques on the fluid (eq. 12), two (n, 3) arrays."""
         n_rods, ds, a, b, table, *wave = self.mechanics
-        return rod.rod_loads(state, n_rods, ds, a, b, rod.preferred_strain(table, float(t), *wave))
+        omega_hat = kirchhoff.preferred_strain(table, float(t), *wave)
+        return kirchhoff.rod_loads(state, n_rods, ds, a, b, omega_hat)
 
     #: Rates carry angular velocities (for :class:`parastokes.scene.Scene`).
     angular: ClassVar[bool] = True
@@ -229,12 +163,6 @@ class RodSystem(FluidBody):
 
     # ---- parameters and monitor ------------------------------------------------------------
     @property
-    def run_steps(self) -> RunSteps | None:
-        """The compiled loop of :mod:`parastokes.stepping` registered for this exact type (None
-        for a subclass: it may compute other rates; see :mod:`parastokes.stepping.registry`)."""
-        return registry.compiled_loop(self)
-
-    @property
     def params(self) -> dict[str, float]:
         return {"epsilon": self.epsilon, "viscosity": self.viscosity, "bending": self.bending}
 
@@ -248,7 +176,7 @@ class RodSystem(FluidBody):
 
     def monitor(self, state: np.ndarray) -> float:
         """Largest relative change of a rod's length Σ|X_{k+1} - X_k| from L (section 5.1)."""
-        return float(rod.length_change(state, self.n_rods, self.length))
+        return float(kirchhoff.length_change(state, self.n_rods, self.length))
 
     # ---- coarse grid (Remark 4) ------------------------------------------------------------
     def coarsened(self, factor: int) -> tuple[RodSystem, RodTransfer]:
@@ -268,90 +196,89 @@ class RodSystem(FluidBody):
         return coarse, RodTransfer(self.n_rods, self.n_points, m_c)
 
 
-@lru_cache(maxsize=8)
-def _spring_network(subdivisions: int) -> tuple[np.ndarray, np.ndarray, float]:
-    """Edges, rest lengths and area of the initial icosphere (cached, read-only)."""
-    verts, tris = geometry.icosphere(subdivisions)
-    edges = geometry.mesh_edges(tris)
-    rest = geometry.edge_lengths(verts, edges)
-    edges.setflags(write=False)
-    rest.setflags(write=False)
-    return edges, rest, geometry.surface_area(verts, tris)
+#: Table 2 of the paper (units μm, s, g).
+TABLE2 = {
+    "length": 60.0,
+    "amplitude": 1.0,
+    "frequency": 40.0 * math.pi,
+    "wavelength": 30.0,
+    "bending": 1.0,
+    "shear": (0.6, 0.6, 0.6),
+    "height": 10.0,
+    "viscosity": 1e-6,
+}
 
 
-@dataclass(frozen=True)
-class VesicleSystem(PointsInShear):
-    """Unit icosphere (``subdivisions`` levels) with springs on its edges in a shear flow.
+def rod(
+    n_rods: int = 1,
+    n_points: int = 301,
+    epsilon: float = 1.0,
+    *,
+    length: float = TABLE2["length"],
+    preferred: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    amplitude: float = 0.0,
+    wavelength: float = TABLE2["wavelength"],
+    frequency: float = 0.0,
+    bending: float = TABLE2["bending"],
+    shear: tuple[float, float, float] = TABLE2["shear"],
+    viscosity: float = TABLE2["viscosity"],
+    wall: bool = True,
+    height: float = TABLE2["height"],
+    spacing: float = 5.0,
+    n_threads: int | None = None,
+) -> RodSystem:
+    """Kirchhoff rods, initially straight along x: X(s) = (s, y_j, height), D3 = e_x, D1 = e_y,
+    D2 = e_z, with preferred strain ``preferred + (0, -k² A sin(k s + f t), 0)``, k = 2π/λ.
 
-    Rest lengths are the initial edge lengths; ε is absolute (the paper quotes ε = 0.3 l_max, see
-    :func:`parastokes.models.vesicle`); κ = ``stiffness``; u∞ = (γ̇ z, 0, 0), γ̇ = ``shear_rate``.
+    ``epsilon`` is absolute (μm); ``bending`` = a1 = a2 = a3; ``shear`` = (b1, b2, b3); rods are
+    ``spacing`` apart in y. ``wall=False`` puts the rods in free space.
     """
+    return RodSystem(
+        n_rods=n_rods,
+        n_points=n_points,
+        length=float(length),
+        epsilon=epsilon,
+        viscosity=viscosity,
+        bending=bending,
+        shear=tuple(float(b) for b in shear),
+        preferred=tuple(float(p) for p in preferred),
+        amplitude=float(amplitude),
+        wavelength=wavelength,
+        frequency=float(frequency),
+        wall=wall,
+        height=float(height),
+        spacing=spacing,
+        n_threads=n_threads,
+    )
 
-    subdivisions: int
-    epsilon: float
-    viscosity: float
-    stiffness: float
-    shear_rate: float
-    n_threads: int | None = None
-    target_blocks: TargetBlocks | None = None
-    center: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
-    def __post_init__(self) -> None:
-        geometry.icosphere(self.subdivisions)  # validates subdivisions
-        _require_positive(epsilon=self.epsilon, viscosity=self.viscosity, stiffness=self.stiffness)
-        if not math.isfinite(self.shear_rate):
-            raise ValueError(f"shear_rate: must be finite, got {self.shear_rate!r}")
-        thread_count(self.n_threads)  # ValueError now, not at the first step
+def rod_swimmer(
+    n_rods: int = 1,
+    n_points: int = 301,
+    epsilon: float = 1.0,
+    *,
+    amplitude: float = TABLE2["amplitude"],
+    frequency: float = TABLE2["frequency"],
+    wavelength: float = TABLE2["wavelength"],
+    **kwargs,
+) -> RodSystem:
+    """The paper's swimmer (section 5.1): Table 2 values, M = 301 (Δs = σ_f = 0.2), ε = 5 σ_f,
+    above the wall z = 0 at height 10, preferred strain Ω̂ = (0, -k² A sin(k s + f t), 0) (eq. 36).
 
-    @property
-    def mesh(self) -> tuple[np.ndarray, np.ndarray]:
-        """(vertices, triangles) of the initial sphere (cached, read-only)."""
-        return geometry.icosphere(self.subdivisions)
-
-    @property
-    def edges(self) -> np.ndarray:
-        return _spring_network(self.subdivisions)[0]
-
-    @property
-    def rest_lengths(self) -> np.ndarray:
-        return _spring_network(self.subdivisions)[1]
-
-    @property
-    def initial_area(self) -> float:
-        return _spring_network(self.subdivisions)[2]
-
-    def initial_state(self) -> np.ndarray:
-        """The icosphere's vertices around ``center``."""
-        return self.mesh[0] + np.asarray(self.center, dtype=float)
-
-    def forces(self, state: np.ndarray) -> np.ndarray:
-        """Spring forces on the fluid (physics.md (14))."""
-        return vesicle.spring_forces(state, self.edges, self.rest_lengths, self.stiffness)
-
-    run_steps = RodSystem.run_steps
-
-    @property
-    def params(self) -> dict[str, float]:
-        return {"epsilon": self.epsilon, "viscosity": self.viscosity, "stiffness": self.stiffness}
-
-    def with_params(self, **theta: float) -> VesicleSystem:
-        """A copy with some of ``epsilon``, ``viscosity``, ``stiffness`` (κ) changed."""
-        return replace_params(self, theta)
-
-    @property
-    def monitor_limit(self) -> float:
-        return 1e-4
-
-    def monitor(self, state: np.ndarray) -> float:
-        """Relative change of the surface area from the initial sphere's (section 5.2)."""
-        area = geometry.surface_area(state, self.mesh[1])
-        return abs(area - self.initial_area) / self.initial_area
+    ``frequency`` may be negative (the authors' own code uses sin(k s - f t)). ``n_rods`` rods lie
+    side by side in y, 5 μm apart (section 5.1.4 uses five). Other keywords go to :func:`rod`.
+    """
+    return rod(
+        n_rods,
+        n_points,
+        epsilon,
+        amplitude=amplitude,
+        frequency=frequency,
+        wavelength=wavelength,
+        **kwargs,
+    )
 
 
 registry.register(
     RodSystem, lambda system: functools.partial(loop.run_steps, system, rod_data), fluid=MRS
-)
-registry.register(
-    VesicleSystem, lambda system: functools.partial(loop.run_steps, system, vesicle_data),
-    fluid=MRS,
 )

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from .frames import orthonormalize
+from ...bodies.frames import orthonormalize
 
 
 def resample(state: np.ndarray, n_rods: int, m_from: int, m_to: int) -> np.ndarray:

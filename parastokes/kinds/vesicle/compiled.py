@@ -1,6 +1,6 @@
 """The vesicle's compiled parts for the loop of :mod:`parastokes.stepping.loop`.
 
-The same compiled functions as :class:`parastokes.system.VesicleSystem`'s Python methods, in
+The same compiled functions as :class:`.system.VesicleSystem`'s Python methods, in
 the same order, so both loops give the same bits:
 
 - rates: the spring forces (physics.md (14)), the free-space kernel
@@ -17,16 +17,16 @@ from typing import Any, NamedTuple
 import numpy as np
 from numba.extending import overload
 
-from ..bodies.geometry import mesh_area
-from ..bodies.vesicle import spring_forces
-from ..mrs import compiled
-from . import loop
+from ...bodies.geometry import mesh_area
+from ...mrs import compiled
+from ...stepping import loop
+from .mechanics import spring_forces
 
 __all__ = ["VesicleData", "vesicle_data"]
 
 
 class VesicleData(NamedTuple):
-    """What the compiled parts of a :class:`parastokes.system.VesicleSystem` need."""
+    """What the compiled parts of a :class:`.system.VesicleSystem` need."""
 
     edges: np.ndarray  # (E, 2)
     rest: np.ndarray  # (E,) rest lengths

@@ -1,23 +1,21 @@
 """The vesicle kind: the spring-network sphere in shear flow (section 5.2) as a registered body.
 
-Its config section (:class:`VesicleModel`), factory (:func:`parastokes.models.vesicle`), output
+Its config section (:class:`VesicleModel`), factory (:func:`.system.vesicle`), output
 layout (one Triangle mesh, the tracked points of Fig. 11 as a 0/1 mark) and drawing (the x-z
 projection at the first and the last frame, tracked points marked).
 """
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Mapping, Sequence
 from typing import Annotated, Any, Literal
 
 import numpy as np
 from pydantic import Field
 
-from .. import models
-from ..bodies import geometry
-from ..bodies.registry import BodyKind, BodyLayout, BodyResolution, BodySection, Positive
-from ..system import VesicleSystem
+from ...bodies import geometry
+from ...bodies.registry import BodyKind, BodyLayout, BodyResolution, BodySection, Positive
+from .system import VesicleSystem, longest_edge, vesicle
 
 __all__ = ["KIND", "VesicleModel"]
 
@@ -42,29 +40,34 @@ class VesicleModel(BodySection):
         [0.0, 0.0, 0.0], min_length=3, max_length=3,
         description="Initial centre of the sphere [x, y, z] (μm).",
     )
+    radius: Positive = Field(
+        1.0, description="Radius R of the sphere (μm); the mesh, the springs' rest lengths and "
+        "l_max (so ε in the unit l_max) scale with it.",
+    )
 
     def resolve(self) -> BodyResolution:
-        verts, tris = geometry.icosphere(self.subdivisions)
-        l_max = float(geometry.edge_lengths(verts, geometry.mesh_edges(tris)).max())
+        l_max = longest_edge(self.subdivisions, self.radius)
         epsilon = self.epsilon * (l_max if self.epsilon_unit == "l_max" else 1.0)
         theta0 = {"epsilon": epsilon, "viscosity": self.viscosity, "stiffness": self.stiffness}
-        return BodyResolution(theta0, len(verts), l_max, "l_max")
+        n_points = len(geometry.icosphere(self.subdivisions)[0])
+        return BodyResolution(theta0, n_points, l_max, "l_max")
 
     def build(self, threads: int = 1) -> VesicleSystem:
-        system = models.vesicle(
+        return VesicleSystem(
             subdivisions=self.subdivisions,
-            stiffness=self.stiffness,
+            epsilon=self.resolve().theta0["epsilon"],
             viscosity=self.viscosity,
+            stiffness=self.stiffness,
             shear_rate=self.shear_rate,
             n_threads=threads,
+            center=tuple(self.center),
+            radius=self.radius,
         )
-        system = dataclasses.replace(system, center=tuple(self.center))
-        return system.with_params(epsilon=self.resolve().theta0["epsilon"])
 
 
 def default_tracked(system: VesicleSystem) -> list[int]:
     """Three points on the x-z circle (top, front, lower back) as in Fig. 11."""
-    x0 = system.initial_state() - np.asarray(system.center)
+    x0 = (system.initial_state() - np.asarray(system.center)) / system.radius
     targets = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [-0.6, 0.0, -0.8]])
     return [int(np.argmin(np.linalg.norm(x0 - t, axis=1))) for t in targets]
 
@@ -105,7 +108,7 @@ def draw(fig: Any, bodies: Mapping[str, Mapping[str, np.ndarray]], times: np.nda
 
 def example() -> tuple[VesicleSystem, np.ndarray, float | None]:
     """A small vesicle (162 points) stretched by 2% along x, so that its springs pull."""
-    system = models.vesicle(subdivisions=2)
+    system = vesicle(subdivisions=2)
     return system, system.initial_state() * np.array([1.02, 1.0, 1 / 1.02]), 0.02
 
 

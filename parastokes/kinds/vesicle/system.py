@@ -1,0 +1,161 @@
+"""The vesicle system: the spring-network sphere in shear flow (paper section 5.2; physics.md
+section 4), and its public factory :func:`vesicle` (defaults = the paper's).
+
+Free-space regularized Stokeslets (eq. 6) of the spring forces (physics.md (14)) plus the shear
+flow u∞ = (γ̇ z, 0, 0) (physics.md (15)); Θ = (ε, μ, κ). The system is a frozen dataclass of
+scalars (the mesh is rebuilt on demand and cached per process), so it pickles in a few hundred
+bytes. Importing this module registers its compiled loop (:mod:`.compiled`).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from ...bodies import geometry
+from ...bodies.base import PointsInShear, replace_params, require_positive
+from ...fluid import MRS, TargetBlocks
+from ...mrs.velocity import thread_count
+from ...stepping import loop, registry
+from .compiled import vesicle_data
+from .mechanics import spring_forces
+
+__all__ = ["VesicleSystem", "longest_edge", "vesicle"]
+
+
+@lru_cache(maxsize=8)
+def _sphere(subdivisions: int, radius: float) -> tuple[np.ndarray, np.ndarray]:
+    """The icosphere of ``subdivisions`` levels scaled to ``radius`` (cached, read-only)."""
+    verts, tris = geometry.icosphere(subdivisions)
+    verts = verts * radius
+    verts.setflags(write=False)
+    return verts, tris
+
+
+@lru_cache(maxsize=8)
+def _spring_network(subdivisions: int, radius: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """Edges, rest lengths and area of the initial sphere (cached, read-only)."""
+    verts, tris = _sphere(subdivisions, radius)
+    edges = geometry.mesh_edges(tris)
+    rest = geometry.edge_lengths(verts, edges)
+    edges.setflags(write=False)
+    rest.setflags(write=False)
+    return edges, rest, geometry.surface_area(verts, tris)
+
+
+def longest_edge(subdivisions: int, radius: float = 1.0) -> float:
+    """l_max: the longest edge of the initial sphere (the length unit of the paper's ε)."""
+    require_positive(radius=radius)
+    return float(_spring_network(subdivisions, radius)[1].max())
+
+
+@dataclass(frozen=True)
+class VesicleSystem(PointsInShear):
+    """An icosphere (``subdivisions`` levels) of radius ``radius`` with springs on its edges in a
+    shear flow.
+
+    Rest lengths are the initial edge lengths (so they scale with the radius); ε is absolute (the
+    paper quotes ε = 0.3 l_max, see :func:`vesicle`); κ = ``stiffness``; u∞ = (γ̇ z, 0, 0),
+    γ̇ = ``shear_rate``.
+    """
+
+    subdivisions: int
+    epsilon: float
+    viscosity: float
+    stiffness: float
+    shear_rate: float
+    n_threads: int | None = None
+    target_blocks: TargetBlocks | None = None
+    center: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    radius: float = 1.0
+
+    def __post_init__(self) -> None:
+        geometry.icosphere(self.subdivisions)  # validates subdivisions
+        require_positive(
+            epsilon=self.epsilon,
+            viscosity=self.viscosity,
+            stiffness=self.stiffness,
+            radius=self.radius,
+        )
+        if not math.isfinite(self.shear_rate):
+            raise ValueError(f"shear_rate: must be finite, got {self.shear_rate!r}")
+        thread_count(self.n_threads)  # ValueError now, not at the first step
+
+    @property
+    def mesh(self) -> tuple[np.ndarray, np.ndarray]:
+        """(vertices, triangles) of the initial sphere around the origin (cached, read-only)."""
+        return _sphere(self.subdivisions, self.radius)
+
+    @property
+    def edges(self) -> np.ndarray:
+        return _spring_network(self.subdivisions, self.radius)[0]
+
+    @property
+    def rest_lengths(self) -> np.ndarray:
+        return _spring_network(self.subdivisions, self.radius)[1]
+
+    @property
+    def initial_area(self) -> float:
+        return _spring_network(self.subdivisions, self.radius)[2]
+
+    def initial_state(self) -> np.ndarray:
+        """The sphere's vertices around ``center``."""
+        return self.mesh[0] + np.asarray(self.center, dtype=float)
+
+    def forces(self, state: np.ndarray) -> np.ndarray:
+        """Spring forces on the fluid (physics.md (14))."""
+        return spring_forces(state, self.edges, self.rest_lengths, self.stiffness)
+
+    @property
+    def params(self) -> dict[str, float]:
+        return {"epsilon": self.epsilon, "viscosity": self.viscosity, "stiffness": self.stiffness}
+
+    def with_params(self, **theta: float) -> VesicleSystem:
+        """A copy with some of ``epsilon``, ``viscosity``, ``stiffness`` (κ) changed."""
+        return replace_params(self, theta)
+
+    @property
+    def monitor_limit(self) -> float:
+        return 1e-4
+
+    def monitor(self, state: np.ndarray) -> float:
+        """Relative change of the surface area from the initial sphere's (section 5.2)."""
+        area = geometry.surface_area(state, self.mesh[1])
+        return abs(area - self.initial_area) / self.initial_area
+
+
+def vesicle(
+    subdivisions: int = 3,
+    epsilon_factor: float = 0.3,
+    stiffness: float = 0.1,
+    viscosity: float = 1e-3,
+    shear_rate: float = 0.1,
+    *,
+    radius: float = 1.0,
+    n_threads: int | None = None,
+) -> VesicleSystem:
+    """The elastic sphere of section 5.2 (radius 1 by default): icosphere (642 points at level 3),
+    Hookean edge springs of stiffness κ = ``stiffness``, free-space Stokeslets with
+    ε = ``epsilon_factor`` · l_max (l_max the longest edge, ≈ 0.165 ``radius``), shear flow
+    u∞ = (γ̇ z, 0, 0)."""
+    if not (isinstance(epsilon_factor, int | float) and epsilon_factor > 0):
+        raise ValueError(f"epsilon_factor: must be > 0, got {epsilon_factor!r}")
+    return VesicleSystem(
+        subdivisions=subdivisions,
+        epsilon=epsilon_factor * longest_edge(subdivisions, radius),
+        viscosity=viscosity,
+        stiffness=stiffness,
+        shear_rate=shear_rate,
+        n_threads=n_threads,
+        radius=radius,
+    )
+
+
+registry.register(
+    VesicleSystem, lambda system: functools.partial(loop.run_steps, system, vesicle_data),
+    fluid=MRS,
+)
