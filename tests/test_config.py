@@ -7,6 +7,7 @@ import importlib.util
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 from configs import small_rod
 
@@ -159,6 +160,19 @@ def test_vesicle_units_and_rules():
     assert "coarse.lagrange.bending" in issues_of(VESICLE, "coarse.lagrange.bending=[0.5, 0.6]")
     assert "output.tracked_points" in issues_of(VESICLE, "output.tracked_points=[5000]")
     assert "model.epsilon_unit" in issues_of(VESICLE, 'model.epsilon_unit="sigma_f"')
+
+
+def test_vesicle_radius_scales_l_max_and_epsilon_and_keeps_the_tracked_points():
+    cfg1, r1 = config.loads(VESICLE)
+    cfg, r = config.loads(VESICLE, overrides=["model.radius=2.5"])
+    assert r.grid_spacing == pytest.approx(2.5 * r1.grid_spacing, rel=1e-15)  # l_max
+    assert r.epsilon == pytest.approx(2.5 * r1.epsilon, rel=1e-15)  # 0.3 l_max
+    system = cfg.model.build()
+    assert system.radius == 2.5 and system.epsilon == r.epsilon
+    assert np.linalg.norm(system.initial_state(), axis=1) == pytest.approx(2.5, rel=1e-15)
+    marks = [c.model.layout(c.model.build(), False, None)[0].marks["tracked"] for c in (cfg1, cfg)]
+    np.testing.assert_array_equal(marks[0], marks[1])  # Fig. 11's points, whatever the size
+    assert "model.radius" in issues_of(VESICLE, "model.radius=0")
 
 
 def test_overrides_parse_toml_values():

@@ -1,5 +1,6 @@
 """The spring-network sphere in shear flow (section 5.2; physics.md section 4)."""
 
+import dataclasses
 
 import numpy as np
 import pytest
@@ -91,15 +92,49 @@ def fit_rigid_motion(x, u):
     return coef[:3], coef[3:], np.abs(u.ravel() - a.reshape(3 * n, 6) @ coef).max()
 
 
-def test_very_stiff_vesicle_rotates_rigidly_at_half_the_shear_rate():
-    ves = models.vesicle(subdivisions=2, stiffness=1.0)  # capillary number μγ̇a/κ = 1e-4
+@pytest.mark.parametrize("radius", [1.0, 3.0])
+def test_very_stiff_vesicle_rotates_rigidly_at_half_the_shear_rate(radius):
+    """A nearly rigid sphere in shear turns at γ̇/2 whatever its size; what it lets through of the
+    straining part of the shear grows with its size R and its capillary number μγ̇R/κ."""
+    ves = models.vesicle(subdivisions=2, stiffness=1.0, radius=radius)
+    capillary = ves.viscosity * ves.shear_rate * radius / ves.stiffness  # 1e-4 R
     x = integrate.propagate(ves, ves.initial_state(), 0.0, 0.2, "rk2", 2e-4)
     velocity, omega, residual = fit_rigid_motion(x, ves.rates(0.2, x))
     gamma = ves.shear_rate
-    np.testing.assert_allclose(velocity, 0.0, atol=1e-12)
+    np.testing.assert_allclose(velocity, 0.0, atol=1e-12 * radius)
     np.testing.assert_allclose(omega, [0.0, gamma / 2, 0.0], rtol=0, atol=1e-5 * gamma)
-    assert residual < 2e-3 * gamma  # the straining part of the shear is resisted
+    assert residual < 2e-3 * gamma * radius * capillary / 1e-4  # the straining is resisted
     assert ves.monitor(x) < 1e-6
+
+
+def test_radius_scales_positions_rest_lengths_area_and_epsilon():
+    unit = models.vesicle(subdivisions=2)
+    big = models.vesicle(subdivisions=2, radius=2.5)
+    assert models.vesicle(subdivisions=2, radius=1.0) == unit  # the default is the unit sphere
+    np.testing.assert_allclose(big.initial_state(), 2.5 * unit.initial_state(), rtol=1e-15)
+    np.testing.assert_allclose(big.rest_lengths, 2.5 * unit.rest_lengths, rtol=1e-15)
+    assert big.initial_area == pytest.approx(2.5**2 * unit.initial_area, rel=1e-14)
+    assert big.epsilon == pytest.approx(2.5 * unit.epsilon, rel=1e-15)  # ε = 0.3 l_max
+    assert np.abs(big.forces(big.initial_state())).max() == 0.0  # at rest at its own size
+    moved = dataclasses.replace(big, center=(1.0, 2.0, 3.0))
+    np.testing.assert_allclose(moved.initial_state() - [1, 2, 3], big.initial_state(), atol=1e-15)
+
+
+def test_vesicle_twice_the_size_with_twice_the_stiffness_moves_twice_as_fast():
+    """x -> R x, ℓ⁰ -> R ℓ⁰, ε -> R ε, κ -> R κ: the spring forces scale by R, the Stokeslets by
+    1/R (S_{Rε}(R r) = S_ε(r)/R) and u∞ = γ̇ z by R, so the rates and the whole evolution scale
+    by R (self-similar in time)."""
+    unit = models.vesicle(subdivisions=2)
+    big = models.vesicle(subdivisions=2, stiffness=2 * unit.stiffness, radius=2.0)
+    x = deformed(unit)
+    u = unit.rates(0.0, x)
+    assert np.abs(unit.forces(x)).max() > 1e-3
+    np.testing.assert_allclose(big.rates(0.0, 2 * x), 2 * u, rtol=0, atol=1e-13 * np.abs(u).max())
+    x = unit.initial_state() * np.array([1.003, 1.0, 1 / 1.003])  # within the area monitor
+    x1 = integrate.propagate(unit, x, 0.0, 0.05, "rk2", 1e-3)
+    x2 = integrate.propagate(big, 2 * x, 0.0, 0.05, "rk2", 1e-3)
+    assert np.abs(x1 - x).max() > 1e-3  # it moved
+    np.testing.assert_allclose(x2, 2 * x1, rtol=0, atol=1e-13)
 
 
 def test_area_monitor_within_paper_limit_with_the_fine_step():
@@ -130,6 +165,8 @@ def test_stiffness_scales_the_spring_forces():
         ({"stiffness": -0.1}, "stiffness"),
         ({"viscosity": 0.0}, "viscosity"),
         ({"n_threads": 0}, "n_threads"),
+        ({"radius": 0.0}, "radius"),
+        ({"radius": float("nan")}, "radius"),
     ],
 )
 def test_bad_vesicle_input_raises_naming_the_argument(kwargs, name):
