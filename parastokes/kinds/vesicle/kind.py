@@ -1,8 +1,9 @@
 """The vesicle kind: the spring-network sphere in shear flow (section 5.2) as a registered body.
 
-Its config section (:class:`VesicleModel`), factory (:func:`.system.vesicle`), output
-layout (one Triangle mesh, the tracked points of Fig. 11 as a 0/1 mark) and drawing (the x-z
-projection at the first and the last frame, tracked points marked).
+Its config section (:class:`VesicleModel`, which resolves ε in l_max and builds a
+:class:`.system.VesicleSystem`), output layout (one Triangle mesh, the tracked points of Fig. 11 as
+a 0/1 mark) and drawing (the x-z projection at the first and the last frame, tracked points
+marked).
 """
 
 from __future__ import annotations
