@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 from numba import cuda
 
-from parastokes import config, integrate, models, mrs, parallel, parareal
+from parastokes import config, integrate, models, mrs, parallel, parareal, session
 from parastokes.gpu import batch, device, stepping
 from parastokes.gpu.velocity import Evaluation
 from parastokes.warmup import WarmUp
@@ -185,12 +185,13 @@ def _configured(name: str, changes: dict) -> tuple:
 def _parareal(name: str, changes: dict, kind: str, workers: int | None) -> tuple:
     execution = {"executor": kind, "workers": workers, "allow_oversubscribe": True}
     cfg, resolved = _configured(name, {**changes, "execution": execution})
-    with config.build(cfg, resolved) as setup:
+    setup = config.build(cfg, resolved)
+    with session.start(setup) as running:
         x0 = setup.system.initial_state()
         t = time.perf_counter()
         result = parareal.run(setup.fine, setup.coarse, x0, cfg.time.t0, cfg.time.t1,
                               cfg.parareal.n_slices, 0.0, cfg.parareal.max_iterations,
-                              executor=setup.executor, project=setup.system.project,
+                              executor=running.executor, project=setup.system.project,
                               allow_oversubscribe=True)
         return result, time.perf_counter() - t, x0
 

@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from . import __version__, io, parareal, rundir
+from . import __version__, io, parareal, rundir, session
 from .config import Config, ConfigError, Resolved, Setup, build, resolved_dict
 from .config.checks import estimated_fine_seconds
 from .files import CorruptFileError, atomic_write
@@ -206,10 +206,15 @@ def _inner_frames(
 
 
 def _append_frames(
-    writer: io.TrajectoryWriter, run: str, setup: Setup, times: np.ndarray, states: np.ndarray
+    writer: io.TrajectoryWriter,
+    run: str,
+    running: session.Session,
+    times: np.ndarray,
+    states: np.ndarray,
 ) -> None:
     """Write the frames of ``states`` (at the slice boundaries ``times``) as ``output.every``
     asks: every m-th boundary, or every boundary and the frames inside the slices."""
+    setup = running.setup
     every, steps = setup.config.output.every, setup.resolved.fine_steps
     n_slices = len(times) - 1
     frames = _frame_indices(n_slices, max(1, (every or steps) // steps))
@@ -218,7 +223,7 @@ def _append_frames(
     if parts > 1:
         slices = range(1, n_slices + 1)
         values = run_labelled(
-            setup.executor or SerialExecutor(),
+            running.executor or SerialExecutor(),
             _inner_frames,
             [(setup.fine, times[n - 1], times[n], states[n - 1], parts) for n in slices],
             [f"frames inside slice {n} ({run})" for n in slices],
@@ -283,7 +288,7 @@ def _serial(
 
 # ---- Parareal --------------------------------------------------------------------------------
 def _parareal(
-    setup: Setup,
+    running: session.Session,
     x0: np.ndarray,
     times: np.ndarray,
     reference: np.ndarray | None,
@@ -297,6 +302,7 @@ def _parareal(
     the elapsed time are appended to ``history.npz`` and reported; the checkpoint in ``out`` lets
     an interrupted run resume where it stopped.
     """
+    setup, executor = running.setup, running.executor
     cfg, system = setup.config, setup.system
     history_path = out / HISTORY
     finals: list[np.ndarray] = []
@@ -325,7 +331,7 @@ def _parareal(
 
     p = cfg.parareal
     reporter.start("parareal", p.max_iterations)
-    workers = getattr(setup.executor, "workers", 1)
+    workers = getattr(executor, "workers", 1)
     reporter.expect(_slice_seconds(setup) * -(-p.n_slices // workers))  # one parallel sweep
     try:
         result = parareal.run(
@@ -335,17 +341,15 @@ def _parareal(
             times[0],
             times[-1],
             p.n_slices,
-            p.tol,
-            max_iterations=p.max_iterations,
-            executor=setup.executor,
+            stopping=parareal.Stopping(tol=p.tol, max_iterations=p.max_iterations),
+            checkpoint=parareal.Checkpoint(checkpoint, identity=key),
+            reporting=parareal.Reporting(on_iteration=record),
+            executor=executor,
             reference=reference,
             project=system.project,
             positions=system.positions,
-            checkpoint=checkpoint,
             allow_oversubscribe=cfg.execution.allow_oversubscribe
             or cfg.execution.executor == "serial",
-            on_iteration=record,
-            identity=key,
             schedule=p.schedule,
         )
     except Exception as error:
@@ -434,14 +438,6 @@ def _kernels_cached() -> bool:
     return next(Path(root).rglob("*.nbi"), None) is not None
 
 
-def _stop_workers(setup: Setup) -> None:
-    """After a failure or an interrupt: stop the executor's workers now, without waiting for the
-    tasks they run (their results would be discarded; the checkpoint is consistent)."""
-    abort = getattr(setup.executor, "abort", None)
-    if abort is not None:
-        abort()
-
-
 def _execute(
     cfg: Config, resolved: Resolved, directory: rundir.RunDirectory, reporter: Reporter
 ) -> dict[str, Any]:
@@ -455,7 +451,8 @@ def _execute(
     start = time.perf_counter()
     if not _kernels_cached():
         reporter.note("compiling the numerical kernels (first run only; up to a minute) ...")
-    with build(cfg, resolved) as setup:
+    with session.start(build(cfg, resolved)) as running:
+        setup = running.setup
         system = setup.system
         x0 = system.initial_state()
         times = parareal.time_points(cfg.time.t0, cfg.time.t1, cfg.parareal.n_slices)
@@ -467,14 +464,14 @@ def _execute(
                     setup, x0, times, out, fine_identity(cfg), reporter
                 )
                 if writer is not None:
-                    _append_frames(writer, "serial", setup, times, reference)
+                    _append_frames(writer, "serial", running, times, reference)
             if mode in ("parareal", "both"):
-                result, record = _parareal(setup, x0, times, reference, out, key, reporter)
+                result, record = _parareal(running, x0, times, reference, out, key, reporter)
                 if writer is not None:
-                    _append_frames(writer, "parareal", setup, times, result.states)
+                    _append_frames(writer, "parareal", running, times, result.states)
                     writer.write_history(record)
         except BaseException:
-            _stop_workers(setup)
+            running.abort()
             raise
         finally:
             if writer is not None:
@@ -497,7 +494,7 @@ def _execute(
             "speedup": None
             if result is None
             else _speedups(result, list(record.elapsed), serial_time),
-            "workers": None if setup.executor is None else setup.executor.workers,
+            "workers": None if running.executor is None else running.executor.workers,
             "monitor": _monitor(system, final_states),
             "final_time": float(times[-1]),
             "final_positions": system.positions(final_states[-1]),

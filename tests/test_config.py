@@ -214,58 +214,31 @@ def test_build_gives_the_configured_system_and_propagators():
             "execution.workers=1",
         ],
     )
-    with config.build(cfg, r, executor=False) as setup:
-        assert setup.executor is None
-        assert setup.system.params == pytest.approx(
-            {"epsilon": 1.0, "viscosity": 1e-6, "bending": 1.0}
-        )
-        assert setup.fine.dt == 1e-6
-        assert setup.fine.scheme == "rk2"
-        coarse = setup.coarse
-        assert isinstance(coarse, parareal.Extrapolated)
-        assert len(coarse.auxiliary) == 4  # 2 epsilon nodes x 2 bending nodes
-        assert [p.dt for p in coarse.auxiliary[0]] == pytest.approx([1e-5 / 0.83, 1e-5])
-        thetas = sorted((t["epsilon"], t["bending"]) for t in coarse.thetas)
-        expected = [(1.12, 0.8), (1.12, 0.9), (1.13, 0.8), (1.13, 0.9)]
-        assert [pytest.approx(t) for t in expected] == thetas
-
-
-def test_build_uses_the_coarse_grid_and_the_serial_executor():
-    cfg, r = config.loads(
-        BASE,
-        overrides=["coarse.grid_factor=4", 'execution.executor="serial"', "execution.workers=1"],
+    setup = config.build(cfg, r)
+    assert setup.system.params == pytest.approx(
+        {"epsilon": 1.0, "viscosity": 1e-6, "bending": 1.0}
     )
-    with config.build(cfg, r) as setup:
-        assert isinstance(setup.coarse, parareal.OnCoarseGrid)
-        assert setup.coarse.propagator.system.n_points == 6  # (21 - 1) / 4 + 1
-        assert setup.executor.workers == 1
-    assert setup.executor is None  # shut down on exit
+    assert setup.fine.dt == 1e-6
+    assert setup.fine.scheme == "rk2"
+    coarse = setup.coarse
+    assert isinstance(coarse, parareal.Extrapolated)
+    assert len(coarse.auxiliary) == 4  # 2 epsilon nodes x 2 bending nodes
+    assert [p.dt for p in coarse.auxiliary[0]] == pytest.approx([1e-5 / 0.83, 1e-5])
+    thetas = sorted((t["epsilon"], t["bending"]) for t in coarse.thetas)
+    expected = [(1.12, 0.8), (1.12, 0.9), (1.13, 0.8), (1.13, 0.9)]
+    assert [pytest.approx(t) for t in expected] == thetas
 
 
-def test_build_warms_up_this_process_for_the_timed_serial_run(monkeypatch):
-    """The serial fine run is timed in this process: build loads its compiled code first."""
-    build_module = importlib.import_module("parastokes.config.build")  # not config.build()
-
-    warmed = []
-
-    class Recorder:
-        def __init__(self, system):
-            self.system = system
-
-        def __call__(self):
-            warmed.append(self.system)
-
-    monkeypatch.setattr(build_module, "WarmUp", Recorder)
-    cfg, r = config.loads(BASE, overrides=['run.mode="serial"'])
-    with config.build(cfg, r, executor=False):
-        assert warmed == []
-    with config.build(cfg, r) as setup:
-        assert setup.executor is None and warmed == [setup.system]
+def test_build_uses_the_coarse_grid():
+    cfg, r = config.loads(BASE, overrides=["coarse.grid_factor=4"])
+    setup = config.build(cfg, r)
+    assert isinstance(setup.coarse, parareal.OnCoarseGrid)
+    assert setup.coarse.propagator.system.n_points == 6  # (21 - 1) / 4 + 1
 
 
 def test_vesicle_build_has_the_absolute_epsilon():
     cfg, r = config.loads(VESICLE)
-    setup = config.build(cfg, r, executor=False)
+    setup = config.build(cfg, r)
     assert setup.system.epsilon == r.epsilon
     assert setup.system.stiffness == 0.1
 

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from gpu_setup import fast_simulator, gpu, small_rods, small_vesicle  # noqa: F401 (an autouse fixture)
 
-from parastokes import config, integrate, parallel, parareal
+from parastokes import config, integrate, parallel, parareal, session
 
 pytestmark = pytest.mark.gpu
 
@@ -126,9 +126,9 @@ def test_config_gpu_executor_holds_every_solve_of_a_sweep():
     )
     resolved = config.resolve(cfg)
     assert resolved.workers == 3  # max(n_slices, N_G)
-    with config.build(cfg, resolved) as setup:
-        assert isinstance(setup.executor, gpu.GPUExecutor)
-        assert setup.executor.workers == 3
+    with session.start(config.build(cfg, resolved)) as running:
+        assert isinstance(running.executor, gpu.GPUExecutor)
+        assert running.executor.workers == 3
 
 
 def test_the_package_runs_without_importing_the_cuda_target():

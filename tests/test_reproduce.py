@@ -258,8 +258,8 @@ def test_probe_times_every_auxiliary_solver_of_each_kind_of_coarse_solver(name, 
     layout = reproduce.Layout(Path("unused"), REPO / "experiments" / "quick", overrides)
     cfg, resolved = reproduce.load_config(_job(name), layout)
     times = parareal.time_points(cfg.time.t0, cfg.time.t1, cfg.parareal.n_slices)
-    with build(cfg, resolved, executor=False) as setup:
-        found = reproduce.probe(setup, times, setup.system.initial_state())
+    setup = build(cfg, resolved)
+    found = reproduce.probe(setup, times, setup.system.initial_state())
     assert found["n_auxiliary"] == resolved.n_auxiliary == len(found["auxiliary_times"][0])
     aux = np.array(found["auxiliary_times"][0])
     # on 40 cores: the slowest auxiliary plus what the combinator adds to their sum

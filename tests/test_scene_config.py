@@ -62,7 +62,7 @@ def issues(text: str) -> dict[str, str]:
 def run_both(text: str, t1: float) -> tuple[np.ndarray, np.ndarray]:
     """The fine and the coarse propagator of ``text`` applied to its initial state on [0, t1]."""
     cfg, resolved = loads(text)
-    setup = build(cfg, resolved, executor=False)
+    setup = build(cfg, resolved)
     x0 = setup.system.initial_state()
     return setup.fine(0.0, t1, x0), setup.coarse(0.0, t1, x0)
 
@@ -84,7 +84,7 @@ def test_one_body_in_bodies_is_the_model_shorthand_bit_for_bit(body, lagrange):
     scene = f"[[bodies]]\n{body}\n{rest}'{name}.{lagrange}' = {nodes}\n"
     model = f"[model]\n{body}\n{rest}{lagrange} = {nodes}\n"
     cfg, resolved = loads(scene)
-    assert isinstance(build(cfg, resolved, executor=False).system, Scene)
+    assert isinstance(build(cfg, resolved).system, Scene)
     for a, b in zip(run_both(scene, 2e-5), run_both(model, 2e-5), strict=True):
         np.testing.assert_array_equal(a, b)
 
@@ -102,7 +102,7 @@ def test_scene_nodes_resolve_in_their_bodys_units():
     assert resolved.lagrange["vesicle.epsilon"] == pytest.approx([0.35 * l_max, 0.4 * l_max])
     assert resolved.lagrange["viscosity"] == [1.1e-3, 1.2e-3]
     assert resolved.n_auxiliary == 8 and resolved.n_points == 11 + 42
-    system = build(cfg, resolved, executor=False).system
+    system = build(cfg, resolved).system
     assert system.params == resolved.theta0
     assert (system.viscosity, system.wall, system.shear_rate) == (1e-3, True, 0.0)
     assert system.bodies[0].viscosity == system.bodies[1].viscosity == 1e-3
@@ -127,7 +127,7 @@ def test_scene_parareal_reaches_the_serial_solution_when_k_is_n(scene_run):
     assert summary["errors"][-1] < 1e-13 < summary["errors"][0]
     # and the serial solution it is compared with is the scene's fine solution
     cfg, resolved = loads(scene_text())
-    setup = build(cfg, resolved, executor=False)
+    setup = build(cfg, resolved)
     x = setup.system.initial_state()
     length = resolved.slice_length
     for k in range(4):
@@ -172,7 +172,7 @@ def test_scene_blocks_integrate_as_their_bodies_alone_when_far_apart():
     """A vesicle 10⁵ μm away from the rod moves as if alone: the scene couples, nothing else."""
     text = scene_text(bodies=ROD + VESICLE.replace("[3.0, 2.5, 3.0]", "[1e5, 0.0, 3.0]"))
     cfg, resolved = loads(text)
-    scene = build(cfg, resolved, executor=False).system
+    scene = build(cfg, resolved).system
     x0 = scene.initial_state()
     together = integrate.propagate(scene, x0, 0.0, 1e-3, "rk2", 1e-4)
     rod = scene.bodies[0]
@@ -250,5 +250,5 @@ def test_repeated_kinds_are_numbered_and_each_extrapolated_in_its_own_units():
     assert cfg.model.names == ["rod0", "rod1"]
     assert resolved.lagrange["rod1.epsilon"] == pytest.approx([5.6 * 0.3, 5.8 * 0.3])
     assert resolved.theta0["rod0.epsilon"] == pytest.approx(5 * 0.6)
-    layout = cfg.model.layout(build(cfg, resolved, executor=False).system, False, None)
+    layout = cfg.model.layout(build(cfg, resolved).system, False, None)
     assert [(b.name, b.first, b.rows) for b in layout] == [("rod0", 0, 11), ("rod1", 11, 21)]

@@ -276,7 +276,7 @@ def test_settings_from_config_is_the_configured_coarse_solver():
     from parastokes.tuning.space import settings_from_config
 
     cfg, resolved = config.load("experiments/quick/table4_g3.toml")
-    setup = config.build(cfg, resolved, executor=False)
+    setup = config.build(cfg, resolved)
     built = settings_from_config(cfg, resolved).build(setup.system)
     assert built.thetas == setup.coarse.thetas
     assert [p.dt for p in built.auxiliary[0]] == [p.dt for p in setup.coarse.auxiliary[0]]

@@ -253,9 +253,9 @@ def cost(job: Job, layout: Layout, rates_cache: dict[str, dict[str, float]]) -> 
     w = work(cfg, resolved, job.is_reference)
     key = job.config
     if key not in rates_cache:
-        with build(cfg, resolved, executor=False) as setup:
-            size = setup.system.initial_state().size
-            rates_cache[key] = {**measure_rates(setup), "state_size": size}
+        setup = build(cfg, resolved)
+        size = setup.system.initial_state().size
+        rates_cache[key] = {**measure_rates(setup), "state_size": size}
     rates = rates_cache[key]
     slice_length = (cfg.time.t1 - cfg.time.t0) / cfg.parareal.n_slices
     fine_s = w["fine_steps"] * rates["fine_step"]
@@ -469,25 +469,25 @@ def serial_reference(cfg: Any, resolved: Any, directory: Path, reporter: Progres
         return float(io.load_arrays(path)[0]["wall_time"])
     times = parareal.time_points(cfg.time.t0, cfg.time.t1, cfg.parareal.n_slices)
     fine_key = runner.fine_identity(cfg)
-    with build(cfg, resolved, executor=False) as setup:
-        states = np.empty((len(times), *setup.system.initial_state().shape))
-        done, wall = 0, 0.0
-        if partial.exists():
-            meta, arrays = io.load_arrays(partial)
-            if meta["key"] == fine_key:
-                done, wall = int(meta["done"]), float(meta["wall_time"])
-                states[: done + 1] = arrays["states"][: done + 1]
-                reporter.note(f"serial fine solution resumed after slice {done}")
-        if done == 0:
-            states[0] = setup.system.initial_state()
-        reporter.start("serial", len(times) - 1, done)
-        for n in range(done + 1, len(times)):
-            states[n], seconds = _timed(setup.fine, times[n - 1], times[n], states[n - 1])
-            wall += seconds
-            meta = {"key": fine_key, "done": n, "wall_time": wall}
-            io.save_arrays(partial, meta, states=states[: n + 1])
-            reporter.advance()
-        reporter.finish()
+    setup = build(cfg, resolved)
+    states = np.empty((len(times), *setup.system.initial_state().shape))
+    done, wall = 0, 0.0
+    if partial.exists():
+        meta, arrays = io.load_arrays(partial)
+        if meta["key"] == fine_key:
+            done, wall = int(meta["done"]), float(meta["wall_time"])
+            states[: done + 1] = arrays["states"][: done + 1]
+            reporter.note(f"serial fine solution resumed after slice {done}")
+    if done == 0:
+        states[0] = setup.system.initial_state()
+    reporter.start("serial", len(times) - 1, done)
+    for n in range(done + 1, len(times)):
+        states[n], seconds = _timed(setup.fine, times[n - 1], times[n], states[n - 1])
+        wall += seconds
+        meta = {"key": fine_key, "done": n, "wall_time": wall}
+        io.save_arrays(partial, meta, states=states[: n + 1])
+        reporter.advance()
+    reporter.finish()
     meta = {"key": fine_key, "done": len(times) - 1, "wall_time": wall}
     io.save_arrays(path, meta, states=states)
     partial.unlink()
@@ -532,8 +532,8 @@ def run_job(job: Job, layout: Layout) -> None:
     if found is None:
         print("probe: timing one fine slice and each auxiliary solve on its own", flush=True)
         times = parareal.time_points(cfg.time.t0, cfg.time.t1, cfg.parareal.n_slices)
-        with build(cfg, resolved, executor=False) as setup:
-            found = probe(setup, times, setup.system.initial_state())
+        setup = build(cfg, resolved)
+        found = probe(setup, times, setup.system.initial_state())
         _write_json(probe_path, found)
     _write_json(layout.done(job), result_summary(job, layout, summary, found))
     print(f"{job.name}: done (η^k = {summary['errors']})", flush=True)

@@ -1,14 +1,15 @@
 """Run configurations: TOML files validated against a typed schema (reference: docs/config.md).
 
 >>> cfg, resolved = load("experiments/quick/table4_g3.toml")      # doctest: +SKIP
->>> with build(cfg, resolved) as setup:                            # doctest: +SKIP
-...     setup.fine, setup.coarse, setup.executor
+>>> setup = build(cfg, resolved)                                   # doctest: +SKIP
+>>> setup.system, setup.fine, setup.coarse                         # doctest: +SKIP
 
 :func:`load` reads TOML with :mod:`tomllib`, applies ``--set key=value`` overrides, validates the
 schema (:mod:`.schema`, unknown keys are errors) and the rules across keys (:mod:`.checks`), and
 raises :class:`ConfigError` whose lines each name a key path. :func:`build` makes the system, the
-fine propagator, the coarse propagator of eq. 30 and the executor. :data:`DEMO` is the built-in
-configuration of ``parastokes demo``.
+fine propagator and the coarse propagator of eq. 30. This package is pure data: nothing here starts
+a process or an executor (the run layer does, :mod:`parastokes.session`). :data:`DEMO` is the
+built-in configuration of ``parastokes demo``.
 """
 
 from __future__ import annotations

@@ -1,16 +1,14 @@
-"""From a validated configuration to the objects of a run: system, F, G and the executor."""
+"""From a validated configuration to the values of a run: the system, F and G (pure: starting the
+executor and warming up are the run layer's, :mod:`parastokes.session`)."""
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from concurrent.futures import Executor
 from dataclasses import dataclass
 
-from .. import integrate, parallel, parareal
-from ..contracts import PropagatorLike, System, oversubscription
-from ..warmup import WarmUp
+from .. import integrate, parareal
+from ..contracts import PropagatorLike, System
 from .checks import Resolved
-from .errors import ConfigError
 from .schema import Config
 
 __all__ = ["Setup", "build", "build_system"]
@@ -48,64 +46,26 @@ COARSE: dict[str, Callable[[Config, Resolved, System], PropagatorLike]] = {
 }
 
 
-@dataclass
+@dataclass(frozen=True)
 class Setup:
-    """Everything a run needs; a context manager that shuts the executor down on exit."""
+    """What a configuration builds: values only (no process, thread or executor is started).
+
+    The run layer (:func:`parastokes.session.start`) starts the executor and warms up the workers.
+    """
 
     config: Config
     resolved: Resolved
     system: System
     fine: integrate.Propagator
     coarse: PropagatorLike
-    executor: Executor | None
-
-    def __enter__(self) -> Setup:
-        return self
-
-    def __exit__(self, *exc_info: object) -> None:
-        self.close()
-
-    def close(self) -> None:
-        """Shut the executor down (idempotent)."""
-        if self.executor is not None:
-            self.executor.shutdown()
-            self.executor = None
 
 
-def build(cfg: Config, resolved: Resolved, *, executor: bool = True) -> Setup:
-    """Build system, fine propagator F, coarse propagator G and (with ``executor``) the executor.
+def build(cfg: Config, resolved: Resolved) -> Setup:
+    """Build the system, the fine propagator F and the coarse propagator G of ``cfg``.
 
-    The executor's workers and this process are warmed up here (numba caches loaded), so timings
-    that follow measure work. Raises :class:`~.errors.ConfigError` when an MPI launch provides fewer
-    workers than the coarse solver needs and oversubscription is not allowed.
+    Pure: constructs values and starts nothing (no workers, no warm-up); see
+    :func:`parastokes.session.start` for that.
     """
     system = build_system(cfg, resolved)
     fine = integrate.Propagator(system, cfg.fine.scheme, cfg.fine.dt)
-    coarse = build_coarse(cfg, resolved, system)
-    pool = None
-    if executor and cfg.run.mode != "serial":
-        ex = cfg.execution
-        options = {} if ex.executor in ("serial", "gpu") else {"threads_per_worker": ex.threads}
-        pool = parallel.make_executor(
-            ex.executor,
-            resolved.workers,
-            warmup=WarmUp(system),
-            **options,
-        )
-        problem = oversubscription(resolved.n_auxiliary, pool.workers, cfg.parareal.schedule)
-        if resolved.workers is None and problem and not ex.allow_oversubscribe:
-            pool.shutdown()
-            raise ConfigError(
-                [
-                    (
-                        "execution.workers",
-                        f"{problem} in this MPI launch; start more ranks or set "
-                        "execution.allow_oversubscribe = true",
-                    )
-                ]
-            )
-    if executor:
-        # this process too: its serial fine run is timed, and must not include loading (or, on
-        # a fresh install, compiling) the kernels and the compiled loop of steps
-        WarmUp(system)()
-    return Setup(cfg, resolved, system, fine, coarse, pool)
+    return Setup(cfg, resolved, system, fine, build_coarse(cfg, resolved, system))

@@ -7,6 +7,7 @@ The engine works on any propagators ``P(t_start, t_end, x) -> x`` over numpy arr
 from .algorithm import SCHEDULES, IterationReport, run, serial_solution, time_points
 from .extrapolation import Extrapolated, extrapolated
 from .metrics import relative_change
+from .options import Checkpoint, Reporting, Stopping
 from .result import PararealResult
 from .schedule_model import Simulation, handover_latency, predict_schedules, simulate
 from .speedup import (
@@ -24,11 +25,14 @@ from .weights import lagrange_weights, richardson_weights, step_weights
 
 __all__ = [
     "SCHEDULES",
+    "Checkpoint",
     "Extrapolated",
     "IterationReport",
     "OnCoarseGrid",
     "PararealResult",
+    "Reporting",
     "Simulation",
+    "Stopping",
     "Timings",
     "Transfer",
     "extrapolated",

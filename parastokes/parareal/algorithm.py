@@ -30,7 +30,9 @@ from ..contracts import PropagatorLike, check_workers
 from ..contracts import with_executor as _with_executor
 from ..parallel import SerialExecutor, TaskError, run_labelled
 from . import checkpoint as ckpt
+from . import options
 from .metrics import Positions, relative_change
+from .options import Checkpoint, Reporting, Stopping
 from .result import PararealResult
 from .timings import MANAGER, Timings, queued_intervals
 
@@ -89,24 +91,14 @@ def _validate(
     t0: float,
     t1: float,
     n_slices: int,
-    tol: float,
-    max_iterations: int,
     reference: np.ndarray | None,
-    wall_time_limit: float | None,
 ) -> None:
-    """Reject bad parameters before any propagator is called."""
+    """Reject bad parameters before any propagator is called (the stopping rule's are checked
+    by :class:`~.options.Stopping`)."""
     if not (callable(fine) and callable(coarse)):
         raise ValueError("fine and coarse must be callables P(t_start, t_end, x) -> x")
     if isinstance(n_slices, bool) or not isinstance(n_slices, int | np.integer) or n_slices < 1:
         raise ValueError(f"n_slices must be an integer >= 1, got {n_slices!r}")
-    if not (math.isfinite(tol) and tol >= 0.0):
-        raise ValueError(f"tol must be finite and >= 0, got {tol!r}")
-    if (
-        isinstance(max_iterations, bool)
-        or not isinstance(max_iterations, int | np.integer)
-        or max_iterations < 1
-    ):
-        raise ValueError(f"max_iterations must be an integer >= 1, got {max_iterations!r}")
     if not (math.isfinite(t0) and math.isfinite(t1) and t1 > t0):
         raise ValueError(f"need finite t0 < t1, got t0={t0!r}, t1={t1!r}")
     if x0.size == 0 or not np.all(np.isfinite(x0)):
@@ -116,8 +108,6 @@ def _validate(
             f"reference must have shape {(n_slices + 1, *x0.shape)} (the serial fine solution at "
             f"T_0..T_N), got {reference.shape}"
         )
-    if wall_time_limit is not None and not wall_time_limit > 0.0:
-        raise ValueError(f"wall_time_limit must be positive, got {wall_time_limit!r}")
 
 
 def _warn_idle_workers(executor: Executor | None, n_slices: int) -> None:
@@ -305,24 +295,25 @@ def _iterate(
     progress.iteration = k
 
 
-def stop_reason(progress: ckpt.Progress, tol: float, max_iterations: int) -> str | None:
+def stop_reason(progress: ckpt.Progress, stopping: Stopping) -> str | None:
     """Why the run stops after ``progress.iteration`` (see :data:`~.result.STOP_REASONS`), or
     None; the wall-time limit is checked by :class:`Bookkeeping`."""
     k = progress.iteration
     if k == 0:
         return None
-    if progress.increments[-1] < tol:
+    if progress.increments[-1] < stopping.tol:
         return "tolerance"
     if k == len(progress.states) - 1:
         return "all_slices"
-    if k >= max_iterations:
+    if stopping.max_iterations is not None and k >= stopping.max_iterations:
         return "max_iterations"
     return None
 
 
 class Bookkeeping:
     """What both schedules do once an iteration has completed: eta~^k and eta^k (eq. 34), the
-    run's total time, the log line, the checkpoint, ``on_iteration`` and the stopping rule.
+    run's total time, the log line, the checkpoint, the report and the stopping rule; the one
+    holder of ``run``'s resolved options (:mod:`.options`) for both schedules.
 
     ``origin`` is the clock reading at the start of the run (earlier sessions of a resumed run
     included), so ``clock() - origin`` is the run's elapsed time.
@@ -330,24 +321,20 @@ class Bookkeeping:
 
     def __init__(
         self,
-        tol: float,
-        max_iterations: int,
+        stopping: Stopping,
+        checkpoint: Checkpoint | None,
+        reporting: Reporting,
         reference: np.ndarray | None,
         positions: Positions | None,
-        checkpoint: str | os.PathLike | None,
-        key: str,
-        wall_time_limit: float | None,
-        on_iteration: Callable[[IterationReport], None] | None,
+        key: dict[str, Any],
         session_start: float,
     ) -> None:
-        self.tol = tol
-        self.max_iterations = max_iterations
+        self.stopping = stopping
+        self.checkpoint = None if checkpoint is None else checkpoint.path
+        self.reporting = reporting
         self.reference = reference
         self.positions = positions
-        self.checkpoint = checkpoint
         self.key = key
-        self.wall_time_limit = wall_time_limit
-        self.on_iteration = on_iteration
         self.session_start = session_start
         self.earlier_total = 0.0
         self.saved: int | None = None
@@ -389,8 +376,8 @@ class Bookkeeping:
         if self.checkpoint is not None:
             ckpt.save(self.checkpoint, progress, self.key)
             self.saved = progress.iteration
-        if self.on_iteration is not None:
-            self.on_iteration(
+        if self.reporting.on_iteration is not None:
+            self.reporting.on_iteration(
                 IterationReport(
                     iteration=progress.iteration,
                     increment=progress.increments[-1],
@@ -399,8 +386,8 @@ class Bookkeeping:
                     elapsed=progress.timings.total,
                 )
             )
-        reason = stop_reason(progress, self.tol, self.max_iterations)
-        limit = self.wall_time_limit
+        reason = stop_reason(progress, self.stopping)
+        limit = self.stopping.wall_time_limit
         if reason is None and limit is not None and elapsed >= limit:
             reason = "wall_time"
         return reason
@@ -427,7 +414,7 @@ def _run_standard(
     if progress is None:
         progress = _initial_sweep(p.coarse, p.x0, p.times, book.reference is not None, book.origin)
         book.initial_sweep_done(progress)
-    reason = stop_reason(progress, book.tol, book.max_iterations)
+    reason = stop_reason(progress, book.stopping)
     while reason is None:
         previous_final = progress.states[-1]
         _iterate(progress, p.fine, p.coarse, p.times, p.executor, p.project, book.origin)
@@ -446,61 +433,104 @@ def run(
     t0: float,
     t1: float,
     n_slices: int,
-    tol: float,
-    max_iterations: int,
+    tol: float | None = None,
+    max_iterations: int | None = None,
     executor: Executor | None = None,
     reference: np.ndarray | None = None,
     project: Callable[[np.ndarray], np.ndarray] | None = None,
     positions: Positions | None = None,
-    checkpoint: str | os.PathLike | None = None,
+    checkpoint: str | os.PathLike | Checkpoint | None = None,
     wall_time_limit: float | None = None,
     allow_oversubscribe: bool = False,
     on_iteration: Callable[[IterationReport], None] | None = None,
     schedule: str = "standard",
     identity: dict[str, Any] | None = None,
+    *,
+    stopping: Stopping | None = None,
+    reporting: Reporting | None = None,
 ) -> PararealResult:
-    """Parareal (Algorithm 1): initial serial sweep eq. 9, then iterations of eqs. 10-11.
+    """Parareal (Algorithm 1): the initial serial sweep eq. 9, then iterations of eqs. 10-11.
 
-    Iteration k runs the fine solver on slices n = k..N (eq. 10) on ``executor`` (submitted as
-    ``executor.submit(fine, T_{n-1}, T_n, X_{n-1}^{k-1})``; in-process when None), keeps
-    X_n^k = X_n^{k-1} for n < k, sets X_k^k = X_k^{k'}, and corrects n = k+1..N serially by eq. 11,
-    reusing the stored G(T_n, T_{n-1}, X_{n-1}^{k-1}); ``project`` is applied to every corrected
-    state. A coarse combinator with ``with_executor`` (see :func:`extrapolated`) that has no
-    executor of its own gets ``executor`` for its auxiliary solvers; its N_G auxiliary solvers
-    must not outnumber the executor's workers (Algorithm 1's N_G <= N_c) unless
-    ``allow_oversubscribe`` (see :func:`check_workers`). More workers than slices gives a
-    RuntimeWarning (the extra workers idle in the parallel sweeps).
+    Parameters
+    ----------
+    fine, coarse
+        Propagators ``P(t_start, t_end, x) -> x`` over numpy arrays: F and G.
+    x0
+        The initial state X_0 at ``t0``.
+    t0, t1, n_slices
+        The interval, cut into N = ``n_slices`` slices at T_n = t0 + n (t1 - t0) / N.
+    stopping
+        A :class:`~.options.Stopping` (``tol``, ``max_iterations``, ``wall_time_limit``), or
+        these as the flat keywords ``tol=`` (required in that form), ``max_iterations=`` and
+        ``wall_time_limit=``.
+    checkpoint
+        A :class:`~.options.Checkpoint` (``path``, ``identity``, ``resume``), or a file path, with
+        the flat keyword ``identity=``. None: no checkpoint.
+    reporting
+        A :class:`~.options.Reporting` (``on_iteration``), or the flat keyword ``on_iteration=``.
+    executor
+        Where the fine solves of each parallel sweep run (any ``concurrent.futures.Executor``;
+        ``executor.workers``, when present, says how many run at once). None: in-process.
+    reference
+        The serial fine solution at T_0..T_N (:func:`serial_solution`); the true error eta^k of
+        eq. 34 is then recorded.
+    project
+        Applied to every corrected state (e.g. re-orthonormalizing a rod's frames).
+    positions
+        The rows over which eq. 34 measures eta~^k and eta^k (default: the whole state).
+    allow_oversubscribe
+        Let a coarse solver's N_G auxiliary solvers outnumber the executor's workers
+        (:func:`check_workers`).
+    schedule
+        ``"standard"`` (Algorithm 1) or ``"pipelined"`` (:mod:`~.pipelined`): the same iterates,
+        bit for bit.
 
-    ``schedule="pipelined"`` runs the same iterates, bit for bit, as tasks that start as soon as
-    their inputs exist and a worker is free (:mod:`parastokes.parareal.pipelined`): every fine
-    solve, every coarse step and, for a coarse solver with ``split`` (an extrapolated one), every
-    auxiliary solve is a task on ``executor``, so ``coarse`` must pickle like ``fine``. There the
-    N_G <= N_c rule does not apply (auxiliary solves wait for workers like any task) and a
-    coarse solver's own executor is not used.
+    Returns
+    -------
+    PararealResult
+        The iterate X^K at T_0..T_N, eta~^k and eta^k for k = 1..K, K, why it stopped, timings.
 
-    The run stops when the relative increment eta~^k (eq. 34 at T_N over the rows of
-    ``positions(state)``, default the whole state) is below ``tol``, when k = N (then ``states``
-    equals the serial fine solution), at ``max_iterations``, or, after an iteration, once
-    ``wall_time_limit`` seconds have passed in this call. With ``reference`` (the serial fine
-    solution at T_0..T_N, see :func:`serial_solution`) the true error eta^k (eq. 34) is recorded.
+    Raises
+    ------
+    TypeError
+        When an option is given both as a group and as one of its flat keywords (naming both),
+        or no tolerance is given.
+    ValueError
+        On bad parameters, before any propagator is called.
+    parastokes.parallel.TaskError
+        When a fine or coarse solve fails (raises, or its worker dies), labelled
+        ``"fine solve of slice n in iteration k"`` or ``"coarse solve of slice n in iteration k"``
+        (k = 0: the initial sweep). The checkpoint then holds iteration k - 1, and a rerun with it
+        resumes from there (so does a rerun after ``KeyboardInterrupt``).
 
-    With ``checkpoint`` (a file path) the state is written atomically after the initial sweep and
-    every iteration; when the file exists the run resumes from it and gives bit-identical results.
-    Bad parameters raise ValueError before any propagator is called. A fine or coarse solve that
-    fails (raises, or its worker dies) raises :class:`parastokes.parallel.TaskError` labelled
-    ``"fine solve of slice n in iteration k"`` or ``"coarse solve of slice n in iteration k"``
-    (k = 0: the initial sweep); the checkpoint then holds iteration k - 1 and a rerun with the same
-    checkpoint resumes from there (so does a rerun after ``KeyboardInterrupt``).
+    Notes
+    -----
+    Iteration k runs F on slices n = k..N (eq. 10) as ``executor.submit(fine, T_{n-1}, T_n,
+    X_{n-1}^{k-1})``, keeps X_n^k = X_n^{k-1} for n < k, sets X_k^k = X_k^{k'} and corrects
+    n = k+1..N serially by eq. 11, reusing the stored G(T_n, T_{n-1}, X_{n-1}^{k-1}).
 
-    ``on_iteration``, if given, is called after every iteration (once its checkpoint is written)
-    with an :class:`IterationReport`: for live progress reports and per-iteration output.
-    ``identity`` (JSON values by key) is added to the checkpoint's fingerprint: a checkpoint whose
-    entries differ is refused, naming them (:class:`~.checkpoint.CheckpointMismatch`).
+    Under the standard schedule a coarse solver with ``with_executor`` (:func:`extrapolated`) and
+    no executor of its own gets ``executor`` for its auxiliary solvers, whose number N_G must not
+    exceed the executor's workers (Algorithm 1's N_G <= N_c) unless ``allow_oversubscribe``. Under
+    ``"pipelined"`` every fine solve, coarse step and auxiliary solve is a task on ``executor``
+    (so ``coarse`` must pickle like ``fine``) and the rule does not apply. More workers than
+    slices gives a RuntimeWarning.
+
+    The stopping rule is checked after every iteration (:class:`~.options.Stopping`). The
+    checkpoint is written atomically after the initial sweep and every iteration; an existing one
+    of the same problem (and ``identity``) is resumed with bit-identical results, one of another
+    is refused (:class:`~.checkpoint.CheckpointMismatch`). ``on_iteration`` is called after each
+    checkpoint write with an :class:`IterationReport`. See docs/parareal.md.
     """
     session_start = time.perf_counter()
+    stopping, saving, reporting = options.resolve(
+        tol=tol, max_iterations=max_iterations, wall_time_limit=wall_time_limit,
+        checkpoint=checkpoint, identity=identity, on_iteration=on_iteration,
+        stopping=stopping, reporting=reporting,
+    )
     x0 = np.array(x0, dtype=float)
     reference = None if reference is None else np.asarray(reference, dtype=float)
-    _validate(fine, coarse, x0, t0, t1, n_slices, tol, max_iterations, reference, wall_time_limit)
+    _validate(fine, coarse, x0, t0, t1, n_slices, reference)
     if schedule not in SCHEDULES:
         raise ValueError(f"schedule must be one of {SCHEDULES}, got {schedule!r}")
     times = time_points(t0, t1, n_slices)
@@ -508,23 +538,16 @@ def run(
         coarse = _with_executor(coarse, executor, allow_oversubscribe)
     _warn_idle_workers(executor, n_slices)
     pool = SerialExecutor() if executor is None else executor
-    key = ckpt.fingerprint(x0, t0, t1, n_slices, reference, identity)
-    book = Bookkeeping(
-        tol,
-        max_iterations,
-        reference,
-        positions,
-        checkpoint,
-        key,
-        wall_time_limit,
-        on_iteration,
-        session_start,
+    key = ckpt.fingerprint(
+        x0, t0, t1, n_slices, reference, None if saving is None else saving.identity
     )
+    book = Bookkeeping(stopping, saving, reporting, reference, positions, key, session_start)
 
-    progress = None if checkpoint is None else ckpt.load(checkpoint, key)
+    resume = saving is not None and saving.resume
+    progress = ckpt.load(saving.path, key) if resume else None
     if progress is not None:
         book.resume(progress)
-        logger.info("parareal: resuming from %s after iteration %d", checkpoint, book.saved)
+        logger.info("parareal: resuming from %s after iteration %d", book.checkpoint, book.saved)
     if schedule == "standard":
         strategy = _run_standard
     else:
@@ -537,8 +560,8 @@ def run(
     except (TaskError, KeyboardInterrupt) as exc:
         if book.saved is not None:
             exc.add_note(
-                f"parareal: the checkpoint {os.fspath(checkpoint)} holds iteration {book.saved}; "
-                "rerun with the same checkpoint to resume from there"
+                f"parareal: the checkpoint {os.fspath(book.checkpoint)} holds iteration "
+                f"{book.saved}; rerun with the same checkpoint to resume from there"
             )
         raise
 

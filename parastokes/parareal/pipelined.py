@@ -181,7 +181,7 @@ class _Pipeline:
     @property
     def last(self) -> int:
         """The last iteration that may be needed."""
-        return min(self.book.max_iterations, self.n_slices)
+        return min(self.book.stopping.max_iterations or self.n_slices, self.n_slices)
 
     @property
     def blocked(self) -> float:
@@ -402,7 +402,7 @@ def run_pipelined(
     """Parareal's iterates by the pipelined schedule, from ``progress`` (a resumed run) or from
     the start; the counterpart of Algorithm 1's loop in :func:`parastokes.parareal.run`."""
     if progress is not None:
-        reason = stop_reason(progress, book.tol, book.max_iterations)
+        reason = stop_reason(progress, book.stopping)
         if reason is not None:
             return progress, reason
     workers = _Workers(problem.executor)
