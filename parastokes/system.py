@@ -13,7 +13,6 @@ rebuilt from them on demand, the mesh cached per process), so they pickle in a f
 from __future__ import annotations
 
 import dataclasses
-import functools
 import math
 from dataclasses import dataclass
 from functools import lru_cache
@@ -348,10 +347,5 @@ class VesicleSystem(PointsInShear):
         return abs(area - self.initial_area) / self.initial_area
 
 
-registry.register(
-    RodSystem, lambda system: functools.partial(loop.run_steps, system, rod_data), fluid=MRS
-)
-registry.register(
-    VesicleSystem, lambda system: functools.partial(loop.run_steps, system, vesicle_data),
-    fluid=MRS,
-)
+loop.register_parts(RodSystem, rod_data, fluid=MRS)
+loop.register_parts(VesicleSystem, vesicle_data, fluid=MRS)

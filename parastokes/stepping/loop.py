@@ -14,13 +14,17 @@ compiled call, exactly as :func:`parastokes.integrate._python_steps` does:
 - after each step: the finiteness check and the monitor, stopping at the first failure with the
   last good state kept (or after the step whose monitor exceeds ``stop_above``).
 
-What is specific to a system are four compiled parts, chosen by the type of the system's
+What is specific to a system are four compiled parts (six to join a scene), chosen by the type
+of the system's
 ``data`` (a ``NamedTuple`` of arrays and numbers built once per call) through
 ``numba.extending.overload``: :func:`rates_into`, :func:`advance`, :func:`monitor` and
 :func:`bracket_into`; and :func:`workspace`, the scratch arrays that ``rates_into`` reuses. A system
-registers them for its data type (:mod:`parastokes.stepping.rod`, :mod:`.vesicle`) and must run
-the same compiled functions as its Python ``rates``/``advance``/``monitor``, so that both loops
-agree bit for bit (tested).
+registers them for its data type (:mod:`parastokes.stepping.rod`, :mod:`.vesicle`,
+:mod:`parastokes.kinds.chain.stepping`) and must run the same compiled functions as its Python
+``rates``/``advance``/``monitor``, so that both loops agree bit for bit (tested). A body that
+also supplies :func:`loads_into` and :func:`body_rates_into` (its Python ``loads`` and
+``body_rates``) can be stepped in a scene's compiled loop (:mod:`parastokes.stepping.scene`);
+:func:`register_parts` registers its type for both loops.
 
 numba caches each compiled function keyed on its own source file only: after editing a system's
 parts (or anything they call) in another file, delete the ``__pycache__`` folders before timing
@@ -29,6 +33,7 @@ or testing, or the cached loop still runs the old parts. A fresh checkout or ins
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from collections.abc import Callable
@@ -41,14 +46,18 @@ from ..contracts import System
 from ..integrate import ABOVE, BEYOND, DONE, NON_FINITE, Scheme
 from ..mrs import compiled
 from ..mrs.velocity import EIGHT_PI, kernel_threads
+from . import registry
 
 __all__ = [
     "advance",
+    "body_rates_into",
     "bracket_into",
     "kernel_arguments",
+    "loads_into",
     "monitor",
     "pack_points",
     "rates_into",
+    "register_parts",
     "run_steps",
     "tableau_arrays",
     "workspace",
@@ -80,6 +89,20 @@ def monitor(data, x):
 
 def bracket_into(data, out, kp, kq, h):
     """Add ``h * bracket(kp, kq)`` to ``out`` (nothing for abelian systems)."""
+    raise NotImplementedError("compiled only: register an overload for the system's data type")
+
+
+def loads_into(data, t, x, forces, torques):
+    """The system's point loads on the fluid at time ``t`` (its ``loads``): forces written into
+    ``forces`` (n, 3), torques into ``torques`` (n, 3) by bodies that have them (others leave
+    it alone). For a scene's loop, which sums all bodies' loads in one kernel call."""
+    raise NotImplementedError("compiled only: register an overload for the system's data type")
+
+
+def body_rates_into(data, u, w, out):
+    """The system's rates from the fluid's velocity ``u`` and angular velocity ``w`` (n, 3) at
+    its points, background flow included (its ``body_rates``), into ``out``
+    (n, data.rate_columns). For a scene's loop."""
     raise NotImplementedError("compiled only: register an overload for the system's data type")
 
 
@@ -251,3 +274,12 @@ def run_steps(
                 return x, worst, done, DONE, worst
             per_step = (time.perf_counter() - start) / max(taken, 1)
             chunk = max(1, min(4 * chunk, int(CALL_SECONDS / max(per_step, 1e-9))))
+
+
+def register_parts(cls: type, make_data: Callable[[Any, int], tuple], fluid: type) -> None:
+    """Step systems of exactly the type ``cls`` whose fluid is exactly of the type ``fluid`` with
+    :func:`run_steps` on ``make_data(system, threads)``, and let scenes compose their parts
+    (:func:`parastokes.stepping.registry.register_data`)."""
+    registry.register(cls, lambda system: functools.partial(run_steps, system, make_data),
+                      fluid=fluid)
+    registry.register_data(cls, make_data)
