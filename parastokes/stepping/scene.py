@@ -91,7 +91,7 @@ def _rates_into(data, t, x, work, out):
         def impl(data, t, x, work, out):
             f, tq, u, w = work[2][0], work[3][0], work[4][0], work[5][0]
             for body in literal_unroll(data.bodies):
-                first, rows, cols, rate_cols, limit, part = body
+                first, rows, cols, _, _, part = body
                 last = first + rows
                 loop.loads_into(part, t, x[first:last, :cols], f[first:last], tq[first:last])
             velocity_into(x, work, data.eps, data.denom, data.starts, data.wall, data.angular,
@@ -102,7 +102,7 @@ def _rates_into(data, t, x, work, out):
                 u[i, 0] += data.shear_rate * x[i, 2]
                 w[i, 1] += 0.5 * data.shear_rate
             for body in literal_unroll(data.bodies):
-                first, rows, cols, rate_cols, limit, part = body
+                first, rows, _, rate_cols, _, part = body
                 last = first + rows
                 loop.body_rates_into(part, u[first:last], w[first:last],
                                      out[first:last, :rate_cols])
@@ -118,7 +118,7 @@ def _advance(data, x, rates, dt):
         def impl(data, x, rates, dt):
             out = np.zeros_like(x)
             for body in literal_unroll(data.bodies):
-                first, rows, cols, rate_cols, limit, part = body
+                first, rows, cols, rate_cols, _, part = body
                 last = first + rows
                 out[first:last, :cols] = loop.advance(part, x[first:last, :cols],
                                                       rates[first:last, :rate_cols], dt)
@@ -135,7 +135,7 @@ def _monitor(data, x):
             worst = -math.inf
             finite = True
             for body in literal_unroll(data.bodies):
-                first, rows, cols, rate_cols, limit, part = body
+                first, rows, cols, _, limit, part = body
                 value = loop.monitor(part, x[first : first + rows, :cols]) / limit
                 finite = finite and math.isfinite(value)
                 worst = max(worst, value)
@@ -150,7 +150,7 @@ def _bracket_into(data, out, kp, kq, h):
 
         def impl(data, out, kp, kq, h):
             for body in literal_unroll(data.bodies):
-                first, rows, cols, rate_cols, limit, part = body
+                first, rows, _, rate_cols, _, part = body
                 last = first + rows
                 loop.bracket_into(part, out[first:last, :rate_cols], kp[first:last, :rate_cols],
                                   kq[first:last, :rate_cols], h)
