@@ -347,5 +347,5 @@ class VesicleSystem(PointsInShear):
         return abs(area - self.initial_area) / self.initial_area
 
 
-loop.register_parts(RodSystem, rod_data, fluid=MRS)
-loop.register_parts(VesicleSystem, vesicle_data, fluid=MRS)
+loop.register_parts(RodSystem, rod_data, fluid=MRS, in_scenes=True)
+loop.register_parts(VesicleSystem, vesicle_data, fluid=MRS, in_scenes=True)

@@ -36,6 +36,7 @@ from __future__ import annotations
 import functools
 import math
 import time
+import types
 from collections.abc import Callable
 from typing import Any
 
@@ -156,7 +157,7 @@ def tableau_arrays(scheme: Scheme) -> tuple[np.ndarray, ...]:
     )
 
 
-@njit(**_OPTS)
+@njit(error_model="numpy")  # not cached on its own: compiled into each cached loop (see _loop_for)
 def _combine(data, coefs, k, brackets, stage, dt, out):
     """``integrate._combine`` into ``out``: Σ_j coefs[j] k_j (non-zero terms, in order) plus
     ``coefficient * dt * bracket(k_p, k_q)`` for the bracket rows of this ``stage`` (-1: the
@@ -229,6 +230,45 @@ def _run(x, t0, dt, first, n_steps, tableau, data, limit, stop_above):
     return worst, taken, outcome, m
 
 
+_FOREIGN_LOOPS: dict[tuple[str, ...], Any] = {}
+
+
+def _foreign_modules(value: Any) -> set[str]:
+    """The modules outside parastokes that define the tuple types in ``value`` (a system's data:
+    named tuples of arrays, numbers and tuples, a scene's holding its bodies')."""
+    found = set()
+    if isinstance(value, tuple):
+        module = type(value).__module__
+        if type(value) is not tuple and module.partition(".")[0] != "parastokes":
+            found.add(module)
+        for item in value:
+            found |= _foreign_modules(item)
+    return found
+
+
+def _loop_for(data: tuple) -> Any:
+    """The compiled :func:`_run` for ``data``: itself for the package's types, and for data with
+    types from other modules (a user's body, docs/extending.md) a copy of it per set of such
+    modules, cached in its own index file named after them.
+
+    numba keeps one cache index per function, keyed by the argument types, and unpickles every
+    key when it reads the index: a user's type in ``_run``'s index would make every later process
+    that cannot import the user's module fail to load any compiled loop. In an index of their own
+    the user's types are read only where the user's data is stepped, so their module is loaded.
+    """
+    key = tuple(sorted(_foreign_modules(data)))
+    if not key:
+        return _run
+    if key not in _FOREIGN_LOOPS:
+        code = _run.py_func
+        copy = types.FunctionType(code.__code__, code.__globals__, code.__name__,
+                                  code.__defaults__, code.__closure__)
+        copy.__qualname__ = "_run_for_" + "__".join(m.replace(".", "_") for m in key)
+        copy.__doc__ = code.__doc__
+        _FOREIGN_LOOPS[key] = njit(**_OPTS)(copy)
+    return _FOREIGN_LOOPS[key]
+
+
 #: Wall time aimed at per compiled call: the loop returns to Python this often, so that Ctrl-C
 #: (and any other signal) is handled within about a second during a long propagation.
 CALL_SECONDS = 0.25
@@ -260,9 +300,10 @@ def run_steps(
     done, worst, chunk = 0, -math.inf, 8
     with kernel_threads(system.n_threads) as threads:
         data = make_data(system, threads)
+        steps = _loop_for(data)
         while True:  # calls of about CALL_SECONDS each, steps numbered from t0 throughout
             start = time.perf_counter()
-            chunk_worst, taken, outcome, m = _run(
+            chunk_worst, taken, outcome, m = steps(
                 x, float(t0), float(dt), done, min(chunk, n - done), tableau, data,
                 float(limit), float(stop_above),
             )
@@ -276,10 +317,13 @@ def run_steps(
             chunk = max(1, min(4 * chunk, int(CALL_SECONDS / max(per_step, 1e-9))))
 
 
-def register_parts(cls: type, make_data: Callable[[Any, int], tuple], fluid: type) -> None:
-    """Step systems of exactly the type ``cls`` whose fluid is exactly of the type ``fluid`` with
-    :func:`run_steps` on ``make_data(system, threads)``, and let scenes compose their parts
-    (:func:`parastokes.stepping.registry.register_data`)."""
+def register_parts(cls: type, make_data: Callable[[Any, int], tuple], fluid: type | None = None,
+                   *, in_scenes: bool = False) -> None:
+    """Step systems of exactly the type ``cls`` whose fluid is exactly of the type ``fluid``
+    (None: systems without a ``fluid``) with :func:`run_steps` on ``make_data(system, threads)``;
+    with ``in_scenes`` (the type also has :func:`loads_into` and :func:`body_rates_into`), let
+    scenes compose its parts (:func:`parastokes.stepping.registry.register_data`)."""
     registry.register(cls, lambda system: functools.partial(run_steps, system, make_data),
                       fluid=fluid)
-    registry.register_data(cls, make_data)
+    if in_scenes:
+        registry.register_data(cls, make_data)

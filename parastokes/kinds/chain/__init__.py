@@ -181,4 +181,4 @@ def example() -> tuple[ChainSystem, np.ndarray, float | None]:
 KIND = BodyKind("chain", ChainModel, layout, draw, example=example)
 
 
-register_parts(ChainSystem, chain_data, fluid=MRS)
+register_parts(ChainSystem, chain_data, fluid=MRS, in_scenes=True)
