@@ -4,8 +4,10 @@ Run from the repository root::
 
     PYTHONPATH=. python benchmarks/stepping.py [--repeats 7] [--threads 1] [--out PATH]
 
-For one rod swimmer (M = 301, ε = 5 σ_f, wall kernels with torques), five rods (1505 points) and
-the vesicle (642 points, free-space Stokeslets), it times
+For one rod swimmer (M = 301, ε = 5 σ_f, wall kernels with torques), five rods (1505 points), the
+vesicle (642 points, free-space Stokeslets), a scene of the rod and the vesicle above the wall (943
+points, one wall kernel call per stage with each source's own ε, :mod:`parastokes.scene`) and a
+bead-spring chain (256 beads, free-space Stokeslets, shear flow), it times
 
 - ``run``: seconds per RK2 (Heun) step of :func:`parastokes.integrate.run` over a block of
   steps, i.e. what ``propagate`` and the Parareal solvers do: the compiled loop of
@@ -32,6 +34,7 @@ the command are written as markdown.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import os
 import platform
@@ -44,8 +47,10 @@ import numpy as np
 from kernels import matmul_rate
 
 from parastokes import integrate, models, mrs
+from parastokes.kinds.chain import ChainSystem
 from parastokes.mrs import compiled
-from parastokes.mrs.velocity import kernel_threads
+from parastokes.mrs.velocity import EIGHT_PI, kernel_threads
+from parastokes.scene import Scene
 from parastokes.stepping import loop
 
 FINE_STEPS = 1_000_000  # T = 1 with τ_f = 1e-6 (section 5.1)
@@ -62,23 +67,43 @@ def one_step(system, t, x, dt):
     return y
 
 
+def loads(system, t, x):
+    """The point forces and torques (or None) of ``system`` at ``(t, x)``, and every point's ε:
+    a scene's stacked over its bodies, as ``Scene.rates`` stacks them."""
+    if not isinstance(system, Scene):
+        f, torques = system.loads(t, x)
+        return f, torques, np.full(1, float(system.epsilon))
+    f, torques = np.zeros((len(x), 3)), np.zeros((len(x), 3))
+    for body, part, (first, rows, _) in zip(system.bodies, system.blocks(x), system.shapes,
+                                            strict=True):
+        body_f, body_torques = body.loads(t, part)
+        f[first : first + rows] = body_f
+        if body_torques is not None:
+            torques[first : first + rows] = body_torques
+    angular = any(body.angular for body in system.bodies)
+    return f, torques if angular else None, system.source_epsilon()[None]
+
+
 def kernel_call(system, t, x):
     """The O(N²) part of one ``rates`` evaluation: the compiled kernel that ``mrs.velocity`` and
     the compiled loop call, on the same inputs packed beforehand as the loop packs them (so no
     Python overhead). Returns the call and its result, as ``mrs.velocity`` would return it."""
     n = x.shape[0]
+    f, torques, eps = loads(system, t, x)
+    angular = torques is not None
+    wall = bool(getattr(system, "wall", False))
     with kernel_threads(system.n_threads) as threads:  # the count the kernels will use
-        eps, denom, starts = loop.kernel_arguments(system, n, threads)
+        starts = compiled.tile_starts(compiled.padded_size(n), threads)
+    denom = np.full(1, EIGHT_PI * system.viscosity)
     targets, sources = np.empty((3, 1, starts[-1])), np.empty((1, n, 3))
     loop.pack_points(x, targets, sources)
     u, w = np.empty((1, n, 3)), np.empty((1, n, 3))
-    if system.angular:  # rods: forces and torques, the full kernel
-        f, torques = system.loads(t, x)
-        args = (targets, sources, f[None], torques[None], eps, system.wall, False, denom, starts,
-                u, w)
+    if angular or wall:  # forces and torques (zero for a chain at the wall), the full kernel
+        torques = np.zeros_like(f) if torques is None else torques
+        args = (targets, sources, f[None], torques[None], eps, wall, False, denom, starts, u, w)
         kernel = compiled.full
     else:
-        args = (targets, sources, system.forces(x)[None], eps, denom, starts, u)
+        args = (targets, sources, f[None], eps, denom, starts, u)
         kernel = compiled.free_u_f
 
     def call():
@@ -86,7 +111,7 @@ def kernel_call(system, t, x):
             kernel(*args)
 
     call()  # what mrs.velocity returns for these inputs
-    return call, ((u[0].copy(), w[0].copy()) if system.angular else u[0].copy())
+    return call, ((u[0].copy(), w[0].copy()) if angular else u[0].copy())
 
 
 def best_time(fn, n):
@@ -152,6 +177,14 @@ def rod_rest_parts(system, dt, repeats, calls=200):
     return loads, advance
 
 
+def paper_scene(threads):
+    """The paper's rod (M = 301, ε = 5 σ_f) and vesicle (642 points, ε = 0.3 l_max) above the
+    wall in one fluid (μ = 1e-6, the rod's), the vesicle 5 μm above the rod's middle."""
+    vesicle = models.vesicle(viscosity=1e-6, shear_rate=0.0)
+    vesicle = dataclasses.replace(vesicle, center=(30.0, 0.0, 15.0))
+    return Scene((models.rod_swimmer(), vesicle), viscosity=1e-6, wall=True, n_threads=threads)
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=31)
@@ -161,10 +194,14 @@ def main(argv=None) -> int:
     load = os.getloadavg()
     reference = matmul_rate()["gflops"]
 
+    threads = args.threads
     cases = [  # name, system, dt, steps per block (a run's fixed costs, ~30 µs, spread thin)
-        ("one rod (M = 301, wall)", models.rod_swimmer(n_threads=args.threads), 1e-6, 40),
-        ("five rods (5 x 301, wall)", models.rod_swimmer(5, n_threads=args.threads), 1e-6, 2),
-        ("vesicle (642, free space)", models.vesicle(n_threads=args.threads), 1e-3, 20),
+        ("one rod (M = 301, wall)", models.rod_swimmer(n_threads=threads), 1e-6, 40),
+        ("five rods (5 x 301, wall)", models.rod_swimmer(5, n_threads=threads), 1e-6, 2),
+        ("vesicle (642, free space)", models.vesicle(n_threads=threads), 1e-3, 20),
+        ("scene: rod 301 + vesicle 642, wall", paper_scene(threads), 1e-6, 10),
+        ("chain (256 beads, free space)",
+         ChainSystem(n_beads=256, shear_rate=1.0, n_threads=threads), 1e-4, 40),
     ]
     rows = []
     for name, system, dt, steps in cases:

@@ -12,11 +12,16 @@ u∞ = (γ̇ z, 0, 0) with its rotation w∞ = (0, γ̇/2, 0) for bodies with fr
   (``"rod.epsilon"``, ``"vesicle.stiffness"``): Lagrangian extrapolation varies any of them.
 - **Monitor**: the largest of the bodies' monitors over their limits (``monitor_limit`` = 1).
 
+The fluid is evaluated once per stage over all points (:func:`parastokes.mrs.velocity` with ε
+per source: each point's blob has its body's width). A scene whose bodies' exact types all have
+compiled parts (the rod, the vesicle, the chain) is stepped by a compiled loop composed of them
+(:mod:`parastokes.stepping.scene`), with the same bits; a scene with any other body (a user's
+Python body) runs the Runge-Kutta tableaux through the Python methods below.
+
 A body in a scene offers ``loads(t, state) -> (forces, torques or None)``, ``angular`` (whether
 its rates include angular velocities) and ``body_rates(u, w)`` (its rates from the fluid's
 velocities at its points), besides the System contract (docs/contracts.md). Its ``viscosity``,
-and its ``wall`` and ``shear_rate`` where it has them, must agree with the scene's. A scene has no
-compiled loop of steps: it runs the Runge-Kutta tableaux through its Python ``rates``.
+and its ``wall`` and ``shear_rate`` where it has them, must agree with the scene's.
 """
 
 from __future__ import annotations
@@ -30,6 +35,8 @@ from typing import Any
 import numpy as np
 
 from . import mrs
+from .stepping import registry
+from .stepping.scene import scene_loop
 
 __all__ = ["Scene"]
 
@@ -71,7 +78,7 @@ class Scene:
 
     # ---- layout of the state -------------------------------------------------------------
     @cached_property
-    def _shapes(self) -> tuple[tuple[int, int, int], ...]:
+    def shapes(self) -> tuple[tuple[int, int, int], ...]:
         """(first row, rows, state columns) of every body."""
         out, first = [], 0
         for body in self.bodies:
@@ -82,13 +89,13 @@ class Scene:
 
     def blocks(self, array: np.ndarray, columns: list[int] | None = None) -> list[np.ndarray]:
         """Every body's view of a stacked ``array`` (its rows; its state columns by default)."""
-        cols = columns or [c for _, _, c in self._shapes]
-        return [array[f : f + n, :c] for (f, n, _), c in zip(self._shapes, cols, strict=True)]
+        cols = columns or [c for _, _, c in self.shapes]
+        return [array[f : f + n, :c] for (f, n, _), c in zip(self.shapes, cols, strict=True)]
 
     def _stack(self, parts: list[np.ndarray]) -> np.ndarray:
         width = max(p.shape[1] for p in parts)
         out = np.zeros((sum(len(p) for p in parts), width))
-        for (first, rows, _), part in zip(self._shapes, parts, strict=True):
+        for (first, rows, _), part in zip(self.shapes, parts, strict=True):
             out[first : first + rows, : part.shape[1]] = part
         return out
 
@@ -99,45 +106,49 @@ class Scene:
     def positions(self, state: np.ndarray) -> np.ndarray:
         return np.array(state[:, :3])
 
+    def source_epsilon(self) -> np.ndarray:
+        """Every point's ε, its body's (N,)."""
+        return np.repeat([float(body.epsilon) for body in self.bodies],
+                         [rows for _, rows, _ in self.shapes])
+
     def rates(self, t: float, state: np.ndarray) -> np.ndarray:
-        """Each body's rates from u∞ + the velocities that all bodies' loads induce at its points
-        (each source body with its own ε)."""
+        """Each body's rates from u∞ + the velocities that all bodies' loads induce at its points:
+        one evaluation of the fluid over all points, each source with its body's ε."""
         points = np.ascontiguousarray(state[:, :3])
         angular = any(body.angular for body in self.bodies)
-        u = np.zeros_like(points)
-        w = np.zeros_like(points)
-        for body, x in zip(self.bodies, self.blocks(state), strict=True):
-            forces, torques = body.loads(t, x)
-            sources = np.ascontiguousarray(x[:, :3])
-            value = mrs.velocity(points, sources, forces, epsilon=body.epsilon, mu=self.viscosity,
-                                 torques=torques, wall=self.wall, angular=angular,
-                                 n_threads=self.n_threads, check=False)
-            if angular:
-                u += value[0]
-                w += value[1]
-            else:
-                u += value
+        forces = np.zeros_like(points)
+        torques = np.zeros_like(points) if angular else None
+        for body, x, (f, n, _) in zip(self.bodies, self.blocks(state), self.shapes, strict=True):
+            body_forces, body_torques = body.loads(t, x)
+            forces[f : f + n] = body_forces
+            if body_torques is not None:
+                torques[f : f + n] = body_torques
+        value = mrs.velocity(points, points, forces, epsilon=self.source_epsilon(),
+                             mu=self.viscosity, torques=torques, wall=self.wall, angular=angular,
+                             n_threads=self.n_threads, check=False)
+        u, w = value if angular else (value, np.zeros_like(points))
         u[:, 0] += self.shear_rate * points[:, 2]
         w[:, 1] += 0.5 * self.shear_rate
         parts = [body.body_rates(u[f : f + n], w[f : f + n])
-                 for body, (f, n, _) in zip(self.bodies, self._shapes, strict=True)]
+                 for body, (f, n, _) in zip(self.bodies, self.shapes, strict=True)]
         return self._stack(parts)
 
     @property
-    def _rate_columns(self) -> list[int]:
+    def rate_columns(self) -> list[int]:
+        """The columns of every body's rates: 6 (u, w) for bodies with angular rates, else 3."""
         return [6 if body.angular else 3 for body in self.bodies]
 
     def advance(self, state: np.ndarray, rates: np.ndarray, dt: float) -> np.ndarray:
         parts = [
             body.advance(x, r, dt)
             for body, x, r in zip(self.bodies, self.blocks(state),
-                                  self.blocks(rates, self._rate_columns), strict=True)
+                                  self.blocks(rates, self.rate_columns), strict=True)
         ]
         return self._stack(parts)
 
     def bracket(self, r1: np.ndarray, r2: np.ndarray) -> np.ndarray:
         """The bodies' Lie brackets (zero for bodies without one)."""
-        cols = self._rate_columns
+        cols = self.rate_columns
         parts = [
             body.bracket(a, b) if hasattr(body, "bracket") else np.zeros_like(a)
             for body, a, b in zip(self.bodies, self.blocks(r1, cols), self.blocks(r2, cols),
@@ -181,3 +192,6 @@ class Scene:
         values = [body.monitor(x) / body.monitor_limit
                   for body, x in zip(self.bodies, self.blocks(state), strict=True)]
         return float(max(values)) if all(math.isfinite(v) for v in values) else math.nan
+
+
+registry.register(Scene, scene_loop)

@@ -1,4 +1,4 @@
-"""The bead-spring chain (parastokes/kinds/chain.py): mechanics, relaxation against the linearized
+"""The bead-spring chain (parastokes/kinds/chain/): mechanics, relaxation against the linearized
 modes, tumbling in shear flow against Jeffery's orbit, drag against the Stokes/Kirkwood-Riseman
 estimate and slender-body theory, and use from a TOML config and through Parareal."""
 

@@ -43,7 +43,24 @@ def walk(tmp_path_factory):
 def test_the_pages_python_steps_run(walk):
     _, outputs = walk
     assert outputs["check.py"].strip() == "contract ok"
+    assert outputs["check_compiled.py"].strip() == "compiled loop ok"
     assert outputs["parareal_cloud.py"].startswith("errors")
+
+
+def test_a_users_compiled_loop_leaves_the_packages_loops_loadable(walk):
+    """numba unpickles every key of a function's cache index when it reads it: after the page's
+    compiled loop was cached, a process that cannot import the user's module must still load the
+    package's compiled loops (the user's types are cached in an index of their own)."""
+    folder, _ = walk
+    script = ("from parastokes import integrate\n"
+              "from parastokes.kinds.chain import KIND\n"
+              "system, x, _ = KIND.example()\n"
+              "print(integrate.run(system, x, 0.0, 0.05, 'rk2', 0.01).n_steps)\n")
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    done = subprocess.run([sys.executable, "-c", script], cwd=folder.parent, env=env,
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "5"
 
 
 def test_the_pages_config_checks_and_runs_from_the_command_line(walk):

@@ -82,6 +82,7 @@ def test_a_member_does_not_depend_on_its_batch(batch):
         (dict(forces=np.zeros((3, 6, 3))), "forces"),
         (dict(wall=True, targets=-np.ones((3, 7, 3))), "targets: points below the wall"),
         (dict(targets=np.full((3, 7, 3), 1e19)), "targets: coordinates beyond"),
+        (dict(epsilon=np.full((3, 7), 0.3)), "epsilon: one per source is not supported"),
     ],
 )
 def test_bad_input_is_refused_naming_the_argument(batch, change, message):

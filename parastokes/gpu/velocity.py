@@ -61,6 +61,9 @@ def velocity(targets, sources, forces, *, epsilon, mu, torques=None, wall: bool 
     targets, sources, forces, torques, eps, visc = validated(
         targets, sources, forces, torques, epsilon, mu, wall
     )
+    if eps.ndim != 1:
+        raise ValueError("epsilon: one per source is not supported on the GPU; give one per "
+                         "system (a scalar, or (B,) for batched input)")
     batch = targets.shape[0] if targets.ndim == 3 else 0
     if not batch:
         targets, sources, forces = targets[None], sources[None], forces[None]

@@ -14,6 +14,11 @@ The sources, forces and torques are read as they come, (B, N, 3) (one source at 
 vector loads), and u and w are written as (B, M, 3), already divided by 8πμ: the caller packs only
 the targets. Formulas: the physics notes (docs/kernels.md) (1)-(8), the paper's eqs. 3-6.
 
+ε is one per system, ``eps`` (B,), or one per source, ``eps`` (B, N) (a scene of bodies with
+their own ε, :mod:`parastokes.scene`): the same kernels, compiled once for each; per source, ε²
+is formed once per source (outside the targets' loop), so a (B, N) ``eps`` with equal entries
+gives the same bits as the (B,) one.
+
 Kernels:
 
 - :func:`free_u_f`: force -> velocity in free space (eq. 6), the vesicle's hot path;
@@ -31,7 +36,7 @@ import platform
 
 import numpy as np
 from numba import njit, prange, types
-from numba.extending import intrinsic
+from numba.extending import intrinsic, overload
 
 #: Most targets per tile. Tiles are whole vectors of :data:`LANES` targets (:func:`tile_starts`).
 TILE = 64
@@ -249,16 +254,39 @@ def tile_starts(padded: int, parts: int) -> np.ndarray:
     return starts
 
 
+def _system_e2(eps, b):
+    """ε² of system ``b`` when ``eps`` is one per system (B,); 0 (unused) when per source."""
+
+
+def _source_e2(eps, b, j, e2):
+    """ε² of source ``j`` of system ``b``: the system's ``e2``, or ``eps[b, j]²`` per source."""
+
+
+@overload(_system_e2, inline="always")
+def _system_e2_impl(eps, b):
+    if eps.ndim == 1:
+        return lambda eps, b: eps[b] * eps[b]
+    return lambda eps, b: 0.0
+
+
+@overload(_source_e2, inline="always")
+def _source_e2_impl(eps, b, j, e2):
+    if eps.ndim == 1:
+        return lambda eps, b, j, e2: e2
+    return lambda eps, b, j, e2: eps[b, j] * eps[b, j]
+
+
 @njit(inline="always", **_OPTS)
 def _tile(job, starts, t, eps):
     """The ``job``-th (system, tile) pair: system b, first target t0, number of targets nt, the
-    tile's target coordinates (from the (3, B, Mp) targets ``t``) and the system's ε²."""
+    tile's target coordinates (from the (3, B, Mp) targets ``t``) and the system's ε² (0 when ε
+    is per source: :func:`_source_e2` gives it)."""
     ntiles = starts.size - 1
     b = job // ntiles
     t0 = starts[job % ntiles]
     nt = starts[job % ntiles + 1] - t0
     return (b, t0, nt, t[0, b, t0 : t0 + nt], t[1, b, t0 : t0 + nt], t[2, b, t0 : t0 + nt],
-            eps[b] * eps[b])
+            _system_e2(eps, b))
 
 
 @njit(inline="always", **_OPTS)
@@ -275,19 +303,21 @@ def free_u_f(t, s, f, eps, denom, starts, u):
     """u from forces in free space (eq. 6): u = (8π μ u) / denom with denom = 8π μ per system.
 
     ``t`` (3, B, Mp): the targets' x, y, z, padded to Mp (a multiple of LANES) by repeating the
-    last target; ``s``, ``f`` (B, N, 3) sources and forces; ``eps``, ``denom`` (B,); ``starts``
+    last target; ``s``, ``f`` (B, N, 3) sources and forces; ``eps`` (B,) or per source (B, N);
+    ``denom`` (B,); ``starts``
     the tiles of every system (:func:`tile_starts`); ``u`` (B, M, 3), M <= Mp, is written (the
     padded targets' values are dropped).
     """
     ns = s.shape[1]
     for job in prange(t.shape[1] * (starts.size - 1)):
         _kernel_attributes()
-        b, t0, nt, px, py, pz, e2 = _tile(job, starts, t, eps)
-        e22 = 2.0 * e2
+        b, t0, nt, px, py, pz, e2b = _tile(job, starts, t, eps)
         ax = np.zeros(nt)
         ay = np.zeros(nt)
         az = np.zeros(nt)
         for j in range(ns):
+            e2 = _source_e2(eps, b, j, e2b)
+            e22 = 2.0 * e2
             yx, yy, yz = s[b, j, 0], s[b, j, 1], s[b, j, 2]
             gx, gy, gz = f[b, j, 0], f[b, j, 1], f[b, j, 2]
             for i in range(nt):
@@ -314,7 +344,7 @@ def full(t, s, f, n, eps, wall, phi, denom, starts, u, w):
     ns = s.shape[1]
     for job in prange(t.shape[1] * (starts.size - 1)):
         _kernel_attributes()
-        b, t0, nt, px, py, pz, e2 = _tile(job, starts, t, eps)
+        b, t0, nt, px, py, pz, e2b = _tile(job, starts, t, eps)
         a0 = np.zeros(nt)
         a1 = np.zeros(nt)
         a2 = np.zeros(nt)
@@ -322,6 +352,7 @@ def full(t, s, f, n, eps, wall, phi, denom, starts, u, w):
         a4 = np.zeros(nt)
         a5 = np.zeros(nt)
         for j in range(ns):
+            e2 = _source_e2(eps, b, j, e2b)
             yx, yy, h = s[b, j, 0], s[b, j, 1], s[b, j, 2]
             gx, gy, gz = f[b, j, 0], f[b, j, 1], f[b, j, 2]
             mx, my, mz = n[b, j, 0], n[b, j, 1], n[b, j, 2]

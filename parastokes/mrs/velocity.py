@@ -46,8 +46,22 @@ def _positive(name: str, value, batch: int) -> np.ndarray:
     return arr
 
 
-def _epsilon(value, batch: int) -> np.ndarray:
-    eps = _positive("epsilon", value, batch)
+def per_source(epsilon, batch: int) -> bool:
+    """Whether ``epsilon`` gives one ε per source: shape (N,) unbatched, (B, N) batched."""
+    return np.ndim(epsilon) == (2 if batch else 1)
+
+
+def _epsilon(value, batch: int, n_sources: int) -> np.ndarray:
+    if per_source(value, batch):
+        eps = np.asarray(value, dtype=np.float64)
+        want = (batch, n_sources) if batch else (n_sources,)
+        if eps.shape != want:
+            raise ValueError(f"epsilon: one per source needs shape {want}, got {eps.shape}")
+        if not np.all(np.isfinite(eps)) or np.any(eps <= 0):
+            raise ValueError("epsilon: must be finite and > 0 for every source")
+        eps = eps.reshape(max(batch, 1), n_sources)
+    else:
+        eps = _positive("epsilon", value, batch)
     if np.any(eps < 1.0 / SCALE_LIMIT) or np.any(eps > SCALE_LIMIT):
         raise ValueError(
             f"epsilon: must lie in [{1.0 / SCALE_LIMIT:g}, {SCALE_LIMIT:g}], got {value!r}"
@@ -110,7 +124,8 @@ def validated(targets, sources, forces, torques, epsilon, mu, wall: bool) -> tup
             raise ValueError(f"{name}: coordinates beyond ±{SCALE_LIMIT:g} are not supported")
         if wall and np.any(arr[..., 2] < 0):
             raise ValueError(f"{name}: points below the wall z = 0 (wall=True)")
-    eps = np.array(_epsilon(epsilon, batch))  # a fresh writable copy: one numba signature
+    # a fresh writable copy: one numba signature
+    eps = np.array(_epsilon(epsilon, batch, sources.shape[-2]))
     visc = _positive("mu", mu, batch)
     return targets, sources, forces, torques, eps, visc
 
@@ -146,6 +161,8 @@ def velocity(
         Point forces (and torques) exerted on the fluid, same shape as ``sources``.
     epsilon, mu : float, or (B,) arrays for batched input
         Regularization parameter ε > 0 and viscosity μ > 0 (one per system when batched).
+        ``epsilon`` may also be one per source, (N,) or (B, N): each source's blob has its own
+        width (bodies with their own ε in one fluid, :class:`parastokes.scene.Scene`).
     wall : bool
         Plane wall at z = 0; every point must then have z >= 0.
     angular : bool
@@ -179,8 +196,11 @@ def velocity(
     else:
         targets = np.asarray(targets)
         batch = targets.shape[0] if targets.ndim == 3 else 0
-        eps = np.empty(max(batch, 1))
-        eps[:] = epsilon
+        if per_source(epsilon, batch):
+            eps = np.array(epsilon, dtype=np.float64).reshape(max(batch, 1), -1)
+        else:
+            eps = np.empty(max(batch, 1))
+            eps[:] = epsilon
         visc = np.empty(max(batch, 1))
         visc[:] = mu
 

@@ -14,13 +14,18 @@ compiled call, exactly as :func:`parastokes.integrate._python_steps` does:
 - after each step: the finiteness check and the monitor, stopping at the first failure with the
   last good state kept (or after the step whose monitor exceeds ``stop_above``).
 
-What is specific to a system are four compiled parts, chosen by the type of the system's
+What is specific to a system are four compiled parts (six to join a scene), chosen by the type
+of the system's
 ``data`` (a ``NamedTuple`` of arrays and numbers built once per call) through
 ``numba.extending.overload``: :func:`rates_into`, :func:`advance`, :func:`monitor` and
 :func:`bracket_into`; and :func:`workspace`, the scratch arrays that ``rates_into`` reuses. A system
-registers them for its data type (e.g. :mod:`parastokes.kinds.rod.compiled`) and must run
-the same compiled functions as its Python ``rates``/``advance``/``monitor``, so that both loops
-agree bit for bit (tested).
+registers them for its data type (:mod:`parastokes.kinds.rod.compiled`,
+:mod:`parastokes.kinds.vesicle.compiled`, :mod:`parastokes.kinds.chain.stepping`) and must
+run the same compiled functions as its Python ``rates``/``advance``/``monitor``, so that both
+loops agree bit for bit (tested). A body that
+also supplies :func:`loads_into` and :func:`body_rates_into` (its Python ``loads`` and
+``body_rates``) can be stepped in a scene's compiled loop (:mod:`parastokes.stepping.scene`);
+:func:`register_parts` registers its type for both loops.
 
 numba caches each compiled function keyed on its own source file only: after editing a system's
 parts (or anything they call) in another file, delete the ``__pycache__`` folders before timing
@@ -29,8 +34,10 @@ or testing, or the cached loop still runs the old parts. A fresh checkout or ins
 
 from __future__ import annotations
 
+import functools
 import math
 import time
+import types
 from collections.abc import Callable
 from typing import Any
 
@@ -41,14 +48,18 @@ from ..contracts import System
 from ..integrate import ABOVE, BEYOND, DONE, NON_FINITE, Scheme
 from ..mrs import compiled
 from ..mrs.velocity import EIGHT_PI, kernel_threads
+from . import registry
 
 __all__ = [
     "advance",
+    "body_rates_into",
     "bracket_into",
     "kernel_arguments",
+    "loads_into",
     "monitor",
     "pack_points",
     "rates_into",
+    "register_parts",
     "run_steps",
     "tableau_arrays",
     "workspace",
@@ -80,6 +91,20 @@ def monitor(data, x):
 
 def bracket_into(data, out, kp, kq, h):
     """Add ``h * bracket(kp, kq)`` to ``out`` (nothing for abelian systems)."""
+    raise NotImplementedError("compiled only: register an overload for the system's data type")
+
+
+def loads_into(data, t, x, forces, torques):
+    """The system's point loads on the fluid at time ``t`` (its ``loads``): forces written into
+    ``forces`` (n, 3), torques into ``torques`` (n, 3) by bodies that have them (others leave
+    it alone). For a scene's loop, which sums all bodies' loads in one kernel call."""
+    raise NotImplementedError("compiled only: register an overload for the system's data type")
+
+
+def body_rates_into(data, u, w, out):
+    """The system's rates from the fluid's velocity ``u`` and angular velocity ``w`` (n, 3) at
+    its points, background flow included (its ``body_rates``), into ``out``
+    (n, data.rate_columns). For a scene's loop."""
     raise NotImplementedError("compiled only: register an overload for the system's data type")
 
 
@@ -133,7 +158,7 @@ def tableau_arrays(scheme: Scheme) -> tuple[np.ndarray, ...]:
     )
 
 
-@njit(**_OPTS)
+@njit(error_model="numpy")  # not cached on its own: compiled into each cached loop (see _loop_for)
 def _combine(data, coefs, k, brackets, stage, dt, out):
     """``integrate._combine`` into ``out``: Σ_j coefs[j] k_j (non-zero terms, in order) plus
     ``coefficient * dt * bracket(k_p, k_q)`` for the bracket rows of this ``stage`` (-1: the
@@ -206,6 +231,45 @@ def _run(x, t0, dt, first, n_steps, tableau, data, limit, stop_above):
     return worst, taken, outcome, m
 
 
+_FOREIGN_LOOPS: dict[tuple[str, ...], Any] = {}
+
+
+def _foreign_modules(value: Any) -> set[str]:
+    """The modules outside parastokes that define the tuple types in ``value`` (a system's data:
+    named tuples of arrays, numbers and tuples, a scene's holding its bodies')."""
+    found = set()
+    if isinstance(value, tuple):
+        module = type(value).__module__
+        if type(value) is not tuple and module.partition(".")[0] != "parastokes":
+            found.add(module)
+        for item in value:
+            found |= _foreign_modules(item)
+    return found
+
+
+def _loop_for(data: tuple) -> Any:
+    """The compiled :func:`_run` for ``data``: itself for the package's types, and for data with
+    types from other modules (a user's body, docs/extending.md) a copy of it per set of such
+    modules, cached in its own index file named after them.
+
+    numba keeps one cache index per function, keyed by the argument types, and unpickles every
+    key when it reads the index: a user's type in ``_run``'s index would make every later process
+    that cannot import the user's module fail to load any compiled loop. In an index of their own
+    the user's types are read only where the user's data is stepped, so their module is loaded.
+    """
+    key = tuple(sorted(_foreign_modules(data)))
+    if not key:
+        return _run
+    if key not in _FOREIGN_LOOPS:
+        code = _run.py_func
+        copy = types.FunctionType(code.__code__, code.__globals__, code.__name__,
+                                  code.__defaults__, code.__closure__)
+        copy.__qualname__ = "_run_for_" + "__".join(m.replace(".", "_") for m in key)
+        copy.__doc__ = code.__doc__
+        _FOREIGN_LOOPS[key] = njit(**_OPTS)(copy)
+    return _FOREIGN_LOOPS[key]
+
+
 #: Wall time aimed at per compiled call: the loop returns to Python this often, so that Ctrl-C
 #: (and any other signal) is handled within about a second during a long propagation.
 CALL_SECONDS = 0.25
@@ -237,9 +301,10 @@ def run_steps(
     done, worst, chunk = 0, -math.inf, 8
     with kernel_threads(system.n_threads) as threads:
         data = make_data(system, threads)
+        steps = _loop_for(data)
         while True:  # calls of about CALL_SECONDS each, steps numbered from t0 throughout
             start = time.perf_counter()
-            chunk_worst, taken, outcome, m = _run(
+            chunk_worst, taken, outcome, m = steps(
                 x, float(t0), float(dt), done, min(chunk, n - done), tableau, data,
                 float(limit), float(stop_above),
             )
@@ -251,3 +316,15 @@ def run_steps(
                 return x, worst, done, DONE, worst
             per_step = (time.perf_counter() - start) / max(taken, 1)
             chunk = max(1, min(4 * chunk, int(CALL_SECONDS / max(per_step, 1e-9))))
+
+
+def register_parts(cls: type, make_data: Callable[[Any, int], tuple], fluid: type | None = None,
+                   *, in_scenes: bool = False) -> None:
+    """Step systems of exactly the type ``cls`` whose fluid is exactly of the type ``fluid``
+    (None: systems without a ``fluid``) with :func:`run_steps` on ``make_data(system, threads)``;
+    with ``in_scenes`` (the type also has :func:`loads_into` and :func:`body_rates_into`), let
+    scenes compose its parts (:func:`parastokes.stepping.registry.register_data`)."""
+    registry.register(cls, lambda system: functools.partial(run_steps, system, make_data),
+                      fluid=fluid)
+    if in_scenes:
+        registry.register_data(cls, make_data)

@@ -10,6 +10,12 @@ another system's rates, and a system whose fluid is computed otherwise (by block
 an executor, :class:`parastokes.fluid.BlockedMRS`) is stepped through its own ``rates``. A subclass
 that keeps the physics registers itself explicitly.
 
+A body type whose compiled parts can also be composed into a scene's loop registers how to build
+its compiled data, ``register_data(RodSystem, rod_data)`` (``rod_data(system, threads)``, see
+:mod:`parastokes.stepping.loop`): :func:`compiled_data` finds it, again by exact type only, and
+:mod:`parastokes.stepping.scene` steps a scene in compiled code exactly when every one of its
+bodies has it. :func:`parastokes.stepping.loop.register_parts` registers both at once.
+
 This module imports nothing, so :mod:`parastokes.integrate` can ask it without an import cycle.
 """
 
@@ -18,11 +24,12 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-__all__ = ["compiled_loop", "register", "registered"]
+__all__ = ["compiled_data", "compiled_loop", "register", "register_data", "registered"]
 
 RunSteps = Callable[..., tuple[Any, float, int, int, float]]
 
 _LOOPS: dict[tuple[type, type], Callable[[Any], RunSteps]] = {}
+_DATA: dict[type, Callable[[Any, int], tuple]] = {}
 
 
 def _key(system: Any) -> tuple[type, type]:
@@ -44,3 +51,15 @@ def compiled_loop(system: Any) -> RunSteps | None:
     """The compiled ``run_steps`` of ``system`` if its exact types have one, else None."""
     factory = _LOOPS.get(_key(system))
     return None if factory is None else factory(system)
+
+
+def register_data(cls: type, make_data: Callable[[Any, int], tuple]) -> None:
+    """Systems of exactly the type ``cls`` have compiled parts on the data
+    ``make_data(system, threads)`` (a ``NamedTuple``; :mod:`parastokes.stepping.loop`), including
+    the parts a scene composes (``loads_into``, ``body_rates_into``)."""
+    _DATA[cls] = make_data
+
+
+def compiled_data(system: Any) -> Callable[[Any, int], tuple] | None:
+    """The ``make_data`` registered for the exact type of ``system``, else None."""
+    return _DATA.get(type(system))

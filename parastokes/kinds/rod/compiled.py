@@ -104,3 +104,29 @@ def _bracket_into(data, out, kp, kq, h):
                 out[i, 5] += h * (kp[i, 3] * kq[i, 4] - kp[i, 4] * kq[i, 3])
 
         return impl
+
+
+# ---- the parts a scene composes (parastokes.stepping.scene) -----------------------------------
+@overload(loop.loads_into)
+def _loads_into(data, t, x, forces, torques):
+    if loop.is_data(data, RodData):
+
+        def impl(data, t, x, forces, torques):
+            n_rods, ds, a, b, table, constant, amplitude, wavenumber, frequency = data.mechanics
+            omega_hat = preferred_strain(table, t, constant, amplitude, wavenumber, frequency)
+            f, tq = rod_loads(x, n_rods, ds, a, b, omega_hat)
+            forces[:, :] = f
+            torques[:, :] = tq
+
+        return impl
+
+
+@overload(loop.body_rates_into)
+def _body_rates_into(data, u, w, out):
+    if loop.is_data(data, RodData):
+
+        def impl(data, u, w, out):
+            out[:, :3] = u
+            out[:, 3:6] = w
+
+        return impl

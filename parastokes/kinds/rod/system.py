@@ -10,7 +10,6 @@ in a few hundred bytes. Importing this module registers its compiled loop (:mod:
 from __future__ import annotations
 
 import dataclasses
-import functools
 import math
 from dataclasses import dataclass
 from functools import lru_cache
@@ -22,7 +21,7 @@ from ...bodies import frames, geometry
 from ...bodies.base import FluidBody, replace_params, require_positive
 from ...fluid import MRS, TargetBlocks
 from ...mrs.velocity import thread_count
-from ...stepping import loop, registry
+from ...stepping import loop
 from . import mechanics as kirchhoff
 from .compiled import rod_data
 from .transfer import RodTransfer
@@ -279,6 +278,4 @@ def rod_swimmer(
     )
 
 
-registry.register(
-    RodSystem, lambda system: functools.partial(loop.run_steps, system, rod_data), fluid=MRS
-)
+loop.register_parts(RodSystem, rod_data, fluid=MRS, in_scenes=True)

@@ -106,3 +106,24 @@ def _monitor(data, x):
 def _bracket_into(data, out, kp, kq, h):
     if loop.is_data(data, VesicleData):
         return lambda data, out, kp, kq, h: None
+
+
+# ---- the parts a scene composes (parastokes.stepping.scene) -----------------------------------
+@overload(loop.loads_into)
+def _loads_into(data, t, x, forces, torques):
+    if loop.is_data(data, VesicleData):
+
+        def impl(data, t, x, forces, torques):
+            forces[:, :] = spring_forces(x, data.edges, data.rest, data.stiffness)
+
+        return impl
+
+
+@overload(loop.body_rates_into)
+def _body_rates_into(data, u, w, out):
+    if loop.is_data(data, VesicleData):
+
+        def impl(data, u, w, out):
+            out[:, :] = u
+
+        return impl

@@ -9,7 +9,6 @@ bytes. Importing this module registers its compiled loop (:mod:`.compiled`).
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass
 from functools import lru_cache
@@ -20,7 +19,7 @@ from ...bodies import geometry
 from ...bodies.base import PointsInShear, replace_params, require_positive
 from ...fluid import MRS, TargetBlocks
 from ...mrs.velocity import thread_count
-from ...stepping import loop, registry
+from ...stepping import loop
 from .compiled import vesicle_data
 from .mechanics import spring_forces
 
@@ -155,7 +154,4 @@ def vesicle(
     )
 
 
-registry.register(
-    VesicleSystem, lambda system: functools.partial(loop.run_steps, system, vesicle_data),
-    fluid=MRS,
-)
+loop.register_parts(VesicleSystem, vesicle_data, fluid=MRS, in_scenes=True)

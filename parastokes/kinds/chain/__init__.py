@@ -1,7 +1,9 @@
 """The bead-spring chain: a polymer of beads joined by Hookean springs with a bending penalty.
 
-This body is written only through the public extension path (docs/extending.md): this module and
+This body is written only through the public extension path (docs/extending.md): this package and
 its one line in :data:`parastokes.bodies.registry.BUILTIN`; nothing else in the package names it.
+Its mechanics are compiled functions (:mod:`.mechanics`), its compiled parts for the loops of
+steps (alone and in scenes) are in :mod:`.stepping`, registered at the end of this module.
 
 Mechanics (forces only; docs/bodies.md). Beads X_0..X_{N-1}, bonds t_i = X_{i+1} - X_i with rest
 length b, unit tangents t̂_i. The elastic energy is
@@ -22,11 +24,10 @@ from dataclasses import dataclass
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from numba import njit
 from pydantic import Field
 
-from ..bodies.base import PointsInShear, replace_params
-from ..bodies.registry import (
+from ...bodies.base import PointsInShear, replace_params
+from ...bodies.registry import (
     BodyKind,
     BodyLayout,
     BodyResolution,
@@ -35,49 +36,13 @@ from ..bodies.registry import (
     draw_over_time,
     polyline,
 )
-from ..fluid import TargetBlocks
-from ..mrs.velocity import thread_count
+from ...fluid import MRS, TargetBlocks
+from ...mrs.velocity import thread_count
+from ...stepping.loop import register_parts
+from .mechanics import bond_strain, chain_energy, chain_forces
+from .stepping import chain_data
 
 __all__ = ["KIND", "ChainModel", "ChainSystem", "chain_energy", "chain_forces"]
-
-
-@njit(cache=True, error_model="numpy")
-def chain_forces(x, bond, stiffness, bending):
-    """F = -∂E/∂X (N, 3) of the springs and the bending penalty of the module docstring."""
-    n = x.shape[0]
-    out = np.zeros_like(x)
-    t = np.empty((n - 1, 3))
-    length = np.empty(n - 1)
-    for i in range(n - 1):
-        for j in range(3):
-            t[i, j] = x[i + 1, j] - x[i, j]
-        length[i] = np.sqrt(t[i, 0] ** 2 + t[i, 1] ** 2 + t[i, 2] ** 2)
-        c = stiffness * (length[i] - bond) / length[i]
-        for j in range(3):
-            out[i, j] += c * t[i, j]
-            out[i + 1, j] -= c * t[i, j]
-    w = bending / bond
-    for i in range(1, n - 1):
-        a, b = i - 1, i  # bonds on either side of bead i
-        cos = (t[a, 0] * t[b, 0] + t[a, 1] * t[b, 1] + t[a, 2] * t[b, 2]) / (length[a] * length[b])
-        for j in range(3):
-            ua = t[a, j] / length[a]
-            ub = t[b, j] / length[b]
-            da = (ub - cos * ua) / length[a]  # ∂cos/∂t_a
-            db = (ua - cos * ub) / length[b]  # ∂cos/∂t_b
-            out[i - 1, j] -= w * da
-            out[i, j] += w * (da - db)
-            out[i + 1, j] += w * db
-    return out
-
-
-def chain_energy(x: np.ndarray, bond: float, stiffness: float, bending: float) -> float:
-    """E of the module docstring (plain numpy: the oracle of :func:`chain_forces`)."""
-    t = np.diff(x, axis=0)
-    length = np.linalg.norm(t, axis=1)
-    unit = t / length[:, None]
-    cos = np.einsum("ij,ij->i", unit[:-1], unit[1:])
-    return float(0.5 * stiffness * ((length - bond) ** 2).sum() + bending / bond * (1 - cos).sum())
 
 
 def _positive(**values: float) -> None:
@@ -146,8 +111,7 @@ class ChainSystem(PointsInShear):
 
     def monitor(self, state: np.ndarray) -> float:
         """The largest relative deviation of a bond length from the rest length b."""
-        length = np.linalg.norm(np.diff(state, axis=0), axis=1)
-        return float(np.abs(length / self.bond - 1.0).max())
+        return float(bond_strain(state, self.bond))
 
 
 class ChainModel(BodySection):
@@ -215,3 +179,6 @@ def example() -> tuple[ChainSystem, np.ndarray, float | None]:
 
 
 KIND = BodyKind("chain", ChainModel, layout, draw, example=example)
+
+
+register_parts(ChainSystem, chain_data, fluid=MRS, in_scenes=True)
