@@ -9,6 +9,7 @@ from .extrapolation import Extrapolated, extrapolated
 from .metrics import relative_change
 from .result import PararealResult
 from .schedule_model import Simulation, handover_latency, predict_schedules, simulate
+from .slice_costs import SliceCosts, auxiliary_solvers, coarse_step_time, measure_slice_costs
 from .speedup import (
     parareal_runtime,
     pipelined_runtime,
@@ -29,11 +30,15 @@ __all__ = [
     "OnCoarseGrid",
     "PararealResult",
     "Simulation",
+    "SliceCosts",
     "Timings",
     "Transfer",
+    "auxiliary_solvers",
+    "coarse_step_time",
     "extrapolated",
     "handover_latency",
     "lagrange_weights",
+    "measure_slice_costs",
     "parareal_runtime",
     "pipelined_runtime",
     "predict",
