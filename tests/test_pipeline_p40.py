@@ -4,28 +4,19 @@ analogues, and the speedups fed to the figure. The measurement itself is not run
 
 from __future__ import annotations
 
-import importlib.util
 import json
-import sys
 from pathlib import Path
 
 import pytest
+from bench_modules import benchmark_module
 
 from parastokes import parareal
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(scope="module")
 def bench():
-    spec = importlib.util.spec_from_file_location("bench_pipeline", ROOT / "benchmarks/pipeline.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # dataclasses look their module up there
-    try:
-        spec.loader.exec_module(module)
+    with benchmark_module("pipeline") as module:
         yield module
-    finally:
-        sys.modules.pop(spec.name, None)
 
 
 def result(name: str, errors: list, n_slices: int = 40) -> dict:
