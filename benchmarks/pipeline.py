@@ -64,7 +64,9 @@ ROOT = Path(__file__).resolve().parents[1]
 SECTIONS = ("emulation", "real", "p40")
 
 # eta^k (k = 1, 2, 3) of the shortened analogues of the paper's configurations
-# (experiments/quick/NAME.toml: 4 slices; rod: 61 points over a rod of length 12), in one process:
+# (experiments/quick/NAME.toml: 4 slices; rod: 61 points over a rod of length 12; their time spans
+# differ, T = 0.004 or the paper's slices T = 0.1 for the rod, T = 10 for the vesicle, and each
+# curve says which), in one process:
 #   parastokes run experiments/quick/NAME.toml --out DIR --set 'execution.executor="serial"' \
 #       --set execution.workers=1 --set parareal.max_iterations=3
 # Used for a solver only when no full-scale record (--records) has its eta^k.
@@ -73,19 +75,23 @@ ERRORS: dict[str, list[float]] = {
     "table4_g2": [9.6965e-07, 8.1847e-07, 2.7415e-07],
     "table4_g3": [5.2593e-11, 4.9989e-11, 1.6650e-11],
     "table4_g4": [7.2947e-08, 4.3220e-10, 1.0303e-12],
+    "table5_g1": [2.9887e-08, 8.7302e-10, 1.6479e-10],
+    "table5_g2": [1.9198e-09, 2.9823e-11, 1.0831e-11],
+    "table5_g3": [2.2041e-08, 2.1586e-08, 7.1986e-09],
+    "table6_eps3": [5.7430e-05, 5.1954e-06, 8.0465e-07],
 }
 
 # The paper's configurations compared at P = 40: (table, plain G_{Theta^0, tau}, extrapolated).
 # Tables 5, 6 and 8 have no plain solver in the paper.
 TABLES = {
-    "Table 4 (rod, eps0 = 5 sigma_f)": ("table4_g4", ["table4_g1", "table4_g2", "table4_g3"]),
-    "Table 5 (rod, eps0 = 7 sigma_f)": (None, ["table5_g1", "table5_g2", "table5_g3"]),
-    "Table 6 (rod, eps0 = 3 sigma_f)": (None, ["table6_eps3"]),
-    "Table 7 (vesicle, eps0 = 0.3 l_max)": (
+    "Table 4 (rod, ε⁰ = 5σ_f)": ("table4_g4", ["table4_g1", "table4_g2", "table4_g3"]),
+    "Table 5 (rod, ε⁰ = 7σ_f)": (None, ["table5_g1", "table5_g2", "table5_g3"]),
+    "Table 6 (rod, ε⁰ = 3σ_f)": (None, ["table6_eps3"]),
+    "Table 7 (vesicle, ε⁰ = 0.3 l_max)": (
         "table7_g4",
         ["table7_g1", "table7_g2", "table7_g3"],
     ),
-    "Table 8 (vesicle, eps0 = 0.5 l_max)": (None, ["table8_g1", "table8_g2", "table8_g3"]),
+    "Table 8 (vesicle, ε⁰ = 0.5 l_max)": (None, ["table8_g1", "table8_g2", "table8_g3"]),
 }
 
 
@@ -447,7 +453,7 @@ FULL, RUNNING, SHORT, GIVEN = (
     "shortened analogue",
     "given (--errors)",
 )
-RANK = {FULL: 0, RUNNING: 1, GIVEN: 2, SHORT: 3}
+RANK = {FULL: 0, RUNNING: 1}  # other records rank after these
 
 
 @dataclass(frozen=True)
@@ -542,7 +548,10 @@ def choose_errors(
         elif name in given:
             out[name] = Errors([float(v) for v in given[name]], GIVEN, "--errors")
         elif name in ERRORS:
-            out[name] = Errors(ERRORS[name], SHORT, f"experiments/quick/{name}.toml")
+            quick = ROOT / "experiments" / "quick" / f"{name}.toml"
+            cfg, _ = config.load(quick)
+            span = f"{SHORT}, {cfg.parareal.n_slices} slices over T = {cfg.time.t1:g}"
+            out[name] = Errors(ERRORS[name], span, str(quick.relative_to(ROOT)))
     return out
 
 
@@ -599,9 +608,21 @@ def speedups(ratio: float, n_aux: int, ks: Sequence[int]) -> dict[str, list[floa
     return out
 
 
-def _source_label(solvers: Sequence[str], errors: dict[str, Errors]) -> str:
-    iterations = max(len(errors[s].values) for s in solvers)
-    return f"{errors[solvers[0]].source} η^k, K ≤ {iterations}"
+def scale(source: str) -> str:
+    """The curve a solver's eta^k belong to: full-scale (finished or running runs) or not."""
+    return "full-scale" if source in (FULL, RUNNING) else source
+
+
+def curve_label(kind: str, solvers: Sequence[str], errors: dict[str, Errors]) -> str:
+    """The legend of a curve, e.g. ``extrapolated, best of g1 (K <= 4), g3 (K <= 2, run in
+    progress); full-scale eta^k``."""
+    parts = []
+    for name in solvers:
+        eta = errors[name]
+        running = ", run in progress" if eta.source == RUNNING else ""
+        parts.append(f"{name.split('_', 1)[1]} (K ≤ {len(eta.values)}{running})")
+    best = "best of " if len(solvers) > 1 else ""
+    return f"{kind}, {best}{', '.join(parts)}; {scale(errors[solvers[0]].source)} η^k"
 
 
 def p40(args: argparse.Namespace) -> tuple[str, Any]:
@@ -631,6 +652,7 @@ def p40(args: argparse.Namespace) -> tuple[str, Any]:
         for name in ([plain] if plain else []) + extrapolated:
             cost = costs[name]
             ratio, n_aux = cost["gamma_ratio"], cost["n_auxiliary"]
+            mean_inputs = (cost["auxiliary_slice_s"], cost["fine_slice_s"])
             speed = speedups(ratio, n_aux, ks)
             eta = errors.get(name)
             kind = "plain" if name == plain else "extrapolated"
@@ -642,6 +664,10 @@ def p40(args: argparse.Namespace) -> tuple[str, Any]:
                     "n_auxiliary": n_aux,
                     "gamma_F_s": cost["gamma_F_s"],
                     "ratio": ratio,
+                    "mean_ratio": statistics.median(
+                        float(np.mean(aux)) / fine
+                        for aux, fine in zip(*mean_inputs, strict=True)
+                    ),
                     "estimated_ratio": cost["estimated_ratio"],
                     "overhead_s": statistics.median(cost["overhead_s"]),
                     "linearity": [min(cost["linearity"]), max(cost["linearity"])],
@@ -652,9 +678,9 @@ def p40(args: argparse.Namespace) -> tuple[str, Any]:
                 }
             )
             if eta:
-                groups.setdefault((kind, eta.source), []).append(name)
+                groups.setdefault((kind, scale(eta.source)), []).append(name)
         for (kind, source), solvers in groups.items():
-            text = _source_label(solvers, errors)
+            text = curve_label(kind, solvers, errors)
             for schedule in ("standard", "pipelined"):
                 best = np.full(len(desired), np.nan)
                 for row in rows:
@@ -665,8 +691,8 @@ def p40(args: argparse.Namespace) -> tuple[str, Any]:
     text = p40_text(rows, costs_note, args)
     if args.figures and curves:
         draw_p40(curves, desired, Path(args.figures))
-    serial = {f"{k[0]}|{k[1]}|{k[2]}|{k[3]}": v[0] for k, v in curves.items()}
-    return text, {"rows": rows, "costs": costs, "desired": desired, "curves": serial}
+    serial = {" | ".join(k): v[0].tolist() for k, v in curves.items()}
+    return text, {"rows": rows, "costs": costs, "desired": desired.tolist(), "curves": serial}
 
 
 def _k_range(row: dict[str, Any]) -> list[int]:
@@ -692,6 +718,7 @@ def p40_text(rows: list[dict[str, Any]], costs_note: str, args: argparse.Namespa
             "N_G",
             "γ_F (CPU s)",
             "(max aux + comb.)/γ_F",
+            "mean aux/γ_F",
             "estimate",
             "combination (ms)",
             "t(2n)/2t(n)",
@@ -703,6 +730,7 @@ def p40_text(rows: list[dict[str, Any]], costs_note: str, args: argparse.Namespa
                 r["n_auxiliary"],
                 r["gamma_F_s"],
                 r["ratio"],
+                r["mean_ratio"],
                 r["estimated_ratio"],
                 1000 * r["overhead_s"],
                 f"{r['linearity'][0]:.3f}-{r['linearity'][1]:.3f}",
@@ -758,19 +786,22 @@ def draw_p40(curves: dict, desired: np.ndarray, out: Path) -> None:
     rows = math.ceil(len(tables) / columns)
     fig = Figure(figsize=(5.2 * columns, 4.0 * rows))
     axes = np.atleast_1d(fig.subplots(rows, columns)).ravel()
-    colors = {("plain", FULL): "C0", ("plain", SHORT): "C9", ("extrapolated", FULL): "C3"}
+    colors = {"plain": "C0", "extrapolated": "C3"}
     for ax, label in zip(axes, tables, strict=False):
-        for (table_label, kind, source, schedule), (curve, solvers, text) in curves.items():
+        for (table_label, kind, source, schedule), (curve, _, text) in curves.items():
             if table_label != label:
                 continue
-            color = colors.get((kind, source), "C1" if kind == "extrapolated" else "C0")
-            names = ", ".join(s.split("_")[1] for s in solvers)
-            line = "-" if schedule == "pipelined" else "--"
+            full = source == "full-scale"
             ax.semilogx(
-                desired, curve, color=color, linestyle=line,
-                label=f"{kind} ({names}; {text}), {schedule}",
+                desired,
+                curve,
+                color=colors[kind],
+                linestyle="-" if schedule == "pipelined" else "--",
+                linewidth=1.8 if full else 1.0,
+                alpha=1.0 if full else 0.7,
+                label=f"{text}, {schedule}",
             )
-        ax.set_title(f"{label}, P = 40 (model, measured γ)", fontsize=9)
+        ax.set_title(f"{label}, P = 40 (model, measured γ)", fontsize=8)
         ax.set_xlabel("desired relative error η")
         ax.set_ylabel("speedup (simulated)")
         ax.grid(True, alpha=0.3, which="both")

@@ -76,7 +76,8 @@ def test_full_scale_records_before_given_before_shortened_analogues(bench):
     chosen = bench.choose_errors(["table4_g1", "table4_g2", "table4_g3", "nothing"], records, given)
     assert chosen["table4_g1"].source == bench.FULL
     assert chosen["table4_g2"].source == bench.GIVEN and chosen["table4_g2"].values == [1e-5, 1e-6]
-    assert chosen["table4_g3"].source == bench.SHORT
+    assert chosen["table4_g3"].source == f"{bench.SHORT}, 4 slices over T = 0.004"
+    assert chosen["table4_g3"].where == "experiments/quick/table4_g3.toml"
     assert chosen["table4_g3"].values == bench.ERRORS["table4_g3"]
     assert "nothing" not in chosen
 
