@@ -701,6 +701,13 @@ def _k_range(row: dict[str, Any]) -> list[int]:
     return list(range(1, min(n, 4) + 1))
 
 
+def span(low: float, high: float, form: str, between: str) -> str:
+    """``low`` to ``high`` formatted, one number when they read the same, no "-0"."""
+    texts = map(form.format, (low, high))
+    a, b = (text.lstrip("-") if float(text) == 0 else text for text in texts)
+    return a if a == b else f"{a}{between}{b}"
+
+
 def p40_text(rows: list[dict[str, Any]], costs_note: str, args: argparse.Namespace) -> str:
     head = [
         f"### P = {CORES}: standard vs pipelined, plain vs extrapolated coarse solvers, measured γ",
@@ -751,8 +758,9 @@ def p40_text(rows: list[dict[str, Any]], costs_note: str, args: argparse.Namespa
                 r["errors_source"] or "none",
                 eta,
                 *(pairs + [""] * (4 - len(pairs))),
-                f"{min(gains):.2f}-{max(gains):.2f}",
-                f"{100 * (1 - 1 / min(gains)):.0f} to {100 * (1 - 1 / max(gains)):.0f} %",
+                span(min(gains), max(gains), "{:.2f}", "-"),
+                span(100 * (1 - 1 / min(gains)), 100 * (1 - 1 / max(gains)), "{:.0f}", " to ")
+                + " %",
             ]
         )
     speed_table = table(
