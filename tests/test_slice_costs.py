@@ -18,11 +18,12 @@ from parastokes import integrate, parareal
 def test_coarse_step_time_all_at_once_batched_or_serial(workers, expected):
     # N_G <= W: max(1, 3, 2) + 0.5; W = 2: batches [1, 3] and [2] -> 4 + 0.5; W = 1: 6 + 0.5
     assert parareal.coarse_step_time([1.0, 3.0, 2.0], 0.5, workers) == expected
+    assert parareal.coarse_step_time(np.array([1.0, 3.0, 2.0]), 0.5, workers) == expected
 
 
 def test_coarse_step_time_rejects_bad_input():
     with pytest.raises(ValueError, match="at least one"):
-        parareal.coarse_step_time([], 0.0, 4)
+        parareal.coarse_step_time(np.array([]), 0.0, 4)
     with pytest.raises(ValueError, match="workers must be >= 1"):
         parareal.coarse_step_time([1.0], 0.0, 0)
 

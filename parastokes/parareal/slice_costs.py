@@ -41,7 +41,7 @@ def coarse_step_time(auxiliary: Sequence[float], overhead: float, workers: int |
     (``numpy.array_split``, as :class:`~parastokes.parareal.Extrapolated` batches them), one per
     worker: the longest batch + overhead; one worker: their sum + overhead.
     """
-    if not auxiliary:
+    if len(auxiliary) == 0:
         raise ValueError("auxiliary: need at least one auxiliary solve time")
     if workers is not None and workers < 1:
         raise ValueError(f"workers must be >= 1 (or None), got {workers!r}")
