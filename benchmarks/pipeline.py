@@ -80,6 +80,7 @@ ERRORS: dict[str, list[float]] = {
     "table5_g3": [2.2041e-08, 2.1586e-08, 7.1986e-09],
     "table6_eps3": [5.7430e-05, 5.1954e-06, 8.0465e-07],
     "table7_g1": [2.9484e-04, 3.0044e-05, 2.1656e-06],
+    "table7_g2": [2.3551e-05, 2.4623e-06, 1.1522e-09],
 }
 
 # The paper's configurations compared at P = 40: (table, plain G_{Theta^0, tau}, extrapolated).
@@ -615,15 +616,16 @@ def scale(source: str) -> str:
 
 
 def curve_label(kind: str, solvers: Sequence[str], errors: dict[str, Errors]) -> str:
-    """The legend of a curve, e.g. ``extrapolated, best of g1 (K <= 4), g3 (K <= 2, run in
-    progress); full-scale eta^k``."""
+    """The legend of a curve, e.g. ``extrapolated g1 (K <= 4), g3 (K <= 2, running): full-scale
+    eta^k`` (the solvers whose best speedup it draws, and where their eta^k come from)."""
     parts = []
     for name in solvers:
         eta = errors[name]
-        running = ", run in progress" if eta.source == RUNNING else ""
+        running = ", running" if eta.source == RUNNING else ""
         parts.append(f"{name.split('_', 1)[1]} (K ≤ {len(eta.values)}{running})")
-    best = "best of " if len(solvers) > 1 else ""
-    return f"{kind}, {best}{', '.join(parts)}; {scale(errors[solvers[0]].source)} η^k"
+    source = scale(errors[solvers[0]].source).replace(f"{SHORT}, ", "shortened, ")
+    source = source.replace(" slices over ", " slices, ")
+    return f"{kind} {', '.join(parts)}: {source} η^k"
 
 
 def p40(args: argparse.Namespace) -> tuple[str, Any]:
@@ -793,28 +795,32 @@ def draw_p40(curves: dict, desired: np.ndarray, out: Path) -> None:
     tables = list(dict.fromkeys(key[0] for key in curves))
     columns = min(3, len(tables))
     rows = math.ceil(len(tables) / columns)
-    fig = Figure(figsize=(5.2 * columns, 4.0 * rows))
+    fig = Figure(figsize=(5.4 * columns, 5.6 * rows))
     axes = np.atleast_1d(fig.subplots(rows, columns)).ravel()
-    colors = {"plain": "C0", "extrapolated": "C3"}
+    fig.subplots_adjust(hspace=0.75, wspace=0.25)
+    palette = {"plain": ["C0", "C9"], "extrapolated": ["C3", "C1", "C4"]}
     for ax, label in zip(axes, tables, strict=False):
+        groups = sorted(
+            {k[1:3] for k in curves if k[0] == label}, key=lambda g: (g[1] != "full-scale", g)
+        )
         for (table_label, kind, source, schedule), (curve, _, text) in curves.items():
             if table_label != label:
                 continue
+            same_kind = [g for g in groups if g[0] == kind]
             full = source == "full-scale"
             ax.semilogx(
                 desired,
                 curve,
-                color=colors[kind],
+                color=palette[kind][same_kind.index((kind, source)) % len(palette[kind])],
                 linestyle="-" if schedule == "pipelined" else "--",
-                linewidth=1.8 if full else 1.0,
-                alpha=1.0 if full else 0.7,
+                linewidth=1.8 if full else 1.1,
                 label=f"{text}, {schedule}",
             )
         ax.set_title(f"{label}, P = 40 (model, measured γ)", fontsize=8)
         ax.set_xlabel("desired relative error η")
         ax.set_ylabel("speedup (simulated)")
         ax.grid(True, alpha=0.3, which="both")
-        ax.legend(fontsize=6)
+        ax.legend(fontsize=6, loc="upper center", bbox_to_anchor=(0.5, -0.15))
     for ax in axes[len(tables):]:
         ax.set_visible(False)
     out.mkdir(parents=True, exist_ok=True)
