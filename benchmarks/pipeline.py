@@ -830,7 +830,9 @@ def draw_p40(curves: dict, desired: np.ndarray, out: Path) -> None:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sections", nargs="+", choices=SECTIONS, default=list(SECTIONS))
-    parser.add_argument("--quick", action="store_true", help="fewer and shorter cases")
+    parser.add_argument(
+        "--quick", action="store_true", help="fewer and shorter cases (p40: 1 repeat, 20/5 steps)"
+    )
     parser.add_argument("--fine-ms", type=float, default=150.0, help="emulated gamma_F (ms)")
     parser.add_argument("--errors", help="JSON {config name: [eta^1, eta^2, ...]} for p40")
     parser.add_argument(
@@ -849,6 +851,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--out", help="write the tables as Markdown here")
     parser.add_argument("--figures", help="directory for pipeline_p40.png")
     args = parser.parse_args(argv)
+    if args.quick:  # p40: a smoke run of the measurement
+        args.repeats, args.fine_steps, args.coarse_steps = 1, 20, 5
     functions = {"emulation": emulation, "real": real, "p40": p40}
     texts, data = [], {}
     for section in args.sections:
