@@ -36,7 +36,8 @@ Sections:
   labelled. A table and a figure (speedup against desired error, like Fig. 6b).
 
   PYTHONPATH=. NUMBA_NUM_THREADS=1 python benchmarks/pipeline.py --sections p40 \\
-      --records docs/reproduction /work/repro-runs/runs --costs COSTS.json --figures docs/figures
+      --records docs/reproduction /work/repro-runs/runs \\
+      --costs docs/figures/pipeline_p40_costs.json --figures docs/figures
 """
 
 from __future__ import annotations
@@ -630,9 +631,11 @@ def curve_label(kind: str, solvers: Sequence[str], errors: dict[str, Errors]) ->
 
 def p40(args: argparse.Namespace) -> tuple[str, Any]:
     names = [n for plain, extra in TABLES.values() for n in ([plain] if plain else []) + extra]
+    settings = {k: getattr(args, k) for k in ("repeats", "fine_steps", "coarse_steps")}
     if args.costs and Path(args.costs).exists():
-        costs = json.loads(Path(args.costs).read_text())["costs"]
-        costs_note = f"γ ratios read from {args.costs}"
+        saved = json.loads(Path(args.costs).read_text())
+        costs, settings = saved["costs"], saved["settings"]
+        costs_note = f"γ ratios read from {args.costs} ({saved['note']})"
     else:
         before = load()
         start = time.perf_counter()
@@ -643,7 +646,11 @@ def p40(args: argparse.Namespace) -> tuple[str, Any]:
         )
         if args.costs:
             Path(args.costs).write_text(
-                json.dumps({"note": costs_note, "costs": costs}, indent=1, default=float)
+                json.dumps(
+                    {"note": costs_note, "settings": settings, "costs": costs},
+                    indent=1,
+                    default=float,
+                )
             )
     given = json.loads(Path(args.errors).read_text()) if args.errors else {}
     errors = choose_errors(names, read_errors(args.records or []), given)
@@ -691,7 +698,7 @@ def p40(args: argparse.Namespace) -> tuple[str, Any]:
                         values = errors[row["solver"]].values[: len(ks)]
                         best = np.fmax(best, staircase(values, row[schedule], desired))
                 curves[label, kind, source, schedule] = (best, solvers, text)
-    text = p40_text(rows, costs_note, args)
+    text = p40_text(rows, costs_note, settings)
     if args.figures and curves:
         draw_p40(curves, desired, Path(args.figures))
     serial = {" | ".join(k): v[0].tolist() for k, v in curves.items()}
@@ -711,14 +718,15 @@ def span(low: float, high: float, form: str, between: str) -> str:
     return a if a == b else f"{a}{between}{b}"
 
 
-def p40_text(rows: list[dict[str, Any]], costs_note: str, args: argparse.Namespace) -> str:
+def p40_text(rows: list[dict[str, Any]], costs_note: str, settings: dict[str, int]) -> str:
     head = [
         f"### P = {CORES}: standard vs pipelined, plain vs extrapolated coarse solvers, measured γ",
         "",
         f"{costs_note}. CPU time of this process per solve, first slice of experiments/NAME.toml "
-        f"at full size; fine solver timed over {args.fine_steps} and {2 * args.fine_steps} steps, "
-        f"auxiliary solves over {args.coarse_steps} steps, each scaled to the slice by its step "
-        f"count; median of {args.repeats} repeats of ratios formed within one repeat.",
+        f"at full size; fine solver timed over {settings['fine_steps']} and "
+        f"{2 * settings['fine_steps']} steps, auxiliary solves over {settings['coarse_steps']} "
+        "steps, each scaled to the slice by its step count; median of "
+        f"{settings['repeats']} repeats of ratios formed within one repeat.",
         "",
     ]
     cost_table = table(
@@ -831,7 +839,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sections", nargs="+", choices=SECTIONS, default=list(SECTIONS))
     parser.add_argument(
-        "--quick", action="store_true", help="fewer and shorter cases (p40: 1 repeat, 20/5 steps)"
+        "--quick", action="store_true", help="fewer and shorter cases (p40: 1 repeat of 20 steps)"
     )
     parser.add_argument("--fine-ms", type=float, default=150.0, help="emulated gamma_F (ms)")
     parser.add_argument("--errors", help="JSON {config name: [eta^1, eta^2, ...]} for p40")
@@ -852,7 +860,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--figures", help="directory for pipeline_p40.png")
     args = parser.parse_args(argv)
     if args.quick:  # p40: a smoke run of the measurement
-        args.repeats, args.fine_steps, args.coarse_steps = 1, 20, 5
+        args.repeats, args.fine_steps, args.coarse_steps = 1, 20, 20
     functions = {"emulation": emulation, "real": real, "p40": p40}
     texts, data = [], {}
     for section in args.sections:
