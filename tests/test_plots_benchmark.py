@@ -4,30 +4,22 @@ by fakes returning rows of the shape the real ones return."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from bench_modules import benchmark_module
 
 from parastokes import cli, plots
 
-ROOT = Path(__file__).resolve().parents[1]
 FIGURES = ("spatial_vs_temporal", "scaling_benchmark")
 
 
 @pytest.fixture(scope="module")
 def bench():
-    spec = importlib.util.spec_from_file_location("bench_parareal", ROOT / "benchmarks/parareal.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # dataclasses look their module up there
-    try:
-        spec.loader.exec_module(module)
+    with benchmark_module("parareal") as module:
         yield module
-    finally:
-        sys.modules.pop(spec.name, None)
 
 
 # Rows as the sections build them (numpy scalars and placeholder strings included).

@@ -351,13 +351,6 @@ class ProgressFile:
         self._save()
 
 
-def _flat_auxiliary(coarse: Any) -> tuple[list[Any], Any]:
-    """The auxiliary propagators of a coarse combinator and the grid transfer (or None)."""
-    transfer = getattr(coarse, "transfer", None)
-    combinator = coarse.propagator if transfer is not None else coarse
-    return [p for row in combinator.auxiliary for p in row], transfer
-
-
 def probe(setup: Any, times: np.ndarray, x0: np.ndarray, repeats: int = 1) -> dict[str, Any]:
     """γ_F and γ_G for the paper's 40 cores, each solve timed on its own, on the first slice.
 
@@ -367,8 +360,10 @@ def probe(setup: Any, times: np.ndarray, x0: np.ndarray, repeats: int = 1) -> di
     N_G auxiliaries run at once, so γ_G = max(auxiliary) + (combinator - sum of auxiliaries);
     the ratio γ_G/γ_F is formed from solves timed within the same minute.
     """
+    from parastokes.parareal import auxiliary_solvers, coarse_step_time
+
     t0, t1 = float(times[0]), float(times[1])
-    solvers, transfer = _flat_auxiliary(setup.coarse)
+    solvers, transfer = auxiliary_solvers(setup.coarse)
     xc = x0 if transfer is None else transfer.restrict(x0)
     fine, aux, whole = [], [], []
     for _ in range(repeats):
@@ -379,7 +374,7 @@ def probe(setup: Any, times: np.ndarray, x0: np.ndarray, repeats: int = 1) -> di
     aux_mean = np.mean(aux, axis=0)
     combine = max(0.0, float(np.mean(whole)) - float(aux_mean.sum()))
     gamma_f = float(np.mean(fine))
-    gamma_g = float(aux_mean.max()) + combine
+    gamma_g = coarse_step_time(aux_mean, combine, None)
     return {
         "fine_slice_times": fine,
         "auxiliary_times": aux,

@@ -10,6 +10,7 @@ from .metrics import relative_change
 from .options import Checkpoint, Reporting, Stopping
 from .result import PararealResult
 from .schedule_model import Simulation, handover_latency, predict_schedules, simulate
+from .slice_costs import SliceCosts, auxiliary_solvers, coarse_step_time, measure_slice_costs
 from .speedup import (
     parareal_runtime,
     pipelined_runtime,
@@ -32,12 +33,16 @@ __all__ = [
     "PararealResult",
     "Reporting",
     "Simulation",
+    "SliceCosts",
     "Stopping",
     "Timings",
     "Transfer",
+    "auxiliary_solvers",
+    "coarse_step_time",
     "extrapolated",
     "handover_latency",
     "lagrange_weights",
+    "measure_slice_costs",
     "parareal_runtime",
     "pipelined_runtime",
     "predict",
