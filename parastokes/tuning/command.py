@@ -36,7 +36,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--richardson", type=int, nargs="+", help="Richardson depths m")
     p.add_argument("--grid-factors", type=int, nargs="+", help="coarse-grid factors (rods)")
     p.add_argument("--step-fractions", type=float, nargs="+", help="fractions of the safe step")
-    p.add_argument("--pilot-slices", type=int, help="slices of the pilot window (default 3)")
+    p.add_argument("--pilot-slices", type=int,
+                   help="slices of the pilot window (default 3; 2 when the budget is tight)")
     p.add_argument("--pilot-points", type=int, help="rods: nodes per pilot rod (default 61)")
     p.add_argument("--compare", nargs="+", default=[], metavar="CONFIG",
                    help="configurations whose coarse solvers are measured too (never pruned)")
@@ -113,7 +114,7 @@ def main(args: argparse.Namespace, console: Any) -> int:
         other, other_resolved = configuration.load(path)
         compare.append(settings_from_config(other, other_resolved, name=Path(path).stem))
     space = _space(cfg, args, tuple(compare))
-    pilot_slices = args.pilot_slices or cfg.tune.pilot_slices or 3
+    pilot_slices = args.pilot_slices or cfg.tune.pilot_slices or None
     points = args.pilot_points or cfg.tune.pilot_points or PILOT_POINTS
     system = configuration.build_system(cfg, resolved)
     pilot = _pilot_system(cfg, resolved, points)

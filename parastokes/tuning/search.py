@@ -1,17 +1,25 @@
 """The tuner: search the coarse solvers of eq. 30 for the highest predicted speedup at η*.
 
 :func:`tune` (exported as ``parastokes.parareal.tune``) checks the input, computes the pilot
-reference, then walks the candidates of the :class:`~.space.Space` in the order of an optimistic
-speedup (N_it = 1, γ_G/γ_F from operation counts), skipping every candidate whose optimistic
-speedup cannot beat the best measured one. A candidate that may win gets, in this order: its step
-(the step limit of its most restrictive node, minus the derived margin, :mod:`.stability`), the
-stability verdict of its combined slice map (‖DG‖ by power iteration), the pilot run (η^k,
-:mod:`.pilot`) and the prediction (:mod:`.cost`). docs/tuning.md explains the choices and reports
-measurements.
+reference and measures the plain baseline, then searches the candidates of the
+:class:`~.space.Space` best first. Each candidate goes through two stages:
+
+- screen: its step (the step limit of its most restrictive node, minus the derived margin,
+  :mod:`.stability`), its optimistic speedup at that step (N_it = 1, γ_G/γ_F from operation
+  counts), and one coarse call over the first slice, whose defect gives a screened prediction
+  (:func:`.cost.screened_errors`);
+- measure: the stability verdict of its combined slice map (‖DG‖ by power iteration), the pilot
+  run (η^k, :mod:`.pilot`) and the prediction (:mod:`.cost`).
+
+The next candidate is the one with the highest estimate: its optimistic speedup before the
+screen, its screened speedup after. A candidate whose optimistic speedup at its own step cannot
+beat the best measured one is pruned: without a budget the search chooses what measuring every
+candidate would choose. docs/tuning.md explains the choices and reports measurements.
 """
 
 from __future__ import annotations
 
+import heapq
 import math
 import time
 from collections.abc import Callable
@@ -23,7 +31,7 @@ import numpy as np
 from .. import integrate
 from ..parallel import TaskError
 from . import cost, stability
-from .pilot import Pilot
+from .pilot import Pilot, Screen
 from .space import Settings, Space, TuningError
 
 __all__ = ["Candidate", "Progress", "TuneResult", "tune"]
@@ -35,6 +43,19 @@ BUDGET_FRACTION = 0.15
 
 #: Fewest coarse steps per slice considered (the step-limit bisection starts below slice / 10).
 MIN_STEPS = 10
+
+#: A budget below this many fine slices of the pilot makes the search frugal: a two-slice pilot
+#: window (one iteration), two power iterations for ‖DG‖, the baseline's own ‖DG‖ as the reference
+#: growth (docs/tuning.md, the vesicle).
+FRUGAL_SLICES = 20
+
+#: Serial fine solves below this many CPU seconds are small: the default budget is then what
+#: twenty candidates need, not 15 % (a search within seconds is not worth saving).
+SMALL_PROBLEM = 60.0
+
+#: Safety factor on the optimistic bound's γ_G/γ_F (operation counts, scaled by what the baseline
+#: measured): pruning must not discard a candidate whose measured cost turns out lower.
+BOUND_SAFETY = 0.8
 
 FINE_ADVICE = "reduce fine.dt (or choose a higher-order fine.scheme) before tuning"
 
@@ -67,6 +88,7 @@ class Candidate:
     weight_sum: float = 1.0
     estimated_speedup: float | None = None
     given: bool = False  # given explicitly (Space.extra): measured whatever its estimate
+    screen: dict[str, Any] | None = None  # defect, screened eta and speedup, seconds
     step_limit: float | None = None
     margin: float | None = None  # 1 - step / step limit
     required_margin: float | None = None  # δ derived by stability.step_margin
@@ -78,6 +100,8 @@ class Candidate:
     gamma_ratio: float | None = None
     speedup: float | None = None
     seconds: float = 0.0  # on the budget's clock (wall with --budget, else CPU)
+    coarse: Any = field(default=None, repr=False)  # the built propagator, between the stages
+    shot: Screen | None = field(default=None, repr=False)  # its screen, between the stages
 
     @property
     def stability_margin(self) -> float | None:
@@ -111,6 +135,7 @@ class Candidate:
                 "margin": self.stability_margin,
                 "stable": stable,
             },
+            "screen": self.screen,
             "pilot": {"eta": self.pilot_errors, "eta1": self.pilot_errors[0] if
                       self.pilot_errors else None, "contraction": self.contraction},
             "predicted": self.predicted(),
@@ -151,13 +176,13 @@ class TuneResult:
         out = []
         for eta in targets:
             k = cost.predicted_iterations(candidate.pilot_errors, self.pilot.n_slices, n_slices,
-                                          float(eta))
+                                          float(eta), candidate.contraction)
             out.append(None if k is None else cost.speedup(candidate.gamma_ratio, k, n_slices))
         return out
 
 
 def _check_input(cores: Any, target: Any, n_slices: Any, t0: float, t1: float,
-                 budget: Any, pilot_slices: int) -> None:
+                 budget: Any, pilot_slices: int | None) -> None:
     if isinstance(cores, bool) or not isinstance(cores, int) or cores < 1:
         raise TuningError(f"cores must be an integer >= 1, got {cores!r}")
     if isinstance(n_slices, bool) or not isinstance(n_slices, int) or n_slices < 2:
@@ -168,7 +193,7 @@ def _check_input(cores: Any, target: Any, n_slices: Any, t0: float, t1: float,
         raise TuningError(f"t1 must exceed t0, got [{t0}, {t1}]")
     if budget is not None and not budget > 0:
         raise TuningError(f"budget must be a positive number of seconds, got {budget!r}")
-    if not 2 <= pilot_slices <= n_slices:
+    if pilot_slices is not None and not 2 <= pilot_slices <= n_slices:
         raise TuningError(f"pilot_slices must lie in [2, n_slices = {n_slices}], got "
                           f"{pilot_slices}")
 
@@ -192,6 +217,11 @@ class _Search:
         self.points = points
         self.limits: dict[tuple, float] = {}
         self.reference_gain: float | None = None
+        self.power_iterations = 4
+        self.cost_scale = 1.0
+        self.base_shot: Screen | None = None
+        self.base_errors: list[float] = []
+        self.base_rho: float | None = None
 
     # ---- step limits ----
     def _grid_system(self, grid: int) -> tuple[Any, np.ndarray]:
@@ -227,51 +257,82 @@ class _Search:
         system, x0 = self._grid_system(grid)
         return len(system.positions(x0))
 
-    def estimate(self, settings: Settings, dt: float) -> float:
-        ratio = cost.estimated_ratio(
+    def counted_ratio(self, settings: Settings, dt: float) -> float:
+        """γ_G/γ_F from operation counts at step ``dt``."""
+        return cost.estimated_ratio(
             replace(settings, dt=dt), self.pilot.slice_length, self.pilot.fine.scheme,
             integrate.n_steps(0.0, self.pilot.slice_length, self.pilot.fine.dt),
             self.points, self.coarse_points(settings.grid), self.cores)
-        return cost.speedup(ratio, 1, self.n_slices)
 
-    # ---- one candidate ----
-    def evaluate(self, cand: Candidate, best: float) -> None:
+    def estimate(self, settings: Settings, dt: float) -> float:
+        """The optimistic speedup at step ``dt``: eq. 14 with N_it = 1 and the counted γ_G/γ_F
+        times ``cost_scale`` (set by the baseline: BOUND_SAFETY times its measured/counted
+        ratio, at most 1)."""
+        return cost.speedup(self.counted_ratio(settings, dt) * self.cost_scale, 1,
+                            self.n_slices)
+
+    # ---- stage 1: step, bound, screen ----
+    def timed(self, cand: Candidate, stage: Callable[[Candidate], None]) -> None:
         start = self.clock()
         try:
-            self._evaluate(cand, best)
+            stage(cand)
         finally:
-            cand.seconds = self.clock() - start
+            cand.seconds += self.clock() - start
 
-    def _evaluate(self, cand: Candidate, best: float) -> None:
+    def step(self, cand: Candidate) -> bool:
+        """Set the candidate's step and optimistic bound; False if it is rejected."""
         s = cand.settings
         limit = self.limit(s)
         cand.step_limit = limit
         if not math.isfinite(limit):
             cand.status, cand.reason = "rejected", "not stable even at the fine step τ_f"
-            return
+            return False
         _, cand.required_margin = stability.safe_step(limit, self.pilot.slice_length,
                                                       cand.weight_sum, self.target)
         if s.dt is None:  # the largest safe step, times the candidate's fraction
             dt = limit * (1.0 - cand.required_margin) * s.step_fraction
             dt = self.pilot.slice_length / math.ceil(self.pilot.slice_length / dt - 1e-9)
             cand.settings = s = replace(s, dt=dt)
-        dt = s.dt
-        cand.margin = 1.0 - dt / limit
+        cand.margin = 1.0 - s.dt / limit
         if s.m:
-            counts = [integrate.n_steps(0.0, self.pilot.slice_length, dt * s.r**q)
+            counts = [integrate.n_steps(0.0, self.pilot.slice_length, s.dt * s.r**q)
                       for q in range(s.m + 1)]
             if len(set(counts)) < len(counts):
                 cand.status, cand.reason = "rejected", f"Richardson steps coincide ({counts})"
-                return
-        cand.estimated_speedup = self.estimate(s, dt)
-        if cand.estimated_speedup <= best and not cand.given:
-            cand.status = "pruned"
-            cand.reason = (f"optimistic speedup {cand.estimated_speedup:.3g} at its step cannot "
-                           f"beat the best measured {best:.3g}")
-            return
+                return False
+        cand.estimated_speedup = self.estimate(s, s.dt)
+        return True
+
+    def screen(self, cand: Candidate) -> None:
+        """One coarse call over the first slice; the screened prediction from its defect."""
+        s = cand.settings
         coarse = s.build(self.system)
+        try:
+            shot = self.pilot.screen(coarse)
+        except (integrate.BlowUpError, TaskError) as error:
+            cand.status, cand.reason = "rejected", f"blew up over the first slice: {error}"
+            return
+        cand.coarse, cand.shot = coarse, shot
+        info: dict[str, Any] = {"defect": shot.defect, "seconds": shot.seconds}
+        base = self.base_shot
+        if base is not None and base.defect > 0 and self.base_errors:
+            errors = cost.screened_errors(shot.defect, base.defect, self.base_errors)
+            ratio = cost.gamma_ratio(s, self.pilot.slice_length, shot.seconds,
+                                     self.pilot.gamma_f, self.cores)
+            k = cost.predicted_iterations(errors, self.pilot.n_slices, self.n_slices,
+                                          self.target, self.base_rho)
+            info |= {"eta": errors, "iterations": k, "gamma_ratio": ratio,
+                     "speedup": None if k is None else cost.speedup(ratio, k, self.n_slices)}
+        cand.screen = info
+
+    # ---- stage 2: stability of the combined map, pilot run, prediction ----
+    def measure(self, cand: Candidate) -> None:
+        s = cand.settings
+        coarse, shot = cand.coarse, cand.shot
         window = (self.pilot.t0, self.pilot.t0 + self.pilot.slice_length)
-        cand.amplification = stability.amplification(coarse, self.system, self.pilot.x0, *window)
+        cand.amplification = stability.amplification(
+            coarse, self.system, self.pilot.x0, *window, iterations=self.power_iterations,
+            base=shot.state)
         cand.allowed_amplification = stability.allowed_amplification(self.reference_gain,
                                                                       self.n_slices)
         if not cand.amplification <= cand.allowed_amplification:
@@ -281,16 +342,16 @@ class _Search:
             return
         iterations = min(2, self.pilot.n_slices - 1)
         try:
-            run = self.pilot.measure(coarse, iterations)
+            run = self.pilot.measure(coarse, iterations, shot)
         except (integrate.BlowUpError, TaskError) as error:
             cand.status, cand.reason = "rejected", f"blew up in the pilot: {error}"
             return
         cand.pilot_errors = run.errors
-        cand.contraction = cost.contraction(run.errors)
+        cand.contraction = cost.contraction(run.errors, run.eta0)
         cand.gamma_ratio = cost.gamma_ratio(s, self.pilot.slice_length, run.coarse_seconds,
                                             self.pilot.gamma_f, self.cores)
         cand.iterations = cost.predicted_iterations(run.errors, self.pilot.n_slices,
-                                                    self.n_slices, self.target)
+                                                    self.n_slices, self.target, cand.contraction)
         if cand.iterations is None:
             cand.status = "rejected"
             cand.reason = (f"does not reach η* = {self.target:g} in fewer than N_c iterations "
@@ -299,20 +360,37 @@ class _Search:
         cand.speedup = cost.speedup(cand.gamma_ratio, cand.iterations, self.n_slices)
         cand.status = "accepted"
 
-    def baseline(self, scheme: str) -> Candidate:
-        """G_{Θ⁰,τ} at its largest safe step; also fixes the physics' own ‖DG‖ (half the limit)."""
-        settings = Settings(scheme)
-        limit = self.limit(settings)
-        if not math.isfinite(limit):
+    def baseline(self, scheme: str, frugal: bool) -> Candidate:
+        """G_{Θ⁰,τ} at its largest safe step, measured in full; it fixes the physics' own ‖DG‖
+        (at half the step limit, or in a frugal search at its own step), the bound's cost scale
+        and the screen's calibration."""
+        cand = Candidate(Settings(scheme))
+        self.timed(cand, self.step)
+        if cand.status == "rejected":
             raise TuningError(f"the plain {scheme} coarse solver is unstable even at τ_f; "
                               "choose another coarse scheme")
-        half = replace(settings, dt=self.pilot.slice_length /
-                       math.ceil(self.pilot.slice_length / (0.5 * limit)))
+        self.timed(cand, self.screen)
+        if cand.status == "rejected":
+            raise TuningError(f"the plain {scheme} coarse solver blows up over the first slice "
+                              f"at its largest stable step ({cand.reason}); reduce fine.dt")
         window = (self.pilot.t0, self.pilot.t0 + self.pilot.slice_length)
-        self.reference_gain = stability.amplification(half.build(self.system), self.system,
-                                                      self.pilot.x0, *window)
-        cand = Candidate(settings)
-        self.evaluate(cand, best=-math.inf)
+        if frugal:
+            self.reference_gain = stability.amplification(
+                cand.coarse, self.system, self.pilot.x0, *window,
+                iterations=self.power_iterations, base=cand.shot.state)
+        else:
+            half = replace(cand.settings, dt=self.pilot.slice_length /
+                           math.ceil(self.pilot.slice_length / (0.5 * cand.step_limit)))
+            self.reference_gain = stability.amplification(half.build(self.system), self.system,
+                                                          self.pilot.x0, *window)
+        self.timed(cand, self.measure)
+        self.base_shot = cand.shot
+        self.base_errors = cand.pilot_errors
+        self.base_rho = cand.contraction
+        if cand.gamma_ratio:
+            counted = self.counted_ratio(cand.settings, cand.settings.dt)
+            self.cost_scale = min(1.0, BOUND_SAFETY * cand.gamma_ratio / counted)
+        cand.estimated_speedup = self.estimate(cand.settings, cand.settings.dt)
         return cand
 
 
@@ -328,7 +406,7 @@ def tune(
     space: Space | None = None,
     budget: float | None = None,
     pilot: Any = None,
-    pilot_slices: int = 3,
+    pilot_slices: int | None = None,
     progress: Progress | None = None,
     clock: Callable[[], float] | None = None,
 ) -> TuneResult:
@@ -347,8 +425,9 @@ def tune(
     Ctrl-C during the search stops it and keeps what was measured (``report["search"]``).
     Returns a :class:`TuneResult`; its ``coarse`` is None when no candidate reaches η*.
     """
+    given_budget = budget is not None
     if clock is None:  # a given budget is wall time; the default one is CPU time (see above)
-        clock = time.perf_counter if budget is not None else time.process_time
+        clock = time.perf_counter if given_budget else time.process_time
     started, wall, cpu = clock(), time.perf_counter(), time.process_time()
     _check_input(cores, target, n_slices, t0, t1, budget, pilot_slices)
     space = space or Space()
@@ -382,23 +461,39 @@ def tune(
         raise TuningError(f"the fine solver itself is unstable: {error}; {FINE_ADVICE}") from None
     serial_estimate = step_full * fine_steps * n_slices
     slice_seconds = step_pilot * fine_steps
-    iterations = min(2, pilot_slices - 1)
-    # fine solves of a pilot run, plus about two slices' worth of coarse calls and bisection
-    one_candidate = slice_seconds * (sum(pilot_slices - k for k in range(1, iterations + 1)) + 2)
-    needed = slice_seconds * (pilot_slices + 0.5) + one_candidate
     notes = []
-    if budget is None:  # 15 % of the serial fine solve, or what a minimal search needs
-        budget = max(BUDGET_FRACTION * serial_estimate, needed + 20 * one_candidate)
-        if budget > BUDGET_FRACTION * serial_estimate:
+
+    def needs(slices: int) -> tuple[float, float]:
+        """(one candidate, the reference with the baseline and one candidate): a candidate's
+        fine solves plus about two slices' worth of coarse calls and bisection."""
+        iterations = min(2, slices - 1)
+        one = slice_seconds * (sum(slices - k for k in range(1, iterations + 1)) + 2)
+        return one, slice_seconds * (slices + 0.5) + 2 * one
+
+    default_budget = BUDGET_FRACTION * serial_estimate
+    if budget is None:  # 15 % of the serial fine solve; for small problems what a search needs
+        one, needed = needs(pilot_slices or 3)
+        if serial_estimate < SMALL_PROBLEM and default_budget < needed + 20 * one:
+            budget = needed + 20 * one
             notes.append(f"the problem is too small for a search within {BUDGET_FRACTION:.0%} "
                          f"of its serial fine solve ({serial_estimate:.3g} s); budget "
                          f"{budget:.3g} s")
-    elif budget < needed:
+        else:
+            budget = default_budget
+    frugal = budget < FRUGAL_SLICES * slice_seconds
+    if pilot_slices is None:
+        pilot_slices = 2 if frugal else 3
+    one_candidate, needed = needs(pilot_slices)
+    if given_budget and budget < needed:
         raise TuningError(
             f"budget: {budget:g} s is too small to test even one candidate; the pilot reference "
             f"and one candidate need about {needed:.3g} s (fine solves of {slice_seconds:.3g} s "
             "per slice); raise --budget or use fewer --pilot-slices"
         )
+    if frugal:
+        notes.append(f"frugal search (budget below {FRUGAL_SLICES} fine slices): "
+                     f"{pilot_slices}-slice pilot, 2 power iterations, the baseline's own ‖DG‖ "
+                     "as the reference growth")
     progress.note(f"pilot: {pilot_slices} slices of {fine_steps} fine steps "
                   f"(about {slice_seconds:.3g} s each)")
     pilot_window = Pilot.prepare(pilot_fine, start_state, t0, slice_length, pilot_slices)
@@ -410,52 +505,75 @@ def tune(
         )
     search = _Search(pilot_window, space, n_slices, cores, target,
                      len(pilot_system.positions(start_state)), clock)
+    if frugal:
+        search.power_iterations = 2
     base_scheme = "euler" if "euler" in space.schemes else space.schemes[0]
     progress.note(f"baseline: plain {base_scheme} at its largest safe step")
-    baseline = search.baseline(base_scheme)
+    baseline = search.baseline(base_scheme, frugal)
 
     candidates = [Candidate(s) for s in space.candidates(pilot_system.params)
                   if s != Settings(base_scheme)]
     candidates += [Candidate(s, given=True) for s in space.extra]
-    for cand in candidates:
+    queue: list[tuple] = []
+    for n, cand in enumerate(candidates):
         cand.weight_sum = cand.settings.weight_sum(search.theta0)
-        if cand.weight_sum > space.max_weight:
+        if cand.weight_sum > space.max_weight and not cand.given:
             cand.status = "pruned"
             cand.reason = f"Σ|w_j v_q| = {cand.weight_sum:.3g} > {space.max_weight:g}"
             continue
         step = cand.settings.dt or search.estimated_step(cand.settings)
-        cand.estimated_speedup = (search.estimate(cand.settings, step)
-                                  if math.isfinite(step) else -math.inf)
-    order = sorted((c for c in candidates if c.status == "pending"),
-                   key=lambda c: (not c.given, -c.estimated_speedup))
+        key = search.estimate(cand.settings, step) if math.isfinite(step) else -math.inf
+        heapq.heappush(queue, (not cand.given, -key, n))
     best = baseline.speedup if baseline.status == "accepted" else -math.inf
-    stopped, done, spent = None, 0, []
-    progress.start(len(order))
+    stopped, done = None, 0
+    spent: dict[bool, list[float]] = {False: [], True: []}  # screen / measure times
+    ordered = len(queue)
+    progress.start(ordered)
     try:
-        for cand in order:
-            typical = float(np.mean(spent)) if spent else one_candidate
+        while queue:
+            _, _, n = queue[0]
+            cand = candidates[n]
+            screened = cand.screen is not None
+            typical = (float(np.mean(spent[screened])) if spent[screened] else
+                       one_candidate if screened else 0.5 * slice_seconds)
             if clock() - started + typical > budget and not cand.given:
                 stopped = "budget"
                 break
-            if cand.estimated_speedup <= best and not cand.given:
+            heapq.heappop(queue)
+            before = cand.seconds
+            if screened:
+                if cand.given or cand.estimated_speedup > best:
+                    search.timed(cand, search.measure)
+                    cand.coarse = cand.shot = None
+                    if cand.status == "accepted" and cand.speedup > best:
+                        best = cand.speedup
+            elif search.step(cand) and (cand.given or cand.estimated_speedup > best):
+                search.timed(cand, search.screen)
+            if cand.status == "pending" and not cand.given and cand.estimated_speedup <= best:
                 cand.status = "pruned"
-                cand.reason = (f"optimistic speedup {cand.estimated_speedup:.3g} (model step) "
+                cand.reason = (f"optimistic speedup {cand.estimated_speedup:.3g} at its step "
                                f"cannot beat the best measured {best:.3g}")
+            if cand.status == "pending":
+                if not screened:  # measured next when its screened estimate is the highest
+                    estimate = (cand.screen or {}).get("speedup")
+                    key = cand.estimated_speedup if estimate is None else estimate
+                    heapq.heappush(queue, (not cand.given, -key, n))
+                    spent[False].append(cand.seconds - before)
             else:
-                search.evaluate(cand, best)
-                if cand.pilot_errors:
-                    spent.append(cand.seconds)
-                if cand.status == "accepted" and cand.speedup > best:
-                    best = cand.speedup
-            done += 1
-            progress.advance(cand.settings.label())
+                if screened:
+                    spent[True].append(cand.seconds - before)
+                done += 1
+                progress.advance(cand.settings.label())
     except KeyboardInterrupt:
         stopped = "interrupted"
     finally:
         progress.finish()
-    for cand in order:
+    for cand in candidates:
         if cand.status == "pending":
-            cand.status, cand.reason = "not reached", f"search stopped ({stopped})"
+            cand.status = "not reached"
+            cand.reason = (f"search stopped ({stopped})" if cand.screen is None else
+                           f"screened only, search stopped ({stopped})")
+            cand.coarse = cand.shot = None
 
     everything = [baseline, *candidates]
     accepted = [c for c in everything if c.status == "accepted"]
@@ -468,7 +586,8 @@ def tune(
         n_slices=n_slices, cores=cores, target=target, t0=t0, t1=t1,
         cost={"seconds": seconds, "cpu_seconds": cpu, "serial_fine_estimate": serial_estimate,
               "fraction": cpu / serial_estimate, "budget": budget},
-        search={"stopped": stopped, "evaluated": done, "ordered": len(order),
+        search={"stopped": stopped, "evaluated": done, "ordered": ordered,
+                "screened": sum(c.screen is not None for c in candidates),
                 "total": len(everything), "reference_amplification": search.reference_gain,
                 "notes": notes},
         full_points=len(system.positions(system.initial_state())),
