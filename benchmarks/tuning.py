@@ -153,6 +153,66 @@ def validate(target: float, cores: int, out: Path) -> dict:
             "tuning_seconds": report["cost"]["seconds"]}
 
 
+#: The paper's vesicle solvers and, where the reproduction ran one at full scale, its record.
+PILOT_CHECK = {
+    "table7": (_tables(7, (4, 1, 2, 3)), "docs/reproduction/table7_g4.json"),
+    "table8": (_tables(8, (1, 2, 3)), "docs/reproduction/table8_g1.json"),
+}
+
+
+def pilot_check(table: str, slices: int = 40) -> list[dict]:
+    """The pilot against full-scale runs: for each solver of ``table`` (Tables 7-8, the vesicle),
+    η^k measured on the pilot window (P = 2, K = 1 and P = 3, K = 2, one reference), the
+    prediction for the whole run, and the screened prediction (one coarse call, scaled from the
+    table's first solver); the first solver's full-scale record beside it."""
+    from dataclasses import replace
+
+    from parastokes import config as configuration
+    from parastokes import integrate
+    from parastokes.tuning import cost
+    from parastokes.tuning.pilot import Pilot
+    from parastokes.tuning.space import settings_from_config
+
+    paths, record_path = PILOT_CHECK[table]
+    cfg, resolved = configuration.load(paths[0])
+    system = configuration.build_system(cfg, resolved)
+    fine = integrate.Propagator(system, cfg.fine.scheme, cfg.fine.dt)
+    length = (cfg.time.t1 - cfg.time.t0) / slices
+    three = Pilot.prepare(fine, system.initial_state(), cfg.time.t0, length, 3)
+    two = replace(three, n_slices=2, reference=three.reference[:3])
+    record = json.loads(Path(record_path).read_text())
+    rows, calibration = [], None
+    for path in paths:
+        other, other_resolved = configuration.load(path)
+        settings = settings_from_config(other, other_resolved, name=Path(path).stem)
+        coarse = settings.build(system)
+        shot = three.screen(coarse)
+        row = {"solver": settings.name, "label": settings.label(), "defect": shot.defect,
+               "gamma_f": three.gamma_f, "reference_seconds": three.seconds}
+        for pilot, k in ((two, 1), (three, 2)):
+            run = pilot.measure(coarse, k, shot)
+            rho = cost.contraction(run.errors, run.eta0)
+            ratio = cost.gamma_ratio(settings, length, run.coarse_seconds, pilot.gamma_f, slices)
+            its = {f"{eta:g}": cost.predicted_iterations(run.errors, pilot.n_slices, slices, eta,
+                                                         rho) for eta in (1e-6, 1e-8)}
+            row[f"P{pilot.n_slices}"] = {
+                "eta": run.errors, "eta0": run.eta0, "contraction": rho,
+                "predicted": cost.predicted_errors(run.errors, pilot.n_slices, slices, 4, rho),
+                "gamma_ratio": ratio, "iterations": its,
+                "speedup": {e: None if n is None else cost.speedup(ratio, n, slices)
+                            for e, n in its.items()}}
+        if calibration is None:
+            calibration = (shot.defect, row["P3"]["eta"])
+        else:
+            row["screened_eta"] = cost.screened_errors(shot.defect, *calibration)
+        if Path(path).stem == record["name"]:
+            row["record"] = {"errors": record["errors"], "gamma_ratio": record["gamma_ratio"],
+                             "speedup_40": record["speedup_40"]["speedup"]}
+        rows.append(row)
+        print(json.dumps(row), flush=True)
+    return rows
+
+
 def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--problems", nargs="+", choices=sorted(PROBLEMS), default=[])
@@ -160,6 +220,8 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument("--cores", type=int, default=40)
     parser.add_argument("--dir", type=Path, default=Path("docs/figures/tuning"))
     parser.add_argument("--tables", action="store_true", help="print the Markdown tables")
+    parser.add_argument("--pilot-check", nargs="+", choices=sorted(PILOT_CHECK), default=[],
+                        help="the vesicle pilot against the full-scale reproduction records")
     parser.add_argument("--validate", type=int, nargs="*", metavar="N_C",
                         help="pilot vs real runs of tuned quick-rod configs on N_C slices")
     args, extra = parser.parse_known_args(argv)
@@ -173,6 +235,9 @@ def main(argv: Sequence[str] | None = None) -> None:
         (args.dir / "validate.json").write_text(json.dumps(rows, indent=1))
         for row in rows:
             print(json.dumps(row))
+    for table in args.pilot_check:
+        rows = pilot_check(table, args.cores)
+        (args.dir / f"pilot_check_{table}.json").write_text(json.dumps(rows, indent=1))
     if args.tables:
         print(tables(args.dir))
 

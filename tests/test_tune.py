@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import math
+import time
 import tomllib
 
 import numpy as np
@@ -296,3 +297,82 @@ def test_coarse_grid_candidates_are_measured_on_the_coarse_rod():
     assert cand.step_limit != res.baseline.step_limit
     assert isinstance(cand.settings.build(small_rod()), parareal.OnCoarseGrid)
     assert cand.settings.coarse_table()["grid_factor"] == 2
+
+
+# ---- screening, pruning, cost fraction -----------------------------------------------------
+PRUNING = Space(schemes=("euler",), parameters=("epsilon",), reach=(1, 2), nodes=(2, 3),
+                richardson=(0, 1), step_fractions=(1.0, 0.6))
+
+
+def test_pruning_never_discards_what_the_exhaustive_search_would_choose():
+    """Every candidate measured (exhaustive) vs the best-first search with pruning by the
+    optimistic bound: the pruned search chooses as well (within the noise of measured CPU times),
+    and no candidate it pruned does better in the exhaustive search."""
+    fine = integrate.Propagator(small_rod(), "rk2", 1e-6)
+    kwargs = {"t0": 0.0, "t1": 8e-3, "n_slices": 4, "cores": 4, "target": 1e-6,
+              "space": PRUNING, "budget": 1e6}
+    full = tuning.tune(fine, exhaustive=True, **kwargs)
+    pruned = tuning.tune(fine, **kwargs)
+    assert all(c.status in ("accepted", "rejected") for c in full.candidates)
+    assert any(c.status == "pruned" for c in pruned.candidates)  # the pruning did something
+    assert pruned.chosen is not None and full.chosen is not None
+    assert pruned.chosen.speedup >= 0.9 * full.chosen.speedup
+    by_settings = {c.settings: c for c in full.candidates}
+    for cand in pruned.candidates:
+        if cand.status == "pruned":
+            other = by_settings[cand.settings]
+            assert other.speedup is None or other.speedup <= 1.1 * pruned.chosen.speedup
+
+
+def test_screen_predicts_the_pilot_order_of_accuracy():
+    """The one-call screen (defect scaled from the baseline, eq. (d/d_b)^(k+1)) against the
+    pilot's measured η¹ of the same candidates: within a factor 10, and it ranks them alike."""
+    fine = integrate.Propagator(small_rod(), "rk2", 1e-6)
+    res = tuning.tune(fine, t0=0.0, t1=8e-3, n_slices=4, cores=4, target=1e-6, space=PRUNING,
+                      budget=1e6, exhaustive=True)
+    pairs = [(c.screen["eta"][0], c.pilot_errors[0]) for c in res.candidates
+             if c.screen and c.pilot_errors and c is not res.baseline]
+    assert len(pairs) >= 4
+    for screened, measured in pairs:
+        assert 0.1 < screened / measured < 10.0
+    screened, measured = np.array(pairs).T
+    assert np.corrcoef(np.log(screened), np.log(measured))[0, 1] > 0.8
+
+
+def test_default_budget_is_fifteen_percent_and_frugal(monkeypatch):
+    """A problem that is not small gets 15 % of its serial fine solve; below 20 fine slices the
+    search is frugal (two-slice pilot, contraction η¹/η⁰) and the report gives the fraction."""
+    from parastokes.tuning import search
+
+    monkeypatch.setattr(search, "SMALL_PROBLEM", 0.0)
+    fine = integrate.Propagator(small_rod(), "rk2", 1e-6)
+    res = tuning.tune(fine, t0=0.0, t1=8e-3, n_slices=4, cores=4, target=1e-6, space=SMALL)
+    cost = res.report["cost"]
+    assert cost["budget"] == pytest.approx(0.15 * cost["serial_fine_estimate"])
+    assert cost["fraction"] == pytest.approx(cost["cpu_seconds"] / cost["serial_fine_estimate"])
+    assert res.report["pilot"]["slices"] == 2
+    assert any("frugal" in note for note in res.report["search"]["notes"])
+    base = res.baseline
+    assert len(base.pilot_errors) == 1 and 0 < base.contraction < 1  # η¹/η⁰
+    # 15 % of 4 slices cannot hold the reference: the search stops after the baseline
+    assert res.report["search"]["stopped"] == "budget"
+
+
+def test_a_given_budget_is_respected():
+    fine = integrate.Propagator(small_rod(), "rk2", 1e-6)
+    budget = 4.0  # CPU seconds on this clock: the reference, the baseline and a few candidates
+    res = tuning.tune(fine, t0=0.0, t1=8e-3, n_slices=4, cores=4, target=1e-6, space=PRUNING,
+                      budget=budget, clock=time.process_time)
+    largest = max(c.seconds for c in res.candidates)
+    assert res.report["cost"]["cpu_seconds"] <= budget + largest
+
+
+def test_default_space_holds_the_structure_of_table5_g3():
+    """(ε, a) with Richardson and five ε nodes (Table 5 G³) is in the default space."""
+    rod = small_rod(7.0)
+    space = Space()
+    assert ("epsilon", "bending") in space.subsets(rod.params)
+    found = [s for s in space.candidates(rod.params)
+             if [n for n, _ in s.lagrange] == ["epsilon", "bending"] and s.m == 1
+             and len(s.lagrange[0][1]) == 5]
+    assert found

@@ -39,6 +39,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--pilot-slices", type=int,
                    help="slices of the pilot window (default 3; 2 when the budget is tight)")
     p.add_argument("--pilot-points", type=int, help="rods: nodes per pilot rod (default 61)")
+    p.add_argument("--exhaustive", action="store_true",
+                   help="measure every candidate (no pruning; slow, for checking the pruning)")
     p.add_argument("--compare", nargs="+", default=[], metavar="CONFIG",
                    help="configurations whose coarse solvers are measured too (never pruned)")
 
@@ -128,7 +130,7 @@ def main(args: argparse.Namespace, console: Any) -> int:
         result = tune(
             fine, t0=cfg.time.t0, t1=cfg.time.t1, n_slices=args.cores, cores=args.cores,
             target=args.target, space=space, budget=args.budget, pilot=pilot,
-            pilot_slices=pilot_slices, progress=bar,
+            pilot_slices=pilot_slices, progress=bar, exhaustive=args.exhaustive,
         )
     except KeyboardInterrupt:  # before the search (Ctrl-C during it is handled by tune)
         bar.finish()

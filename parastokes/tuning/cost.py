@@ -7,11 +7,13 @@
   conservative for Parareal's superlinear convergence); with K = 1 (a two-slice pilot) ρ is the
   first iteration's own ratio η¹ / η⁰. N_it is the first k with predicted η^k <= η*.
   docs/tuning.md compares this with real runs.
-- Screen. Before its pilot run a candidate is screened by one coarse call over the first slice:
-  its defect d against the reference. Parareal's error after k iterations scales like the coarse
-  solver's error to the power k + 1 (the classical bound, e.g. Gander & Hairer 2008), so the
-  screened η^k is the baseline's measured η^k times (d / d_baseline)^(k+1). It only orders the
-  search; what is chosen was measured.
+- Screen. Before its pilot run a candidate is screened by one coarse call over the second slice
+  from the reference state: its defect d against the reference (the first slice's defect is
+  dominated by the initial transient, which the first iteration corrects exactly). Parareal's
+  error after k iterations scales like the coarse solver's error to the power k + 1 (the classical
+  bound, e.g. Gander & Hairer 2008), so the screened η^k is the baseline's measured η^k times
+  (d / d_baseline)^(k+1). It only orders the search (docs/tuning.md measures how well); what is
+  chosen was measured.
 - Cost. γ_F is the pilot's fine slice time. γ_G is the time of one coarse call with its N_G
   auxiliary solvers on ``cores`` workers: the serial call time per auxiliary solver (its share of
   steps), times ceil(N_G / cores) waves of the slowest auxiliary solver.

@@ -1,16 +1,15 @@
 """The pilot window: the first few slices of the run, with the true fine reference.
 
 :meth:`Pilot.prepare` computes the serial fine solution on P slices of the run's slice length (the
-reference; it also proves that the fine solver is stable there and measures γ_F), and estimates
-the fine solver's own time-discretization error over the first slice (one run at 2τ_f,
-Richardson's estimate |F_τ - F_2τ| / (2^p - 1), eq. 34's measure). :meth:`Pilot.screen` is one
-coarse call over the first slice: its defect against the reference, the cheap accuracy measure
+reference; it also proves that the fine solver is stable there and measures γ_F), and estimates the
+fine solver's own time-discretization error over the first slice (one run at 2τ_f, Richardson's
+estimate |F_τ - F_2τ| / (2^p - 1), eq. 34's measure). :meth:`Pilot.screen` is one coarse call over
+the second slice from the reference: its defect against the reference, the cheap accuracy measure
 that orders the search. :meth:`Pilot.measure` runs Algorithm 1 itself (``parareal.run``) on the
 window for one coarse solver, giving η^k at T_P for k = 1..K and the measured cost of its coarse
 calls. Fine solves whose input is the reference (slices n <= k in iteration k) are taken from the
-reference instead of being recomputed, and the screen's coarse call is reused. Costs (γ_F, γ_G)
-are CPU times of this process: on a shared machine they do not depend on what else runs, wall
-times do.
+reference instead of being recomputed, and the screen's coarse call is reused. Costs (γ_F, γ_G) are
+CPU times of this process: on a shared machine they do not depend on what else runs, wall times do.
 """
 
 from __future__ import annotations
@@ -73,12 +72,12 @@ class PilotRun:
 
 @dataclass
 class Screen:
-    """One coarse call over the first pilot slice from the initial state."""
+    """One coarse call over the second pilot slice from the reference state."""
 
     t0: float
     x0: np.ndarray
     state: np.ndarray  # G(x0)
-    defect: float  # relative change of the positions against the reference at T_1 (eq. 34)
+    defect: float  # relative change of the positions against the reference at T_2 (eq. 34)
     seconds: float  # CPU time of the call
 
 
@@ -142,15 +141,17 @@ class Pilot:
                    fine_error, time.perf_counter() - start)
 
     def screen(self, coarse: Any) -> Screen:
-        """One call of ``coarse`` over the first slice: G(x0) and its defect at T_1."""
-        times = self.times
+        """One call of ``coarse`` over the second slice from the reference state at T_1 (past
+        the initial transient, which the first iteration corrects exactly; Algorithm 1 makes the
+        same call in its first iteration), and its defect at T_2."""
+        times, start_state = self.times, self.reference[1]
         start = time.process_time()
-        state = coarse(float(times[0]), float(times[1]), self.x0)
+        state = coarse(float(times[1]), float(times[2]), start_state)
         seconds = time.process_time() - start
         if not np.all(np.isfinite(state)):
-            raise integrate.BlowUpError(times[1], 0, math.nan, self.x0, "non-finite state")
-        defect = parareal.relative_change(state, self.reference[1], self.system.positions)
-        return Screen(float(times[0]), self.x0, state, float(defect), seconds)
+            raise integrate.BlowUpError(times[2], 0, math.nan, start_state, "non-finite state")
+        defect = parareal.relative_change(state, self.reference[2], self.system.positions)
+        return Screen(float(times[1]), start_state, state, float(defect), seconds)
 
     def measure(self, coarse: Any, iterations: int, known: Screen | None = None) -> PilotRun:
         """Algorithm 1 on the window: η^k at T_P for k = 1..``iterations`` (< P); ``known`` is

@@ -6,7 +6,7 @@ reference and measures the plain baseline, then searches the candidates of the
 
 - screen: its step (the step limit of its most restrictive node, minus the derived margin,
   :mod:`.stability`), its optimistic speedup at that step (N_it = 1, γ_G/γ_F from operation
-  counts), and one coarse call over the first slice, whose defect gives a screened prediction
+  counts), and one coarse call over the second slice, whose defect gives a screened prediction
   (:func:`.cost.screened_errors`);
 - measure: the stability verdict of its combined slice map (‖DG‖ by power iteration), the pilot
   run (η^k, :mod:`.pilot`) and the prediction (:mod:`.cost`).
@@ -304,7 +304,7 @@ class _Search:
         return True
 
     def screen(self, cand: Candidate) -> None:
-        """One coarse call over the first slice; the screened prediction from its defect."""
+        """One coarse call over the second slice; the screened prediction from its defect."""
         s = cand.settings
         coarse = s.build(self.system)
         try:
@@ -331,8 +331,7 @@ class _Search:
         coarse, shot = cand.coarse, cand.shot
         window = (self.pilot.t0, self.pilot.t0 + self.pilot.slice_length)
         cand.amplification = stability.amplification(
-            coarse, self.system, self.pilot.x0, *window, iterations=self.power_iterations,
-            base=shot.state)
+            coarse, self.system, self.pilot.x0, *window, iterations=self.power_iterations)
         cand.allowed_amplification = stability.allowed_amplification(self.reference_gain,
                                                                       self.n_slices)
         if not cand.amplification <= cand.allowed_amplification:
@@ -377,7 +376,7 @@ class _Search:
         if frugal:
             self.reference_gain = stability.amplification(
                 cand.coarse, self.system, self.pilot.x0, *window,
-                iterations=self.power_iterations, base=cand.shot.state)
+                iterations=self.power_iterations)
         else:
             half = replace(cand.settings, dt=self.pilot.slice_length /
                            math.ceil(self.pilot.slice_length / (0.5 * cand.step_limit)))
@@ -409,6 +408,7 @@ def tune(
     pilot_slices: int | None = None,
     progress: Progress | None = None,
     clock: Callable[[], float] | None = None,
+    exhaustive: bool = False,
 ) -> TuneResult:
     """Choose the coarse solver with the highest predicted speedup (eq. 14) that is stable and
     reaches the relative error ``target`` (η*, eq. 34) on ``n_slices`` slices with ``cores``.
@@ -421,6 +421,7 @@ def tune(
     CPU time of this process, or what a minimal search needs on small problems, said in
     ``report["search"]["notes"]``). Costs are CPU times (``report["cost"]``: ``fraction`` is
     CPU time spent over the serial fine solve's estimated CPU time; ``seconds`` is wall time).
+    ``exhaustive`` measures every candidate (no pruning; for checking the pruning).
     Bad input raises :class:`TuningError` before the search.
     Ctrl-C during the search stops it and keeps what was measured (``report["search"]``).
     Returns a :class:`TuneResult`; its ``coarse`` is None when no candidate reaches η*.
@@ -541,15 +542,17 @@ def tune(
                 break
             heapq.heappop(queue)
             before = cand.seconds
+            # the bound a candidate must beat: the best measured (not when given or exhaustive)
+            floor = -math.inf if exhaustive or cand.given else best
             if screened:
-                if cand.given or cand.estimated_speedup > best:
+                if cand.estimated_speedup > floor:
                     search.timed(cand, search.measure)
                     cand.coarse = cand.shot = None
                     if cand.status == "accepted" and cand.speedup > best:
                         best = cand.speedup
-            elif search.step(cand) and (cand.given or cand.estimated_speedup > best):
+            elif search.step(cand) and cand.estimated_speedup > floor:
                 search.timed(cand, search.screen)
-            if cand.status == "pending" and not cand.given and cand.estimated_speedup <= best:
+            if cand.status == "pending" and cand.estimated_speedup <= floor:
                 cand.status = "pruned"
                 cand.reason = (f"optimistic speedup {cand.estimated_speedup:.3g} at its step "
                                f"cannot beat the best measured {best:.3g}")

@@ -80,20 +80,16 @@ def amplification(
     t1: float,
     iterations: int = 4,
     seed: int = 0,
-    base: np.ndarray | None = None,
 ) -> float:
     """‖DG‖ over [t0, t1] at ``x0``: power iteration with finite differences on the positions.
 
-    Each iteration costs one call of ``propagator``, plus one for G(x0) unless ``base`` (that
-    state, e.g. from the tuner's screen) is given. The perturbation has norm 1e-6 times the size
+    Each iteration costs one call of ``propagator``. The perturbation has norm 1e-6 times the size
     of the body (linear regime, well above the round-off of sums with weights up to 1e5). A
     perturbation that makes the propagator blow up counts as infinite amplification.
     """
     x0 = np.array(x0, dtype=float)
     try:
-        if base is None:
-            base = propagator(t0, t1, x0)
-        base = np.asarray(system.positions(base))
+        base = np.asarray(system.positions(propagator(t0, t1, x0)))
     except integrate.BlowUpError:
         return math.inf
     size = float(np.abs(system.positions(x0)).max()) or 1.0
