@@ -304,15 +304,24 @@ PRUNING = Space(schemes=("euler",), parameters=("epsilon",), reach=(1, 2), nodes
                 richardson=(0, 1), step_fractions=(1.0, 0.6))
 
 
-def test_pruning_never_discards_what_the_exhaustive_search_would_choose():
+PRUNING_RUN = {"t0": 0.0, "t1": 8e-3, "n_slices": 4, "cores": 4, "target": 1e-6,
+               "space": PRUNING, "budget": 1e6}
+
+
+@pytest.fixture(scope="module")
+def exhaustive():
+    """Every candidate of PRUNING measured."""
+    fine = integrate.Propagator(small_rod(), "rk2", 1e-6)
+    return tuning.tune(fine, exhaustive=True, **PRUNING_RUN)
+
+
+def test_pruning_never_discards_what_the_exhaustive_search_would_choose(exhaustive):
     """Every candidate measured (exhaustive) vs the best-first search with pruning by the
     optimistic bound: the pruned search chooses as well (within the noise of measured CPU times),
     and no candidate it pruned does better in the exhaustive search."""
     fine = integrate.Propagator(small_rod(), "rk2", 1e-6)
-    kwargs = {"t0": 0.0, "t1": 8e-3, "n_slices": 4, "cores": 4, "target": 1e-6,
-              "space": PRUNING, "budget": 1e6}
-    full = tuning.tune(fine, exhaustive=True, **kwargs)
-    pruned = tuning.tune(fine, **kwargs)
+    full = exhaustive
+    pruned = tuning.tune(fine, **PRUNING_RUN)
     assert all(c.status in ("accepted", "rejected") for c in full.candidates)
     assert any(c.status == "pruned" for c in pruned.candidates)  # the pruning did something
     assert pruned.chosen is not None and full.chosen is not None
@@ -324,19 +333,18 @@ def test_pruning_never_discards_what_the_exhaustive_search_would_choose():
             assert other.speedup is None or other.speedup <= 1.1 * pruned.chosen.speedup
 
 
-def test_screen_predicts_the_pilot_order_of_accuracy():
-    """The one-call screen (defect scaled from the baseline, eq. (d/d_b)^(k+1)) against the
-    pilot's measured η¹ of the same candidates: within a factor 10, and it ranks them alike."""
-    fine = integrate.Propagator(small_rod(), "rk2", 1e-6)
-    res = tuning.tune(fine, t0=0.0, t1=8e-3, n_slices=4, cores=4, target=1e-6, space=PRUNING,
-                      budget=1e6, exhaustive=True)
+def test_screen_ranks_candidates_like_the_pilot(exhaustive):
+    """The one-call screen (slice-2 defect, η^k scaled from the baseline by (d/d_b)^(k+1))
+    against the pilot's measured η¹ of the same candidates: it ranks them alike (it only orders
+    the search)."""
+    from scipy.stats import spearmanr
+
+    res = exhaustive
     pairs = [(c.screen["eta"][0], c.pilot_errors[0]) for c in res.candidates
              if c.screen and c.pilot_errors and c is not res.baseline]
-    assert len(pairs) >= 4
-    for screened, measured in pairs:
-        assert 0.1 < screened / measured < 10.0
+    assert len(pairs) >= 10
     screened, measured = np.array(pairs).T
-    assert np.corrcoef(np.log(screened), np.log(measured))[0, 1] > 0.8
+    assert spearmanr(screened, measured).statistic > 0.8
 
 
 def test_default_budget_is_fifteen_percent_and_frugal(monkeypatch):
