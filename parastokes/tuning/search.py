@@ -36,8 +36,6 @@ from .space import Settings, Space, TuningError
 
 __all__ = ["Candidate", "Progress", "TuneResult", "tune"]
 
-#: Exponents of the step-limit model used only to order candidates before their limit is measured
-#: (the stiffest mode scales like bending/viscosity; ε relaxes it strongly, docs/validation.md).
 #: Default budget: this fraction of the estimated serial fine solve (the issue's 15 %).
 BUDGET_FRACTION = 0.15
 
@@ -59,7 +57,12 @@ BOUND_SAFETY = 0.8
 
 FINE_ADVICE = "reduce fine.dt (or choose a higher-order fine.scheme) before tuning"
 
+#: Exponents of the step-limit model used only to order candidates before their limit is measured
+#: (the stiffest mode scales like bending/viscosity; ε relaxes it strongly, docs/validation.md).
 _LIMIT_MODEL = {"epsilon": 4.0, "viscosity": 1.0, "bending": -1.0, "stiffness": -1.0}
+
+#: Stability intervals of the schemes on the negative real axis (for that model only).
+_INTERVAL = {"euler": 2.0, "rk2": 2.0, "rk4": 2.785}
 
 
 class Progress:
@@ -218,6 +221,7 @@ class _Search:
         self.limits: dict[tuple, float] = {}
         self.reference_gain: float | None = None
         self.power_iterations = 4
+        self.base_scheme = "euler"
         self.cost_scale = 1.0
         self.base_shot: Screen | None = None
         self.base_errors: list[float] = []
@@ -248,7 +252,11 @@ class _Search:
         return self.limits[key]
 
     def estimated_step(self, settings: Settings) -> float:
-        plain = self.limit(Settings(settings.scheme, grid=settings.grid))
+        """The step limit model that orders unscreened candidates: the baseline scheme's measured
+        plain limit (no bisection for another scheme before one of its candidates is screened),
+        scaled by the schemes' real stability intervals and the parameters (_LIMIT_MODEL)."""
+        plain = self.limit(Settings(self.base_scheme, grid=settings.grid))
+        plain *= _INTERVAL.get(settings.scheme, 2.0) / _INTERVAL.get(self.base_scheme, 2.0)
         factor = math.prod((value / self.theta0[name]) ** _LIMIT_MODEL[name]
                            for name, value in settings.corner().items())
         return plain * factor * settings.step_fraction
@@ -330,8 +338,9 @@ class _Search:
         s = cand.settings
         coarse, shot = cand.coarse, cand.shot
         window = (self.pilot.t0, self.pilot.t0 + self.pilot.slice_length)
-        cand.amplification = stability.amplification(
-            coarse, self.system, self.pilot.x0, *window, iterations=self.power_iterations)
+        if cand.amplification is None:
+            cand.amplification = stability.amplification(
+                coarse, self.system, self.pilot.x0, *window, iterations=self.power_iterations)
         cand.allowed_amplification = stability.allowed_amplification(self.reference_gain,
                                                                       self.n_slices)
         if not cand.amplification <= cand.allowed_amplification:
@@ -363,6 +372,7 @@ class _Search:
         """G_{Θ⁰,τ} at its largest safe step, measured in full; it fixes the physics' own ‖DG‖
         (at half the step limit, or in a frugal search at its own step), the bound's cost scale
         and the screen's calibration."""
+        self.base_scheme = scheme
         cand = Candidate(Settings(scheme))
         self.timed(cand, self.step)
         if cand.status == "rejected":
@@ -374,7 +384,7 @@ class _Search:
                               f"at its largest stable step ({cand.reason}); reduce fine.dt")
         window = (self.pilot.t0, self.pilot.t0 + self.pilot.slice_length)
         if frugal:
-            self.reference_gain = stability.amplification(
+            cand.amplification = self.reference_gain = stability.amplification(
                 cand.coarse, self.system, self.pilot.x0, *window,
                 iterations=self.power_iterations)
         else:
