@@ -545,7 +545,8 @@ def tune(
             _, _, n = queue[0]
             cand = candidates[n]
             screened = cand.screen is not None
-            typical = (float(np.mean(spent[screened])) if spent[screened] else
+            # the dearest stage of its kind so far (a new corner's bisection makes screens uneven)
+            typical = (max(spent[screened]) if spent[screened] else
                        one_candidate if screened else 0.5 * slice_seconds)
             if clock() - started + typical > budget and not cand.given:
                 stopped = "budget"
