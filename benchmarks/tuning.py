@@ -75,6 +75,8 @@ def tables(directory: Path) -> str:
     out = []
     for path in sorted(directory.glob("*.json")):
         report = json.loads(path.read_text())
+        if not isinstance(report, dict) or "cost" not in report:  # validate.json, pilot checks
+            continue
         cost, problem = report["cost"], report["problem"]
         out += [f"### {path.stem}: η* = {problem['target']:g}, N_c = {problem['n_slices']}", "",
                 f"{report['pilot']['note']}; tuning {cost['cpu_seconds']:.0f} s CPU "
@@ -216,6 +218,35 @@ def pilot_check(table: str, slices: int = 40) -> list[dict]:
     return rows
 
 
+def pilot_tables(directory: Path) -> str:
+    """Markdown of the --pilot-check files in ``directory``: each solver's pilot η^k, predicted
+    N_it and speedup at 1e-6 and 1e-8 (two- and three-slice windows), and the full-scale record."""
+    out = []
+    for path in sorted(directory.glob("pilot_check_*.json")):
+        out += [f"{path.stem}:", "",
+                "| solver | d (screen) | pilot | η^k at T_P | ρ | predicted η¹, η² of the run | "
+                "γ_G/γ_F | N_it 1e-6 / 1e-8 | speedup 1e-6 / 1e-8 |",
+                "|---|---|---|---|---|---|---|---|---|"]
+        for row in json.loads(path.read_text()):
+            for key in ("P2", "P3"):
+                m = row[key]
+                its = " / ".join(str(m["iterations"][e] or "-") for e in ("1e-06", "1e-08"))
+                speed = " / ".join(_num(m["speedup"][e], ".2f") for e in ("1e-06", "1e-08"))
+                out.append(f"| {row['label']} | {row['defect']:.2e} | {key} | "
+                           f"{', '.join(f'{e:.2e}' for e in m['eta'])} | "
+                           f"{m['contraction']:.2e} | "
+                           f"{', '.join(f'{e:.2e}' for e in m['predicted'][:2])} | "
+                           f"{m['gamma_ratio']:.4f} | {its} | {speed} |")
+            if "record" in row:
+                rec = row["record"]
+                out.append(f"| {row['label']} | | full scale (record) | "
+                           f"{', '.join(f'{e:.2e}' for e in rec['errors'][:2])} | "
+                           f"{rec['errors'][1] / rec['errors'][0]:.2e} | | "
+                           f"{rec['gamma_ratio']:.4f} | | |")
+        out.append("")
+    return "\n".join(out)
+
+
 def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--problems", nargs="+", choices=sorted(PROBLEMS), default=[])
@@ -243,6 +274,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         (args.dir / f"pilot_check_{table}.json").write_text(json.dumps(rows, indent=1))
     if args.tables:
         print(tables(args.dir))
+        print(pilot_tables(args.dir))
 
 
 if __name__ == "__main__":
