@@ -226,6 +226,7 @@ class _Search:
         self.base_shot: Screen | None = None
         self.base_errors: list[float] = []
         self.base_rho: float | None = None
+        self.calibrations: list[tuple[Settings, list[float]]] = []
 
     # ---- step limits ----
     def _grid_system(self, grid: int) -> tuple[Any, np.ndarray]:
@@ -321,17 +322,48 @@ class _Search:
             cand.status, cand.reason = "rejected", f"blew up over the first slice: {error}"
             return
         cand.coarse, cand.shot = coarse, shot
-        info: dict[str, Any] = {"defect": shot.defect, "seconds": shot.seconds}
+        cand.screen = {"defect": shot.defect, "seconds": shot.seconds}
         base = self.base_shot
         if base is not None and base.defect > 0 and self.base_errors:
-            errors = cost.screened_errors(shot.defect, base.defect, self.base_errors)
-            ratio = cost.gamma_ratio(s, self.pilot.slice_length, shot.seconds,
-                                     self.pilot.gamma_f, self.cores)
-            k = cost.predicted_iterations(errors, self.pilot.n_slices, self.n_slices,
-                                          self.target, self.base_rho)
-            info |= {"eta": errors, "iterations": k, "gamma_ratio": ratio,
-                     "speedup": None if k is None else cost.speedup(ratio, k, self.n_slices)}
-        cand.screen = info
+            cand.screen |= {
+                "model_eta": cost.screened_errors(shot.defect, base.defect, self.base_errors),
+                "gamma_ratio": cost.gamma_ratio(s, self.pilot.slice_length, shot.seconds,
+                                                self.pilot.gamma_f, self.cores)}
+            self.rescreen(cand)
+
+    def rescreen(self, cand: Candidate) -> None:
+        """The screened prediction, corrected by a measured candidate of the same structure (the
+        same parameters extrapolated and reach; the same Richardson depth if there is one): the
+        ratio of its pilot η^k to its own screened η^k. The defect misses part of the Lagrange
+        extrapolation's error (docs/tuning.md), and that part is alike within a structure."""
+        info = cand.screen
+        if not info or "model_eta" not in info:
+            return
+        s = cand.settings
+        names = tuple(name for name, _ in s.lagrange)
+
+        def likeness(other: Settings) -> tuple:
+            return (tuple(n for n, _ in other.lagrange) == names, other.reach == s.reach,
+                    other.m == s.m)
+
+        like = max(self.calibrations, key=lambda item: likeness(item[0]), default=None)
+        factors = like[1] if like is not None and all(likeness(like[0])[:2]) else []
+        errors = [e * (factors[i] if i < len(factors) else (factors[-1] if factors else 1.0))
+                  for i, e in enumerate(info["model_eta"])]
+        k = cost.predicted_iterations(errors, self.pilot.n_slices, self.n_slices, self.target,
+                                      self.base_rho)
+        info |= {"eta": errors, "calibrated_by": like[0].label() if factors else "baseline",
+                 "iterations": k,
+                 "speedup": None if k is None else cost.speedup(info["gamma_ratio"], k,
+                                                                self.n_slices)}
+
+    def calibrate(self, cand: Candidate) -> None:
+        """Record how far a measured candidate's screen was from its pilot (see rescreen)."""
+        model = (cand.screen or {}).get("model_eta")
+        if model and cand.pilot_errors and not cand.settings.plain:
+            pairs = zip(cand.pilot_errors, model, strict=False)
+            self.calibrations.append((cand.settings, [
+                measured / screened for measured, screened in pairs if screened > 0]))
 
     # ---- stage 2: stability of the combined map, pilot run, prediction ----
     def measure(self, cand: Candidate) -> None:
@@ -401,6 +433,16 @@ class _Search:
             self.cost_scale = min(1.0, BOUND_SAFETY * cand.gamma_ratio / counted)
         cand.estimated_speedup = self.estimate(cand.settings, cand.settings.dt)
         return cand
+
+
+def _key(search: _Search, cand: Candidate) -> float:
+    """The search's estimate of a queued candidate: its (re)screened speedup once screened, else
+    its optimistic speedup (at the model step until its real step is known)."""
+    if cand.screen is None:
+        return cand.estimated_speedup if cand.estimated_speedup is not None else -math.inf
+    search.rescreen(cand)
+    estimate = cand.screen.get("speedup")
+    return cand.estimated_speedup if estimate is None else estimate
 
 
 def tune(
@@ -533,8 +575,10 @@ def tune(
             cand.reason = f"Σ|w_j v_q| = {cand.weight_sum:.3g} > {space.max_weight:g}"
             continue
         step = cand.settings.dt or search.estimated_step(cand.settings)
-        key = search.estimate(cand.settings, step) if math.isfinite(step) else -math.inf
-        heapq.heappush(queue, (not cand.given, -key, n))
+        # the optimistic speedup at the model step, until step() measures the real one
+        cand.estimated_speedup = (search.estimate(cand.settings, step) if math.isfinite(step)
+                                  else -math.inf)
+        heapq.heappush(queue, (not cand.given, -cand.estimated_speedup, n))
     best = baseline.speedup if baseline.status == "accepted" else -math.inf
     stopped, done = None, 0
     spent: dict[bool, list[float]] = {False: [], True: []}  # screen / measure times
@@ -561,6 +605,9 @@ def tune(
                     cand.coarse = cand.shot = None
                     if cand.status == "accepted" and cand.speedup > best:
                         best = cand.speedup
+                    search.calibrate(cand)
+                    queue = [(g, -_key(search, candidates[m]), m) for g, _, m in queue]
+                    heapq.heapify(queue)
             elif search.step(cand) and cand.estimated_speedup > floor:
                 search.timed(cand, search.screen)
             if cand.status == "pending" and cand.estimated_speedup <= floor:
@@ -569,9 +616,7 @@ def tune(
                                f"cannot beat the best measured {best:.3g}")
             if cand.status == "pending":
                 if not screened:  # measured next when its screened estimate is the highest
-                    estimate = (cand.screen or {}).get("speedup")
-                    key = cand.estimated_speedup if estimate is None else estimate
-                    heapq.heappush(queue, (not cand.given, -key, n))
+                    heapq.heappush(queue, (not cand.given, -_key(search, cand), n))
                     spent[False].append(cand.seconds - before)
             else:
                 if screened:
