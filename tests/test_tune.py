@@ -334,13 +334,13 @@ def test_pruning_never_discards_what_the_exhaustive_search_would_choose(exhausti
 
 
 def test_screen_ranks_candidates_like_the_pilot(exhaustive):
-    """The one-call screen (slice-2 defect, η^k scaled from the baseline by (d/d_b)^(k+1))
-    against the pilot's measured η¹ of the same candidates: it ranks them alike (it only orders
-    the search)."""
+    """The one-call screen (slice-2 defect, η^k scaled from the baseline by (d/d_b)^(k+1), before
+    any correction from measured candidates) against the pilot's measured η¹ of the same
+    candidates: it ranks them alike (it only orders the search)."""
     from scipy.stats import spearmanr
 
     res = exhaustive
-    pairs = [(c.screen["eta"][0], c.pilot_errors[0]) for c in res.candidates
+    pairs = [(c.screen["model_eta"][0], c.pilot_errors[0]) for c in res.candidates
              if c.screen and c.pilot_errors and c is not res.baseline]
     assert len(pairs) >= 10
     screened, measured = np.array(pairs).T
@@ -384,3 +384,29 @@ def test_default_space_holds_the_structure_of_table5_g3():
              if [n for n, _ in s.lagrange] == ["epsilon", "bending"] and s.m == 1
              and len(s.lagrange[0][1]) == 5]
     assert found
+
+
+def test_screen_is_corrected_by_a_measured_candidate_of_the_same_structure():
+    from types import SimpleNamespace
+
+    from parastokes.tuning.search import Candidate, _Search
+
+    search = _Search.__new__(_Search)  # only what rescreen reads
+    search.pilot = SimpleNamespace(n_slices=3)
+    search.n_slices, search.target, search.base_rho = 30, 1e-8, None
+    measured = Settings("euler", (("epsilon", (1.04, 1.05)),), reach=1)
+    search.calibrations = [(measured, [100.0, 1000.0])]
+
+    def screened(settings: Settings) -> Candidate:
+        cand = Candidate(settings)
+        cand.screen = {"model_eta": [1e-10, 1e-12], "gamma_ratio": 0.01}
+        search.rescreen(cand)
+        return cand
+
+    same = screened(Settings("euler", (("epsilon", (1.04, 1.05, 1.06)),), reach=1))
+    assert same.screen["eta"] == pytest.approx([1e-8, 1e-9])
+    assert same.screen["iterations"] == 2  # x 30/3 slices: 1e-7, then 1e-8 <= η*
+    other_reach = screened(Settings("euler", (("epsilon", (1.02, 1.025)),), reach=0))
+    assert other_reach.screen["eta"] == [1e-10, 1e-12]
+    assert other_reach.screen["calibrated_by"] == "baseline"
+    assert other_reach.screen["iterations"] == 1
