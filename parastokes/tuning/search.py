@@ -7,7 +7,7 @@ reference and measures the plain baseline, then searches the candidates of the
 - screen: its step (the step limit of its most restrictive node, minus the derived margin,
   :mod:`.stability`), its optimistic speedup at that step (N_it = 1, γ_G/γ_F from operation
   counts), and one coarse call over the second slice, whose defect gives a screened prediction
-  (:func:`.cost.screened_errors`);
+  (:func:`.cost.screened_errors`, corrected by a measured candidate of the same structure);
 - measure: the stability verdict of its combined slice map (‖DG‖ by power iteration), the pilot
   run (η^k, :mod:`.pilot`) and the prediction (:mod:`.cost`).
 
