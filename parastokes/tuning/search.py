@@ -440,9 +440,11 @@ def _key(search: _Search, cand: Candidate) -> float:
     its optimistic speedup (at the model step until its real step is known)."""
     if cand.screen is None:
         return cand.estimated_speedup if cand.estimated_speedup is not None else -math.inf
+    if "model_eta" not in cand.screen:  # no calibrated screen (the baseline's pilot failed)
+        return cand.estimated_speedup
     search.rescreen(cand)
-    estimate = cand.screen.get("speedup")
-    return cand.estimated_speedup if estimate is None else estimate
+    estimate = cand.screen["speedup"]
+    return 0.0 if estimate is None else estimate  # None: screened not to reach η*
 
 
 def tune(
