@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import math
+import time
 import tomllib
 
 import numpy as np
@@ -296,3 +297,116 @@ def test_coarse_grid_candidates_are_measured_on_the_coarse_rod():
     assert cand.step_limit != res.baseline.step_limit
     assert isinstance(cand.settings.build(small_rod()), parareal.OnCoarseGrid)
     assert cand.settings.coarse_table()["grid_factor"] == 2
+
+
+# ---- screening, pruning, cost fraction -----------------------------------------------------
+PRUNING = Space(schemes=("euler",), parameters=("epsilon",), reach=(1, 2), nodes=(2, 3),
+                richardson=(0, 1), step_fractions=(1.0, 0.6))
+
+
+PRUNING_RUN = {"t0": 0.0, "t1": 8e-3, "n_slices": 4, "cores": 4, "target": 1e-6,
+               "space": PRUNING, "budget": 1e6}
+
+
+@pytest.fixture(scope="module")
+def exhaustive():
+    """Every candidate of PRUNING measured."""
+    fine = integrate.Propagator(small_rod(), "rk2", 1e-6)
+    return tuning.tune(fine, exhaustive=True, **PRUNING_RUN)
+
+
+def test_pruning_never_discards_what_the_exhaustive_search_would_choose(exhaustive):
+    """Every candidate measured (exhaustive) vs the best-first search with pruning by the
+    optimistic bound: the pruned search chooses as well (within the noise of measured CPU times),
+    and no candidate it pruned does better in the exhaustive search."""
+    fine = integrate.Propagator(small_rod(), "rk2", 1e-6)
+    full = exhaustive
+    pruned = tuning.tune(fine, **PRUNING_RUN)
+    assert all(c.status in ("accepted", "rejected") for c in full.candidates)
+    assert any(c.status == "pruned" for c in pruned.candidates)  # the pruning did something
+    assert pruned.chosen is not None and full.chosen is not None
+    assert pruned.chosen.speedup >= 0.9 * full.chosen.speedup
+    by_settings = {c.settings: c for c in full.candidates}
+    for cand in pruned.candidates:
+        if cand.status == "pruned":
+            other = by_settings[cand.settings]
+            assert other.speedup is None or other.speedup <= 1.1 * pruned.chosen.speedup
+
+
+def test_screen_ranks_candidates_like_the_pilot(exhaustive):
+    """The one-call screen (slice-2 defect, η^k scaled from the baseline by (d/d_b)^(k+1), before
+    any correction from measured candidates) against the pilot's measured η¹ of the same
+    candidates: it ranks them alike (it only orders the search)."""
+    from scipy.stats import spearmanr
+
+    res = exhaustive
+    pairs = [(c.screen["model_eta"][0], c.pilot_errors[0]) for c in res.candidates
+             if c.screen and c.pilot_errors and c is not res.baseline]
+    assert len(pairs) >= 10
+    screened, measured = np.array(pairs).T
+    assert spearmanr(screened, measured).statistic > 0.8
+
+
+def test_default_budget_is_fifteen_percent_and_frugal(monkeypatch):
+    """A problem that is not small gets 15 % of its serial fine solve; below 20 fine slices the
+    search is frugal (two-slice pilot, contraction η¹/η⁰) and the report gives the fraction."""
+    from parastokes.tuning import search
+
+    monkeypatch.setattr(search, "SMALL_PROBLEM", 0.0)
+    fine = integrate.Propagator(small_rod(), "rk2", 1e-6)
+    res = tuning.tune(fine, t0=0.0, t1=8e-3, n_slices=4, cores=4, target=1e-6, space=SMALL)
+    cost = res.report["cost"]
+    assert cost["budget"] == pytest.approx(0.15 * cost["serial_fine_estimate"])
+    assert cost["fraction"] == pytest.approx(cost["cpu_seconds"] / cost["serial_fine_estimate"])
+    assert res.report["pilot"]["slices"] == 2
+    assert any("frugal" in note for note in res.report["search"]["notes"])
+    base = res.baseline
+    assert len(base.pilot_errors) == 1 and 0 < base.contraction < 1  # η¹/η⁰
+    # 15 % of 4 slices cannot hold the reference: the search stops after the baseline
+    assert res.report["search"]["stopped"] == "budget"
+
+
+def test_a_given_budget_is_respected():
+    fine = integrate.Propagator(small_rod(), "rk2", 1e-6)
+    budget = 4.0  # CPU seconds on this clock: the reference, the baseline and a few candidates
+    res = tuning.tune(fine, t0=0.0, t1=8e-3, n_slices=4, cores=4, target=1e-6, space=PRUNING,
+                      budget=budget, clock=time.process_time)
+    largest = max(c.seconds for c in res.candidates)
+    assert res.report["cost"]["cpu_seconds"] <= budget + largest
+
+
+def test_default_space_holds_the_structure_of_table5_g3():
+    """(ε, a) with Richardson and five ε nodes (Table 5 G³) is in the default space."""
+    rod = small_rod(7.0)
+    space = Space()
+    assert ("epsilon", "bending") in space.subsets(rod.params)
+    found = [s for s in space.candidates(rod.params)
+             if [n for n, _ in s.lagrange] == ["epsilon", "bending"] and s.m == 1
+             and len(s.lagrange[0][1]) == 5]
+    assert found
+
+
+def test_screen_is_corrected_by_a_measured_candidate_of_the_same_structure():
+    from types import SimpleNamespace
+
+    from parastokes.tuning.search import Candidate, _Search
+
+    search = _Search.__new__(_Search)  # only what rescreen reads
+    search.pilot = SimpleNamespace(n_slices=3)
+    search.n_slices, search.target, search.base_rho = 30, 1e-8, None
+    measured = Settings("euler", (("epsilon", (1.04, 1.05)),), reach=1)
+    search.calibrations = [(measured, [100.0, 1000.0])]
+
+    def screened(settings: Settings) -> Candidate:
+        cand = Candidate(settings)
+        cand.screen = {"model_eta": [1e-10, 1e-12], "gamma_ratio": 0.01}
+        search.rescreen(cand)
+        return cand
+
+    same = screened(Settings("euler", (("epsilon", (1.04, 1.05, 1.06)),), reach=1))
+    assert same.screen["eta"] == pytest.approx([1e-8, 1e-9])
+    assert same.screen["iterations"] == 2  # x 30/3 slices: 1e-7, then 1e-8 <= η*
+    other_reach = screened(Settings("euler", (("epsilon", (1.02, 1.025)),), reach=0))
+    assert other_reach.screen["eta"] == [1e-10, 1e-12]
+    assert other_reach.screen["calibrated_by"] == "baseline"
+    assert other_reach.screen["iterations"] == 1

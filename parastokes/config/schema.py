@@ -193,7 +193,7 @@ class Tune(_Section):
 
     schemes: list[Scheme] | None = Field(None, description="Schemes of the auxiliary solvers.")
     parameters: list[str] | None = Field(
-        None, description="Parameters that may be extrapolated, in order (nested subsets); [] none."
+        None, description="Parameters that may be extrapolated, the first in every subset; [] none."
     )
     reach: list[Literal[0, 1, 2]] | None = Field(None, description="Node distance levels.")
     nodes: list[Annotated[int, Field(ge=1)]] | None = Field(

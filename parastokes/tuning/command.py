@@ -36,8 +36,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--richardson", type=int, nargs="+", help="Richardson depths m")
     p.add_argument("--grid-factors", type=int, nargs="+", help="coarse-grid factors (rods)")
     p.add_argument("--step-fractions", type=float, nargs="+", help="fractions of the safe step")
-    p.add_argument("--pilot-slices", type=int, help="slices of the pilot window (default 3)")
+    p.add_argument("--pilot-slices", type=int,
+                   help="slices of the pilot window (default 3; 2 when the budget is tight)")
     p.add_argument("--pilot-points", type=int, help="rods: nodes per pilot rod (default 61)")
+    p.add_argument("--exhaustive", action="store_true",
+                   help="measure every candidate (no pruning; slow, for checking the pruning)")
     p.add_argument("--compare", nargs="+", default=[], metavar="CONFIG",
                    help="configurations whose coarse solvers are measured too (never pruned)")
 
@@ -113,7 +116,7 @@ def main(args: argparse.Namespace, console: Any) -> int:
         other, other_resolved = configuration.load(path)
         compare.append(settings_from_config(other, other_resolved, name=Path(path).stem))
     space = _space(cfg, args, tuple(compare))
-    pilot_slices = args.pilot_slices or cfg.tune.pilot_slices or 3
+    pilot_slices = args.pilot_slices or cfg.tune.pilot_slices or None
     points = args.pilot_points or cfg.tune.pilot_points or PILOT_POINTS
     system = configuration.build_system(cfg, resolved)
     pilot = _pilot_system(cfg, resolved, points)
@@ -127,7 +130,7 @@ def main(args: argparse.Namespace, console: Any) -> int:
         result = tune(
             fine, t0=cfg.time.t0, t1=cfg.time.t1, n_slices=args.cores, cores=args.cores,
             target=args.target, space=space, budget=args.budget, pilot=pilot,
-            pilot_slices=pilot_slices, progress=bar,
+            pilot_slices=pilot_slices, progress=bar, exhaustive=args.exhaustive,
         )
     except KeyboardInterrupt:  # before the search (Ctrl-C during it is handled by tune)
         bar.finish()

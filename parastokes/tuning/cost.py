@@ -4,8 +4,16 @@
   along the run roughly in proportion to the number of slices crossed (each slice adds its local
   defect), so η^k of the run is predicted as η^k_P N_c / P; beyond the measured iterations each
   iteration contracts by the last measured ratio ρ = η^K / η^(K-1) (geometric, which is
-  conservative for Parareal's superlinear convergence). N_it is the first k with predicted
-  η^k <= η*. docs/tuning.md compares this with real runs.
+  conservative for Parareal's superlinear convergence); with K = 1 (a two-slice pilot) ρ is the
+  first iteration's own ratio η¹ / η⁰. N_it is the first k with predicted η^k <= η*.
+  docs/tuning.md compares this with real runs.
+- Screen. Before its pilot run a candidate is screened by one coarse call over the second slice
+  from the reference state: its defect d against the reference (the first slice's defect is
+  dominated by the initial transient, which the first iteration corrects exactly). Parareal's
+  error after k iterations scales like the coarse solver's error to the power k + 1 (the classical
+  bound, e.g. Gander & Hairer 2008), so the screened η^k is the baseline's measured η^k times
+  (d / d_baseline)^(k+1). It only orders the search (docs/tuning.md measures how well); what is
+  chosen was measured.
 - Cost. γ_F is the pilot's fine slice time. γ_G is the time of one coarse call with its N_G
   auxiliary solvers on ``cores`` workers: the serial call time per auxiliary solver (its share of
   steps), times ceil(N_G / cores) waves of the slowest auxiliary solver.
@@ -20,7 +28,8 @@ from collections.abc import Sequence
 from .. import integrate, parareal
 from .space import Settings
 
-__all__ = ["estimated_ratio", "gamma_ratio", "predicted_errors", "predicted_iterations", "waves"]
+__all__ = ["contraction", "estimated_ratio", "gamma_ratio", "predicted_errors",
+           "predicted_iterations", "screened_errors", "speedup", "waves"]
 
 
 def waves(n_auxiliary: int, cores: int) -> int:
@@ -61,36 +70,49 @@ def estimated_ratio(
 
 
 def predicted_errors(
-    errors: Sequence[float], pilot_slices: int, n_slices: int, up_to: int
+    errors: Sequence[float], pilot_slices: int, n_slices: int, up_to: int,
+    rho: float | None = None,
 ) -> list[float]:
-    """η^k of the run for k = 1..``up_to`` from the pilot's η^k at T_P (module docstring)."""
+    """η^k of the run for k = 1..``up_to`` from the pilot's η^k at T_P (module docstring);
+    ``rho`` replaces the contraction read from ``errors`` (needed when there is one)."""
     scale = n_slices / pilot_slices
     out = [e * scale for e in errors]
-    rho = errors[-1] / errors[-2] if len(errors) >= 2 and errors[-2] > 0 else 1.0
-    rho = min(rho, 1.0)
+    if rho is None:
+        rho = contraction(errors)
+    rho = 1.0 if rho is None else min(rho, 1.0)
     while len(out) < up_to:
         out.append(out[-1] * rho)
     return out[:up_to]
 
 
 def predicted_iterations(
-    errors: Sequence[float], pilot_slices: int, n_slices: int, target: float
+    errors: Sequence[float], pilot_slices: int, n_slices: int, target: float,
+    rho: float | None = None,
 ) -> int | None:
     """The first k with predicted η^k <= η*; None if that takes N_c iterations or more (Parareal
     then gives no speedup) or the pilot shows no contraction."""
     if not errors or not all(e >= 0 for e in errors):
         return None
-    for k, value in enumerate(predicted_errors(errors, pilot_slices, n_slices, n_slices), 1):
+    predicted = predicted_errors(errors, pilot_slices, n_slices, n_slices, rho)
+    for k, value in enumerate(predicted, 1):
         if value <= target:
             return k if k < n_slices else None
     return None
 
 
-def contraction(errors: Sequence[float]) -> float | None:
-    """ρ = η^K / η^(K-1) of the pilot (None with one iteration)."""
+def contraction(errors: Sequence[float], eta0: float | None = None) -> float | None:
+    """ρ = η^K / η^(K-1) of the pilot; with one iteration η¹ / η⁰ (``eta0``), else None."""
+    if len(errors) == 1 and eta0:
+        return errors[0] / eta0
     if len(errors) < 2 or errors[-2] <= 0:
         return None
     return errors[-1] / errors[-2]
+
+
+def screened_errors(defect: float, base_defect: float, base_errors: Sequence[float]) -> list:
+    """η^k predicted from a one-slice defect, scaled from the baseline's (module docstring)."""
+    ratio = defect / base_defect
+    return [e * ratio ** (k + 1) for k, e in enumerate(base_errors, 1)]
 
 
 def speedup(ratio: float, iterations: int, n_slices: int) -> float:

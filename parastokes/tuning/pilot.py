@@ -1,14 +1,15 @@
 """The pilot window: the first few slices of the run, with the true fine reference.
 
 :meth:`Pilot.prepare` computes the serial fine solution on P slices of the run's slice length (the
-reference; it also proves that the fine solver is stable there and measures γ_F), and estimates
-the fine solver's own time-discretization error over the first slice (one run at 2τ_f,
-Richardson's estimate |F_τ - F_2τ| / (2^p - 1), eq. 34's measure). :meth:`Pilot.measure` runs
-Algorithm 1 itself (``parareal.run``) on the window for one coarse solver, giving η^k at T_P for
-k = 1..K and the measured cost of its coarse calls. Fine solves whose input is the reference
-(slices n <= k in iteration k) are taken from the reference instead of being recomputed. Costs
-(γ_F, γ_G) are CPU times of this process: on a shared machine they do not depend on what else
-runs, wall times do.
+reference; it also proves that the fine solver is stable there and measures γ_F), and estimates the
+fine solver's own time-discretization error over the first slice (one run at 2τ_f, Richardson's
+estimate |F_τ - F_2τ| / (2^p - 1), eq. 34's measure). :meth:`Pilot.screen` is one coarse call over
+the second slice from the reference: its defect against the reference, the cheap accuracy measure
+that orders the search. :meth:`Pilot.measure` runs Algorithm 1 itself (``parareal.run``) on the
+window for one coarse solver, giving η^k at T_P for k = 1..K and the measured cost of its coarse
+calls. Fine solves whose input is the reference (slices n <= k in iteration k) are taken from the
+reference instead of being recomputed, and the screen's coarse call is reused. Costs (γ_F, γ_G) are
+CPU times of this process: on a shared machine they do not depend on what else runs, wall times do.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ import numpy as np
 from .. import integrate, parareal
 from .space import TuningError
 
-__all__ = ["Pilot", "PilotRun"]
+__all__ = ["Pilot", "PilotRun", "Screen"]
 
 
 class _Reused:
@@ -40,14 +41,19 @@ class _Reused:
 
 
 class _Timed:
-    """A coarse propagator that records the wall time of each call (no ``with_executor``, so
-    ``parareal.run`` runs it as it is, in this process)."""
+    """A coarse propagator that records the CPU time of each call (no ``with_executor``, so
+    ``parareal.run`` runs it as it is, in this process); ``known`` is a call already made
+    (:class:`Screen`), answered without recomputing it."""
 
-    def __init__(self, coarse: Any) -> None:
+    def __init__(self, coarse: Any, known: Screen | None = None) -> None:
         self.coarse = coarse
-        self.seconds: list[float] = []
+        self.known = known
+        self.seconds: list[float] = [] if known is None else [known.seconds]
 
     def __call__(self, t_start: float, t_end: float, x: np.ndarray) -> np.ndarray:
+        known = self.known
+        if known is not None and t_start == known.t0 and np.array_equal(x, known.x0):
+            return known.state.copy()
         start = time.process_time()
         out = self.coarse(t_start, t_end, x)
         self.seconds.append(time.process_time() - start)
@@ -61,6 +67,18 @@ class PilotRun:
     errors: list[float]  # η^k at T_P, k = 1..K
     coarse_seconds: float  # mean CPU time of one coarse call (all auxiliaries in this process)
     seconds: float  # wall time of the whole pilot run
+    eta0: float  # |X^1 - X^0| at T_P: the coarse solution's own error, up to η¹
+
+
+@dataclass
+class Screen:
+    """One coarse call over the second pilot slice from the reference state."""
+
+    t0: float
+    x0: np.ndarray
+    state: np.ndarray  # G(x0)
+    defect: float  # relative change of the positions against the reference at T_2 (eq. 34)
+    seconds: float  # CPU time of the call
 
 
 @dataclass
@@ -122,12 +140,26 @@ class Pilot:
         return cls(system, fine, reference[0], t0, slice_length, n_slices, reference, gamma_f,
                    fine_error, time.perf_counter() - start)
 
-    def measure(self, coarse: Any, iterations: int) -> PilotRun:
-        """Algorithm 1 on the window: η^k at T_P for k = 1..``iterations`` (< P)."""
+    def screen(self, coarse: Any) -> Screen:
+        """One call of ``coarse`` over the second slice from the reference state at T_1 (past
+        the initial transient, which the first iteration corrects exactly; Algorithm 1 makes the
+        same call in its first iteration), and its defect at T_2."""
+        times, start_state = self.times, self.reference[1]
+        start = time.process_time()
+        state = coarse(float(times[1]), float(times[2]), start_state)
+        seconds = time.process_time() - start
+        if not np.all(np.isfinite(state)):
+            raise integrate.BlowUpError(times[2], 0, math.nan, start_state, "non-finite state")
+        defect = parareal.relative_change(state, self.reference[2], self.system.positions)
+        return Screen(float(times[1]), start_state, state, float(defect), seconds)
+
+    def measure(self, coarse: Any, iterations: int, known: Screen | None = None) -> PilotRun:
+        """Algorithm 1 on the window: η^k at T_P for k = 1..``iterations`` (< P); ``known`` is
+        the screen of the same solver (its call is reused)."""
         start = time.perf_counter()
         times = self.times
         fine = _Reused(self.fine, times, self.reference)
-        timed = _Timed(coarse)
+        timed = _Timed(coarse, known)
         res = parareal.run(
             fine, timed, self.x0, t0=float(times[0]), t1=float(times[-1]),
             n_slices=self.n_slices, tol=0.0, max_iterations=iterations,
@@ -137,4 +169,5 @@ class Pilot:
         errors = [float(e) for e in res.errors]
         if not all(math.isfinite(e) for e in errors):
             raise integrate.BlowUpError(times[-1], 0, math.nan, self.x0, "non-finite iterate")
-        return PilotRun(errors, float(np.mean(timed.seconds)), time.perf_counter() - start)
+        return PilotRun(errors, float(np.mean(timed.seconds)), time.perf_counter() - start,
+                        float(res.increments[0]))

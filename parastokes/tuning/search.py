@@ -1,17 +1,25 @@
 """The tuner: search the coarse solvers of eq. 30 for the highest predicted speedup at η*.
 
 :func:`tune` (exported as ``parastokes.parareal.tune``) checks the input, computes the pilot
-reference, then walks the candidates of the :class:`~.space.Space` in the order of an optimistic
-speedup (N_it = 1, γ_G/γ_F from operation counts), skipping every candidate whose optimistic
-speedup cannot beat the best measured one. A candidate that may win gets, in this order: its step
-(the step limit of its most restrictive node, minus the derived margin, :mod:`.stability`), the
-stability verdict of its combined slice map (‖DG‖ by power iteration), the pilot run (η^k,
-:mod:`.pilot`) and the prediction (:mod:`.cost`). docs/tuning.md explains the choices and reports
-measurements.
+reference and measures the plain baseline, then searches the candidates of the
+:class:`~.space.Space` best first. Each candidate goes through two stages:
+
+- screen: its step (the step limit of its most restrictive node, minus the derived margin,
+  :mod:`.stability`), its optimistic speedup at that step (N_it = 1, γ_G/γ_F from operation
+  counts), and one coarse call over the second slice, whose defect gives a screened prediction
+  (:func:`.cost.screened_errors`, corrected by a measured candidate of the same structure);
+- measure: the stability verdict of its combined slice map (‖DG‖ by power iteration), the pilot
+  run (η^k, :mod:`.pilot`) and the prediction (:mod:`.cost`).
+
+The next candidate is the one with the highest estimate: its optimistic speedup before the
+screen, its screened speedup after. A candidate whose optimistic speedup at its own step cannot
+beat the best measured one is pruned: without a budget the search chooses what measuring every
+candidate would choose. docs/tuning.md explains the choices and reports measurements.
 """
 
 from __future__ import annotations
 
+import heapq
 import math
 import time
 from collections.abc import Callable
@@ -23,22 +31,38 @@ import numpy as np
 from .. import integrate
 from ..parallel import TaskError
 from . import cost, stability
-from .pilot import Pilot
+from .pilot import Pilot, Screen
 from .space import Settings, Space, TuningError
 
 __all__ = ["Candidate", "Progress", "TuneResult", "tune"]
 
-#: Exponents of the step-limit model used only to order candidates before their limit is measured
-#: (the stiffest mode scales like bending/viscosity; ε relaxes it strongly, docs/validation.md).
 #: Default budget: this fraction of the estimated serial fine solve (the issue's 15 %).
 BUDGET_FRACTION = 0.15
 
 #: Fewest coarse steps per slice considered (the step-limit bisection starts below slice / 10).
 MIN_STEPS = 10
 
+#: A budget below this many fine slices of the pilot makes the search frugal: a two-slice pilot
+#: window (one iteration), two power iterations for ‖DG‖, the baseline's own ‖DG‖ as the reference
+#: growth (docs/tuning.md, the vesicle).
+FRUGAL_SLICES = 20
+
+#: Serial fine solves below this many CPU seconds are small: the default budget is then what
+#: twenty candidates need, not 15 % (a search within seconds is not worth saving).
+SMALL_PROBLEM = 60.0
+
+#: Safety factor on the optimistic bound's γ_G/γ_F (operation counts, scaled by what the baseline
+#: measured): pruning must not discard a candidate whose measured cost turns out lower.
+BOUND_SAFETY = 0.8
+
 FINE_ADVICE = "reduce fine.dt (or choose a higher-order fine.scheme) before tuning"
 
+#: Exponents of the step-limit model used only to order candidates before their limit is measured
+#: (the stiffest mode scales like bending/viscosity; ε relaxes it strongly, docs/validation.md).
 _LIMIT_MODEL = {"epsilon": 4.0, "viscosity": 1.0, "bending": -1.0, "stiffness": -1.0}
+
+#: Stability intervals of the schemes on the negative real axis (for that model only).
+_INTERVAL = {"euler": 2.0, "rk2": 2.0, "rk4": 2.785}
 
 
 class Progress:
@@ -67,6 +91,7 @@ class Candidate:
     weight_sum: float = 1.0
     estimated_speedup: float | None = None
     given: bool = False  # given explicitly (Space.extra): measured whatever its estimate
+    screen: dict[str, Any] | None = None  # defect, screened eta and speedup, seconds
     step_limit: float | None = None
     margin: float | None = None  # 1 - step / step limit
     required_margin: float | None = None  # δ derived by stability.step_margin
@@ -78,6 +103,8 @@ class Candidate:
     gamma_ratio: float | None = None
     speedup: float | None = None
     seconds: float = 0.0  # on the budget's clock (wall with --budget, else CPU)
+    coarse: Any = field(default=None, repr=False)  # the built propagator, between the stages
+    shot: Screen | None = field(default=None, repr=False)  # its screen, between the stages
 
     @property
     def stability_margin(self) -> float | None:
@@ -111,6 +138,7 @@ class Candidate:
                 "margin": self.stability_margin,
                 "stable": stable,
             },
+            "screen": self.screen,
             "pilot": {"eta": self.pilot_errors, "eta1": self.pilot_errors[0] if
                       self.pilot_errors else None, "contraction": self.contraction},
             "predicted": self.predicted(),
@@ -151,13 +179,13 @@ class TuneResult:
         out = []
         for eta in targets:
             k = cost.predicted_iterations(candidate.pilot_errors, self.pilot.n_slices, n_slices,
-                                          float(eta))
+                                          float(eta), candidate.contraction)
             out.append(None if k is None else cost.speedup(candidate.gamma_ratio, k, n_slices))
         return out
 
 
 def _check_input(cores: Any, target: Any, n_slices: Any, t0: float, t1: float,
-                 budget: Any, pilot_slices: int) -> None:
+                 budget: Any, pilot_slices: int | None) -> None:
     if isinstance(cores, bool) or not isinstance(cores, int) or cores < 1:
         raise TuningError(f"cores must be an integer >= 1, got {cores!r}")
     if isinstance(n_slices, bool) or not isinstance(n_slices, int) or n_slices < 2:
@@ -168,7 +196,7 @@ def _check_input(cores: Any, target: Any, n_slices: Any, t0: float, t1: float,
         raise TuningError(f"t1 must exceed t0, got [{t0}, {t1}]")
     if budget is not None and not budget > 0:
         raise TuningError(f"budget must be a positive number of seconds, got {budget!r}")
-    if not 2 <= pilot_slices <= n_slices:
+    if pilot_slices is not None and not 2 <= pilot_slices <= n_slices:
         raise TuningError(f"pilot_slices must lie in [2, n_slices = {n_slices}], got "
                           f"{pilot_slices}")
 
@@ -192,6 +220,13 @@ class _Search:
         self.points = points
         self.limits: dict[tuple, float] = {}
         self.reference_gain: float | None = None
+        self.power_iterations = 4
+        self.base_scheme = "euler"
+        self.cost_scale = 1.0
+        self.base_shot: Screen | None = None
+        self.base_errors: list[float] = []
+        self.base_rho: float | None = None
+        self.calibrations: list[tuple[Settings, list[float]]] = []
 
     # ---- step limits ----
     def _grid_system(self, grid: int) -> tuple[Any, np.ndarray]:
@@ -218,7 +253,11 @@ class _Search:
         return self.limits[key]
 
     def estimated_step(self, settings: Settings) -> float:
-        plain = self.limit(Settings(settings.scheme, grid=settings.grid))
+        """The step limit model that orders unscreened candidates: the baseline scheme's measured
+        plain limit (no bisection for another scheme before one of its candidates is screened),
+        scaled by the schemes' real stability intervals and the parameters (_LIMIT_MODEL)."""
+        plain = self.limit(Settings(self.base_scheme, grid=settings.grid))
+        plain *= _INTERVAL.get(settings.scheme, 2.0) / _INTERVAL.get(self.base_scheme, 2.0)
         factor = math.prod((value / self.theta0[name]) ** _LIMIT_MODEL[name]
                            for name, value in settings.corner().items())
         return plain * factor * settings.step_fraction
@@ -227,51 +266,113 @@ class _Search:
         system, x0 = self._grid_system(grid)
         return len(system.positions(x0))
 
-    def estimate(self, settings: Settings, dt: float) -> float:
-        ratio = cost.estimated_ratio(
+    def counted_ratio(self, settings: Settings, dt: float) -> float:
+        """γ_G/γ_F from operation counts at step ``dt``."""
+        return cost.estimated_ratio(
             replace(settings, dt=dt), self.pilot.slice_length, self.pilot.fine.scheme,
             integrate.n_steps(0.0, self.pilot.slice_length, self.pilot.fine.dt),
             self.points, self.coarse_points(settings.grid), self.cores)
-        return cost.speedup(ratio, 1, self.n_slices)
 
-    # ---- one candidate ----
-    def evaluate(self, cand: Candidate, best: float) -> None:
+    def estimate(self, settings: Settings, dt: float) -> float:
+        """The optimistic speedup at step ``dt``: eq. 14 with N_it = 1 and the counted γ_G/γ_F
+        times ``cost_scale`` (set by the baseline: BOUND_SAFETY times its measured/counted
+        ratio, at most 1)."""
+        return cost.speedup(self.counted_ratio(settings, dt) * self.cost_scale, 1,
+                            self.n_slices)
+
+    # ---- stage 1: step, bound, screen ----
+    def timed(self, cand: Candidate, stage: Callable[[Candidate], None]) -> None:
         start = self.clock()
         try:
-            self._evaluate(cand, best)
+            stage(cand)
         finally:
-            cand.seconds = self.clock() - start
+            cand.seconds += self.clock() - start
 
-    def _evaluate(self, cand: Candidate, best: float) -> None:
+    def step(self, cand: Candidate) -> bool:
+        """Set the candidate's step and optimistic bound; False if it is rejected."""
         s = cand.settings
         limit = self.limit(s)
         cand.step_limit = limit
         if not math.isfinite(limit):
             cand.status, cand.reason = "rejected", "not stable even at the fine step τ_f"
-            return
+            return False
         _, cand.required_margin = stability.safe_step(limit, self.pilot.slice_length,
                                                       cand.weight_sum, self.target)
         if s.dt is None:  # the largest safe step, times the candidate's fraction
             dt = limit * (1.0 - cand.required_margin) * s.step_fraction
             dt = self.pilot.slice_length / math.ceil(self.pilot.slice_length / dt - 1e-9)
             cand.settings = s = replace(s, dt=dt)
-        dt = s.dt
-        cand.margin = 1.0 - dt / limit
+        cand.margin = 1.0 - s.dt / limit
         if s.m:
-            counts = [integrate.n_steps(0.0, self.pilot.slice_length, dt * s.r**q)
+            counts = [integrate.n_steps(0.0, self.pilot.slice_length, s.dt * s.r**q)
                       for q in range(s.m + 1)]
             if len(set(counts)) < len(counts):
                 cand.status, cand.reason = "rejected", f"Richardson steps coincide ({counts})"
-                return
-        cand.estimated_speedup = self.estimate(s, dt)
-        if cand.estimated_speedup <= best and not cand.given:
-            cand.status = "pruned"
-            cand.reason = (f"optimistic speedup {cand.estimated_speedup:.3g} at its step cannot "
-                           f"beat the best measured {best:.3g}")
-            return
+                return False
+        cand.estimated_speedup = self.estimate(s, s.dt)
+        return True
+
+    def screen(self, cand: Candidate) -> None:
+        """One coarse call over the second slice; the screened prediction from its defect."""
+        s = cand.settings
         coarse = s.build(self.system)
+        try:
+            shot = self.pilot.screen(coarse)
+        except (integrate.BlowUpError, TaskError) as error:
+            cand.status, cand.reason = "rejected", f"blew up over the first slice: {error}"
+            return
+        cand.coarse, cand.shot = coarse, shot
+        cand.screen = {"defect": shot.defect, "seconds": shot.seconds}
+        base = self.base_shot
+        if base is not None and base.defect > 0 and self.base_errors:
+            cand.screen |= {
+                "model_eta": cost.screened_errors(shot.defect, base.defect, self.base_errors),
+                "gamma_ratio": cost.gamma_ratio(s, self.pilot.slice_length, shot.seconds,
+                                                self.pilot.gamma_f, self.cores)}
+            self.rescreen(cand)
+
+    def rescreen(self, cand: Candidate) -> None:
+        """The screened prediction, corrected by a measured candidate of the same structure (the
+        same parameters extrapolated and reach; the same Richardson depth if there is one): the
+        ratio of its pilot η^k to its own screened η^k. The defect misses part of the Lagrange
+        extrapolation's error (docs/tuning.md), and that part is alike within a structure."""
+        info = cand.screen
+        if not info or "model_eta" not in info:
+            return
+        s = cand.settings
+        names = tuple(name for name, _ in s.lagrange)
+
+        def likeness(other: Settings) -> tuple:
+            return (tuple(n for n, _ in other.lagrange) == names, other.reach == s.reach,
+                    other.m == s.m)
+
+        like = max(self.calibrations, key=lambda item: likeness(item[0]), default=None)
+        factors = like[1] if like is not None and all(likeness(like[0])[:2]) else []
+        errors = [e * (factors[i] if i < len(factors) else (factors[-1] if factors else 1.0))
+                  for i, e in enumerate(info["model_eta"])]
+        k = cost.predicted_iterations(errors, self.pilot.n_slices, self.n_slices, self.target,
+                                      self.base_rho)
+        info |= {"eta": errors, "calibrated_by": like[0].label() if factors else "baseline",
+                 "iterations": k,
+                 "speedup": None if k is None else cost.speedup(info["gamma_ratio"], k,
+                                                                self.n_slices)}
+
+    def calibrate(self, cand: Candidate) -> None:
+        """Record how far a measured candidate's screen was from its pilot (see rescreen)."""
+        model = (cand.screen or {}).get("model_eta")
+        if model and cand.pilot_errors and not cand.settings.plain:
+            pairs = zip(cand.pilot_errors, model, strict=False)
+            self.calibrations.append((cand.settings, [
+                measured / screened for measured, screened in pairs if screened > 0]))
+
+    # ---- stage 2: stability of the combined map, pilot run, prediction ----
+    def measure(self, cand: Candidate) -> None:
+        s = cand.settings
+        coarse, shot = cand.coarse, cand.shot
         window = (self.pilot.t0, self.pilot.t0 + self.pilot.slice_length)
-        cand.amplification = stability.amplification(coarse, self.system, self.pilot.x0, *window)
+        if cand.amplification is None:
+            cand.amplification = stability.amplification(
+                coarse, self.system, self.pilot.x0, *window, iterations=self.power_iterations)
         cand.allowed_amplification = stability.allowed_amplification(self.reference_gain,
                                                                       self.n_slices)
         if not cand.amplification <= cand.allowed_amplification:
@@ -281,16 +382,16 @@ class _Search:
             return
         iterations = min(2, self.pilot.n_slices - 1)
         try:
-            run = self.pilot.measure(coarse, iterations)
+            run = self.pilot.measure(coarse, iterations, shot)
         except (integrate.BlowUpError, TaskError) as error:
             cand.status, cand.reason = "rejected", f"blew up in the pilot: {error}"
             return
         cand.pilot_errors = run.errors
-        cand.contraction = cost.contraction(run.errors)
+        cand.contraction = cost.contraction(run.errors, run.eta0)
         cand.gamma_ratio = cost.gamma_ratio(s, self.pilot.slice_length, run.coarse_seconds,
                                             self.pilot.gamma_f, self.cores)
         cand.iterations = cost.predicted_iterations(run.errors, self.pilot.n_slices,
-                                                    self.n_slices, self.target)
+                                                    self.n_slices, self.target, cand.contraction)
         if cand.iterations is None:
             cand.status = "rejected"
             cand.reason = (f"does not reach η* = {self.target:g} in fewer than N_c iterations "
@@ -299,21 +400,51 @@ class _Search:
         cand.speedup = cost.speedup(cand.gamma_ratio, cand.iterations, self.n_slices)
         cand.status = "accepted"
 
-    def baseline(self, scheme: str) -> Candidate:
-        """G_{Θ⁰,τ} at its largest safe step; also fixes the physics' own ‖DG‖ (half the limit)."""
-        settings = Settings(scheme)
-        limit = self.limit(settings)
-        if not math.isfinite(limit):
+    def baseline(self, scheme: str, frugal: bool) -> Candidate:
+        """G_{Θ⁰,τ} at its largest safe step, measured in full; it fixes the physics' own ‖DG‖
+        (at half the step limit, or in a frugal search at its own step), the bound's cost scale
+        and the screen's calibration."""
+        self.base_scheme = scheme
+        cand = Candidate(Settings(scheme))
+        self.timed(cand, self.step)
+        if cand.status == "rejected":
             raise TuningError(f"the plain {scheme} coarse solver is unstable even at τ_f; "
                               "choose another coarse scheme")
-        half = replace(settings, dt=self.pilot.slice_length /
-                       math.ceil(self.pilot.slice_length / (0.5 * limit)))
+        self.timed(cand, self.screen)
+        if cand.status == "rejected":
+            raise TuningError(f"the plain {scheme} coarse solver blows up over the first slice "
+                              f"at its largest stable step ({cand.reason}); reduce fine.dt")
         window = (self.pilot.t0, self.pilot.t0 + self.pilot.slice_length)
-        self.reference_gain = stability.amplification(half.build(self.system), self.system,
-                                                      self.pilot.x0, *window)
-        cand = Candidate(settings)
-        self.evaluate(cand, best=-math.inf)
+        if frugal:
+            cand.amplification = self.reference_gain = stability.amplification(
+                cand.coarse, self.system, self.pilot.x0, *window,
+                iterations=self.power_iterations)
+        else:
+            half = replace(cand.settings, dt=self.pilot.slice_length /
+                           math.ceil(self.pilot.slice_length / (0.5 * cand.step_limit)))
+            self.reference_gain = stability.amplification(half.build(self.system), self.system,
+                                                          self.pilot.x0, *window)
+        self.timed(cand, self.measure)
+        self.base_shot = cand.shot
+        self.base_errors = cand.pilot_errors
+        self.base_rho = cand.contraction
+        if cand.gamma_ratio:
+            counted = self.counted_ratio(cand.settings, cand.settings.dt)
+            self.cost_scale = min(1.0, BOUND_SAFETY * cand.gamma_ratio / counted)
+        cand.estimated_speedup = self.estimate(cand.settings, cand.settings.dt)
         return cand
+
+
+def _key(search: _Search, cand: Candidate) -> float:
+    """The search's estimate of a queued candidate: its (re)screened speedup once screened, else
+    its optimistic speedup (at the model step until its real step is known)."""
+    if cand.screen is None:
+        return cand.estimated_speedup if cand.estimated_speedup is not None else -math.inf
+    if "model_eta" not in cand.screen:  # no calibrated screen (the baseline's pilot failed)
+        return cand.estimated_speedup
+    search.rescreen(cand)
+    estimate = cand.screen["speedup"]
+    return 0.0 if estimate is None else estimate  # None: screened not to reach η*
 
 
 def tune(
@@ -328,9 +459,10 @@ def tune(
     space: Space | None = None,
     budget: float | None = None,
     pilot: Any = None,
-    pilot_slices: int = 3,
+    pilot_slices: int | None = None,
     progress: Progress | None = None,
     clock: Callable[[], float] | None = None,
+    exhaustive: bool = False,
 ) -> TuneResult:
     """Choose the coarse solver with the highest predicted speedup (eq. 14) that is stable and
     reaches the relative error ``target`` (η*, eq. 34) on ``n_slices`` slices with ``cores``.
@@ -343,12 +475,14 @@ def tune(
     CPU time of this process, or what a minimal search needs on small problems, said in
     ``report["search"]["notes"]``). Costs are CPU times (``report["cost"]``: ``fraction`` is
     CPU time spent over the serial fine solve's estimated CPU time; ``seconds`` is wall time).
+    ``exhaustive`` measures every candidate (no pruning; for checking the pruning).
     Bad input raises :class:`TuningError` before the search.
     Ctrl-C during the search stops it and keeps what was measured (``report["search"]``).
     Returns a :class:`TuneResult`; its ``coarse`` is None when no candidate reaches η*.
     """
+    given_budget = budget is not None
     if clock is None:  # a given budget is wall time; the default one is CPU time (see above)
-        clock = time.perf_counter if budget is not None else time.process_time
+        clock = time.perf_counter if given_budget else time.process_time
     started, wall, cpu = clock(), time.perf_counter(), time.process_time()
     _check_input(cores, target, n_slices, t0, t1, budget, pilot_slices)
     space = space or Space()
@@ -382,23 +516,39 @@ def tune(
         raise TuningError(f"the fine solver itself is unstable: {error}; {FINE_ADVICE}") from None
     serial_estimate = step_full * fine_steps * n_slices
     slice_seconds = step_pilot * fine_steps
-    iterations = min(2, pilot_slices - 1)
-    # fine solves of a pilot run, plus about two slices' worth of coarse calls and bisection
-    one_candidate = slice_seconds * (sum(pilot_slices - k for k in range(1, iterations + 1)) + 2)
-    needed = slice_seconds * (pilot_slices + 0.5) + one_candidate
     notes = []
-    if budget is None:  # 15 % of the serial fine solve, or what a minimal search needs
-        budget = max(BUDGET_FRACTION * serial_estimate, needed + 20 * one_candidate)
-        if budget > BUDGET_FRACTION * serial_estimate:
+
+    def needs(slices: int) -> tuple[float, float]:
+        """(one candidate, the reference with the baseline and one candidate): a candidate's
+        fine solves plus about two slices' worth of coarse calls and bisection."""
+        iterations = min(2, slices - 1)
+        one = slice_seconds * (sum(slices - k for k in range(1, iterations + 1)) + 2)
+        return one, slice_seconds * (slices + 0.5) + 2 * one
+
+    default_budget = BUDGET_FRACTION * serial_estimate
+    if budget is None:  # 15 % of the serial fine solve; for small problems what a search needs
+        one, needed = needs(pilot_slices or 3)
+        if serial_estimate < SMALL_PROBLEM and default_budget < needed + 20 * one:
+            budget = needed + 20 * one
             notes.append(f"the problem is too small for a search within {BUDGET_FRACTION:.0%} "
                          f"of its serial fine solve ({serial_estimate:.3g} s); budget "
                          f"{budget:.3g} s")
-    elif budget < needed:
+        else:
+            budget = default_budget
+    frugal = budget < FRUGAL_SLICES * slice_seconds
+    if pilot_slices is None:
+        pilot_slices = 2 if frugal else 3
+    one_candidate, needed = needs(pilot_slices)
+    if given_budget and budget < needed:
         raise TuningError(
             f"budget: {budget:g} s is too small to test even one candidate; the pilot reference "
             f"and one candidate need about {needed:.3g} s (fine solves of {slice_seconds:.3g} s "
             "per slice); raise --budget or use fewer --pilot-slices"
         )
+    if frugal:
+        notes.append(f"frugal search (budget below {FRUGAL_SLICES} fine slices): "
+                     f"{pilot_slices}-slice pilot, 2 power iterations, the baseline's own ‖DG‖ "
+                     "as the reference growth")
     progress.note(f"pilot: {pilot_slices} slices of {fine_steps} fine steps "
                   f"(about {slice_seconds:.3g} s each)")
     pilot_window = Pilot.prepare(pilot_fine, start_state, t0, slice_length, pilot_slices)
@@ -410,52 +560,81 @@ def tune(
         )
     search = _Search(pilot_window, space, n_slices, cores, target,
                      len(pilot_system.positions(start_state)), clock)
+    if frugal:
+        search.power_iterations = 2
     base_scheme = "euler" if "euler" in space.schemes else space.schemes[0]
     progress.note(f"baseline: plain {base_scheme} at its largest safe step")
-    baseline = search.baseline(base_scheme)
+    baseline = search.baseline(base_scheme, frugal)
 
     candidates = [Candidate(s) for s in space.candidates(pilot_system.params)
                   if s != Settings(base_scheme)]
     candidates += [Candidate(s, given=True) for s in space.extra]
-    for cand in candidates:
+    queue: list[tuple] = []
+    for n, cand in enumerate(candidates):
         cand.weight_sum = cand.settings.weight_sum(search.theta0)
-        if cand.weight_sum > space.max_weight:
+        if cand.weight_sum > space.max_weight and not cand.given:
             cand.status = "pruned"
             cand.reason = f"Σ|w_j v_q| = {cand.weight_sum:.3g} > {space.max_weight:g}"
             continue
         step = cand.settings.dt or search.estimated_step(cand.settings)
-        cand.estimated_speedup = (search.estimate(cand.settings, step)
-                                  if math.isfinite(step) else -math.inf)
-    order = sorted((c for c in candidates if c.status == "pending"),
-                   key=lambda c: (not c.given, -c.estimated_speedup))
+        # the optimistic speedup at the model step, until step() measures the real one
+        cand.estimated_speedup = (search.estimate(cand.settings, step) if math.isfinite(step)
+                                  else -math.inf)
+        heapq.heappush(queue, (not cand.given, -cand.estimated_speedup, n))
     best = baseline.speedup if baseline.status == "accepted" else -math.inf
-    stopped, done, spent = None, 0, []
-    progress.start(len(order))
+    stopped, done = None, 0
+    spent: dict[bool, list[float]] = {False: [], True: []}  # screen / measure times
+    ordered = len(queue)
+    progress.start(ordered)
     try:
-        for cand in order:
-            typical = float(np.mean(spent)) if spent else one_candidate
+        while queue:
+            _, _, n = queue[0]
+            cand = candidates[n]
+            screened = cand.screen is not None
+            # the dearest stage of its kind so far (a new corner's bisection makes screens uneven)
+            typical = (max(spent[screened]) if spent[screened] else
+                       one_candidate if screened else 0.5 * slice_seconds)
             if clock() - started + typical > budget and not cand.given:
                 stopped = "budget"
                 break
-            if cand.estimated_speedup <= best and not cand.given:
+            heapq.heappop(queue)
+            before = cand.seconds
+            # the bound a candidate must beat: the best measured (not when given or exhaustive)
+            floor = -math.inf if exhaustive or cand.given else best
+            if screened:
+                if cand.estimated_speedup > floor:
+                    search.timed(cand, search.measure)
+                    cand.coarse = cand.shot = None
+                    if cand.status == "accepted" and cand.speedup > best:
+                        best = cand.speedup
+                    search.calibrate(cand)
+                    queue = [(g, -_key(search, candidates[m]), m) for g, _, m in queue]
+                    heapq.heapify(queue)
+            elif search.step(cand) and cand.estimated_speedup > floor:
+                search.timed(cand, search.screen)
+            if cand.status == "pending" and cand.estimated_speedup <= floor:
                 cand.status = "pruned"
-                cand.reason = (f"optimistic speedup {cand.estimated_speedup:.3g} (model step) "
+                cand.reason = (f"optimistic speedup {cand.estimated_speedup:.3g} at its step "
                                f"cannot beat the best measured {best:.3g}")
+            if cand.status == "pending":
+                if not screened:  # measured next when its screened estimate is the highest
+                    heapq.heappush(queue, (not cand.given, -_key(search, cand), n))
+                    spent[False].append(cand.seconds - before)
             else:
-                search.evaluate(cand, best)
-                if cand.pilot_errors:
-                    spent.append(cand.seconds)
-                if cand.status == "accepted" and cand.speedup > best:
-                    best = cand.speedup
-            done += 1
-            progress.advance(cand.settings.label())
+                if screened:
+                    spent[True].append(cand.seconds - before)
+                done += 1
+                progress.advance(cand.settings.label())
     except KeyboardInterrupt:
         stopped = "interrupted"
     finally:
         progress.finish()
-    for cand in order:
+    for cand in candidates:
         if cand.status == "pending":
-            cand.status, cand.reason = "not reached", f"search stopped ({stopped})"
+            cand.status = "not reached"
+            cand.reason = (f"search stopped ({stopped})" if cand.screen is None else
+                           f"screened only, search stopped ({stopped})")
+            cand.coarse = cand.shot = None
 
     everything = [baseline, *candidates]
     accepted = [c for c in everything if c.status == "accepted"]
@@ -468,7 +647,8 @@ def tune(
         n_slices=n_slices, cores=cores, target=target, t0=t0, t1=t1,
         cost={"seconds": seconds, "cpu_seconds": cpu, "serial_fine_estimate": serial_estimate,
               "fraction": cpu / serial_estimate, "budget": budget},
-        search={"stopped": stopped, "evaluated": done, "ordered": len(order),
+        search={"stopped": stopped, "evaluated": done, "ordered": ordered,
+                "screened": sum(c.screen is not None for c in candidates),
                 "total": len(everything), "reference_amplification": search.reference_gain,
                 "notes": notes},
         full_points=len(system.positions(system.initial_state())),

@@ -160,8 +160,9 @@ class Space:
     the config's optional ``[tune]`` table set them).
 
     - ``schemes``: schemes of the auxiliary solvers;
-    - ``parameters``: the parameters that may be extrapolated (subsets are nested prefixes of this
-      order, e.g. (ε), (ε, a), (ε, a, μ)); empty: no Lagrange extrapolation;
+    - ``parameters``: the parameters that may be extrapolated, first the one every extrapolated
+      candidate uses (default ε): the subsets are that one with any of the others, e.g. (ε),
+      (ε, μ), (ε, a), (ε, μ, a); empty: no Lagrange extrapolation;
     - ``reach``: node distance levels (:data:`REACH`); ``nodes``: node counts of the first
       parameter (the others use at most 3);
     - ``richardson``: depths m to try, with ratio ``r``; ``grid_factors``: coarse grids (rods);
@@ -174,7 +175,7 @@ class Space:
     schemes: tuple[str, ...] = ("euler", "rk2")
     parameters: tuple[str, ...] | None = None
     reach: tuple[int, ...] = (0, 1, 2)
-    nodes: tuple[int, ...] = (2, 3, 4)
+    nodes: tuple[int, ...] = (2, 3, 4, 5)
     richardson: tuple[int, ...] = (0, 1)
     r: float = 0.83
     grid_factors: tuple[int, ...] = (1,)
@@ -208,11 +209,17 @@ class Space:
                 )
 
     def subsets(self, params: Mapping[str, float]) -> list[tuple[str, ...]]:
+        """None, then the first parameter with every combination of the others (Table 5 G³
+        extrapolates in (ε, a) without μ, G¹ in all three)."""
         order = self.parameters
         if order is None:
             order = tuple(name for name in params if name in DIRECTION)
             order = tuple(sorted(order, key=lambda n: n != "epsilon"))
-        return [tuple(order[:k]) for k in range(len(order) + 1)]
+        if not order:
+            return [()]
+        rest = order[1:]
+        return [()] + [(order[0], *combo) for k in range(len(rest) + 1)
+                       for combo in itertools.combinations(rest, k)]
 
     def candidates(self, params: Mapping[str, float]) -> Iterator[Settings]:
         """Every structure of the space (without step), plain solvers first."""
