@@ -571,19 +571,19 @@ def measure_costs(
     for name in names:
         cfg, resolved = config.load(ROOT / "experiments" / f"{name}.toml", list(OVERRIDES))
         start = time.perf_counter()
-        with build(cfg, resolved, executor=False) as setup:
-            times = parareal.time_points(cfg.time.t0, cfg.time.t1, cfg.parareal.n_slices)
-            costs = parareal.measure_slice_costs(
-                setup.fine,
-                setup.coarse,
-                float(times[0]),
-                float(times[1]),
-                setup.system.initial_state(),
-                repeats=repeats,
-                fine_steps=fine_steps,
-                coarse_steps=coarse_steps,
-                clock=time.process_time,
-            )
+        setup = build(cfg, resolved)
+        times = parareal.time_points(cfg.time.t0, cfg.time.t1, cfg.parareal.n_slices)
+        costs = parareal.measure_slice_costs(
+            setup.fine,
+            setup.coarse,
+            float(times[0]),
+            float(times[1]),
+            setup.system.initial_state(),
+            repeats=repeats,
+            fine_steps=fine_steps,
+            coarse_steps=coarse_steps,
+            clock=time.process_time,
+        )
         row = costs.as_dict()
         row["gamma_ratio_standard"] = costs.gamma_ratio(CORES)
         row["estimated_ratio"] = cli.estimated_gamma_ratio(cfg, resolved, CORES)
