@@ -60,7 +60,7 @@ def gather(jobs: Sequence[reproduce.Job], layout: reproduce.Layout, folder: Path
             continue
         directory = layout.directory(job)
         summary = json.loads((directory / "summary.json").read_text(encoding="utf-8"))
-        found = json.loads((directory / "probe.json").read_text(encoding="utf-8"))
+        found = reproduce.current_probe(job, layout)
         record = reproduce.result_summary(job, layout, summary, found)
         record["finished"] = json.loads(layout.done(job).read_text(encoding="utf-8"))["finished"]
         text = json.dumps(record, indent=1, allow_nan=False) + "\n"
