@@ -42,7 +42,7 @@ THREADS = (1, 2)
 #: wall kernel (free u, w from f, n plus the four image parts). docs/benchmarks.md details
 #: the operation counts of the compiled code.
 FLOPS_PER_PAIR = {"free": 20, "wall": 200}
-#: Issue 2 targets: G pairs/s per core on 1 thread, on 2 threads (total), and the speed-up over
+#: Targets: G pairs/s per core on 1 thread, on 2 threads (total), and the speed-up over
 #: the oracle.
 TARGETS = {"free": (0.9, None, 25.0), "wall": (0.2, 0.4, 25.0)}
 EPSILON, MU = 0.05, 1.0
