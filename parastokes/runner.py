@@ -167,7 +167,8 @@ def _fix(cfg: Config, label: str) -> str:
         return f"reduce fine.dt (now {cfg.fine.dt:g}) or use a more stable fine.scheme"
     return (
         "reduce the coarse step (coarse.dt_ratio or coarse.dt), or choose Lagrange nodes at which "
-        f"the coarse scheme ({cfg.coarse.scheme}) is stable at that step"
+        f"the coarse scheme ({getattr(cfg.coarse, 'scheme', cfg.coarse.kind)}) is stable at that "
+        "step"
     )
 
 
