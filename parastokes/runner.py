@@ -105,7 +105,7 @@ def identity(cfg: Config) -> dict[str, Any]:
     sections = {key: dumped[key] for key in ("model", "time", "fine", "coarse")}
     sections["parareal"] = {"n_slices": cfg.parareal.n_slices}
     sections["run"] = {"mode": cfg.run.mode}
-    del sections["coarse"]["max_weight_sum"]  # a safety bound, not a setting of the solver
+    sections["coarse"].pop("max_weight_sum", None)  # a safety bound, not a setting of the solver
     flat: dict[str, Any] = {}
     _flatten("", sections, flat)
     return {**flat, "version": __version__}
