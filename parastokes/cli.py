@@ -360,7 +360,7 @@ def cmd_predict(args: argparse.Namespace, console: Console) -> ExitCode:
     elif measured is not None:
         source, auxiliary = f"measured in {args.measured}", measured["speedup"]["gamma_ratio"]
     else:
-        source = "estimated from step counts and (points)²"
+        source = f"estimated by the coarse-solver family ({cfg.coarse.kind!r})"
         auxiliary = estimated_gamma_ratio(cfg, resolved, n_aux)  # one auxiliary solve
     workers = "W = N_c" if args.workers is None else f"W = {args.workers}"
     print(

@@ -89,3 +89,26 @@ def test_the_pages_body_kind_is_found_by_its_name(walk):
     (folder / "typo.toml").write_text(text)  # weight is not a key of CloudSection
     done = _python(["-m", "parastokes", "check", "typo.toml"], folder)
     assert done.returncode != 0 and "model.weight: unknown key" in done.stderr + done.stdout
+
+
+def test_the_pages_coarse_family_checks_predicts_and_runs(walk):
+    """Section 9: the user's plain G, found by ``[coarse] kind``; Parareal is exact after N_c = 2
+    iterations whatever G is, and predict uses the family's own γ_G/γ_F (1 Euler step of 10 τ_f
+    against 1 RK2 step of τ_f: 1 x 5 / (2 x 50) = 0.05)."""
+    folder, _ = walk
+    done = _python(["-m", "parastokes", "check", "cloud_plain.toml"], folder)
+    assert done.returncode == 0, done.stderr
+    assert "N_G = 1" in done.stdout
+    done = _python(["-m", "parastokes", "predict", "cloud_plain.toml", "--cores", "2"], folder)
+    assert done.returncode == 0, done.stderr
+    assert "coarse-solver family ('mycoarse:Plain') (one auxiliary solve: 0.05;" in done.stdout
+    done = _python(["-m", "parastokes", "run", "cloud_plain.toml", "--out", "plain_run"], folder)
+    assert done.returncode == 0, done.stderr
+    summary = json.loads((folder / "plain_run" / "summary.json").read_text())
+    assert summary["config"]["coarse"]["kind"] == "mycoarse:Plain"
+    assert summary["errors"][0] > 1e-6 > 1e-13 > summary["errors"][-1]
+    (folder / "typo_plain.toml").write_text(
+        (folder / "cloud_plain.toml").read_text().replace("dt_ratio", "dt_ratoi"))
+    done = _python(["-m", "parastokes", "check", "typo_plain.toml"], folder)
+    assert done.returncode != 0 and "coarse.dt_ratoi: unknown key" in done.stderr + done.stdout
+
