@@ -7,25 +7,21 @@ format), builds the propagator G (:meth:`CoarseSection.build`) and estimates γ_
 ``parastokes predict`` (:meth:`CoarseSection.gamma_ratio`). Config, checks and CLI ask the
 registry and never name a family.
 
-A family is found by its ``kind`` string:
-
-- a built-in name (:data:`BUILTIN`: ``"extrapolated"``, the default), one line each;
-- ``"package.module:Name"``: the section class ``Name`` in an importable module;
-- an entry point name of the group ``parastokes.coarse`` (installed packages), whose value is a
-  ``"package.module:Name"`` as above.
-
-Modules are imported only when a family is asked for, so this module imports no family.
+A family is found by its ``kind`` string as a body is (:mod:`parastokes.plugins`): a built-in
+name (:data:`BUILTIN`: ``"extrapolated"``, the default), ``"package.module:Name"`` (the section
+class) or an entry point of the group ``parastokes.coarse``; none is imported before it is asked
+for.
 """
 
 from __future__ import annotations
 
-import importlib
 from dataclasses import dataclass, field
 from functools import cache
-from importlib import metadata
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
+
+from .. import plugins
 
 __all__ = [
     "BUILTIN",
@@ -105,26 +101,9 @@ class CoarseSection(BaseModel):
         )
 
 
-def _entry_points() -> dict[str, str]:
-    return {ep.name: ep.value for ep in metadata.entry_points(group=ENTRY_POINT_GROUP)}
-
-
 def families() -> list[str]:
     """The names of the built-in and installed families (``"module:Name"`` ones are not listed)."""
-    return sorted(set(BUILTIN) | set(_entry_points()))
-
-
-def _load(target: str, name: str) -> type[CoarseSection]:
-    module_name, _, attribute = target.partition(":")
-    try:
-        obj: Any = importlib.import_module(module_name)
-        for part in attribute.split("."):
-            obj = getattr(obj, part)
-    except (ImportError, AttributeError) as error:
-        raise UnknownFamilyError(f"{name!r}: cannot load {target} ({error})") from None
-    if not (isinstance(obj, type) and issubclass(obj, CoarseSection)):
-        raise UnknownFamilyError(f"{name!r}: {target} is not a CoarseSection subclass")
-    return obj
+    return sorted(set(BUILTIN) | set(plugins.entry_points(ENTRY_POINT_GROUP)))
 
 
 @cache
@@ -132,14 +111,15 @@ def get(kind: str) -> type[CoarseSection]:
     """The section class of family ``kind``; :class:`UnknownFamilyError` naming the known ones."""
     if not isinstance(kind, str) or not kind:
         raise UnknownFamilyError(f"kind must be a non-empty string, got {kind!r}")
-    if kind in BUILTIN:
-        return _load(BUILTIN[kind], kind)
-    if ":" in kind:
-        return _load(kind, kind)
-    installed = _entry_points()
-    if kind in installed:
-        return _load(installed[kind], kind)
-    raise UnknownFamilyError(
-        f"unknown coarse-solver family {kind!r}; registered families: {', '.join(families())}, "
-        'or give a section class as "package.module:ClassName" (docs/extending.md)'
-    )
+
+    def unknown(known: list[str]) -> UnknownFamilyError:
+        return UnknownFamilyError(
+            f"unknown coarse-solver family {kind!r}; registered families: {', '.join(known)}, "
+            'or give a section class as "package.module:ClassName" (docs/extending.md)'
+        )
+
+    target = plugins.target(kind, BUILTIN, ENTRY_POINT_GROUP, unknown)
+    section = plugins.import_target(target, kind, UnknownFamilyError)
+    if not (isinstance(section, type) and issubclass(section, CoarseSection)):
+        raise UnknownFamilyError(f"{kind!r}: {target} is not a CoarseSection subclass")
+    return section
