@@ -49,7 +49,8 @@ class Resolved:
     ``coarse_base_dt`` the τ of eq. 26; ``coarse_steps[q]`` is the number of steps of
     G_{Θ, r^q τ} on one slice; ``grid_spacing`` is the length ε may be given in units of (σ_f for
     rods, l_max for vesicles; NaN for kinds without one); ``epsilon`` is ε⁰ (NaN for kinds without
-    an ε in Θ).
+    an ε in Θ). The coarse fields (``coarse_*``, ``lagrange``, ``n_auxiliary``, ``weight_sum``)
+    are the :class:`~parastokes.coarse.registry.CoarseResolution` of the ``[coarse]`` family.
     """
 
     epsilon: float
