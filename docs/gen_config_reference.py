@@ -19,6 +19,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from parastokes.bodies import registry  # noqa: E402
+from parastokes.coarse import registry as coarse_registry  # noqa: E402
 from parastokes.config import schema  # noqa: E402
 from parastokes.config.scene import SceneSettings  # noqa: E402
 
@@ -53,6 +54,9 @@ plus an optional `name` (default: its kind, numbered when it repeats: `rod0`, `r
 Lagrange nodes then name `"body.parameter"` (`coarse.lagrange."rod.epsilon"`, in that body's
 units) or `viscosity` (the one fluid's). Giving both `[model]` and `[[bodies]]` is an error.
 See docs/tutorial.md, "Several bodies in one flow".
+
+The `[coarse]` section is the section of its coarse-solver family (`kind`, default
+`"extrapolated"`; a family of your own is `kind = "package.module:ClassName"`, docs/extending.md).
 
 Units: μm, s, g. The coarse step τ_c is the smallest auxiliary step r^m τ, as in the paper
 (section 5.1); the base step of eq. 26 is τ = τ_c / r^m.
@@ -125,7 +129,8 @@ def render() -> str:
         ("scene", SceneSettings),
         ("time", schema.Time),
         ("fine", schema.Fine),
-        ("coarse", schema.Coarse),
+        *((f'coarse (kind = "{name}")', coarse_registry.get(name))
+          for name in coarse_registry.BUILTIN),
         ("coarse.lagrange.<parameter>", schema.LagrangeNodes),
         ("coarse.richardson", schema.Richardson),
         ("parareal", schema.Parareal),

@@ -331,14 +331,10 @@ def cmd_check(args: argparse.Namespace, console: Console) -> ExitCode:
 
 
 def estimated_gamma_ratio(cfg, resolved, cores: int) -> float:
-    """γ_G/γ_F from operation counts: rate evaluations per slice times (points)² (the O(N²)
-    Stokeslet sums dominate), with the N_G auxiliary solvers in ceil(N_G / cores) waves."""
-    from .integrate import SCHEMES
-
-    fine = resolved.fine_steps * SCHEMES[cfg.fine.scheme].stages * resolved.n_points**2
-    slowest = max(resolved.coarse_steps) * SCHEMES[cfg.coarse.scheme].stages
-    waves = math.ceil(resolved.n_auxiliary / cores)
-    return waves * slowest * resolved.coarse_points**2 / fine
+    """γ_G/γ_F of one coarse solve with ``cores`` cores, estimated by the coarse-solver family
+    (:meth:`parastokes.coarse.registry.CoarseSection.gamma_ratio`; the extrapolated G counts
+    rate evaluations times (points)²)."""
+    return cfg.coarse.gamma_ratio(cfg, resolved, cores)
 
 
 def cmd_predict(args: argparse.Namespace, console: Console) -> ExitCode:
@@ -364,7 +360,7 @@ def cmd_predict(args: argparse.Namespace, console: Console) -> ExitCode:
     elif measured is not None:
         source, auxiliary = f"measured in {args.measured}", measured["speedup"]["gamma_ratio"]
     else:
-        source = "estimated from step counts and (points)²"
+        source = f"estimated by the coarse-solver family ({cfg.coarse.kind!r})"
         auxiliary = estimated_gamma_ratio(cfg, resolved, n_aux)  # one auxiliary solve
     workers = "W = N_c" if args.workers is None else f"W = {args.workers}"
     print(

@@ -105,7 +105,7 @@ def identity(cfg: Config) -> dict[str, Any]:
     sections = {key: dumped[key] for key in ("model", "time", "fine", "coarse")}
     sections["parareal"] = {"n_slices": cfg.parareal.n_slices}
     sections["run"] = {"mode": cfg.run.mode}
-    del sections["coarse"]["max_weight_sum"]  # a safety bound, not a setting of the solver
+    sections["coarse"].pop("max_weight_sum", None)  # a safety bound, not a setting of the solver
     flat: dict[str, Any] = {}
     _flatten("", sections, flat)
     return {**flat, "version": __version__}
@@ -167,7 +167,8 @@ def _fix(cfg: Config, label: str) -> str:
         return f"reduce fine.dt (now {cfg.fine.dt:g}) or use a more stable fine.scheme"
     return (
         "reduce the coarse step (coarse.dt_ratio or coarse.dt), or choose Lagrange nodes at which "
-        f"the coarse scheme ({cfg.coarse.scheme}) is stable at that step"
+        f"the coarse scheme ({getattr(cfg.coarse, 'scheme', cfg.coarse.kind)}) is stable at that "
+        "step"
     )
 
 

@@ -40,6 +40,16 @@ def walk(tmp_path_factory):
     return folder, outputs
 
 
+def _check_and_run(folder: Path, name: str, out: str) -> tuple[str, dict]:
+    """``parastokes check`` and ``run`` of the page's config ``name``: check's output, the
+    run's summary."""
+    checked = _python(["-m", "parastokes", "check", name], folder)
+    assert checked.returncode == 0, checked.stderr
+    done = _python(["-m", "parastokes", "run", name, "--out", out], folder)
+    assert done.returncode == 0, done.stderr
+    return checked.stdout, json.loads((folder / out / "summary.json").read_text())
+
+
 def test_the_pages_python_steps_run(walk):
     _, outputs = walk
     assert outputs["check.py"].strip() == "contract ok"
@@ -65,13 +75,9 @@ def test_a_users_compiled_loop_leaves_the_packages_loops_loadable(walk):
 
 def test_the_pages_config_checks_and_runs_from_the_command_line(walk):
     folder, _ = walk
-    done = _python(["-m", "parastokes", "check", "cloud.toml"], folder)
-    assert done.returncode == 0, done.stderr
-    assert "mybodies:SedimentingCloud" in done.stdout
-    done = _python(["-m", "parastokes", "run", "cloud.toml", "--out", "cloud_run"], folder)
-    assert done.returncode == 0, done.stderr
+    checked, summary = _check_and_run(folder, "cloud.toml", "cloud_run")
+    assert "mybodies:SedimentingCloud" in checked
     out = folder / "cloud_run"
-    summary = json.loads((out / "summary.json").read_text())
     assert summary["config"]["model"]["weight"] == 2.0
     assert summary["errors"][-1] < 1e-8
     assert len(summary["final_positions"]) == 20
@@ -89,3 +95,22 @@ def test_the_pages_body_kind_is_found_by_its_name(walk):
     (folder / "typo.toml").write_text(text)  # weight is not a key of CloudSection
     done = _python(["-m", "parastokes", "check", "typo.toml"], folder)
     assert done.returncode != 0 and "model.weight: unknown key" in done.stderr + done.stdout
+
+
+def test_the_pages_coarse_family_checks_predicts_and_runs(walk):
+    """Section 9: the user's plain G, found by ``[coarse] kind``; Parareal is exact after N_c = 2
+    iterations whatever G is, and predict uses the family's own γ_G/γ_F (1 Euler step of 10 τ_f
+    against 1 RK2 step of τ_f: 1 x 5 / (2 x 50) = 0.05)."""
+    folder, _ = walk
+    checked, summary = _check_and_run(folder, "cloud_plain.toml", "plain_run")
+    assert "N_G = 1" in checked
+    done = _python(["-m", "parastokes", "predict", "cloud_plain.toml", "--cores", "2"], folder)
+    assert done.returncode == 0, done.stderr
+    assert "coarse-solver family ('mycoarse:Plain') (one auxiliary solve: 0.05;" in done.stdout
+    assert summary["config"]["coarse"]["kind"] == "mycoarse:Plain"
+    assert summary["errors"][0] > 1e-6 > 1e-13 > summary["errors"][-1]
+    (folder / "typo_plain.toml").write_text(
+        (folder / "cloud_plain.toml").read_text().replace("dt_ratio", "dt_ratoi"))
+    done = _python(["-m", "parastokes", "check", "typo_plain.toml"], folder)
+    assert done.returncode != 0 and "coarse.dt_ratoi: unknown key" in done.stderr + done.stdout
+

@@ -5,30 +5,26 @@ resolves its own units and defaults and builds the system), the parameter names 
 extrapolation may vary, the output :class:`BodyLayout` of its state (fields, topology) and its
 drawing. Config, runner, io and plots ask the registry and never name a kind.
 
-A kind is found by its ``kind`` string:
-
-- a built-in name (:data:`BUILTIN`: ``"rod"``, ``"vesicle"``, ``"chain"``), one line each;
-- ``"package.module:Name"``: ``Name`` in an importable module, either a :class:`BodyKind` or a
-  system class (a frozen dataclass; :func:`derived_kind` makes its kind from its fields);
-- an entry point name of the group ``parastokes.bodies`` (installed packages), whose value is a
-  ``"package.module:Name"`` as above.
-
+A kind is found by its ``kind`` string (:mod:`parastokes.plugins`): a built-in name
+(:data:`BUILTIN`: ``"rod"``, ``"vesicle"``, ``"chain"``, one line each), ``"package.module:Name"``
+(``Name`` a :class:`BodyKind` or a system class, a frozen dataclass whose kind
+:func:`derived_kind` makes from its fields) or an entry point of the group ``parastokes.bodies``.
 Modules are imported only when a kind is asked for, so this module imports no body.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import importlib
 import typing
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cache
-from importlib import metadata
 from typing import Annotated, Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, create_model
+
+from .. import plugins
 
 __all__ = [
     "BUILTIN",
@@ -294,30 +290,13 @@ def derived_kind(cls: type, name: str) -> BodyKind:
 
 
 # ---- lookup ---------------------------------------------------------------------------------
-def _entry_points() -> dict[str, str]:
-    return {ep.name: ep.value for ep in metadata.entry_points(group=ENTRY_POINT_GROUP)}
-
-
 def kinds() -> list[str]:
     """The names of the built-in and installed kinds (``"module:Name"`` kinds are not listed)."""
-    return sorted(set(BUILTIN) | set(_entry_points()))
+    return sorted(set(BUILTIN) | set(plugins.entry_points(ENTRY_POINT_GROUP)))
 
 
 def _load(target: str, name: str) -> BodyKind:
-    module_name, _, attribute = target.partition(":")
-    try:
-        obj: Any = importlib.import_module(module_name)
-    except ImportError as error:
-        raise UnknownKindError(
-            f"{name!r}: cannot import module {module_name!r} ({error})"
-        ) from None
-    for part in attribute.split("."):
-        try:
-            obj = getattr(obj, part)
-        except AttributeError:
-            raise UnknownKindError(
-                f"{name!r}: module {module_name!r} has no attribute {attribute!r}"
-            ) from None
+    obj = plugins.import_target(target, name, UnknownKindError)
     if isinstance(obj, BodyKind):
         return obj
     if isinstance(getattr(obj, "body_kind", None), BodyKind):
@@ -327,19 +306,16 @@ def _load(target: str, name: str) -> BodyKind:
     raise UnknownKindError(f"{name!r}: {target} is not a BodyKind or a system class")
 
 
+def _unknown(kind: str) -> Callable[[list[str]], UnknownKindError]:
+    return lambda known: UnknownKindError(
+        f"unknown body kind {kind!r}; registered kinds: {', '.join(known)}, or give a class "
+        'as "package.module:ClassName" (docs/extending.md)'
+    )
+
+
 @cache
 def get(kind: str) -> BodyKind:
     """The :class:`BodyKind` of ``kind``; :class:`UnknownKindError` naming the known kinds."""
     if not isinstance(kind, str) or not kind:
         raise UnknownKindError(f"kind must be a non-empty string, got {kind!r}")
-    if kind in BUILTIN:
-        return _load(BUILTIN[kind], kind)
-    if ":" in kind:
-        return _load(kind, kind)
-    installed = _entry_points()
-    if kind in installed:
-        return _load(installed[kind], kind)
-    raise UnknownKindError(
-        f"unknown body kind {kind!r}; registered kinds: {', '.join(kinds())}, or give a class "
-        'as "package.module:ClassName" (docs/extending.md)'
-    )
+    return _load(plugins.target(kind, BUILTIN, ENTRY_POINT_GROUP, _unknown(kind)), kind)

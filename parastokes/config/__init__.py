@@ -23,6 +23,7 @@ from typing import Any
 from pydantic import ValidationError
 
 from ..bodies import registry
+from ..coarse import registry as coarse_registry
 from .build import Setup, build, build_system
 from .checks import Resolved, resolve, resolved_dict
 from .errors import ConfigError, from_validation_error
@@ -144,19 +145,26 @@ def _read(path: Path, chain: tuple[Path, ...] = ()) -> dict[str, Any]:
 
 def _model_section(data: dict[str, Any], issues: list[tuple[str, str]], source: str) -> Any:
     """The ``[model]`` table validated by its kind's section (None, with issues, if it is not)."""
-    model = data["model"]
-    if "kind" not in model:
+    if "kind" not in data["model"]:
         issues.append(("model.kind", "required key is missing"))
         return None
+    return _section_of_kind(data, "model", lambda kind: registry.get(kind).section, issues, source)
+
+
+def _section_of_kind(data: dict[str, Any], key: str, section_of: Any,
+                     issues: list[tuple[str, str]], source: str) -> Any:
+    """The ``data[key]`` table validated by ``section_of(its kind)`` (None, with issues, if it is
+    not); a ``[coarse]`` table without ``kind`` is of the default family."""
+    table = data[key]
     try:
-        kind = registry.get(model["kind"])
-    except registry.UnknownKindError as error:
-        issues.append(("model.kind", str(error)))
+        section = section_of(table.get("kind", coarse_registry.DEFAULT))
+    except (registry.UnknownKindError, coarse_registry.UnknownFamilyError) as error:
+        issues.append((f"{key}.kind", str(error)))
         return None
     try:
-        return kind.section.model_validate(model)
+        return section.model_validate(table)
     except ValidationError as error:
-        issues += from_validation_error(error, data, source, ("model",)).issues
+        issues += from_validation_error(error, data, source, (key,)).issues
         return None
 
 
@@ -183,6 +191,7 @@ def parse(data: dict[str, Any], source: str = "") -> Config:
 
     The ``[model]`` table is validated by the section of its kind
     (:mod:`parastokes.bodies.registry`; an unknown kind is an error listing the registered ones),
+    the ``[coarse]`` table by the section of its family (:mod:`parastokes.coarse.registry`),
     ``[[bodies]]`` tables and ``[scene]`` make one scene section (:mod:`.scene`), the rest is
     validated by :class:`Config`, and the issues of all are reported together.
     """
@@ -192,11 +201,15 @@ def parse(data: dict[str, Any], source: str = "") -> Config:
     elif isinstance(data, dict) and isinstance(data.get("model"), dict):
         section = _model_section(data, issues, source)
         data = {**data, "model": section} if section is not None else data
+    if isinstance(data, dict) and isinstance(data.get("coarse"), dict):
+        section = _section_of_kind(data, "coarse", coarse_registry.get, issues, source)
+        data = {**data, "coarse": section} if section is not None else data
     try:
         cfg = Config.model_validate(data)
     except ValidationError as error:
         found = from_validation_error(error, data, source).issues
-        issues += [(path, text) for path, text in found if not (issues and path == "model")]
+        issues += [(path, text) for path, text in found  # each once, not again as a section's
+                   if (path, text) not in issues and not (issues and path in ("model", "coarse"))]
         raise ConfigError(issues, source) from None
     if issues:
         raise ConfigError(issues, source)

@@ -3,10 +3,9 @@ executor and warming up are the run layer's, :mod:`parastokes.session`)."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 
-from .. import integrate, parareal
+from .. import integrate
 from ..contracts import PropagatorLike, System
 from .checks import Resolved
 from .schema import Config
@@ -20,30 +19,9 @@ def build_system(cfg: Config, resolved: Resolved) -> System:
 
 
 def build_coarse(cfg: Config, resolved: Resolved, system: System) -> PropagatorLike:
-    """The coarse solver G of the family ``coarse.kind`` (:data:`COARSE`)."""
-    return COARSE[cfg.coarse.kind](cfg, resolved, system)
-
-
-def build_extrapolated(
-    cfg: Config, resolved: Resolved, system: System
-) -> parareal.Extrapolated | parareal.OnCoarseGrid:
-    """G of eq. 30 with the base step τ = τ_c / r^m (``resolved.coarse_base_dt``)."""
-    coarse = cfg.coarse
-    richardson = coarse.richardson
-    return parareal.extrapolated(
-        system,
-        coarse.scheme,
-        resolved.coarse_base_dt,
-        lagrange=resolved.lagrange or None,
-        richardson={"m": richardson.m, "r": richardson.r} if richardson.m else None,
-        grid=coarse.grid_factor if coarse.grid_factor > 1 else None,
-    )
-
-
-#: Coarse-solver families by ``coarse.kind``: ``build(cfg, resolved, system) -> G``.
-COARSE: dict[str, Callable[[Config, Resolved, System], PropagatorLike]] = {
-    "extrapolated": build_extrapolated,
-}
+    """The coarse solver G of ``cfg.coarse``, built by its family's section
+    (:mod:`parastokes.coarse.registry`)."""
+    return cfg.coarse.build(cfg, resolved, system)
 
 
 @dataclass(frozen=True)

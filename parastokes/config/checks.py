@@ -3,20 +3,15 @@
 Everything here is cheap (no solver is built), so ``parastokes check`` and every run catch a bad
 configuration before any expensive work. The rules are the paper's:
 
-- Lagrange nodes (section 4.1): θ^1 < θ^2 < ... (condition 1) and θ⁰ outside [θ^1, θ^N]
-  (condition 2); all parameters are positive;
-- Richardson (eq. 26): integer m >= 0, r in (0, 1), and the steps r^q τ must give different step
-  counts on a slice (otherwise the weights of eq. 27 are undefined);
-- N_G = (Π_i N_θi)(m + 1) auxiliary solvers (eq. 31) run at once only with N_G workers: more is an
-  error unless ``execution.allow_oversubscribe`` (Algorithm 1 assumes N_G <= N_c), or with
+- the ``[coarse]`` section resolves itself by the rules of its family (:mod:`parastokes.coarse`;
+  the extrapolated G's Lagrange nodes, Richardson step counts and weight sum:
+  :mod:`parastokes.coarse.extrapolated`);
+- N_G auxiliary solvers run at once only with N_G workers: more is an error unless
+  ``execution.allow_oversubscribe`` (Algorithm 1 assumes N_G <= N_c), or with
   ``parareal.schedule = "pipelined"`` (its auxiliary solves wait for workers like any task).
 
 And what cannot work or will not end in reasonable time:
 
-- the weights of eq. 30 sum, in absolute value, to Σ|w_j v_q| (Lagrange nodes close together,
-  or close to θ⁰, make it large): the coarse solver multiplies the auxiliary solvers' round-off
-  and step errors by up to that factor. Above ``coarse.max_weight_sum`` (default 10⁶; the paper's
-  configurations reach 1.7·10⁵) the configuration is refused; raise the key to force it;
 - a serial fine solution of more than 10¹² steps is refused, and one estimated (from the points
   and steps, :func:`estimated_fine_seconds`) to take more than a day on one core gets a note;
 - more workers x threads than the cores of this machine gets a note naming what to pass instead.
@@ -31,11 +26,10 @@ from typing import Any
 from .. import integrate
 from ..contracts import oversubscription
 from ..parallel import available_cores
-from ..parareal import weights
 from .errors import ConfigError
 from .schema import Config
 
-__all__ = ["Resolved", "estimated_fine_seconds", "resolve", "resolved_dict"]
+__all__ = ["Resolved", "estimated_fine_seconds", "resolve", "resolved_dict", "steps_on_slice"]
 
 #: Most fine steps (all slices) a configuration may ask for: beyond, the run cannot end.
 MAX_FINE_STEPS = 10**12
@@ -55,7 +49,8 @@ class Resolved:
     ``coarse_base_dt`` the τ of eq. 26; ``coarse_steps[q]`` is the number of steps of
     G_{Θ, r^q τ} on one slice; ``grid_spacing`` is the length ε may be given in units of (σ_f for
     rods, l_max for vesicles; NaN for kinds without one); ``epsilon`` is ε⁰ (NaN for kinds without
-    an ε in Θ).
+    an ε in Θ). The coarse fields (``coarse_*``, ``lagrange``, ``n_auxiliary``, ``weight_sum``)
+    are the :class:`~parastokes.coarse.registry.CoarseResolution` of the ``[coarse]`` family.
     """
 
     epsilon: float
@@ -76,42 +71,8 @@ class Resolved:
     weight_sum: float = 1.0
 
 
-def _node_values(
-    cfg: Config, name: str, theta0: float, issues: list[tuple[str, str]]
-) -> list[float]:
-    """The absolute nodes of parameter ``name``; appends issues for bad units and orderings."""
-    path = f"coarse.lagrange.{name}"
-    spec = cfg.coarse.lagrange[name]
-    model_unit, grid = cfg.model.parameter_units(name)
-    unit = spec.unit or model_unit
-    factors = {"absolute": 1.0, "relative": theta0, **grid}
-    if unit not in factors:
-        issues.append(
-            (
-                f"{path}.unit",
-                f"{unit!r} is not a unit of {name} of a {cfg.model.kind} model; use one of "
-                f"{', '.join(factors)}",
-            )
-        )
-        return []
-    factor = factors[unit]
-    values = [v * factor for v in spec.nodes]
-    if min(spec.nodes) <= 0:
-        issues.append((path, f"nodes must be positive, got {spec.nodes}"))
-    elif any(b <= a for a, b in zip(spec.nodes, spec.nodes[1:], strict=False)):
-        issues.append((path, f"nodes must be strictly increasing, got {spec.nodes}"))
-    elif values[0] <= theta0 <= values[-1]:
-        issues.append(
-            (
-                path,
-                f"θ⁰ = {theta0:.6g} must lie outside the node interval [{values[0]:.6g}, "
-                f"{values[-1]:.6g}] (section 4.1, condition 2)",
-            )
-        )
-    return values
-
-
-def _steps(slice_length: float, dt: float, path: str, what: str, warnings: list[str] | None) -> int:
+def steps_on_slice(slice_length: float, dt: float, path: str, what: str,
+                   warnings: list[str] | None) -> int:
     """Steps of size ~``dt`` on a slice; warns (unless ``warnings`` is None) when dt does not divide
     it (Richardson steps r^q τ rarely do; eq. 27's weights are computed for the steps taken)."""
     n = integrate.n_steps(0.0, slice_length, dt)
@@ -155,31 +116,6 @@ def _cores(cfg: Config, workers: int, warnings: list[str]) -> None:
         f"turns on the cores, so the run is slower and its speedup lower than on enough cores; "
         f"pass {fix} here, or run it where there are {workers * ex.threads} cores"
     )
-
-
-def _weight_sum(cfg: Config, lagrange: dict[str, list[float]], theta0: dict[str, float],
-                steps: list[int], slice_length: float, issues: list) -> float:
-    """Σ|w_j v_q| of eq. 30 (it factorizes over the parameters and the Richardson steps);
-    appends an issue above ``coarse.max_weight_sum``."""
-    total = 1.0
-    for name, values in lagrange.items():
-        if values:
-            total *= float(abs(weights.lagrange_weights(theta0[name], values)).sum())
-    if len(steps) > 1:
-        order = integrate.scheme_order(cfg.coarse.scheme)
-        total *= float(abs(weights.step_weights([slice_length / n for n in steps], order)).sum())
-    bound = cfg.coarse.max_weight_sum
-    if total > bound:
-        issues.append(
-            (
-                "coarse.lagrange",
-                f"the extrapolation weights have Σ|w_j v_q| = {total:.3g} > {bound:g}: the nodes "
-                "are so close together (or to θ⁰) that the coarse solver multiplies round-off and "
-                f"step errors by up to {total:.3g}; move the nodes apart, or raise "
-                "coarse.max_weight_sum to force it",
-            )
-        )
-    return total
 
 
 def _workers(cfg: Config, n_auxiliary: int, issues: list, warnings: list) -> int | None:
@@ -253,56 +189,9 @@ def resolve(cfg: Config, source: str = "") -> Resolved:
             f"{_duration(seconds)} on one core (a rough estimate; Parareal divides it by at most "
             "its speedup)"
         )
-    fine_steps = _steps(slice_length, cfg.fine.dt, "fine.dt", "τ_f", warnings)
+    fine_steps = steps_on_slice(slice_length, cfg.fine.dt, "fine.dt", "τ_f", warnings)
 
-    coarse = cfg.coarse
-    if (coarse.dt is None) == (coarse.dt_ratio is None):
-        issues.append(("coarse.dt", "give exactly one of coarse.dt and coarse.dt_ratio"))
-    coarse_dt = coarse.dt if coarse.dt is not None else (coarse.dt_ratio or 1.0) * cfg.fine.dt
-    m, r = coarse.richardson.m, coarse.richardson.r
-    if m >= 1 and r is None:
-        issues.append(("coarse.richardson.r", "required when m >= 1"))
-    base_dt = coarse_dt / (r or 1.0) ** m
-    coarse_steps = [
-        _steps(slice_length, base_dt * (r or 1.0) ** q, "coarse.dt", "τ_c", None if m else warnings)
-        for q in range(m + 1)
-    ]
-    try:  # the rule of eq. 27 where it lives: the weights of the steps actually taken
-        weights.step_weights([slice_length / n for n in coarse_steps], 1)
-    except ValueError:
-        issues.append(
-            (
-                "coarse.richardson.r",
-                f"the steps r^q τ give the step counts {coarse_steps} on a slice; they must all "
-                "differ (choose r farther from 1 or a smaller coarse step)",
-            )
-        )
-    if coarse_dt < cfg.fine.dt:
-        warnings.append(f"coarse.dt: τ_c = {coarse_dt:.6g} is smaller than τ_f = {cfg.fine.dt:.6g}")
-
-    lagrange = {}
-    for name in coarse.lagrange:
-        if name not in theta0:
-            issues.append(
-                (
-                    f"coarse.lagrange.{name}",
-                    f"unknown parameter; a {model.kind} model extrapolates in "
-                    f"{', '.join(theta0)}",
-                )
-            )
-            continue
-        lagrange[name] = _node_values(cfg, name, theta0[name], issues)
-    n_auxiliary = math.prod(len(spec.nodes) for spec in coarse.lagrange.values()) * (m + 1)
-    weight_sum = 1.0
-    if not issues:
-        weight_sum = _weight_sum(cfg, lagrange, theta0, coarse_steps, slice_length, issues)
-
-    coarse_points = n_points
-    if coarse.grid_factor > 1:
-        try:
-            coarse_points = model.coarse_points(coarse.grid_factor)
-        except ValueError as error:
-            issues.append(("coarse.grid_factor", str(error)))
+    coarse = cfg.coarse.resolve(cfg, body, slice_length, issues, warnings)
 
     every = cfg.output.every
     if every is not None and every % fine_steps and fine_steps % every:
@@ -322,7 +211,7 @@ def resolve(cfg: Config, source: str = "") -> Resolved:
         elif max(tracked) >= n_points:
             issues.append(("output.tracked_points", f"indices must be below {n_points}"))
 
-    workers = _workers(cfg, n_auxiliary, issues, warnings)
+    workers = _workers(cfg, coarse.n_auxiliary, issues, warnings)
     if issues:
         raise ConfigError(issues, source)
     return Resolved(
@@ -333,15 +222,9 @@ def resolve(cfg: Config, source: str = "") -> Resolved:
         slice_length=slice_length,
         fine_dt=cfg.fine.dt,
         fine_steps=fine_steps,
-        coarse_dt=coarse_dt,
-        coarse_base_dt=base_dt,
-        coarse_steps=coarse_steps,
-        coarse_points=coarse_points,
-        lagrange=lagrange,
-        n_auxiliary=n_auxiliary,
         workers=workers,
         warnings=warnings,
-        weight_sum=weight_sum,
+        **asdict(coarse),
     )
 
 

@@ -9,16 +9,17 @@ from typing import Any
 from pydantic import BaseModel, ValidationError
 
 from ..bodies import registry
+from ..coarse import registry as coarse_registry
 from . import schema
 
 __all__ = ["ConfigError", "from_validation_error", "key_path"]
 
-# The schema class of every section, by key path (the model section's is its kind's, registry).
+# The schema class of every section, by key path (the model and coarse sections' are their
+# kind's: the registries).
 _SECTIONS: dict[tuple[str, ...], type[BaseModel]] = {
     (): schema.Config,
     ("time",): schema.Time,
     ("fine",): schema.Fine,
-    ("coarse",): schema.Coarse,
     ("coarse", "richardson"): schema.Richardson,
     ("parareal",): schema.Parareal,
     ("execution",): schema.Execution,
@@ -67,6 +68,12 @@ def _section_class(loc: tuple[Any, ...], data: Any) -> type[BaseModel] | None:
         try:
             return registry.get(data["bodies"][loc[1]]["kind"]).section
         except (TypeError, KeyError, IndexError, registry.UnknownKindError):
+            return None
+    if loc == ("coarse",):  # its family's section
+        table = data.get("coarse") if isinstance(data, dict) else None
+        try:
+            return coarse_registry.get(table.get("kind", coarse_registry.DEFAULT))  # type: ignore[union-attr]
+        except (AttributeError, coarse_registry.UnknownFamilyError):
             return None
     if loc == ("scene",):
         from .scene import SceneSettings

@@ -7,7 +7,9 @@ against the slice length, auxiliary solvers against workers) live in :mod:`.chec
 
 Units follow the paper: μm, s, g. Defaults are the paper's values (Table 2 for rods, section 5.2 for
 the vesicle). The ``[model]`` section is the section of its body kind, found through
-:mod:`parastokes.bodies.registry` (the package's own live in :mod:`parastokes.kinds`).
+:mod:`parastokes.bodies.registry` (the package's own live in :mod:`parastokes.kinds`); the
+``[coarse]`` section is the section of its coarse-solver family, found through
+:mod:`parastokes.coarse.registry` (the package's own: :mod:`parastokes.coarse.extrapolated`).
 """
 
 from __future__ import annotations
@@ -18,9 +20,10 @@ from pydantic import BaseModel, ConfigDict, Field, SerializeAsAny, field_validat
 
 from ..bodies import registry
 from ..bodies.registry import BodySection, Positive
+from ..coarse import registry as coarse_registry
+from ..coarse.registry import CoarseSection
 
 __all__ = [
-    "Coarse",
     "Config",
     "Execution",
     "Fine",
@@ -75,44 +78,6 @@ class Richardson(_Section):
     r: float | None = Field(
         None, gt=0, lt=1, description="Step ratio r in (0, 1); required when m >= 1."
     )
-
-
-class Coarse(_Section):
-    """The coarse solver G of eq. 30: Σ_j w_j Σ_q v_q G_{Θ^j, r^q τ} (optionally on a coarser grid).
-
-    As in the paper (section 5.1), the coarse step τ_c is the SMALLEST step of the auxiliary
-    solvers, r^m τ; the base step of eq. 26 is τ = τ_c / r^m.
-    """
-
-    kind: Literal["extrapolated"] = Field(
-        "extrapolated", description="The coarse-solver family: the extrapolated G of eq. 30."
-    )
-    scheme: Scheme = Field("euler", description="Scheme of the auxiliary solvers (paper: euler).")
-    dt: Positive | None = Field(None, description="Coarse step τ_c = r^m τ (give dt or dt_ratio).")
-    dt_ratio: Positive | None = Field(None, description="τ_c / τ_f (the tables' τ_c = 18 τ_f: 18).")
-    lagrange: dict[str, LagrangeNodes] = Field(
-        default_factory=dict,
-        description="Parameter name -> nodes (rods: epsilon, bending, viscosity; vesicles: "
-        'epsilon, stiffness, viscosity; scenes: "body.parameter", e.g. "rod.epsilon", or '
-        "viscosity). A plain list is short for {nodes = [...]}.",
-    )
-    richardson: Richardson = Field(
-        default_factory=Richardson, description="Richardson extrapolation {m, r}."
-    )
-    grid_factor: int = Field(1, ge=1, description="σ_c / σ_f (rods only; Table 6 uses 6).")
-    max_weight_sum: Positive = Field(
-        1e6,
-        description="Refuse a coarse solver whose weights have Σ|w_j v_q| above this (nearly "
-        "coinciding nodes amplify round-off by that factor; the paper's reach 1.7e5).",
-    )
-
-    @field_validator("lagrange", mode="before")
-    @classmethod
-    def _plain_lists(cls, value: Any) -> Any:
-        """``epsilon = [5.6, 5.65]`` is short for ``epsilon = {nodes = [5.6, 5.65]}``."""
-        if isinstance(value, dict):
-            return {k: {"nodes": v} if isinstance(v, list) else v for k, v in value.items()}
-        return value
 
 
 class Parareal(_Section):
@@ -225,7 +190,11 @@ class Config(_Section):
     )
     time: Time
     fine: Fine
-    coarse: Coarse = Field(default_factory=Coarse)
+    coarse: SerializeAsAny[CoarseSection] = Field(
+        default_factory=lambda: coarse_registry.get(coarse_registry.DEFAULT)(),
+        description="The coarse solver: a section of its family (`kind` = extrapolated, the "
+        'default, or "package.module:ClassName", docs/extending.md).',
+    )
     parareal: Parareal
     execution: Execution = Field(default_factory=Execution)
     output: Output = Field(default_factory=Output)
@@ -240,10 +209,23 @@ class Config(_Section):
             return registry.get(value.get("kind", "")).section.model_validate(value)
         return value
 
+    @field_validator("coarse", mode="before")
+    @classmethod
+    def _coarse_of_kind(cls, value: Any) -> Any:
+        """A ``[coarse]`` table is validated by the section class of its family (the coarse
+        registry; ``kind`` defaults to ``"extrapolated"``)."""
+        if isinstance(value, dict):
+            kind = value.get("kind", coarse_registry.DEFAULT)
+            return coarse_registry.get(kind).model_validate(value)
+        return value
+
 
 def __getattr__(name: str) -> Any:
-    """``RodModel`` and ``VesicleModel``, the sections of the built-in kinds (loaded on use)."""
+    """``RodModel`` and ``VesicleModel``, the sections of the built-in kinds, and ``Coarse``, the
+    section of the extrapolated coarse-solver family (loaded on use)."""
     kinds = {"RodModel": "rod", "VesicleModel": "vesicle"}
     if name in kinds:
         return registry.get(kinds[name]).section
+    if name == "Coarse":
+        return coarse_registry.get("extrapolated")
     raise AttributeError(name)

@@ -272,6 +272,9 @@ def parse_space(options: Mapping[str, Any], base: Space | None = None) -> Space:
 def settings_from_config(cfg: Any, resolved: Any, name: str | None = None) -> Settings:
     """The coarse solver of a validated configuration (``config.load``), with its own step."""
     coarse = cfg.coarse
+    if coarse.kind != "extrapolated":
+        raise TuningError(f"tune compares extrapolated coarse solvers; {name or 'this'} "
+                          f"configuration's is of the family {coarse.kind!r}")
     m, r = coarse.richardson.m, coarse.richardson.r
     return Settings(
         coarse.scheme,

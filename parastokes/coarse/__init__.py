@@ -1,0 +1,4 @@
+"""Coarse-solver families: one module each, found by ``[coarse] kind`` (:mod:`.registry`).
+
+The package's own family is the extrapolated G of eq. 30 (:mod:`.extrapolated`).
+"""

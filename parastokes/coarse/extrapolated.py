@@ -1,0 +1,210 @@
+"""The extrapolated coarse solver G of eq. 30, the package's own family (``kind = "extrapolated"``).
+
+G = Σ_j w_j Σ_q v_q G_{Θ^j, r^q τ}: Lagrangian extrapolation in the parameters (eqs. 17-25) and
+Richardson extrapolation in the step (eqs. 26-28), optionally on a coarser grid (Remark 4). Its
+rules, checked before any solver is built:
+
+- Lagrange nodes (section 4.1): θ^1 < θ^2 < ... (condition 1) and θ⁰ outside [θ^1, θ^N]
+  (condition 2); all parameters are positive;
+- Richardson (eq. 26): integer m >= 0, r in (0, 1), and the steps r^q τ must give different step
+  counts on a slice (otherwise the weights of eq. 27 are undefined);
+- N_G = (Π_i N_θi)(m + 1) auxiliary solvers (eq. 31);
+- the weights sum, in absolute value, to Σ|w_j v_q| (nodes close together, or close to θ⁰, make it
+  large): above ``coarse.max_weight_sum`` (default 10⁶; the paper's configurations reach 1.7·10⁵)
+  the configuration is refused.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Literal
+
+from pydantic import Field, field_validator
+
+from .. import integrate, parareal
+from ..bodies.registry import BodyResolution, Positive
+from ..config.checks import steps_on_slice
+from ..config.schema import LagrangeNodes, Richardson, Scheme
+from ..parareal import weights
+from .registry import CoarseResolution, CoarseSection
+
+__all__ = ["Extrapolated"]
+
+
+class Extrapolated(CoarseSection):
+    """The coarse solver G of eq. 30: Σ_j w_j Σ_q v_q G_{Θ^j, r^q τ} (optionally on a coarser grid).
+
+    As in the paper (section 5.1), the coarse step τ_c is the SMALLEST step of the auxiliary
+    solvers, r^m τ; the base step of eq. 26 is τ = τ_c / r^m.
+    """
+
+    kind: Literal["extrapolated"] = Field(
+        "extrapolated",
+        description="The coarse-solver family: the extrapolated G of eq. 30, or "
+        '"package.module:ClassName" (docs/extending.md).',
+    )
+    scheme: Scheme = Field("euler", description="Scheme of the auxiliary solvers (paper: euler).")
+    dt: Positive | None = Field(None, description="Coarse step τ_c = r^m τ (give dt or dt_ratio).")
+    dt_ratio: Positive | None = Field(None, description="τ_c / τ_f (the tables' τ_c = 18 τ_f: 18).")
+    lagrange: dict[str, LagrangeNodes] = Field(
+        default_factory=dict,
+        description="Parameter name -> nodes (rods: epsilon, bending, viscosity; vesicles: "
+        'epsilon, stiffness, viscosity; scenes: "body.parameter", e.g. "rod.epsilon", or '
+        "viscosity). A plain list is short for {nodes = [...]}.",
+    )
+    richardson: Richardson = Field(
+        default_factory=Richardson, description="Richardson extrapolation {m, r}."
+    )
+    grid_factor: int = Field(1, ge=1, description="σ_c / σ_f (rods only; Table 6 uses 6).")
+    max_weight_sum: Positive = Field(
+        1e6,
+        description="Refuse a coarse solver whose weights have Σ|w_j v_q| above this (nearly "
+        "coinciding nodes amplify round-off by that factor; the paper's reach 1.7e5).",
+    )
+
+    @field_validator("lagrange", mode="before")
+    @classmethod
+    def _plain_lists(cls, value: Any) -> Any:
+        """``epsilon = [5.6, 5.65]`` is short for ``epsilon = {nodes = [5.6, 5.65]}``."""
+        if isinstance(value, dict):
+            return {k: {"nodes": v} if isinstance(v, list) else v for k, v in value.items()}
+        return value
+
+    def resolve(self, cfg: Any, body: BodyResolution, slice_length: float,
+                issues: list[tuple[str, str]], warnings: list[str]) -> CoarseResolution:
+        """τ_c, τ = τ_c / r^m, the step counts of eq. 26, the absolute nodes, N_G, Σ|w_j v_q| and
+        the coarse grid's points; issues for every rule of the module docstring."""
+        model, theta0 = cfg.model, body.theta0
+        if (self.dt is None) == (self.dt_ratio is None):
+            issues.append(("coarse.dt", "give exactly one of coarse.dt and coarse.dt_ratio"))
+        coarse_dt = self.dt if self.dt is not None else (self.dt_ratio or 1.0) * cfg.fine.dt
+        m, r = self.richardson.m, self.richardson.r
+        if m >= 1 and r is None:
+            issues.append(("coarse.richardson.r", "required when m >= 1"))
+        base_dt = coarse_dt / (r or 1.0) ** m
+        coarse_steps = [
+            steps_on_slice(slice_length, base_dt * (r or 1.0) ** q, "coarse.dt", "τ_c",
+                           None if m else warnings)
+            for q in range(m + 1)
+        ]
+        try:  # the rule of eq. 27 where it lives: the weights of the steps actually taken
+            weights.step_weights([slice_length / n for n in coarse_steps], 1)
+        except ValueError:
+            issues.append(
+                (
+                    "coarse.richardson.r",
+                    f"the steps r^q τ give the step counts {coarse_steps} on a slice; they must "
+                    "all differ (choose r farther from 1 or a smaller coarse step)",
+                )
+            )
+        if coarse_dt < cfg.fine.dt:
+            warnings.append(
+                f"coarse.dt: τ_c = {coarse_dt:.6g} is smaller than τ_f = {cfg.fine.dt:.6g}"
+            )
+
+        lagrange = {}
+        for name in self.lagrange:
+            if name not in theta0:
+                issues.append(
+                    (
+                        f"coarse.lagrange.{name}",
+                        f"unknown parameter; a {model.kind} model extrapolates in "
+                        f"{', '.join(theta0)}",
+                    )
+                )
+                continue
+            lagrange[name] = self._node_values(model, name, theta0[name], issues)
+        n_auxiliary = math.prod(len(spec.nodes) for spec in self.lagrange.values()) * (m + 1)
+        weight_sum = 1.0
+        if not issues:
+            weight_sum = self._weight_sum(lagrange, theta0, coarse_steps, slice_length, issues)
+
+        coarse_points = body.n_points
+        if self.grid_factor > 1:
+            try:
+                coarse_points = model.coarse_points(self.grid_factor)
+            except ValueError as error:
+                issues.append(("coarse.grid_factor", str(error)))
+        return CoarseResolution(coarse_dt, base_dt, coarse_steps, coarse_points, lagrange,
+                                n_auxiliary, weight_sum)
+
+    def _node_values(self, model: Any, name: str, theta0: float,
+                     issues: list[tuple[str, str]]) -> list[float]:
+        """The absolute nodes of parameter ``name``; appends issues for bad units and orderings."""
+        path = f"coarse.lagrange.{name}"
+        spec = self.lagrange[name]
+        model_unit, grid = model.parameter_units(name)
+        unit = spec.unit or model_unit
+        factors = {"absolute": 1.0, "relative": theta0, **grid}
+        if unit not in factors:
+            issues.append(
+                (
+                    f"{path}.unit",
+                    f"{unit!r} is not a unit of {name} of a {model.kind} model; use one of "
+                    f"{', '.join(factors)}",
+                )
+            )
+            return []
+        factor = factors[unit]
+        values = [v * factor for v in spec.nodes]
+        if min(spec.nodes) <= 0:
+            issues.append((path, f"nodes must be positive, got {spec.nodes}"))
+        elif any(b <= a for a, b in zip(spec.nodes, spec.nodes[1:], strict=False)):
+            issues.append((path, f"nodes must be strictly increasing, got {spec.nodes}"))
+        elif values[0] <= theta0 <= values[-1]:
+            issues.append(
+                (
+                    path,
+                    f"θ⁰ = {theta0:.6g} must lie outside the node interval [{values[0]:.6g}, "
+                    f"{values[-1]:.6g}] (section 4.1, condition 2)",
+                )
+            )
+        return values
+
+    def _weight_sum(self, lagrange: dict[str, list[float]], theta0: dict[str, float],
+                    steps: list[int], slice_length: float, issues: list) -> float:
+        """Σ|w_j v_q| of eq. 30 (it factorizes over the parameters and the Richardson steps);
+        appends an issue above ``coarse.max_weight_sum``."""
+        total = 1.0
+        for name, values in lagrange.items():
+            if values:
+                total *= float(abs(weights.lagrange_weights(theta0[name], values)).sum())
+        if len(steps) > 1:
+            order = integrate.scheme_order(self.scheme)
+            total *= float(
+                abs(weights.step_weights([slice_length / n for n in steps], order)).sum()
+            )
+        bound = self.max_weight_sum
+        if total > bound:
+            issues.append(
+                (
+                    "coarse.lagrange",
+                    f"the extrapolation weights have Σ|w_j v_q| = {total:.3g} > {bound:g}: the "
+                    "nodes are so close together (or to θ⁰) that the coarse solver multiplies "
+                    f"round-off and step errors by up to {total:.3g}; move the nodes apart, or "
+                    "raise coarse.max_weight_sum to force it",
+                )
+            )
+        return total
+
+    def build(self, cfg: Any, resolved: Any, system: Any
+              ) -> parareal.Extrapolated | parareal.OnCoarseGrid:
+        """G of eq. 30 with the base step τ = τ_c / r^m (``resolved.coarse_base_dt``)."""
+        richardson = self.richardson
+        return parareal.extrapolated(
+            system,
+            self.scheme,
+            resolved.coarse_base_dt,
+            lagrange=resolved.lagrange or None,
+            richardson={"m": richardson.m, "r": richardson.r} if richardson.m else None,
+            grid=self.grid_factor if self.grid_factor > 1 else None,
+        )
+
+    def gamma_ratio(self, cfg: Any, resolved: Any, cores: int) -> float:
+        """γ_G/γ_F from operation counts: rate evaluations per slice times (points)² (the O(N²)
+        Stokeslet sums dominate), with the N_G auxiliary solvers in ceil(N_G / cores) waves."""
+        stages = integrate.SCHEMES
+        fine = resolved.fine_steps * stages[cfg.fine.scheme].stages * resolved.n_points**2
+        slowest = max(resolved.coarse_steps) * stages[self.scheme].stages
+        waves = math.ceil(resolved.n_auxiliary / cores)
+        return waves * slowest * resolved.coarse_points**2 / fine
