@@ -10,6 +10,7 @@ tests, which makes them about 4x faster.
 
 import os
 import sys
+import threading
 from collections.abc import Iterator
 
 import numba
@@ -26,6 +27,44 @@ if not cuda.is_available():
     pytest.skip("no CUDA GPU and the simulator was not chosen in time", allow_module_level=True)
 
 gpu = pytest.importorskip("parastokes.gpu")
+
+
+def _serialize_simulator_shared_arrays() -> None:
+    """Make the simulator's ``cuda.shared.array`` atomic across the threads of a block.
+
+    numba-cuda's simulator (``FakeCUDAShared.array``) finds a block's shared array by the calling
+    line, allocating it on first use with an unlocked look-up-then-store. When Python switches
+    threads between the two, two threads of one block get different arrays and a reduction reads
+    the wrong partial sums: with the short switch interval of :func:`fast_simulator` this failed
+    about 1 run in 20 (tests/test_gpu_kernels.py, tests/test_gpu_stepping.py). The replacement
+    below does the same look-up under a lock; the device, where the tests can also run, is not
+    concerned.
+    """
+    import numpy as np
+    from numba.core import types
+    from numba.cuda.simulator import kernelapi
+    from numba.np import numpy_support
+
+    unlocked = kernelapi.FakeCUDAShared.array
+    lock = threading.Lock()
+
+    def array(self, shape, dtype, alignment=None):
+        if shape == 0 or alignment is not None:  # dynamic shared memory; the error for alignment
+            return unlocked(self, shape, dtype, alignment)
+        if isinstance(dtype, types.Type):
+            dtype = numpy_support.as_dtype(dtype)
+        caller = sys._getframe(1)
+        key = (caller.f_code.co_filename, caller.f_lineno)
+        with lock:
+            if key not in self._allocations:
+                self._allocations[key] = np.empty(shape, dtype)
+            return self._allocations[key]
+
+    kernelapi.FakeCUDAShared.array = array
+
+
+if os.environ.get("NUMBA_ENABLE_CUDASIM") == "1":
+    _serialize_simulator_shared_arrays()
 
 
 @pytest.fixture(autouse=True)

@@ -6,9 +6,12 @@ formulas are the CPU kernels' own functions, so what differs is the order of the
 sums its sources in sy interleaved lanes, then adds the lanes).
 """
 
+import os
+
 import numpy as np
 import pytest
 from gpu_setup import fast_simulator, gpu  # noqa: F401 (an autouse fixture)
+from numba import cuda, float64
 
 from parastokes import mrs
 
@@ -91,3 +94,37 @@ def test_bad_input_is_refused_naming_the_argument(batch, change, message):
     kw.update(change)
     with pytest.raises(ValueError, match=message):
         gpu.velocity(**kw)
+
+
+def test_a_shared_array_is_one_array_for_the_whole_block():
+    """The harness's fix of the simulator (gpu_setup): every thread of a block gets the same
+    ``cuda.shared.array``, even with a thread switch after every instruction or so (unfixed, about
+    1 launch in 40 of this kernel summed the wrong array)."""
+    import sys
+
+    if os.environ.get("NUMBA_ENABLE_CUDASIM") != "1":
+        pytest.skip("a property of the simulator")
+
+    @cuda.jit
+    def block_sum(out):
+        t = cuda.threadIdx.x
+        part = cuda.shared.array(32, float64)
+        part[t] = 1.0
+        cuda.syncthreads()
+        if t == 0:
+            total = 0.0
+            for i in range(32):
+                total += part[i]
+            out[cuda.blockIdx.x] = total
+
+    previous = sys.getswitchinterval()
+    sys.setswitchinterval(1e-6)
+    try:
+        sums = []
+        for _ in range(40):
+            out = np.zeros(4)
+            block_sum[4, 32](out)
+            sums.append(out)
+    finally:
+        sys.setswitchinterval(previous)
+    assert np.all(np.array(sums) == 32.0)
