@@ -114,3 +114,12 @@ def test_the_pages_coarse_family_checks_predicts_and_runs(walk):
     done = _python(["-m", "parastokes", "check", "typo_plain.toml"], folder)
     assert done.returncode != 0 and "coarse.dt_ratoi: unknown key" in done.stderr + done.stdout
 
+
+
+def test_the_pages_tuning_reach_is_what_the_tuner_reads(walk):
+    folder, _ = walk
+    script = ("import mybodies\nfrom parastokes.tuning.space import reach_table\n"
+              "print(reach_table(mybodies.SedimentingCloud)['epsilon'])\n")
+    done = _python(["-c", script], folder)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "((0.1, 0.2, 0.4), 0.5)"

@@ -20,6 +20,7 @@ import pytest
 from parastokes import cli, integrate, models, parareal, tuning
 from parastokes.tuning import Settings, Space, TuningError, stability
 from parastokes.tuning.report import toml_dumps
+from parastokes.tuning.space import REACH, reach_table
 
 SIGMA = 0.2  # grid spacing of the 21-node, 4 μm rod (the paper's σ_f)
 
@@ -384,6 +385,50 @@ def test_default_space_holds_the_structure_of_table5_g3():
              if [n for n, _ in s.lagrange] == ["epsilon", "bending"] and s.m == 1
              and len(s.lagrange[0][1]) == 5]
     assert found
+
+
+def _relative_nodes(system) -> list[dict]:
+    theta0 = system.params
+    space = Space(schemes=("euler",), richardson=(0,), step_fractions=(1.0,))
+    return [{n: [round(v / theta0[n], 9) for v in values] for n, values in s.lagrange}
+            for s in space.candidates(theta0, reach_table(system))]
+
+
+def test_vesicle_space_holds_the_papers_vesicle_nodes():
+    """The vesicle's own reach table puts the nodes of Tables 7-8 into the default space, which
+    the rods' table (2-8 % in ε) cannot reach."""
+    vesicle = models.vesicle(subdivisions=1)
+    found = _relative_nodes(vesicle)
+    assert {"epsilon": [1.2, 1.3, 1.4, 1.5], "stiffness": [0.8, 0.85, 0.9]} in found  # T8 G³
+    assert {"epsilon": [1.35, 1.525, 1.7, 1.875]} in found                         # T7 G² (ε)
+    assert {"epsilon": [1.6, 1.9, 2.2, 2.5], "stiffness": [0.6, 0.7, 0.8],
+            "viscosity": [2.0, 2.5, 3.0]} in found                                # T7 G¹
+    rods = Space(schemes=("euler",), richardson=(0,), step_fractions=(1.0,))
+    assert max(max(v / vesicle.params[n] for v in values) for s in rods.candidates(vesicle.params)
+               for n, values in s.lagrange if n == "epsilon") < 1.2
+
+
+def test_rods_keep_the_default_reach():
+    rod = small_rod(5.0)
+    assert reach_table(rod) == REACH
+    assert {"epsilon": [1.04, 1.05, 1.06, 1.07]} in _relative_nodes(rod)  # Table 4 G¹'s ε
+
+
+@pytest.mark.parametrize("entry", [((0.1, 0.2), 0.5), ((0.1, 0.2, 1.5), 0.5),
+                                   ((0.1, 0.2, 0.3), 0.0), "wide"])
+def test_a_bad_reach_table_stops_before_the_search(entry):
+    import dataclasses
+
+    base = models.vesicle(subdivisions=1)
+
+    @dataclasses.dataclass(frozen=True)
+    class Odd(type(base)):
+        tuning_reach = {"stiffness": entry}  # noqa: RUF012
+
+    odd = Odd(**{f.name: getattr(base, f.name) for f in dataclasses.fields(base)})
+    fine = integrate.Propagator(odd, "rk2", 1e-3)
+    with pytest.raises(TuningError, match=r"Odd\.tuning_reach\['stiffness'\]"):
+        tuning.tune(fine, t0=0.0, t1=1.0, n_slices=4, cores=4, target=1e-6)
 
 
 def test_screen_is_corrected_by_a_measured_candidate_of_the_same_structure():

@@ -32,7 +32,7 @@ from .. import integrate
 from ..parallel import TaskError
 from . import cost, stability
 from .pilot import Pilot, Screen
-from .space import Settings, Space, TuningError
+from .space import Settings, Space, TuningError, reach_table
 
 __all__ = ["Candidate", "Progress", "TuneResult", "tune"]
 
@@ -503,6 +503,7 @@ def tune(
         return True
 
     space.check(pilot_system.params, grid_ok)
+    reaches = reach_table(pilot_system)
     slice_length = (t1 - t0) / n_slices
     fine_steps = integrate.n_steps(0.0, slice_length, fine.dt)
     pilot_fine = integrate.Propagator(pilot_system, fine.scheme, fine.dt)
@@ -566,7 +567,7 @@ def tune(
     progress.note(f"baseline: plain {base_scheme} at its largest safe step")
     baseline = search.baseline(base_scheme, frugal)
 
-    candidates = [Candidate(s) for s in space.candidates(pilot_system.params)
+    candidates = [Candidate(s) for s in space.candidates(pilot_system.params, reaches)
                   if s != Settings(base_scheme)]
     candidates += [Candidate(s, given=True) for s in space.extra]
     queue: list[tuple] = []

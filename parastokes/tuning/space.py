@@ -4,8 +4,10 @@ A candidate (:class:`Settings`) is a scheme for the auxiliary solvers, Lagrange 
 of the parameters Θ (eqs. 17-25), Richardson depth m and ratio r (eqs. 26-28), a coarse-grid factor
 (rods, eqs. 32-33) and, once the stability analysis has chosen it, the base step τ. Nodes are placed
 on the side of θ⁰ that relaxes the step limit (larger ε and μ, smaller bending modulus or spring
-stiffness, as in Tables 3-8), starting at a relative distance ``reach`` from θ⁰ with spacing
-reach / 4 (the paper's Table 4 G¹: ε from 5.2σ_f in steps of 0.05σ_f for ε⁰ = 5σ_f).
+stiffness, as in Tables 3-8), starting at a relative distance ``reach`` from θ⁰ with a spacing
+that is a fraction of the reach: by default (:data:`REACH`) the rods' reach / 4 (Table 4 G¹: ε from
+5.2σ_f in steps of 0.05σ_f for ε⁰ = 5σ_f). A system may give its own levels and spacing in an
+optional class attribute ``tuning_reach`` (the vesicle's reach the nodes of Tables 7-8).
 """
 
 from __future__ import annotations
@@ -20,22 +22,44 @@ import numpy as np
 
 from .. import integrate, parareal
 
-__all__ = ["DIRECTION", "REACH", "Settings", "Space", "TuningError"]
+__all__ = ["DIRECTION", "REACH", "Settings", "Space", "TuningError", "reach_table"]
 
 #: The side of θ⁰ on which a parameter's nodes relax the step limit (+1 above, -1 below).
 DIRECTION = {"epsilon": 1, "viscosity": 1, "bending": -1, "stiffness": -1}
 
-#: Relative distance of the first node from θ⁰, per reach level 0, 1, 2.
-REACH = {
-    "epsilon": (0.02, 0.04, 0.08),
-    "viscosity": (0.1, 0.3, 0.6),
-    "bending": (0.05, 0.1, 0.2),
-    "stiffness": (0.05, 0.1, 0.2),
+#: Per parameter: the relative distance of the first node from θ⁰ at reach levels 0, 1, 2, and
+#: the node spacing as a fraction of that distance (the rods' tables, Tables 3-6).
+REACH: dict[str, tuple[tuple[float, float, float], float]] = {
+    "epsilon": ((0.02, 0.04, 0.08), 0.25),
+    "viscosity": ((0.1, 0.3, 0.6), 0.25),
+    "bending": ((0.05, 0.1, 0.2), 0.25),
+    "stiffness": ((0.05, 0.1, 0.2), 0.25),
 }
 
 
 class TuningError(ValueError):
     """Bad input to the tuner, found before the search: the message names what to change."""
+
+
+def reach_table(system: Any) -> dict[str, tuple[tuple[float, float, float], float]]:
+    """:data:`REACH` updated by the system's optional ``tuning_reach`` (same layout), checked."""
+    table = dict(REACH)
+    for name, entry in dict(getattr(system, "tuning_reach", None) or {}).items():
+        try:
+            levels, spacing = entry
+            levels, spacing = tuple(float(v) for v in levels), float(spacing)
+        except (TypeError, ValueError):
+            levels, spacing = (), math.nan
+        if (name not in DIRECTION or len(levels) != 3 or not spacing > 0
+                or not all(0.0 < v < (1.0 if DIRECTION[name] < 0 else math.inf) for v in levels)):
+            raise TuningError(
+                f"tune: {type(system).__name__}.tuning_reach[{name!r}] = {entry!r} is not "
+                "((d0, d1, d2), spacing) with three positive relative distances and a positive "
+                f"spacing fraction for one of {sorted(DIRECTION)} (distances below 1 for the "
+                "parameters whose nodes lie below θ⁰); fix the class attribute"
+            )
+        table[name] = (levels, spacing)
+    return table
 
 
 @dataclass(frozen=True)
@@ -147,10 +171,11 @@ class Settings:
         return table
 
 
-def nodes_for(name: str, theta0: float, reach: float, count: int) -> tuple[float, ...]:
-    """``count`` nodes from θ⁰(1 ± reach) away from θ⁰ in steps of θ⁰·reach/4, increasing."""
+def nodes_for(name: str, theta0: float, reach: float, count: int,
+              spacing: float = 0.25) -> tuple[float, ...]:
+    """``count`` nodes from θ⁰(1 ± reach) away from θ⁰ in steps of θ⁰·reach·spacing, increasing."""
     sign = DIRECTION[name]
-    values = [theta0 * (1.0 + sign * reach * (1.0 + 0.25 * i)) for i in range(count)]
+    values = [theta0 * (1.0 + sign * reach * (1.0 + spacing * i)) for i in range(count)]
     return tuple(sorted(float(f"{v:.12g}") for v in values))
 
 
@@ -163,8 +188,8 @@ class Space:
     - ``parameters``: the parameters that may be extrapolated, first the one every extrapolated
       candidate uses (default ε): the subsets are that one with any of the others, e.g. (ε),
       (ε, μ), (ε, a), (ε, μ, a); empty: no Lagrange extrapolation;
-    - ``reach``: node distance levels (:data:`REACH`); ``nodes``: node counts of the first
-      parameter (the others use at most 3);
+    - ``reach``: node distance levels (:data:`REACH`, or the system's ``tuning_reach``);
+      ``nodes``: node counts of the first parameter (the others use at most 3);
     - ``richardson``: depths m to try, with ratio ``r``; ``grid_factors``: coarse grids (rods);
     - ``step_fractions``: coarse steps as fractions of the largest safe step;
     - ``max_weight``: candidates with Σ|w_j v_q| above it are pruned before any measurement;
@@ -221,8 +246,12 @@ class Space:
         return [()] + [(order[0], *combo) for k in range(len(rest) + 1)
                        for combo in itertools.combinations(rest, k)]
 
-    def candidates(self, params: Mapping[str, float]) -> Iterator[Settings]:
-        """Every structure of the space (without step), plain solvers first."""
+    def candidates(self, params: Mapping[str, float],
+                   reach: Mapping[str, tuple[tuple[float, ...], float]] | None = None,
+                   ) -> Iterator[Settings]:
+        """Every structure of the space (without step), plain solvers first; ``reach`` is the
+        node table (:func:`reach_table`, default :data:`REACH`)."""
+        reach = REACH if reach is None else reach
         seen: set[Settings] = set()
         for scheme, subset, m, grid in itertools.product(
             self.schemes, self.subsets(params), self.richardson, self.grid_factors
@@ -235,8 +264,9 @@ class Space:
                     Settings(
                         scheme,
                         tuple(
-                            (name, nodes_for(name, params[name], REACH[name][level],
-                                             count if i == 0 else min(count, 3)))
+                            (name, nodes_for(name, params[name], reach[name][0][level],
+                                             count if i == 0 else min(count, 3),
+                                             reach[name][1]))
                             for i, name in enumerate(subset)
                         ),
                         m,
@@ -247,6 +277,8 @@ class Space:
                     for level, count in itertools.product(self.reach, self.nodes)
                 ]
             for settings in found:
+                if any(v <= 0.0 for _, values in settings.lagrange for v in values):
+                    continue  # nodes below θ⁰ that reach zero: not a physical system
                 for fraction in self.step_fractions:
                     item = replace(settings, step_fraction=fraction)
                     if item not in seen:

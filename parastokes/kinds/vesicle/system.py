@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import ClassVar
 
 import numpy as np
 
@@ -71,6 +72,16 @@ class VesicleSystem(PointsInShear):
     target_blocks: TargetBlocks | None = None
     center: tuple[float, float, float] = (0.0, 0.0, 0.0)
     radius: float = 1.0
+
+    #: ``parastokes tune``'s Lagrange node levels (relative distances of the first node at reach
+    #: 0, 1, 2; spacing as a fraction of that distance): level 0 gives Table 8 G³'s nodes, level 2
+    #: Table 7 G¹'s, level 1 of ε Table 7 G²'s and of μ Table 8 G¹'s. The rods' default reach
+    #: (2-8 % in ε) lies far below them.
+    tuning_reach: ClassVar[dict[str, tuple[tuple[float, float, float], float]]] = {
+        "epsilon": ((0.2, 0.35, 0.6), 0.5),
+        "stiffness": ((0.1, 0.15, 0.2), 0.5),
+        "viscosity": ((0.4, 0.6, 1.0), 0.5),
+    }
 
     def __post_init__(self) -> None:
         geometry.icosphere(self.subdivisions)  # validates subdivisions
