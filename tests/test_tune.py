@@ -13,6 +13,7 @@ import json
 import math
 import time
 import tomllib
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -214,6 +215,7 @@ def test_tune_command_writes_a_config_that_runs_to_the_target(tmp_path):
         assert cand["status"] in ("accepted", "rejected", "pruned", "not reached")
         assert cand["status"] == "accepted" or cand["reason"]
     chosen = report["chosen"]
+    assert "caution" in report
     assert chosen["stability"]["stable"] and chosen["stability"]["margin"] > 0
     assert chosen["predicted"]["speedup"] >= report["baseline"]["predicted"]["speedup"]
     tuned = tomllib.loads(out.read_text())
@@ -261,6 +263,43 @@ def test_predicted_iterations_scale_with_slices_and_contract_geometrically():
     assert cost.predicted_iterations([1e-6, 1e-8], 3, 30, 1e-4) == 1
     assert cost.predicted_iterations([1e-6, 2e-6], 3, 30, 1e-8) is None  # no contraction
     assert cost.predicted_iterations([1e-6, 1e-8], 3, 3, 1e-10) is None  # needs N_c iterations
+
+
+def _full_scale_checks():
+    """(solver, window, pilot contraction, predicted N_it, the run's N_it or None) for every
+    vesicle solver of docs/figures/tuning/pilot_check with a full-scale reproduction record."""
+    root = Path(__file__).resolve().parents[1] / "docs"
+    for path in sorted((root / "figures" / "tuning" / "pilot_check").glob("pilot_check_*.json")):
+        for row in json.loads(path.read_text()):
+            record = root / "reproduction" / f"{row['solver']}.json"
+            if not record.exists():
+                continue
+            errors = json.loads(record.read_text())["errors"]
+            for window in ("P2", "P3"):
+                m = row[window]
+                for target in (1e-6, 1e-8):
+                    real = next((k for k, e in enumerate(errors, 1) if e <= target), None)
+                    yield (row["solver"], window, m["contraction"],
+                           m["iterations"][f"{target:g}"], real, len(errors))
+
+
+def test_caution_marks_every_pilot_that_underestimated_a_full_run():
+    """Against the full-scale records: where the run needed more than the predicted N_it + 1,
+    the pilot's contraction was SLOW or more and the report cautions; below SLOW it held."""
+    from parastokes.tuning import cost
+
+    checks = list(_full_scale_checks())
+    assert len(checks) >= 20  # six records, two windows, two targets
+    missed = 0
+    for solver, window, rho, predicted, real, done in checks:
+        too_few = predicted is not None and (real or done + 1) > predicted + 1
+        missed += too_few
+        if too_few:
+            assert cost.caution(rho, predicted), (solver, window)
+        if rho < cost.SLOW:
+            assert not too_few, (solver, window)
+            assert cost.caution(rho, predicted) is None
+    assert missed >= 2  # Table 8 G¹ and G²
 
 
 def test_gamma_ratio_counts_waves_of_the_slowest_auxiliary_solver():

@@ -153,6 +153,8 @@ def main(args: argparse.Namespace, console: Any) -> int:
                   f"{cost['fraction']:.1%} of the estimated serial fine solve, "
                   f"{cost['serial_fine_estimate']:.3g} s CPU)")
     console.print(report["extrapolation"]["note"])
+    if report.get("caution"):
+        console.print(report["caution"])
     if result.chosen is None:
         raise TuningError(f"no candidate is stable and reaches η* = {args.target:g}; see "
                           f"{out.with_suffix('.json')} (raise --target or widen the search)")

@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from .. import integrate
+from .cost import caution
 from .pilot import Pilot
 
 __all__ = ["build_report", "config_text", "draw_curves", "table", "toml_dumps"]
@@ -61,6 +62,7 @@ def build_report(
         "chosen": None if chosen is None else chosen.as_dict(fine.dt),
         "baseline": baseline.as_dict(fine.dt),
         "extrapolation": _helps(chosen, baseline),
+        "caution": None if chosen is None else caution(chosen.contraction, chosen.iterations),
         "candidates": [c.as_dict(fine.dt) for c in candidates],
         "cost": cost,
         "search": search,
@@ -129,6 +131,8 @@ def config_text(config: Mapping[str, Any], result: Any, cores: int, source: str)
         f"{predicted['iterations']}, gamma_G/gamma_F = {predicted['gamma_ratio']:.3g}; "
         "see TUNED.json"
     )
+    if result.report.get("caution"):
+        header += f"\n{result.report['caution']}"
     return toml_dumps(data, header)
 
 
