@@ -47,13 +47,17 @@ PROBLEMS = {
 }
 
 
-def run(problem: str, target: float, cores: int, out: Path, extra: Sequence[str]) -> int:
+def run(problem: str, target: float, cores: int, out: Path, extra: Sequence[str],
+        search_only: bool = False) -> int:
+    """``parastokes tune`` of ``problem``; with ``search_only`` the paper's solvers are not
+    given, so the whole budget goes to the search (files ``{problem}_{target}_search.*``)."""
     config, overrides, compare = PROBLEMS[problem]
+    name = f"{problem}_{target:g}" + ("_search" if search_only else "")
     argv = ["tune", config, "--cores", str(cores), "--target", f"{target:g}",
-            "--out", str(out / f"{problem}_{target:g}.toml")]
+            "--out", str(out / f"{name}.toml")]
     for item in overrides:
         argv += ["--set", item]
-    if compare:
+    if compare and not search_only:
         argv += ["--compare", *compare]
     return cli.main([*argv, *extra])
 
@@ -298,6 +302,9 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument("--tables", action="store_true", help="print the Markdown tables")
     parser.add_argument("--pilot-check", nargs="+", choices=sorted(PILOT_CHECK), default=[],
                         help="the vesicle pilot against the full-scale reproduction records")
+    parser.add_argument("--search-only", action="store_true",
+                        help="do not give the paper's solvers (--compare): the budget is the "
+                             "search's alone")
     parser.add_argument("--validate", type=int, nargs="*", metavar="N_C",
                         help="pilot vs real runs of tuned quick-rod configs on N_C slices")
     args, extra = parser.parse_known_args(argv)
@@ -305,7 +312,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     for problem in args.problems:
         for target in args.targets:
             print(f"== {problem}, η* = {target:g}", flush=True)
-            run(problem, target, args.cores, args.dir, extra)
+            run(problem, target, args.cores, args.dir, extra, args.search_only)
     if args.validate:
         rows = [validate(target, n, args.dir) for n in args.validate for target in args.targets]
         (args.dir / "validate.json").write_text(json.dumps(rows, indent=1))
