@@ -470,6 +470,26 @@ def test_a_bad_reach_table_stops_before_the_search(entry):
         tuning.tune(fine, t0=0.0, t1=1.0, n_slices=4, cores=4, target=1e-6)
 
 
+def test_step_limit_is_relative_to_the_bodys_own_change():
+    """A vesicle of twice the viscosity changes its area by more than the monitor's limit over a
+    slice at the fine step (physics, not instability): the absolute test rejects even τ_f, the
+    tuner's relative test finds a limit above the plain one (the limit grows with μ); on a
+    vesicle at θ⁰ and on a rod, whose monitors barely move at τ_f, both tests agree."""
+    vesicle = models.vesicle(subdivisions=2, epsilon_factor=0.5, stiffness=0.05)
+    x0 = vesicle.initial_state()
+    viscous = vesicle.with_params(viscosity=2 * vesicle.params["viscosity"])
+    with pytest.raises(ValueError, match="dt_lo"):
+        integrate.largest_stable_step(viscous, "euler", 2.5, 2e-3, 0.5, x0=x0, rtol=0.01)
+    plain = stability.step_limit(vesicle, "euler", x0, 0.0, 2.5, 2e-3, 0.5)
+    assert stability.step_limit(viscous, "euler", x0, 0.0, 2.5, 2e-3, 0.5) > 1.3 * plain
+    absolute = integrate.largest_stable_step(vesicle, "euler", 2.5, 2e-3, 0.5, x0=x0, rtol=0.01)
+    assert plain == pytest.approx(absolute, rel=0.02)
+    rod = small_rod()
+    args = ("euler", 2e-3, 1e-6, 2e-4)
+    assert stability.step_limit(rod, args[0], rod.initial_state(), 0.0, *args[1:]) == (
+        pytest.approx(integrate.largest_stable_step(rod, args[0], *args[1:], rtol=0.01), rel=0.02))
+
+
 def test_screen_is_corrected_by_a_measured_candidate_of_the_same_structure():
     from types import SimpleNamespace
 

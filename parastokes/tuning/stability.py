@@ -3,8 +3,8 @@
 Three cheap measurements, in the order the tuner uses them:
 
 - :func:`step_limit`: the largest step at which one auxiliary solver keeps the system's monitor
-  within its limit over one slice (``integrate.largest_stable_step``), at the candidate's most
-  restrictive node;
+  within its limit of the value it has at the fine step over one slice
+  (``integrate.largest_stable_step``), at the candidate's most restrictive node;
 - :func:`step_margin`: the derived safety margin below it. Near the limit the stiffest mode is
   multiplied by about 1 - 2δ per step at (1 - δ) times the limit (forward Euler and RK2 on the
   negative real axis), so over the n steps of a slice by (1 - 2δ)^n. The combination multiplies
@@ -36,12 +36,14 @@ GROWTH = 100.0
 def step_limit(
     system: Any, scheme: str, x0: np.ndarray, t0: float, span: float, dt_lo: float, dt_hi: float
 ) -> float:
-    """Largest step (1 % bisection) keeping ``system.monitor`` within its limit over ``span``.
+    """Largest step (1 % bisection) keeping ``system.monitor`` within its limit of its value at
+    ``dt_lo`` over ``span`` (the monitor's physical change at a perturbed parameter, e.g. the
+    area of a vesicle of larger viscosity, is not an instability).
 
-    Raises :class:`~.space.TuningError` (through the caller) when even ``dt_lo`` fails.
+    Raises ValueError (caught by the caller) when even ``dt_lo`` blows up.
     """
     return integrate.largest_stable_step(
-        system, scheme, span, dt_lo, dt_hi, x0=x0, t0=t0, rtol=0.01
+        system, scheme, span, dt_lo, dt_hi, x0=x0, t0=t0, rtol=0.01, relative=True
     )
 
 
