@@ -415,6 +415,33 @@ def test_a_given_budget_is_respected():
     assert res.report["cost"]["cpu_seconds"] <= budget + largest
 
 
+def test_the_budget_keeps_a_measurement_for_the_best_screened_candidate(monkeypatch):
+    """With a clock that charges 1 per screen and 3 per measurement and room for 12, the search
+    does not spend everything on screens (their optimistic bounds stay above every screened
+    estimate): it measures the best screened candidate while a measurement still fits."""
+    from parastokes.tuning.search import _Search
+
+    ticks = [0.0]
+    screen, measure = _Search.screen, _Search.measure
+
+    def charged(stage, cost):
+        def run(self, cand):
+            stage(self, cand)
+            ticks[0] += cost
+        return run
+
+    monkeypatch.setattr(_Search, "screen", charged(screen, 1.0))
+    monkeypatch.setattr(_Search, "measure", charged(measure, 3.0))
+    fine = integrate.Propagator(small_rod(), "rk2", 1e-6)
+    res = tuning.tune(fine, t0=0.0, t1=8e-3, n_slices=4, cores=4, target=1e-6,
+                      space=Space(schemes=("euler",), step_fractions=(1.0,)), budget=15.0,
+                      clock=lambda: ticks[0])
+    assert res.report["search"]["stopped"] == "budget"
+    measured = [c for c in res.candidates[1:] if c.pilot_errors]
+    assert measured, "the budget went to screens only"
+    assert ticks[0] <= 15.0
+
+
 def test_default_space_holds_the_structure_of_table5_g3():
     """(ε, a) with Richardson and five ε nodes (Table 5 G³) is in the default space."""
     rod = small_rod(7.0)

@@ -589,16 +589,27 @@ def tune(
     progress.start(ordered)
     try:
         while queue:
-            _, _, n = queue[0]
-            cand = candidates[n]
+            entry = queue[0]
+            cand = candidates[entry[2]]
             screened = cand.screen is not None
             # the dearest stage of its kind so far (a new corner's bisection makes screens uneven)
             typical = (max(spent[screened]) if spent[screened] else
                        one_candidate if screened else 0.5 * slice_seconds)
+            measuring = max(spent[True]) if spent[True] else one_candidate
+            if not screened and clock() - started + typical + measuring > budget:
+                # the budget keeps one measurement: spend it on the best screened candidate that
+                # may beat the best measured, rather than on more screens that could not be used
+                waiting = [e for e in queue
+                           if candidates[e[2]].screen is not None and -e[1] > best]
+                if waiting:
+                    entry = min(waiting)
+                    cand, screened, typical = candidates[entry[2]], True, measuring
             if clock() - started + typical > budget and not cand.given:
                 stopped = "budget"
                 break
-            heapq.heappop(queue)
+            queue.remove(entry)
+            heapq.heapify(queue)
+            n = entry[2]
             before = cand.seconds
             # the bound a candidate must beat: the best measured (not when given or exhaustive)
             floor = -math.inf if exhaustive or cand.given else best
