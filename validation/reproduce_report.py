@@ -371,7 +371,7 @@ def _beats_plain(group: str, plain: str, lo: float) -> Callable[[Records], tuple
         worse = [
             e for e in ERROR_GRID if lo <= e <= 1e-2
             and not math.isnan(speedup_at(runs[plain], e))
-            and not max(speedup_at(v, e) for v in others.values()) > speedup_at(runs[plain], e)
+            and not _best_speedup(others, e) > speedup_at(runs[plain], e)
         ]
         text = ("an extrapolated solver is faster at every desired error in "
                 f"[{lo:.0e}, 1e-2]" if not worse else
