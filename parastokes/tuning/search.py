@@ -483,7 +483,6 @@ def tune(
     given_budget = budget is not None
     if clock is None:  # a given budget is wall time; the default one is CPU time (see above)
         clock = time.perf_counter if given_budget else time.process_time
-    started, wall, cpu = clock(), time.perf_counter(), time.process_time()
     _check_input(cores, target, n_slices, t0, t1, budget, pilot_slices)
     space = space or Space()
     progress = progress or Progress()
@@ -504,6 +503,16 @@ def tune(
 
     space.check(pilot_system.params, grid_ok)
     reaches = reach_table(pilot_system)
+    # load (or, on a cold numba cache, compile) the stepping loops before the clock starts, so
+    # that compiling is not charged to the search (a fresh checkout's vesicle: 21 % instead of 14)
+    for body, x in {id(system): (system, system.initial_state()),
+                 id(pilot_system): (pilot_system, start_state)}.values():
+        for scheme in dict.fromkeys((fine.scheme, *space.schemes)):
+            try:
+                integrate.run(body, x, t0, t0 + fine.dt, scheme, fine.dt)
+            except integrate.BlowUpError:
+                pass  # reported below, where the fine solver's steps are timed
+    started, wall, cpu = clock(), time.perf_counter(), time.process_time()
     slice_length = (t1 - t0) / n_slices
     fine_steps = integrate.n_steps(0.0, slice_length, fine.dt)
     pilot_fine = integrate.Propagator(pilot_system, fine.scheme, fine.dt)
