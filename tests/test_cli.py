@@ -167,7 +167,10 @@ def test_interrupted_run_resumes_from_its_checkpoint(tmp_path):
     out = tmp_path / "out"
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     command = [sys.executable, "-m", "parastokes", "run", str(path), "--out", str(out), "-q"]
-    process = subprocess.Popen(command, env=env, stderr=subprocess.PIPE, text=True)
+    # SIGINT at its default in the child, even when this suite runs with it ignored (a background
+    # job of a shell without job control), so that Python installs its KeyboardInterrupt handler
+    process = subprocess.Popen(command, env=env, stderr=subprocess.PIPE, text=True,
+                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.monotonic() + 300
     while not (out / runner.HISTORY).exists() and process.poll() is None:
         assert time.monotonic() < deadline

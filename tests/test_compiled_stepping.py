@@ -126,7 +126,16 @@ def test_splitting_a_run_into_compiled_calls_changes_nothing(monkeypatch, call_s
     assert_same(compiled, python)
 
 
-def test_a_long_compiled_run_answers_ctrl_c_promptly():
+@pytest.fixture
+def python_sigint():
+    """Python's own SIGINT handler, even when the suite was started with SIGINT ignored (a
+    background job of a shell without job control): the handler a user's Ctrl-C meets."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, previous)
+
+
+def test_a_long_compiled_run_answers_ctrl_c_promptly(python_sigint):
     """The compiled loop returns to Python about every CALL_SECONDS: a SIGINT 0.5 s into a run
     of ~20 s raises KeyboardInterrupt (not a SystemError) well before the run would end."""
     system = models.rod_swimmer()
