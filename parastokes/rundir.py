@@ -15,7 +15,8 @@ replaced whole.
   previous run's results that the new one does not have (stale figures). The commit is journalled
   (``.partial/COMMIT``): a commit cut short is completed by the next claim, so the directory holds
   either the old complete results or the new complete ones. The resume state (``checkpoint.npz``,
-  ``reference.npz``, ``history.npz``) is written in place, each file atomically; the partial
+  ``checkpoint.solves/``, ``reference.npz``, ``history.npz``) is written in place, each file
+  atomically; the partial
   results of a run that stops early are dropped (the next run writes them anew).
 """
 
@@ -41,7 +42,9 @@ MANIFEST = ".parastokes-results.json"
 _COMMIT = "COMMIT"
 
 #: The resume state of a run (written in place, atomically), and its last good state on blow-up.
-STATE_FILES = ("checkpoint.npz", "reference.npz", "history.npz", "blowup.npz")
+STATE_FILES = (
+    "checkpoint.npz", "checkpoint.solves", "reference.npz", "history.npz", "blowup.npz"
+)
 #: The results of a finished run.
 RESULT_FILES = ("summary.json", "trajectory.h5", "trajectory.xdmf")
 #: Inputs kept beside the results (the demo's configuration).
@@ -215,7 +218,11 @@ class RunDirectory:
     def discard_state(self) -> None:
         """Remove the resume state (``--overwrite``): nothing of the old run is resumed."""
         for name in STATE_FILES:
-            (self.path / name).unlink(missing_ok=True)
+            path = self.path / name
+            if path.is_dir():  # checkpoint.solves: the solves of the iteration in progress
+                shutil.rmtree(path)
+            else:
+                path.unlink(missing_ok=True)
 
     def recover(self) -> None:
         """Complete a commit that was cut short (by a kill or a power cut)."""

@@ -34,6 +34,7 @@ from . import options
 from .metrics import Positions, relative_change
 from .options import Checkpoint, Reporting, Stopping
 from .result import PararealResult
+from .solve_memo import SolveMemo, memo_directory
 from .timings import MANAGER, Timings, queued_intervals
 
 __all__ = [
@@ -143,6 +144,28 @@ def _coarse_step(
     return value, start, time.perf_counter()
 
 
+def _kept_coarse_step(
+    coarse: PropagatorLike,
+    times: np.ndarray,
+    n: int,
+    x: np.ndarray,
+    k: int,
+    memo: SolveMemo | None,
+    record: Timings,
+    origin: float,
+) -> tuple[np.ndarray, float]:
+    """:func:`_coarse_step` through the memo of the iteration in progress: the value and its wall
+    time; a step computed now is kept in the memo and recorded as a task of ``record``."""
+    kept = None if memo is None else memo.get("coarse", n, k, times[n - 1], times[n], x)
+    if kept is not None:
+        return kept
+    value, start, end = _coarse_step(coarse, times, n, x, k)
+    record.add_task("coarse", n, k, start, end, MANAGER, origin)
+    if memo is not None:
+        memo.put("coarse", n, k, times[n - 1], times[n], x, value, end - start)
+    return value, end - start
+
+
 def coarse_error(exc: Exception, n: int, k: int) -> TaskError:
     """The TaskError of a failed coarse step G_n^k (``exc`` may be an auxiliary solve's)."""
     label = f"coarse solve of slice {n} in iteration {k}"
@@ -176,13 +199,21 @@ class _Clocked:
     The tasks reach ``executor`` as they are (``fine`` is never wrapped). Completion times come
     from done-callbacks; :meth:`intervals` waits for all of them and reconstructs every task's
     start, end and worker slot on a first-in-first-out pool
-    (:func:`~parastokes.parareal.timings.queued_intervals`).
+    (:func:`~parastokes.parareal.timings.queued_intervals`). ``on_result(index, value, seconds)``,
+    when given, is called as each task succeeds, with its wall time as far as the completions seen
+    by then tell it.
     """
 
-    def __init__(self, executor: Executor) -> None:
+    def __init__(
+        self,
+        executor: Executor,
+        on_result: Callable[[int, Any, float], None] | None = None,
+    ) -> None:
         self.executor = executor
+        self.on_result = on_result
         self.submitted: list[float] = []
         self.completed: dict[int, float] = {}
+        self.settled = 0  # tasks whose done-callback has finished
         self._finished = threading.Condition()
 
     def __getattr__(self, name: str) -> Any:
@@ -196,16 +227,36 @@ class _Clocked:
         future.add_done_callback(functools.partial(self._done, index))
         return future
 
-    def _done(self, index: int, _future: Future) -> None:
+    def _started(self, index: int) -> float:
+        """When task ``index`` started (the rule of ``queued_intervals``, from the completions
+        seen so far: a task that has completed had started after enough earlier ones ended)."""
+        workers = getattr(self.executor, "workers", None)
+        start = self.submitted[index]
+        if workers is not None and index >= workers:
+            earlier = sorted(t for i, t in self.completed.items() if i < index)
+            if len(earlier) > index - workers:
+                start = max(start, earlier[index - workers])
+        return start
+
+    def _done(self, index: int, future: Future) -> None:
         with self._finished:
-            self.completed[index] = time.perf_counter()
+            self.completed[index] = end = time.perf_counter()
+            seconds = end - self._started(index)
+        if self.on_result is not None and not future.cancelled() and future.exception() is None:
+            try:
+                self.on_result(index, future.result(), seconds)
+            except Exception:  # keeping a result is a convenience: the run goes on without it
+                logger.warning("parareal: could not keep the result of task %d", index,
+                               exc_info=True)
+        with self._finished:  # (only now: the sweep ends after every result has been kept)
+            self.settled += 1
             self._finished.notify_all()
 
     def intervals(self) -> list[tuple[float, float, int]]:
         """(start, end, worker slot) of every task (all must have completed)."""
         n = len(self.submitted)
         with self._finished:
-            self._finished.wait_for(lambda: len(self.completed) == n)
+            self._finished.wait_for(lambda: self.settled == n)
         completed = [self.completed[i] for i in range(n)]
         return queued_intervals(
             self.submitted, completed, getattr(self.executor, "workers", None)
@@ -213,18 +264,25 @@ class _Clocked:
 
 
 def _initial_sweep(
-    coarse: PropagatorLike, x0: np.ndarray, times: np.ndarray, with_errors: bool, origin: float
+    coarse: PropagatorLike,
+    x0: np.ndarray,
+    times: np.ndarray,
+    with_errors: bool,
+    origin: float,
+    memo: SolveMemo | None = None,
 ) -> ckpt.Progress:
-    """Eq. 9: X_n^0 = G(T_n, T_{n-1}, X_{n-1}^0), keeping the G values for the first correction."""
+    """Eq. 9: X_n^0 = G(T_n, T_{n-1}, X_{n-1}^0), keeping the G values for the first correction
+    (steps kept in ``memo`` by a stopped session are taken from there)."""
     n_slices = len(times) - 1
     states = np.empty((n_slices + 1, *x0.shape))
     states[0] = x0
     timings = Timings(coarse=[[]])
     sweep_start = time.perf_counter()
     for n in range(1, n_slices + 1):
-        states[n], start, end = _coarse_step(coarse, times, n, states[n - 1], 0)
-        timings.coarse[0].append(end - start)
-        timings.add_task("coarse", n, 0, start, end, MANAGER, origin)
+        states[n], seconds = _kept_coarse_step(
+            coarse, times, n, states[n - 1], 0, memo, timings, origin
+        )
+        timings.coarse[0].append(seconds)
     timings.serial_sweeps.append(time.perf_counter() - sweep_start)
     return ckpt.Progress(
         0, states, states[1:].copy(), errors=[] if with_errors else None, timings=timings
@@ -232,22 +290,35 @@ def _initial_sweep(
 
 
 def _parallel_sweep(
-    fine: PropagatorLike, times: np.ndarray, states: np.ndarray, k: int, executor: Executor
-) -> tuple[list[np.ndarray], list[tuple[float, float, int]]]:
-    """Eq. 10: X_n^{k'} = F(T_n, T_{n-1}, X_{n-1}^{k-1}) for n = k..N, and when each F call ran.
+    fine: PropagatorLike,
+    times: np.ndarray,
+    states: np.ndarray,
+    k: int,
+    executor: Executor,
+    memo: SolveMemo | None = None,
+) -> tuple[list[np.ndarray], list[float], list[tuple[int, float, float, int]]]:
+    """Eq. 10: X_n^{k'} = F(T_n, T_{n-1}, X_{n-1}^{k-1}) for n = k..N.
 
     One labelled task per slice (``"fine solve of slice n in iteration k"``), submitted as
-    ``executor.submit(fine, T_{n-1}, T_n, X_{n-1}^{k-1})``.
+    ``executor.submit(fine, T_{n-1}, T_n, X_{n-1}^{k-1})``, except the solves that ``memo`` holds
+    from a stopped session; each solve is kept in ``memo`` as it completes. Returns the values and
+    wall times of slices k..N and (n, start, end, worker) of the tasks that ran now.
     """
-    slices = range(k, len(times))
-    clock = _Clocked(executor)
+    args = {n: (times[n - 1], times[n], states[n - 1]) for n in range(k, len(times))}
+    kept = {} if memo is None else {n: memo.get("fine", n, k, *a) for n, a in args.items()}
+    todo = [n for n in args if kept.get(n) is None]
+
+    def keep(index: int, value: np.ndarray, seconds: float) -> None:
+        memo.put("fine", todo[index], k, *args[todo[index]], value, seconds)
+
+    clock = _Clocked(executor, None if memo is None else keep)
     values = run_labelled(
-        clock,
-        fine,
-        [(times[n - 1], times[n], states[n - 1]) for n in slices],
-        [fine_label(n, k) for n in slices],
+        clock, fine, [args[n] for n in todo], [fine_label(n, k) for n in todo]
     )
-    return values, clock.intervals()
+    runs = [(n, *interval) for n, interval in zip(todo, clock.intervals(), strict=True)]
+    found = {n: (v, end - begin) for v, (n, begin, end, _) in zip(values, runs, strict=True)}
+    found.update({n: entry for n, entry in kept.items() if entry is not None})
+    return [found[n][0] for n in args], [found[n][1] for n in args], runs
 
 
 def _iterate(
@@ -258,18 +329,22 @@ def _iterate(
     executor: Executor,
     project: Callable[[np.ndarray], np.ndarray] | None,
     origin: float,
+    memo: SolveMemo | None = None,
 ) -> None:
     """Iteration k = progress.iteration + 1 of Algorithm 1 (steps 9-18).
 
     ``progress`` is updated only once the iteration has completed, so an error or an interrupt
-    part-way leaves it (and the checkpoint written from it) at iteration k - 1.
+    part-way leaves it (and the checkpoint written from it) at iteration k - 1; the solves that
+    completed before are in ``memo``, and a rerun takes them from there.
     """
     k = progress.iteration + 1
     start = time.perf_counter()
-    fine_values, fine_runs = _parallel_sweep(fine, times, progress.states, k, executor)
+    fine_values, fine_times, fine_runs = _parallel_sweep(
+        fine, times, progress.states, k, executor, memo
+    )
     parallel_time = time.perf_counter() - start
     record = Timings()
-    for n, (begin, end, slot) in enumerate(fine_runs, start=k):
+    for n, begin, end, slot in fine_runs:
         record.add_task("fine", n, k, begin, end, slot, origin)
 
     states = progress.states.copy()  # X_n^k = X_n^{k-1} for n < k
@@ -278,15 +353,16 @@ def _iterate(
     coarse_times = []
     start = time.perf_counter()
     for n in range(k + 1, len(times)):
-        value, begin, end = _coarse_step(coarse, times, n, states[n - 1], k)
-        coarse_times.append(end - begin)
-        record.add_task("coarse", n, k, begin, end, MANAGER, origin)
+        value, seconds = _kept_coarse_step(
+            coarse, times, n, states[n - 1], k, memo, record, origin
+        )
+        coarse_times.append(seconds)
         states[n] = correct(fine_values[n - k], value, coarse_values[n - 1], project)
         coarse_values[n - 1] = value
     serial_time = time.perf_counter() - start
 
     progress.timings.parallel_sweeps.append(parallel_time)
-    progress.timings.fine.append([end - begin for begin, end, _ in fine_runs])
+    progress.timings.fine.append(fine_times)
     progress.timings.serial_sweeps.append(serial_time)
     progress.timings.coarse.append(coarse_times)
     progress.timings.tasks.extend(record.tasks)
@@ -338,6 +414,10 @@ class Bookkeeping:
         self.session_start = session_start
         self.earlier_total = 0.0
         self.saved: int | None = None
+        #: the solves of the iteration in progress (standard schedule; None without checkpoint)
+        self.memo = None if checkpoint is None else SolveMemo(
+            memo_directory(checkpoint.path), key
+        )
 
     @property
     def origin(self) -> float:
@@ -355,6 +435,7 @@ class Bookkeeping:
         if self.checkpoint is not None:
             ckpt.save(self.checkpoint, progress, self.key)
             self.saved = 0
+            self.memo.clear()
 
     def iteration_done(self, progress: ckpt.Progress, previous_final: np.ndarray) -> str | None:
         """Iteration ``progress.iteration`` has completed (X^{k-1}_N was ``previous_final``):
@@ -376,6 +457,7 @@ class Bookkeeping:
         if self.checkpoint is not None:
             ckpt.save(self.checkpoint, progress, self.key)
             self.saved = progress.iteration
+            self.memo.clear()
         if self.reporting.on_iteration is not None:
             self.reporting.on_iteration(
                 IterationReport(
@@ -412,12 +494,16 @@ def _run_standard(
     """Algorithm 1: the initial sweep (unless resumed), then iterations until a stop reason."""
     p = problem
     if progress is None:
-        progress = _initial_sweep(p.coarse, p.x0, p.times, book.reference is not None, book.origin)
+        progress = _initial_sweep(
+            p.coarse, p.x0, p.times, book.reference is not None, book.origin, book.memo
+        )
         book.initial_sweep_done(progress)
     reason = stop_reason(progress, book.stopping)
     while reason is None:
         previous_final = progress.states[-1]
-        _iterate(progress, p.fine, p.coarse, p.times, p.executor, p.project, book.origin)
+        _iterate(
+            progress, p.fine, p.coarse, p.times, p.executor, p.project, book.origin, book.memo
+        )
         reason = book.iteration_done(progress, previous_final)
     return progress, reason
 
@@ -519,7 +605,9 @@ def run(
     The stopping rule is checked after every iteration (:class:`~.options.Stopping`). The
     checkpoint is written atomically after the initial sweep and every iteration; an existing one
     of the same problem (and ``identity``) is resumed with bit-identical results, one of another
-    is refused (:class:`~.checkpoint.CheckpointMismatch`). ``on_iteration`` is called after each
+    is refused (:class:`~.checkpoint.CheckpointMismatch`). Under the standard schedule every
+    solve of the iteration in progress is also kept as it completes (:mod:`.solve_memo`), so a
+    resumed run repeats none of them. ``on_iteration`` is called after each
     checkpoint write with an :class:`IterationReport`. See docs/parareal.md.
     """
     session_start = time.perf_counter()
@@ -548,6 +636,13 @@ def run(
     if progress is not None:
         book.resume(progress)
         logger.info("parareal: resuming from %s after iteration %d", book.checkpoint, book.saved)
+    if book.memo is not None and not resume:
+        book.memo.clear()  # solves kept by an earlier run at this path
+    elif book.memo is not None and book.memo.count():
+        logger.info(
+            "parareal: %d solves of the stopped iteration kept in %s are reused where they match",
+            book.memo.count(), book.memo.directory,
+        )
     if schedule == "standard":
         strategy = _run_standard
     else:
@@ -558,10 +653,15 @@ def run(
         problem = Problem(fine, coarse, x0, times, pool, project)
         progress, reason = strategy(progress, problem, book)
     except (TaskError, KeyboardInterrupt) as exc:
-        if book.saved is not None:
+        kept = 0 if book.memo is None else book.memo.count()
+        held = [] if book.saved is None else [f"the checkpoint {os.fspath(book.checkpoint)} "
+                                              f"holds iteration {book.saved}"]
+        if kept:
+            held.append(f"{book.memo.directory} keeps {kept} solves of the iteration after it")
+        if held:
             exc.add_note(
-                f"parareal: the checkpoint {os.fspath(book.checkpoint)} holds iteration "
-                f"{book.saved}; rerun with the same checkpoint to resume from there"
+                f"parareal: {' and '.join(held)}; rerun with the same checkpoint to resume from "
+                "there"
             )
         raise
 
