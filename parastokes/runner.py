@@ -70,7 +70,8 @@ class Reporter:
         """A line of information."""
 
     def start(self, what: str, total: int) -> None:
-        """A phase of ``total`` steps begins: ``"serial"`` slices or ``"parareal"`` iterations."""
+        """A phase of ``total`` steps begins: ``"serial"`` slices or ``"parareal"`` iterations
+        (those still to do: a resumed run counts only what is left)."""
 
     def expect(self, seconds: float) -> None:
         """An estimate of the wall time of one step of the current phase (for an ETA)."""
@@ -331,7 +332,7 @@ def _parareal(
         reporter.advance()
 
     p = cfg.parareal
-    reporter.start("parareal", p.max_iterations)
+    reporter.start("parareal", max(p.max_iterations - len(finals), 0))  # (resumed: what is left)
     workers = getattr(executor, "workers", 1)
     reporter.expect(_slice_seconds(setup) * -(-p.n_slices // workers))  # one parallel sweep
     try:

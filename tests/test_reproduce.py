@@ -257,7 +257,13 @@ def test_an_interrupted_parareal_run_resumes_to_the_same_iterates(finished, tmp_
     assert not other.done(run).exists()
     assert (other.directory(run) / runner.CHECKPOINT).exists()  # iteration 1 kept
     monkeypatch.undo()
+    started = []
+    monkeypatch.setattr(
+        reproduce.ProgressFile, "start", lambda self, what, total: started.append((what, total))
+    )
     reproduce.run_job(run, other)
+    cfg, _ = reproduce.load_config(run, other)
+    assert started == [("parareal", cfg.parareal.max_iterations - 1)]  # only what is left
     resumed = json.loads(other.done(run).read_text())
     original = json.loads(layout.done(run).read_text())
     assert resumed["errors"] == original["errors"]
@@ -344,3 +350,19 @@ def test_collect_commit_without_finished_runs_commits_the_status(tmp_path, repo)
     subject = repo("log", "-1", "--format=%s").strip()
     assert subject == "docs/reproduction: full-scale runs collected (status)"
     assert repo("show", "--name-only", "--format=", "HEAD").split() == ["docs/reproduction.md"]
+
+
+@pytest.mark.parametrize(
+    ("done", "total", "iterations", "shown"),
+    [(2, 4, 2, "parareal 2/4"), (0, 3, 1, "parareal 1/4"), (1, 3, 2, "parareal 2/4")],
+)
+def test_status_counts_the_iterations_of_earlier_sessions(tmp_path, done, total, iterations, shown):
+    """A resumed runner reports only the iterations left; --status shows them out of the whole."""
+    layout = _layout(tmp_path)
+    job = _job("table4_g4")
+    layout.directory(job).mkdir(parents=True)
+    rows = [{"k": k, "increment": 1e-3, "error": 10.0**-k, "elapsed": 1.0} for k in range(1, 3)]
+    progress = {"phase": "parareal", "done": done, "total": total, "iterations": rows[:iterations]}
+    (layout.directory(job) / "progress.json").write_text(json.dumps(progress))
+    text = reproduce.progress_text(job, layout, "running")
+    assert text.startswith(shown + "  η^k: 1.00e-01")

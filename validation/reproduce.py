@@ -584,7 +584,11 @@ def progress_text(job: Job, layout: Layout, state: str) -> str:
         return (_read_json(layout.directory(job) / "failed.json") or {}).get("error", "")
     progress = _read_json(layout.directory(job) / "progress.json") or {}
     detail = ""
-    if state != "done" and progress.get("phase"):
+    rows = progress.get("iterations") or []
+    # (a resumed runner counts only the iterations left: add those of earlier sessions)
+    if state != "done" and progress.get("phase") == "parareal":
+        detail = f"parareal {len(rows)}/{len(rows) - progress['done'] + progress['total']}"
+    elif state != "done" and progress.get("phase"):
         detail = f"{progress['phase']} {progress['done']}/{progress['total']}"
     if progress.get("iterations"):
         detail += "  η^k: " + " ".join(
