@@ -366,3 +366,9 @@ def test_status_counts_the_iterations_of_earlier_sessions(tmp_path, done, total,
     (layout.directory(job) / "progress.json").write_text(json.dumps(progress))
     text = reproduce.progress_text(job, layout, "running")
     assert text.startswith(shown + "  η^k: 1.00e-01")
+    kept = layout.directory(job) / "checkpoint.solves"
+    kept.mkdir()
+    for name in ("fine-k3-n3", "fine-k3-n4", "coarse-k2-n40"):
+        (kept / f"{name}.npz").touch()
+    text = reproduce.progress_text(job, layout, "running")
+    assert text.startswith(shown) and text.endswith("(next: 2 fine, 1 coarse solves kept)")

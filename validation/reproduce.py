@@ -594,6 +594,12 @@ def progress_text(job: Job, layout: Layout, state: str) -> str:
         detail += "  η^k: " + " ".join(
             "-" if r["error"] is None else f"{r['error']:.2e}" for r in progress["iterations"]
         )
+    from parastokes.parareal.solve_memo import memo_directory
+
+    kept = memo_directory(layout.directory(job) / "checkpoint.npz")  # the iteration in progress
+    if state != "done" and kept.is_dir():
+        counts = {kind: len(list(kept.glob(f"{kind}-*.npz"))) for kind in ("fine", "coarse")}
+        detail += f" (next: {counts['fine']} fine, {counts['coarse']} coarse solves kept)"
     return detail.strip()
 
 
