@@ -23,10 +23,10 @@ TIMES = parareal.time_points(T0, T1, N_SLICES)
 REFERENCE = parareal.serial_solution(FINE, X0, T0, T1, N_SLICES)
 
 
-def _run(fine=FINE, coarse=COARSE, executor=None, checkpoint=None):
+def _run(fine=FINE, coarse=COARSE, executor=None, checkpoint=None, schedule="standard"):
     return parareal.run(
         fine, coarse, X0, T0, T1, N_SLICES, tol=0.0, max_iterations=ITERATIONS,
-        executor=executor, reference=REFERENCE, checkpoint=checkpoint,
+        executor=executor, reference=REFERENCE, checkpoint=checkpoint, schedule=schedule,
     )
 
 
@@ -56,6 +56,13 @@ def test_a_kept_solve_is_returned_only_for_exactly_its_input(tmp_path):
     assert memo.get("coarse", 3, 2, 0.4, 0.6, x) is None  # another kind (not stored)
     assert memo.get("fine", 3, 3, 0.4, 0.6, x) is None  # another iteration (not stored)
     assert SolveMemo(tmp_path / "m", {"problem": "b"}).get("fine", 3, 2, 0.4, 0.6, x) is None
+    for k in (1, 3):
+        memo.put("coarse", 5, k, 0.8, 1.0, x, value, 0.5)
+    memo.forget(2)  # iterations 1 and 2 are in the checkpoint now
+    assert memo.count() == 1 and memo.get("coarse", 5, 3, 0.8, 1.0, x) is not None
+    memo.forget(3)
+    assert memo.count() == 0 and not (tmp_path / "m").exists()
+    memo.put("fine", 1, 1, 0.0, 0.2, x, value, 0.5)
     memo.clear()
     assert memo.count() == 0 and not (tmp_path / "m").exists()
     with pytest.raises(ValueError, match="kind"):
@@ -161,3 +168,35 @@ def _run_one_iteration():
     return parareal.run(
         FINE, COARSE, X0, T0, T1, N_SLICES, tol=0.0, max_iterations=1, reference=REFERENCE
     )
+
+
+@pytest.mark.parametrize("resume_with", ["pipelined", "standard"])
+def test_the_pipelined_schedule_keeps_its_solves_too(tmp_path, resume_with):
+    """Its kept solves may reach past the checkpoint's iteration; either schedule resumes them."""
+    markers = tmp_path / "markers"
+    markers.mkdir()
+    faulty = FailsOnSlice(FINE, TIMES[SLICE - 1], 2, markers)
+    path = tmp_path / "run.npz"
+    with pytest.raises(parallel.TaskError, match=f"fine solve of slice {SLICE}"):
+        _run(faulty, checkpoint=path, schedule="pipelined")
+    key = ckpt.fingerprint(X0, T0, T1, N_SLICES, REFERENCE)
+    saved = ckpt.load(path, key).iteration
+    kept = [f.name for f in memo_directory(path).glob("fine-*.npz")]
+    assert saved == 1 and kept  # iteration 1 closed; solves of iteration 2 (and later) kept
+    assert all(int(name.split("-k")[1].split("-")[0]) > saved for name in kept)
+    fine = Recording(FINE)
+    resumed = _run(fine, checkpoint=path, schedule=resume_with)
+    _same(resumed)
+    todo = sum(N_SLICES - k + 1 for k in range(saved + 1, ITERATIONS + 1))
+    assert len(fine.calls) == todo - len(kept)  # every kept fine solve was used
+    assert not memo_directory(path).exists()  # all forgotten when the run returned
+    assert [len(f) for f in resumed.timings.fine] == [6, 5, 4, 3]
+
+
+def test_a_stop_on_the_tolerance_leaves_no_kept_solves(tmp_path):
+    path = tmp_path / "run.npz"
+    res = parareal.run(
+        FINE, COARSE, X0, T0, T1, N_SLICES, tol=1e-3, checkpoint=path, schedule="pipelined"
+    )
+    assert res.stop_reason == "tolerance" and path.exists()
+    assert not memo_directory(path).exists()

@@ -414,7 +414,7 @@ class Bookkeeping:
         self.session_start = session_start
         self.earlier_total = 0.0
         self.saved: int | None = None
-        #: the solves of the iteration in progress (standard schedule; None without checkpoint)
+        #: the solves of the iterations in progress (None without checkpoint)
         self.memo = None if checkpoint is None else SolveMemo(
             memo_directory(checkpoint.path), key
         )
@@ -435,7 +435,7 @@ class Bookkeeping:
         if self.checkpoint is not None:
             ckpt.save(self.checkpoint, progress, self.key)
             self.saved = 0
-            self.memo.clear()
+            self.memo.forget(0)
 
     def iteration_done(self, progress: ckpt.Progress, previous_final: np.ndarray) -> str | None:
         """Iteration ``progress.iteration`` has completed (X^{k-1}_N was ``previous_final``):
@@ -457,7 +457,7 @@ class Bookkeeping:
         if self.checkpoint is not None:
             ckpt.save(self.checkpoint, progress, self.key)
             self.saved = progress.iteration
-            self.memo.clear()
+            self.memo.forget(progress.iteration)
         if self.reporting.on_iteration is not None:
             self.reporting.on_iteration(
                 IterationReport(
@@ -605,9 +605,9 @@ def run(
     The stopping rule is checked after every iteration (:class:`~.options.Stopping`). The
     checkpoint is written atomically after the initial sweep and every iteration; an existing one
     of the same problem (and ``identity``) is resumed with bit-identical results, one of another
-    is refused (:class:`~.checkpoint.CheckpointMismatch`). Under the standard schedule every
-    solve of the iteration in progress is also kept as it completes (:mod:`.solve_memo`), so a
-    resumed run repeats none of them. ``on_iteration`` is called after each
+    is refused (:class:`~.checkpoint.CheckpointMismatch`). Every fine solve and coarse step of
+    the iterations in progress is also kept as it completes (:mod:`.solve_memo`), so a resumed
+    run repeats none of them. ``on_iteration`` is called after each
     checkpoint write with an :class:`IterationReport`. See docs/parareal.md.
     """
     session_start = time.perf_counter()
@@ -665,6 +665,8 @@ def run(
             )
         raise
 
+    if book.memo is not None:
+        book.memo.clear()  # (solves of later iterations the pipelined schedule had started)
     progress.timings.total = book.earlier_total + (time.perf_counter() - session_start)
     progress.timings.schedule = schedule
     return PararealResult(

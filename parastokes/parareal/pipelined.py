@@ -82,6 +82,7 @@ class _Group:
     combine: Callable[[list[np.ndarray]], np.ndarray]
     values: list
     remaining: int
+    args: tuple  # (T_{n-1}, T_n, X_{n-1}^k) of the coarse step
     begin: float = math.inf
     longest: float = 0.0  # the longest auxiliary solve
 
@@ -167,6 +168,7 @@ class _Pipeline:
     groups: dict = field(default_factory=dict)  # (n, k) -> _Group
     runs: dict = field(default_factory=dict)  # (kind, n, k) -> (start, end)
     coarse_times: dict = field(default_factory=dict)  # (n, k) -> the time of G_n^k (gamma_G)
+    fine_times: dict = field(default_factory=dict)  # (n, k) -> the time of F_n^k (gamma_F)
     tasks: list = field(default_factory=list)  # this session's Timings.tasks entries
     finished: set = field(default_factory=set)  # iterations whose X_N^k exists
     failures: dict = field(default_factory=dict)  # iteration -> TaskError
@@ -189,15 +191,34 @@ class _Pipeline:
         return min(self.failures, default=math.inf)
 
     # ---- tasks ---------------------------------------------------------------------------
+    def kept(self, kind: str, n: int, k: int, args: tuple) -> tuple[np.ndarray, float] | None:
+        """The solve from the memo of a stopped session (:mod:`.solve_memo`), or None."""
+        memo = self.book.memo
+        return None if memo is None else memo.get(kind, n, k, *args)
+
+    def keep(self, kind: str, n: int, k: int, args: tuple, value: np.ndarray, seconds: float):
+        if self.book.memo is not None:
+            self.book.memo.put(kind, n, k, *args, value, seconds)
+
     def add_fine(self, n: int, k: int) -> None:
         if k <= self.last and k < self.blocked:
             args = (self.times[n - 1], self.times[n], self.x[n - 1, k - 1])
+            kept = self.kept(FINE, n, k, args)
+            if kept is not None:
+                now = time.perf_counter()
+                self.fine_done(n, k, kept[0], now, now, kept[1])
+                return
             self.workers.add(_Job(FINE, n, k, self.fine, args, fine_label(n, k)))
 
     def add_coarse(self, n: int, k: int) -> None:
         if k > self.last or k >= self.blocked:
             return
         t_start, t_end, x = self.times[n - 1], self.times[n], self.x[n - 1, k]
+        kept = self.kept(COARSE, n, k, (t_start, t_end, x))
+        if kept is not None:
+            now = time.perf_counter()
+            self.coarse_done(n, k, kept[0], now, now, kept[1])
+            return
         split = getattr(self.coarse, "split", None)
         try:
             parts = None if split is None else split(t_start, t_end, x)
@@ -208,7 +229,7 @@ class _Pipeline:
             self.workers.add(_Job(COARSE, n, k, self.coarse, (t_start, t_end, x), "coarse step"))
             return
         tasks, combine = parts
-        self.groups[n, k] = _Group(combine, [None] * len(tasks), len(tasks))
+        self.groups[n, k] = _Group(combine, [None] * len(tasks), len(tasks), (t_start, t_end, x))
         for i, task in enumerate(tasks):
             self.workers.add(_Job(AUXILIARY, n, k, task.fn, tuple(task.args), task.label, i))
 
@@ -245,6 +266,17 @@ class _Pipeline:
         if n > k + 1:
             self.try_correct(n, k + 1)
 
+    def fine_done(
+        self, n: int, k: int, value: np.ndarray, begin: float, end: float, duration: float
+    ) -> None:
+        self.runs[FINE, n, k] = (begin, end)
+        self.fine_times[n, k] = duration
+        self.fine_values[n, k] = value
+        if n == k:
+            self.set_state(n, k, value)
+        else:
+            self.try_correct(n, k)
+
     def job_done(self, job: _Job, future: Future, begin: float, end: float, slot: int) -> None:
         self.tasks.append([job.kind, job.n, job.k, begin, end, slot])
         exc = future.exception()
@@ -252,13 +284,10 @@ class _Pipeline:
         if exc is not None:
             self.task_failed(job, exc)
         elif job.kind == FINE:
-            self.runs[FINE, n, k] = (begin, end)
-            self.fine_values[n, k] = future.result()
-            if n == k:
-                self.set_state(n, k, future.result())
-            else:
-                self.try_correct(n, k)
+            self.keep(FINE, n, k, job.args, future.result(), end - begin)
+            self.fine_done(n, k, future.result(), begin, end, end - begin)
         elif job.kind == COARSE:
+            self.keep(COARSE, n, k, job.args, future.result(), end - begin)
             self.coarse_done(n, k, future.result(), begin, end, end - begin)
         else:
             group = self.groups[n, k]
@@ -276,7 +305,9 @@ class _Pipeline:
                     return
                 done = time.perf_counter()
                 # gamma_G as in Algorithm 1: as if the auxiliary solves had run at once
-                self.coarse_done(n, k, value, group.begin, done, group.longest + done - start)
+                duration = group.longest + done - start
+                self.keep(COARSE, n, k, group.args, value, duration)
+                self.coarse_done(n, k, value, group.begin, done, duration)
 
     # ---- failures ------------------------------------------------------------------------
     def error_of(self, job: _Job, exc: BaseException) -> TaskError:
@@ -326,9 +357,8 @@ class _Pipeline:
         end; 0 when there are none)."""
         runs = [self.runs[kind, n, k] for n in slices]
         span = max((e for _, e in runs), default=0.0) - min((b for b, _ in runs), default=0.0)
-        if kind == COARSE:
-            return [self.coarse_times[n, k] for n in slices], span
-        return [end - begin for begin, end in runs], span
+        times = self.coarse_times if kind == COARSE else self.fine_times
+        return [times[n, k] for n in slices], span
 
     def close(self, k: int) -> str | None:
         n_slices = self.n_slices

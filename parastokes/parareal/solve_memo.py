@@ -7,8 +7,8 @@ in progress as it completes, one file per solve in a directory beside the checkp
 (``checkpoint.npz`` -> ``checkpoint.solves/``). A resumed run takes a solve from the memo instead
 of computing it when the run's fingerprint, the solve (kind, slice, iteration) and a digest of its
 input (T_{n-1}, T_n and the state, bit for bit) all match, so it reaches the same iterates, to the
-last bit, as a run that was never stopped. The memo is emptied once the iteration's checkpoint is
-written.
+last bit, as a run that was never stopped. The solves of an iteration are forgotten once its
+checkpoint is written, and all of them when the run returns.
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ import hashlib
 import json
 import logging
 import os
+import re
 import shutil
 from collections.abc import Mapping
 from pathlib import Path
@@ -32,6 +33,8 @@ logger = logging.getLogger(__name__)
 
 #: The kinds of solve a memo holds.
 KINDS = ("fine", "coarse")
+
+_NAME = re.compile(r"(?P<kind>fine|coarse)-k(?P<k>\d+)-n(?P<n>\d+)\.npz")
 
 
 def memo_directory(checkpoint: str | os.PathLike) -> Path:
@@ -101,6 +104,18 @@ class SolveMemo:
         """How many solves the memo holds."""
         return len(list(self.directory.glob("*.npz"))) if self.directory.is_dir() else 0
 
+    def forget(self, through: int) -> None:
+        """Forget the solves of iterations up to ``through`` (the checkpoint holds them now); the
+        pipelined schedule may have kept some of later iterations already."""
+        if not self.directory.is_dir():
+            return
+        for path in self.directory.glob("*.npz"):
+            match = _NAME.fullmatch(path.name)
+            if match is None or int(match["k"]) <= through:
+                path.unlink(missing_ok=True)
+        if not any(self.directory.iterdir()):
+            self.directory.rmdir()
+
     def clear(self) -> None:
-        """Forget every solve (the iteration they belong to is in the checkpoint now)."""
+        """Forget every solve."""
         shutil.rmtree(self.directory, ignore_errors=True)
