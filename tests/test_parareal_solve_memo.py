@@ -200,3 +200,19 @@ def test_a_stop_on_the_tolerance_leaves_no_kept_solves(tmp_path):
     )
     assert res.stop_reason == "tolerance" and path.exists()
     assert not memo_directory(path).exists()
+
+
+def test_a_run_stopped_in_a_correction_sweep_solves_no_fine_slice_again(tmp_path):
+    markers = tmp_path / "markers"
+    markers.mkdir()
+    # slice 5's coarse step: 1st call in the initial sweep, 2nd in iteration 1, 3rd in iteration 2
+    faulty = FailsOnSlice(COARSE, TIMES[4], 3, markers)
+    path = tmp_path / "run.npz"
+    with pytest.raises(parallel.TaskError, match="coarse solve of slice 5 in iteration 2"):
+        _run(coarse=faulty, checkpoint=path)
+    fine, coarse = Recording(FINE), Recording(COARSE)
+    resumed = _run(fine, coarse, checkpoint=path)
+    _same(resumed)
+    assert len(fine.calls) == (N_SLICES - 2) + (N_SLICES - 3)  # iteration 2's were all kept
+    assert coarse.calls[0][0] == TIMES[4]  # iteration 2 went on from slice 5's coarse step
+    assert len(coarse.calls) == 2 + (N_SLICES - 3) + (N_SLICES - 4)
