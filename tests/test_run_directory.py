@@ -287,3 +287,18 @@ def test_trajectories_need_no_hdf5_file_locking(tmp_path):
         reader = f"import h5py; print({opened}['serial/time'].shape)"
         other = subprocess.run([sys.executable, "-c", reader], capture_output=True, text=True)
         assert other.stdout.strip() == "(1,)", other.stderr  # refused if the writer held a lock
+
+
+def test_the_kept_solves_are_resume_state(tmp_path):
+    """checkpoint.solves/ is the run's own (not foreign), and --overwrite discards it."""
+    out = tmp_path / "out"
+    (out / "checkpoint.solves").mkdir(parents=True)
+    (out / "checkpoint.solves" / "fine-k2-n3.npz").write_text("a kept solve")
+    found = rundir.RunDirectory(out).entries()
+    assert found["state"] == ["checkpoint.solves"] and found["foreign"] == []
+    with pytest.raises(rundir.RunDirectoryError, match="--resume"):  # an interrupted run's
+        with rundir.claim(out, resume=False, overwrite=False):
+            pass
+    with rundir.claim(out, resume=False, overwrite=True):
+        pass
+    assert not (out / "checkpoint.solves").exists()
