@@ -58,7 +58,7 @@ import numpy as np
 
 from parastokes import integrate, models, parallel, parareal, spatial
 
-SECTIONS = ("overhead", "speedup", "scaling", "fig10")
+SECTIONS = ("overhead", "speedup", "scaling", "fig10", "memo")
 TARGET = 0.9  # measured speedup >= 90 % of the theoretical one on 2 workers
 
 
@@ -167,6 +167,7 @@ RECORD_KEYS: dict[str, tuple[str, ...]] = {
         "both_iterations",
         "spatial_difference",
     ),
+    "memo": ("case", "state_kib", "keep_ms", "read_ms", "steps_100_ms", "keep_per_100_steps"),
 }
 
 
@@ -548,6 +549,30 @@ def fig10(args: argparse.Namespace, pools: Pools) -> tuple[str, Any]:
         ]
     )
     return text, rows
+
+
+def memo(args: argparse.Namespace, pools: Pools) -> tuple[str, Any]:
+    """The cost of keeping one solve of the iteration in progress (parareal.solve_memo: one
+    file written atomically and synced) and of reading it back, against 100 fine steps."""
+    from parastokes.parareal.solve_memo import SolveMemo
+
+    rows = []
+    for case in (rod_case(1, args.rod_slice), vesicle_case(args.vesicle_slice)):
+        x = case.x0
+        case.warmup()()
+        _, steps = timed(case.fine, 0.0, 100 * case.fine.dt, x)
+        with tempfile.TemporaryDirectory() as folder:
+            kept = SolveMemo(Path(folder) / "run.solves", {"problem": case.name})
+            puts, gets = [], []
+            for n in range(1, 21):
+                puts.append(timed(kept.put, "fine", n, 1, 0.0, 1.0, x, x, 1.0)[1])
+                gets.append(timed(kept.get, "fine", n, 1, 0.0, 1.0, x)[1])
+        put, get = float(np.median(puts)), float(np.median(gets))
+        rows.append((case.name, x.nbytes // 1024, 1e3 * put, 1e3 * get, 1e3 * steps, put / steps))
+    text = table(
+        ["case", "state KiB", "keep ms", "read ms", "100 fine steps ms", "keep / 100 steps"], rows
+    )
+    return text, records("memo", rows)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
