@@ -572,7 +572,7 @@ def memo(args: argparse.Namespace, pools: Pools) -> tuple[str, Any]:
     text = table(
         ["case", "state KiB", "keep ms", "read ms", "100 fine steps ms", "keep / 100 steps"], rows
     )
-    return text, records("memo", rows)
+    return text, rows
 
 
 def main(argv: Sequence[str] | None = None) -> int:
