@@ -88,11 +88,16 @@ def test_the_memo_lives_beside_its_checkpoint():
 SLICE = 4  # the fault: slice 4's fine solve in iteration 2 (slices 2 and 3 completed before it)
 
 
-@pytest.mark.parametrize("kind", ["in-process", "processes"])
-def test_a_run_stopped_in_the_parallel_sweep_repeats_none_of_its_solves(kind, tmp_path):
+def _failing(tmp_path, propagator, t_start, call):
+    """``propagator`` failing on its ``call``-th solve of the slice that starts at ``t_start``."""
     markers = tmp_path / "markers"
     markers.mkdir()
-    faulty = FailsOnSlice(FINE, TIMES[SLICE - 1], 2, markers)
+    return FailsOnSlice(propagator, t_start, call, markers)
+
+
+@pytest.mark.parametrize("kind", ["in-process", "processes"])
+def test_a_run_stopped_in_the_parallel_sweep_repeats_none_of_its_solves(kind, tmp_path):
+    faulty = _failing(tmp_path, FINE, TIMES[SLICE - 1], 2)
     path = tmp_path / "run.npz"
     executor = parallel.make_executor("processes", 2) if kind == "processes" else None
     try:
@@ -123,9 +128,7 @@ def test_a_run_stopped_in_the_parallel_sweep_repeats_none_of_its_solves(kind, tm
 
 
 def test_a_run_stopped_in_the_initial_sweep_keeps_its_coarse_steps(tmp_path):
-    markers = tmp_path / "markers"
-    markers.mkdir()
-    faulty = FailsOnSlice(COARSE, TIMES[SLICE - 1], 1, markers)
+    faulty = _failing(tmp_path, COARSE, TIMES[SLICE - 1], 1)
     path = tmp_path / "run.npz"
     with pytest.raises(parallel.TaskError, match="coarse solve of slice 4 in iteration 0") as info:
         _run(coarse=faulty, checkpoint=path)
@@ -173,9 +176,7 @@ def _run_one_iteration():
 @pytest.mark.parametrize("resume_with", ["pipelined", "standard"])
 def test_the_pipelined_schedule_keeps_its_solves_too(tmp_path, resume_with):
     """Its kept solves may reach past the checkpoint's iteration; either schedule resumes them."""
-    markers = tmp_path / "markers"
-    markers.mkdir()
-    faulty = FailsOnSlice(FINE, TIMES[SLICE - 1], 2, markers)
+    faulty = _failing(tmp_path, FINE, TIMES[SLICE - 1], 2)
     path = tmp_path / "run.npz"
     with pytest.raises(parallel.TaskError, match=f"fine solve of slice {SLICE}"):
         _run(faulty, checkpoint=path, schedule="pipelined")
@@ -203,10 +204,8 @@ def test_a_stop_on_the_tolerance_leaves_no_kept_solves(tmp_path):
 
 
 def test_a_run_stopped_in_a_correction_sweep_solves_no_fine_slice_again(tmp_path):
-    markers = tmp_path / "markers"
-    markers.mkdir()
     # slice 5's coarse step: 1st call in the initial sweep, 2nd in iteration 1, 3rd in iteration 2
-    faulty = FailsOnSlice(COARSE, TIMES[4], 3, markers)
+    faulty = _failing(tmp_path, COARSE, TIMES[4], 3)
     path = tmp_path / "run.npz"
     with pytest.raises(parallel.TaskError, match="coarse solve of slice 5 in iteration 2"):
         _run(coarse=faulty, checkpoint=path)
