@@ -16,7 +16,8 @@ traceback); 2 bad configuration or usage, or an output directory or file that ca
 (in use by another run, a finished run without ``--overwrite``, damaged, unwritable); 3 numerical
 blow-up (a step too large for the problem: the message names the solver, time and step, and the
 last good state is saved); 4 worker or parallel failure (a worker died or raised; rerun with
-``--resume`` to continue from the last completed iteration); 130 interrupted (Ctrl-C), 143
+``--resume`` to continue from the last completed iteration and the solves completed since);
+130 interrupted (Ctrl-C), 143
 terminated (SIGTERM: ``kill``, ``timeout``, Slurm's time limit), 129 hung up (SIGHUP): in these
 three cases the workers are stopped, the checkpoint is consistent and ``--resume`` continues.
 
