@@ -421,6 +421,7 @@ def test_the_budget_keeps_a_measurement_for_the_best_screened_candidate(monkeypa
     """With a clock that charges 1 per screen and 3 per measurement and room for 12, the search
     does not spend everything on screens (their optimistic bounds stay above every screened
     estimate): it measures the best screened candidate while a measurement still fits."""
+    from parastokes.tuning import search as search_module
     from parastokes.tuning.search import _Search
 
     ticks = [0.0]
@@ -434,6 +435,9 @@ def test_the_budget_keeps_a_measurement_for_the_best_screened_candidate(monkeypa
 
     monkeypatch.setattr(_Search, "screen", charged(screen, 1.0))
     monkeypatch.setattr(_Search, "measure", charged(measure, 3.0))
+    # the search's estimates start from the time of a fine step; fixed here (an unloaded
+    # machine's 1e-5 s for this rod), since the real one depends on the load and the path with it
+    monkeypatch.setattr(search_module, "_seconds_per_step", lambda *args: 1e-5)
     fine = integrate.Propagator(small_rod(), "rk2", 1e-6)
     res = tuning.tune(fine, t0=0.0, t1=8e-3, n_slices=4, cores=4, target=1e-6,
                       space=Space(schemes=("euler",), step_fractions=(1.0,)), budget=15.0,
@@ -441,7 +445,10 @@ def test_the_budget_keeps_a_measurement_for_the_best_screened_candidate(monkeypa
     assert res.report["search"]["stopped"] == "budget"
     measured = [c for c in res.candidates[1:] if c.pilot_errors]
     assert measured, "the budget went to screens only"
-    assert ticks[0] <= 15.0
+    # before its first measurement the search knows a measurement's cost only from the model (one
+    # candidate's fine solves, 0.1 here), which this clock charges 3: the budget is exceeded by at
+    # most that one stage (docs/tuning.md, "Bad input, budget and Ctrl-C")
+    assert ticks[0] <= 15.0 + 3.0
 
 
 def test_default_space_holds_the_structure_of_table5_g3():
