@@ -594,11 +594,12 @@ def progress_text(job: Job, layout: Layout, state: str) -> str:
         detail += "  η^k: " + " ".join(
             "-" if r["error"] is None else f"{r['error']:.2e}" for r in progress["iterations"]
         )
-    from parastokes.parareal.solve_memo import memo_directory
+    from parastokes.parareal.solve_memo import KINDS, memo_directory
+    from parastokes.runner import CHECKPOINT
 
-    kept = memo_directory(layout.directory(job) / "checkpoint.npz")  # the iteration in progress
+    kept = memo_directory(layout.directory(job) / CHECKPOINT)  # the iteration in progress
     if state != "done" and kept.is_dir():
-        counts = {kind: len(list(kept.glob(f"{kind}-*.npz"))) for kind in ("fine", "coarse")}
+        counts = {kind: len(list(kept.glob(f"{kind}-*.npz"))) for kind in KINDS}
         detail += f" (next: {counts['fine']} fine, {counts['coarse']} coarse solves kept)"
     return detail.strip()
 

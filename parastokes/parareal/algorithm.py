@@ -35,7 +35,7 @@ from .metrics import Positions, relative_change
 from .options import Checkpoint, Reporting, Stopping
 from .result import PararealResult
 from .solve_memo import SolveMemo, memo_directory
-from .timings import MANAGER, Timings, queued_intervals
+from .timings import MANAGER, Timings, queued_intervals, queued_start
 
 __all__ = [
     "IterationReport",
@@ -227,21 +227,13 @@ class _Clocked:
         future.add_done_callback(functools.partial(self._done, index))
         return future
 
-    def _started(self, index: int) -> float:
-        """When task ``index`` started (the rule of ``queued_intervals``, from the completions
-        seen so far: a task that has completed had started after enough earlier ones ended)."""
-        workers = getattr(self.executor, "workers", None)
-        start = self.submitted[index]
-        if workers is not None and index >= workers:
-            earlier = sorted(t for i, t in self.completed.items() if i < index)
-            if len(earlier) > index - workers:
-                start = max(start, earlier[index - workers])
-        return start
-
     def _done(self, index: int, future: Future) -> None:
         with self._finished:
             self.completed[index] = end = time.perf_counter()
-            seconds = end - self._started(index)
+            # (a task that has completed started after enough of the earlier ones had ended)
+            earlier = [t for i, t in self.completed.items() if i < index]
+            workers = getattr(self.executor, "workers", None)
+            seconds = end - queued_start(index, self.submitted[index], earlier, workers)
         if self.on_result is not None and not future.cancelled() and future.exception() is None:
             try:
                 self.on_result(index, future.result(), seconds)

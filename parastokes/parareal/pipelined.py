@@ -196,7 +196,10 @@ class _Pipeline:
         memo = self.book.memo
         return None if memo is None else memo.get(kind, n, k, *args)
 
-    def keep(self, kind: str, n: int, k: int, args: tuple, value: np.ndarray, seconds: float):
+    def keep(
+        self, kind: str, n: int, k: int, args: tuple, value: np.ndarray, seconds: float
+    ) -> None:
+        """Keep a completed solve in the memo (when the run has a checkpoint)."""
         if self.book.memo is not None:
             self.book.memo.put(kind, n, k, *args, value, seconds)
 

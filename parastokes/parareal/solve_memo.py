@@ -34,7 +34,8 @@ logger = logging.getLogger(__name__)
 #: The kinds of solve a memo holds.
 KINDS = ("fine", "coarse")
 
-_NAME = re.compile(r"(?P<kind>fine|coarse)-k(?P<k>\d+)-n(?P<n>\d+)\.npz")
+#: A kept solve's file name (written by ``SolveMemo._file``).
+_NAME = re.compile(rf"(?P<kind>{'|'.join(KINDS)})-k(?P<k>\d+)-n(?P<n>\d+)\.npz")
 
 
 def memo_directory(checkpoint: str | os.PathLike) -> Path:

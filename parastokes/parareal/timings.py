@@ -9,7 +9,14 @@ import numpy as np
 
 from . import speedup as model
 
-__all__ = ["MANAGER", "TASK_FIELDS", "Timings", "queued_durations", "queued_intervals"]
+__all__ = [
+    "MANAGER",
+    "TASK_FIELDS",
+    "Timings",
+    "queued_durations",
+    "queued_intervals",
+    "queued_start",
+]
 
 #: The fields of one entry of ``Timings.tasks``.
 TASK_FIELDS = ("kind", "slice", "iteration", "start", "end", "worker")
@@ -71,6 +78,17 @@ class Timings:
         return asdict(self)
 
 
+def queued_start(
+    index: int, submitted: float, earlier: Sequence[float], workers: int | None
+) -> float:
+    """When task ``index`` of a first-in-first-out pool of ``workers`` started: when it was
+    submitted, or, once all workers are busy, when the (index - workers + 1)-th of the tasks before
+    it completed (``earlier``: their completion times, as far as known)."""
+    if workers is None or index < workers or len(earlier) <= index - workers:
+        return submitted
+    return max(submitted, sorted(earlier)[index - workers])
+
+
 def queued_intervals(
     submitted: Sequence[float], completed: Sequence[float], workers: int | None
 ) -> list[tuple[float, float, int]]:
@@ -85,8 +103,7 @@ def queued_intervals(
     intervals = []
     free_at: list[float] = []  # when each slot became free
     for i, (start, end) in enumerate(zip(submitted, completed, strict=True)):
-        if workers is not None and i >= workers:
-            start = max(start, sorted(completed[:i])[i - workers])
+        start = queued_start(i, start, completed[:i], workers)
         idle = [s for s, t in enumerate(free_at) if t <= start]
         if idle or (workers is not None and len(free_at) >= workers):
             slot = min(idle or range(len(free_at)), key=lambda s: free_at[s])
