@@ -1,0 +1,132 @@
+"""The verdicts of docs/reproduction.md: every claim of the paper's section 5 is evaluated by its
+stated criterion.
+
+One set of records shaped like the paper's figures (η^k per iteration, γ_G/γ_F per solver, the
+speedups of eq. 14 on 40 cores) satisfies every claim; for each claim one change of those records
+that the paper's words exclude makes it differ.
+A claim added to ``CLAIMS`` without such a pair fails ``test_every_claim_has_a_counterexample``.
+"""
+
+import pytest
+
+from validation import reproduce, reproduce_report
+
+
+def _rec(errors: list[float], ratio: float) -> dict:
+    return {"errors": errors, "speedup_40": reproduce.speedup_curve(errors, ratio, 40)}
+
+
+#: (errors η¹..η⁴, γ_G/γ_F) per run, shaped like the paper's figures.
+PAPER_LIKE = {
+    # Fig. 4: G² decays faster than G¹.
+    "table3_g1": ([1e-5, 1e-7, 1e-9, 1e-11], 0.01),
+    "table3_g2": ([1e-6, 1e-9, 1e-12, 1e-14], 0.01),
+    # Fig. 5: Lagrange error dominates for small N_ε; Richardson pays off at N_ε = 5.
+    "table3_g3_n2": ([5e-7], 0.05), "table3_g4_n2": ([4.5e-7], 0.1),
+    "table3_g3_n3": ([2e-8], 0.05), "table3_g4_n3": ([1.9e-8], 0.1),
+    "table3_g3_n5": ([1.1e-8], 0.05), "table3_g4_n5": ([1.5e-10], 0.1),
+    "table3_g3_n6": ([1.2e-8], 0.05), "table3_g4_n6": ([1e-10], 0.1),
+    # Fig. 6: G¹ best above 1e-6 (its step at 1e-6), G² in [1e-7, 1e-6], G³ below 1e-8 (one
+    # iteration to 1e-10), G⁴ slower at first and the most accurate at the end.
+    "table4_g1": ([1e-6, 5e-8, 3e-9, 2e-10], 0.01),
+    "table4_g2": ([1e-7, 2e-9, 5e-11, 2e-12], 0.02),
+    "table4_g3": ([1e-10, 1e-12, 1e-13, 5e-14], 0.04),
+    "table4_g4": ([1e-8, 2e-12, 1e-14, 1e-15], 0.05),
+    # Fig. 7: ε⁰ = 7σ_f, cheaper coarse solvers reaching the same errors.
+    "table5_g1": ([1e-6, 5e-8, 3e-9, 2e-10], 0.002),
+    "table5_g2": ([1e-7, 2e-9, 5e-11, 2e-12], 0.004),
+    "table5_g3": ([1e-10, 1e-12, 1e-13, 5e-14], 0.008),
+    # Fig. 8: τ_c/τ_f larger for ε⁰ = 2σ_f.
+    "table6_eps2": ([1e-5, 1e-8, 1e-11], 0.01),
+    "table6_eps3": ([1e-5, 1e-8, 1e-11], 0.05),
+    # Fig. 12: the best solver changes with the desired error; G⁴ never the fastest.
+    "table7_g1": ([3e-5, 9e-6, 2e-6, 3e-8], 0.03),
+    "table7_g2": ([4e-6, 7e-7, 1e-7, 2e-8], 0.06),
+    "table7_g3": ([3e-9, 5e-11, 3e-13, 2e-13], 0.1),
+    "table7_g4": ([4e-9, 1e-12, 2e-15, 3e-15], 0.16),
+    # Fig. 13: RK4 fine solver, γ_G/γ_F a few times smaller.
+    "table8_g1": ([3e-5, 9e-6, 2e-6, 3e-8], 0.008),
+    "table8_g2": ([4e-6, 7e-7, 1e-7, 2e-8], 0.015),
+    "table8_g3": ([3e-9, 5e-11, 3e-13, 2e-13], 0.025),
+}
+
+#: For each claim (by the start of its quote), runs replaced by values its words exclude.
+COUNTEREXAMPLES = {
+    "the relative error of Algorith": {"table3_g2": ([1e-6, 1e-9, 1e-12, 2e-11], 0.01)},
+    "as N_ε increases, … Algorithm ": {"table3_g3_n6": ([3e-8], 0.05)},
+    "For smaller values of N_ε, G⁴ ": {"table3_g4_n3": ([5e-9], 0.1)},
+    "[Richardson] reduces η¹ from a": {"table3_g4_n5": ([2e-9], 0.1)},
+    "when G¹ is used as the coarse ": {"table4_g2": ([1e-7, 2e-9, 5e-11, 5e-10], 0.02)},
+    "After one iteration, the versi": {"table4_g4": ([5e-11, 2e-12, 1e-14, 1e-15], 0.05)},
+    "the version using G⁴ eventuall": {"table4_g4": ([1e-8, 2e-12, 1e-13, 1e-13], 0.05)},
+    "in the case of G¹, as the desi": {"table4_g1": ([1e-5, 5e-8, 3e-9, 2e-10], 0.01)},
+    "In the case of G³, … it only t": {"table4_g3": ([1e-9, 1e-12, 1e-13, 5e-14], 0.04)},
+    "the coarse solver that leads t": {"table4_g2": ([1e-7, 2e-9, 5e-11, 2e-12], 0.05)},
+    "as long as the desired error i": {"table4_g4": ([1e-8, 2e-12, 1e-14, 1e-15], 0.005)},
+    "to obtain a solution of the sa": {"table5_g1": ([1e-6, 5e-8, 3e-9, 2e-10], 0.008)},
+    "The speedup is higher in the c": {"table6_eps2": ([1e-5, 1e-8, 1e-11], 0.06)},
+    "the best coarse solver to use ": {"table7_g4": ([1e-15, 1e-15, 1e-15, 1e-15], 0.001)},
+    "for the range of error conside": {"table7_g3": ([5e-9, 5e-11, 3e-13, 2e-13], 0.1)},
+    "Comparing Figs. 12 and 13, … t": {  # Table 7's γ ratios: the same speedups
+        "table8_g1": ([3e-5, 9e-6, 2e-6, 3e-8], 0.03),
+        "table8_g2": ([4e-6, 7e-7, 1e-7, 2e-8], 0.06),
+        "table8_g3": ([3e-9, 5e-11, 3e-13, 2e-13], 0.1),
+    },
+}
+
+
+def _records(changes: dict | None = None) -> dict:
+    runs = PAPER_LIKE | (changes or {})
+    return {name: _rec(list(errors), ratio) for name, (errors, ratio) in runs.items()}
+
+
+def _claim(start: str) -> reproduce_report.Claim:
+    (claim,) = [c for c in reproduce_report.CLAIMS if c.quote.startswith(start)]
+    return claim
+
+
+def test_every_claim_has_a_counterexample():
+    assert sorted(c.quote[:30] for c in reproduce_report.CLAIMS) == sorted(COUNTEREXAMPLES)
+
+
+@pytest.mark.parametrize("start", sorted(COUNTEREXAMPLES))
+def test_the_paper_like_records_agree_and_the_counterexample_differs(start):
+    claim = _claim(start)
+    ours, holds = claim.evaluate(_records())
+    assert holds, ours
+    changed = _records(COUNTEREXAMPLES[start])
+    ours, holds = claim.evaluate(changed)
+    assert not holds, ours
+
+
+def test_the_table_marks_agree_differ_and_pending():
+    records = _records(COUNTEREXAMPLES["as N_ε increases, … Algorithm "])
+    del records["table3_g1"]
+    table = reproduce_report.claims_table(records)
+    rows = {line.split("|")[2].strip()[1:31]: line.rsplit("|", 2)[1].strip()
+            for line in table.splitlines()[2:]}
+    assert rows["as N_ε increases, … Algorithm "] == "**differ**"
+    assert rows["the relative error of Algorith"] == "pending"
+    assert rows["[Richardson] reduces η¹ from a"] == "agree"
+    assert list(rows.values()).count("n/a") == len(reproduce_report.UNTESTABLE)
+
+
+def test_fig6_regimes_do_not_depend_on_which_side_of_a_boundary_eta_lies():
+    """G¹'s η¹ at 1e-6 exactly, or a little above or below it, puts the switch from G¹ to G² on
+    one side of the paper's boundary or the other; the verdict is the same."""
+    claim = _claim("the coarse solver that leads t")
+    for eta in (0.8e-6, 1e-6, 1.25e-6):
+        errors = [eta, 5e-8, 3e-9, 2e-10]
+        assert claim.evaluate(_records({"table4_g1": (errors, 0.01)}))[1], eta
+
+
+def test_a_solver_that_does_not_reach_an_error_does_not_hide_one_that_does():
+    """Fig. 12's "one of G¹, G², G³ always leads to higher speedup than G⁴": at 1e-10 G¹ and G²
+    (listed first) never reach it in four iterations, G³ does, faster than G⁴."""
+    claim = _claim("for the range of error conside")
+    records = _records({"table7_g3": ([6e-9, 5e-11, 3e-13, 2e-13], 0.1)})
+    ours, holds = claim.evaluate(records)
+    first = float(ours.split("e.g. ")[1])
+    assert not holds and 4e-9 <= first < 6e-9  # only between G⁴'s η¹ and G³'s is G⁴ faster
+    assert claim.evaluate(_records())[1]
+
