@@ -3,8 +3,8 @@ stated criterion.
 
 One set of records shaped like the paper's figures (η^k per iteration, γ_G/γ_F per solver, the
 speedups of eq. 14 on 40 cores) satisfies every claim; for each claim one change of those records
-that the paper's words exclude makes it differ.
-A claim added to ``CLAIMS`` without such a pair fails ``test_every_claim_has_a_counterexample``.
+that the paper's words exclude makes it differ. A claim added to ``CLAIMS`` without such a pair
+fails ``test_every_claim_has_a_counterexample``.
 """
 
 import pytest
