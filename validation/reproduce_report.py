@@ -316,21 +316,18 @@ def _fig5_n5(r: Records) -> tuple[str, bool]:
 
 
 def _fig6_g1_slowest(r: Records) -> tuple[str, bool]:
-    names = [f"table4_g{i}" for i in range(1, 5)]
-    worst = [max(names, key=lambda n: _eta(r, n, k)) for k in range(1, 5)]
+    worst = [max(_T4, key=lambda n: _eta(r, n, k)) for k in range(1, 5)]
     return (f"largest η^k for k = 1..4: {', '.join(w[-2:].upper() for w in worst)}",
             all(w == "table4_g1" for w in worst))
 
 
 def _fig6_g3_first(r: Records) -> tuple[str, bool]:
-    names = [f"table4_g{i}" for i in range(1, 5)]
-    best = min(names, key=lambda n: _eta(r, n, 1))
+    best = min(_T4, key=lambda n: _eta(r, n, 1))
     return f"smallest η¹: {best[-2:].upper()} ({_eta(r, best, 1):.2e})", best == "table4_g3"
 
 
 def _fig6_g4_last(r: Records) -> tuple[str, bool]:
-    names = [f"table4_g{i}" for i in range(1, 5)]
-    best = min(names, key=lambda n: _eta(r, n, 4))
+    best = min(_T4, key=lambda n: _eta(r, n, 4))
     g4 = _eta(r, "table4_g4", 4)
     slower = _eta(r, "table4_g4", 1) > _eta(r, "table4_g3", 1)
     # Two solvers at the round-off floor (about 2e-13 for the rod) are equally accurate.
