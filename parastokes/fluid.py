@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from concurrent.futures import Executor
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal, overload
 
 import numpy as np
 
@@ -37,6 +37,39 @@ class MRS:
     viscosity: float
     wall: bool = False
     n_threads: int | None = None
+
+    @overload
+    def velocity(
+        self,
+        points: np.ndarray,
+        forces: np.ndarray,
+        *,
+        epsilon: float,
+        torques: np.ndarray | None = None,
+        angular: Literal[False] = False,
+    ) -> np.ndarray: ...
+
+    @overload
+    def velocity(
+        self,
+        points: np.ndarray,
+        forces: np.ndarray,
+        *,
+        epsilon: float,
+        torques: np.ndarray | None = None,
+        angular: Literal[True],
+    ) -> tuple[np.ndarray, np.ndarray]: ...
+
+    @overload
+    def velocity(
+        self,
+        points: np.ndarray,
+        forces: np.ndarray,
+        *,
+        epsilon: float,
+        torques: np.ndarray | None = None,
+        angular: bool,
+    ) -> np.ndarray | tuple[np.ndarray, np.ndarray]: ...
 
     def velocity(
         self,
@@ -113,6 +146,39 @@ class BlockedMRS(MRS):
     each target's sum is the same sum in the same order, so the velocities are the same bits."""
 
     blocks: TargetBlocks | None = None
+
+    @overload
+    def velocity(
+        self,
+        points: np.ndarray,
+        forces: np.ndarray,
+        *,
+        epsilon: float,
+        torques: np.ndarray | None = None,
+        angular: Literal[False] = False,
+    ) -> np.ndarray: ...
+
+    @overload
+    def velocity(
+        self,
+        points: np.ndarray,
+        forces: np.ndarray,
+        *,
+        epsilon: float,
+        torques: np.ndarray | None = None,
+        angular: Literal[True],
+    ) -> tuple[np.ndarray, np.ndarray]: ...
+
+    @overload
+    def velocity(
+        self,
+        points: np.ndarray,
+        forces: np.ndarray,
+        *,
+        epsilon: float,
+        torques: np.ndarray | None = None,
+        angular: bool,
+    ) -> np.ndarray | tuple[np.ndarray, np.ndarray]: ...
 
     def velocity(
         self,
