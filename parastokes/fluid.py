@@ -189,6 +189,8 @@ class BlockedMRS(MRS):
         torques: np.ndarray | None = None,
         angular: bool = False,
     ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+        if self.blocks is None:
+            raise ValueError("BlockedMRS: blocks is None; give it the TargetBlocks to split into")
         options = {"epsilon": epsilon, "mu": self.viscosity, "wall": self.wall,
                    "angular": angular}
         parts = self.blocks.run(points, forces, torques, options)
