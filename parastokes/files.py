@@ -48,7 +48,10 @@ def atomic_write(path: str | os.PathLike, write: Callable[[IO[bytes]], Any]) -> 
 def write_npz(path: str | os.PathLike, meta: Mapping[str, Any], **arrays: np.ndarray) -> None:
     """Write ``arrays`` and the JSON-ready ``meta`` to an ``.npz`` file atomically."""
     text = json.dumps(meta, allow_nan=True)
-    atomic_write(path, lambda handle: np.savez(handle, meta=np.array(text), **arrays))
+    # allow_pickle (savez's default) given by name: no array can take its place
+    atomic_write(
+        path, lambda handle: np.savez(handle, allow_pickle=True, meta=np.array(text), **arrays)
+    )
 
 
 def read_npz(
