@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import itertools
 import logging
-import operator
 import os
 import platform
 import time
@@ -37,7 +36,7 @@ from . import __version__, io, parareal, rundir, session
 from .config import Config, ConfigError, Resolved, Setup, build, resolved_dict
 from .config.checks import estimated_fine_seconds
 from .contracts import System
-from .files import CorruptFileError, atomic_write
+from .files import CorruptFileError, write_text
 from .integrate import BlowUpError
 from .parallel import SerialExecutor, run_labelled
 from .parareal import checkpoint as ckpt
@@ -450,8 +449,7 @@ def execute(
     """
     with rundir.claim(out, resume=resume, overwrite=overwrite) as directory:
         for name, text in (files or {}).items():
-            # handle.write(text.encode())
-            atomic_write(directory.path / name, operator.methodcaller("write", text.encode()))
+            write_text(directory.path / name, text)
         return _execute(cfg, resolved, directory, reporter or Reporter())
 
 

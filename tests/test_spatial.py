@@ -111,10 +111,9 @@ def test_threaded_fine_solver_in_parareal_on_processes(pool):
 
 def test_a_blocked_fluid_without_blocks_says_so():
     # regression: BlockedMRS without blocks failed at its first velocity with an AttributeError
-    # on None
-    x = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 1.0]])
-    with pytest.raises(ValueError, match="blocks is None"):
-        BlockedMRS(1.0).velocity(x, np.ones_like(x), epsilon=0.1)
+    # on None; it is now refused when made
+    with pytest.raises(ValueError, match="BlockedMRS needs blocks"):
+        BlockedMRS(1.0)
 
 
 def test_bad_arguments():
