@@ -42,9 +42,16 @@ import signal
 import sys
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
+from typing import TYPE_CHECKING, Any, TypeAlias
+
+if TYPE_CHECKING:
+    from types import FrameType
+
+    #: A signal handler as ``signal.signal`` takes and returns it.
+    _Handler: TypeAlias = Callable[[int, FrameType | None], Any] | int | signal.Handlers | None
 
 __all__ = ["ExitCode", "main"]
 
@@ -118,7 +125,7 @@ def _check_launch(argv: Sequence[str]) -> None:
 def _causes(error: BaseException):
     """The error, what it wraps (``TaskError.original``) and its chained causes."""
     seen: set[int] = set()
-    stack = [error]
+    stack: list[BaseException | None] = [error]
     while stack:
         item = stack.pop()
         if item is None or id(item) in seen:
@@ -233,6 +240,7 @@ def _load(path: str | None, overrides: Sequence[str], text: str | None = None):
 
     if text is not None:
         return config.loads(text, "demo configuration", overrides)
+    assert path is not None  # the commands give a path or a text
     return config.load(path, overrides)
 
 
@@ -529,7 +537,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             signal.signal(signum, handler)
 
 
-def _catch_termination() -> dict[int, object]:
+def _catch_termination() -> dict[int, _Handler]:
     """Handle SIGTERM and SIGHUP like Ctrl-C (main thread only); returns the previous handlers."""
     if threading.current_thread() is not threading.main_thread():
         return {}

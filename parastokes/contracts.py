@@ -128,6 +128,7 @@ def check_workers(n_auxiliary: int, executor: Executor | None, allow_oversubscri
     problem = oversubscription(n_auxiliary, workers)
     if problem is None:
         return
+    assert workers is not None  # oversubscription is None for an unknown count
     rounds = math.ceil(n_auxiliary / workers)
     if not allow_oversubscribe:
         raise ValueError(
@@ -165,7 +166,7 @@ def with_executor(
     Checks N_G <= N_c first (:func:`check_workers`), before any work.
     """
     bind = getattr(coarse, "with_executor", None)
-    if executor is None or bind is None or coarse.executor is not None:
+    if executor is None or bind is None or getattr(coarse, "executor", None) is not None:
         return coarse
     check_workers(auxiliary_count(coarse), executor, allow_oversubscribe)
     return bind(executor)

@@ -18,7 +18,7 @@ from typing import IO, Any
 
 import numpy as np
 
-__all__ = ["CorruptFileError", "atomic_write", "read_npz", "write_npz"]
+__all__ = ["CorruptFileError", "atomic_write", "read_npz", "write_npz", "write_text"]
 
 
 class CorruptFileError(ValueError):
@@ -48,7 +48,18 @@ def atomic_write(path: str | os.PathLike, write: Callable[[IO[bytes]], Any]) -> 
 def write_npz(path: str | os.PathLike, meta: Mapping[str, Any], **arrays: np.ndarray) -> None:
     """Write ``arrays`` and the JSON-ready ``meta`` to an ``.npz`` file atomically."""
     text = json.dumps(meta, allow_nan=True)
-    atomic_write(path, lambda handle: np.savez(handle, meta=np.array(text), **arrays))
+    # (numpy >= 2.1 stubs read **arrays as possibly its keyword allow_pickle; numpy < 2.1 would
+    # store allow_pickle=... as one more array, so it is not passed)
+    atomic_write(
+        path,
+        lambda handle: np.savez(handle, meta=np.array(text), **arrays),  # type: ignore[arg-type]
+    )
+
+
+def write_text(path: str | os.PathLike, text: str) -> None:
+    """Write ``text`` (UTF-8) to ``path`` atomically."""
+    data = text.encode()
+    atomic_write(path, lambda handle: handle.write(data))
 
 
 def read_npz(

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from concurrent.futures import Executor
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal, overload
 
 import numpy as np
 
@@ -38,6 +38,39 @@ class MRS:
     wall: bool = False
     n_threads: int | None = None
 
+    @overload
+    def velocity(
+        self,
+        points: np.ndarray,
+        forces: np.ndarray,
+        *,
+        epsilon: float,
+        torques: np.ndarray | None = None,
+        angular: Literal[False] = False,
+    ) -> np.ndarray: ...
+
+    @overload
+    def velocity(
+        self,
+        points: np.ndarray,
+        forces: np.ndarray,
+        *,
+        epsilon: float,
+        torques: np.ndarray | None = None,
+        angular: Literal[True],
+    ) -> tuple[np.ndarray, np.ndarray]: ...
+
+    @overload
+    def velocity(
+        self,
+        points: np.ndarray,
+        forces: np.ndarray,
+        *,
+        epsilon: float,
+        torques: np.ndarray | None = None,
+        angular: bool,
+    ) -> np.ndarray | tuple[np.ndarray, np.ndarray]: ...
+
     def velocity(
         self,
         points: np.ndarray,
@@ -48,6 +81,17 @@ class MRS:
         angular: bool = False,
     ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
         """u at ``points`` from the loads at the same points (and w with ``angular``)."""
+        return self._evaluate(points, forces, epsilon, torques, angular)
+
+    def _evaluate(
+        self,
+        points: np.ndarray,
+        forces: np.ndarray,
+        epsilon: float,
+        torques: np.ndarray | None,
+        angular: bool,
+    ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+        """:meth:`velocity`'s sums (what an implementation of the fluid overrides)."""
         return mrs.velocity(
             points,
             points,
@@ -114,15 +158,19 @@ class BlockedMRS(MRS):
 
     blocks: TargetBlocks | None = None
 
-    def velocity(
+    def __post_init__(self) -> None:
+        if self.blocks is None:
+            raise ValueError("BlockedMRS needs blocks: give it the TargetBlocks to split into")
+
+    def _evaluate(
         self,
         points: np.ndarray,
         forces: np.ndarray,
-        *,
         epsilon: float,
-        torques: np.ndarray | None = None,
-        angular: bool = False,
+        torques: np.ndarray | None,
+        angular: bool,
     ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
+        assert self.blocks is not None  # (__post_init__)
         options = {"epsilon": epsilon, "mu": self.viscosity, "wall": self.wall,
                    "angular": angular}
         parts = self.blocks.run(points, forces, torques, options)

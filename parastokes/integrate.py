@@ -44,10 +44,10 @@ import functools
 import logging
 import math
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
+from .contracts import System
 from .stepping.registry import compiled_loop
 
 __all__ = [
@@ -154,7 +154,7 @@ class BlowUpError(RuntimeError):
 
 
 def _combine(
-    system: Any,
+    system: System,
     coefs: tuple[float, ...],
     k: list[np.ndarray],
     brackets: tuple[Bracket, ...],
@@ -174,7 +174,7 @@ def _combine(
     return r
 
 
-def step(system: Any, scheme: str | Scheme, t: float, x: np.ndarray, dt: float) -> np.ndarray:
+def step(system: System, scheme: str | Scheme, t: float, x: np.ndarray, dt: float) -> np.ndarray:
     """One step of ``scheme`` from ``(t, x)`` to ``t + dt`` (no projection, no checks)."""
     s = _scheme(scheme)
     k: list[np.ndarray] = [system.rates(t, x)]
@@ -214,7 +214,7 @@ DONE, ABOVE, NON_FINITE, BEYOND = 0, 1, 2, 3
 
 
 def _python_steps(
-    system: Any,
+    system: System,
     scheme: Scheme,
     x: np.ndarray,
     t0: float,
@@ -244,7 +244,7 @@ def _python_steps(
 
 
 def _stepping(
-    system: Any,
+    system: System,
     scheme: Scheme,
     x: np.ndarray,
     t0: float,
@@ -270,7 +270,7 @@ def _stepping(
 
 
 def run_result(
-    system: Any,
+    system: System,
     t0: float,
     dt: float,
     steps: tuple[np.ndarray, float, int, int, float],
@@ -291,7 +291,7 @@ def run_result(
 
 
 def run(
-    system: Any,
+    system: System,
     x: np.ndarray,
     t0: float,
     t1: float,
@@ -322,7 +322,7 @@ def run(
 
 
 def propagate(
-    system: Any,
+    system: System,
     x: np.ndarray,
     t0: float,
     t1: float,
@@ -339,7 +339,7 @@ def propagate(
 class Propagator:
     """A picklable fixed-step solver ``P(t_start, t_end, x) -> x`` (fine F or auxiliary G)."""
 
-    system: Any
+    system: System
     scheme: str
     dt: float
     blowup_factor: float = BLOWUP_FACTOR
@@ -364,7 +364,7 @@ class Propagator:
 
 
 def is_stable(
-    system: Any,
+    system: System,
     scheme: str | Scheme,
     dt: float,
     t_span: float,
@@ -380,7 +380,7 @@ def is_stable(
     return worst is not None and worst <= limit
 
 
-def _worst_monitor(system: Any, scheme: str | Scheme, dt: float, t_span: float,
+def _worst_monitor(system: System, scheme: str | Scheme, dt: float, t_span: float,
                    x0: np.ndarray | None, t0: float, stop_above: float) -> float | None:
     """The largest monitor over ``ceil(t_span/dt)`` steps of ``dt``; None if it blew up or went
     above ``stop_above`` (the run stops there)."""
@@ -395,7 +395,7 @@ def _worst_monitor(system: Any, scheme: str | Scheme, dt: float, t_span: float,
 
 
 def largest_stable_step(
-    system: Any,
+    system: System,
     scheme: str | Scheme,
     t_span: float,
     dt_lo: float,

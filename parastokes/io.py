@@ -43,7 +43,7 @@ import h5py
 import numpy as np
 
 from .bodies.registry import BodyLayout
-from .files import CorruptFileError, atomic_write, read_npz, write_npz
+from .files import CorruptFileError, read_npz, write_npz, write_text
 
 __all__ = [
     "HistoryRecord",
@@ -81,7 +81,7 @@ def _plain(value: Any) -> Any:
 def write_summary(path: str | os.PathLike, summary: Mapping[str, Any]) -> None:
     """Write ``summary`` as strict JSON (NaN and infinities become null), atomically."""
     text = json.dumps(_plain(summary), indent=2, allow_nan=False)
-    atomic_write(path, lambda handle: handle.write(text.encode()))
+    write_text(path, text)
 
 
 def read_summary(path: str | os.PathLike) -> dict[str, Any]:
@@ -361,7 +361,7 @@ def write_xdmf(h5_path: str | os.PathLike, xdmf_path: str | os.PathLike | None =
     ET.indent(root)
     text = '<?xml version="1.0" ?>\n<!DOCTYPE Xdmf SYSTEM "Xdmf.dtd" []>\n'
     text += ET.tostring(root, encoding="unicode") + "\n"
-    atomic_write(xdmf_path, lambda handle: handle.write(text.encode()))
+    write_text(xdmf_path, text)
     return xdmf_path
 
 

@@ -150,7 +150,9 @@ def error_decay(runs: Sequence[RunData], stem: Path, formats: Sequence[str] = FO
     return _finish(fig, ax, stem, formats, integer_x=True, which="both")
 
 
-def staircase(accuracy: Sequence[float], measured: Sequence[float], desired: np.ndarray):
+def staircase(
+    accuracy: Sequence[float] | np.ndarray, measured: Sequence[float], desired: np.ndarray
+):
     """Speedup for each desired error: the measured speedup after the first k >= 1 with
     accuracy[k-1] <= desired (NaN where no iteration reaches it)."""
     out = np.full(len(desired), np.nan)
@@ -423,7 +425,7 @@ def scene_snapshots(fig: Figure, bodies: dict[str, dict[str, Any]], times: np.nd
     for ax, frame, centre in zip(axes, frames, centres, strict=True):
         for index, (name, body) in enumerate(bodies.items()):
             width = 1.5 if body["connectivity"].shape[1] == 2 else 0.4
-            ax.add_collection(LineCollection(_edges(body, frame, 0, 2), colors=f"C{index}",
+            ax.add_collection(LineCollection(list(_edges(body, frame, 0, 2)), colors=f"C{index}",
                                              linewidths=width, label=name))
         ax.set_xlim(centre - 1.05 * reach, centre + 1.05 * reach)
         ax.set_aspect("equal")

@@ -28,14 +28,15 @@ import os
 import platform
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
 from . import __version__, io, parareal, rundir, session
 from .config import Config, ConfigError, Resolved, Setup, build, resolved_dict
 from .config.checks import estimated_fine_seconds
-from .files import CorruptFileError, atomic_write
+from .contracts import System
+from .files import CorruptFileError, write_text
 from .integrate import BlowUpError
 from .parallel import SerialExecutor, run_labelled
 from .parareal import checkpoint as ckpt
@@ -47,6 +48,7 @@ __all__ = [
     "HISTORY",
     "REFERENCE",
     "Reporter",
+    "ReporterLike",
     "execute",
     "fine_identity",
     "identity",
@@ -61,6 +63,23 @@ HISTORY = "history.npz"
 BLOWUP = "blowup.npz"
 SUMMARY = "summary.json"
 TRAJECTORY = "trajectory.h5"
+
+
+class ReporterLike(Protocol):
+    """What :func:`execute` reports to: a :class:`Reporter`, or any object with its methods (the
+    CLI's console)."""
+
+    def note(self, text: str) -> None: ...
+
+    def start(self, what: str, total: int) -> None: ...
+
+    def expect(self, seconds: float) -> None: ...
+
+    def advance(self) -> None: ...
+
+    def finish(self) -> None: ...
+
+    def iteration(self, k: int, increment: float, error: float | None, elapsed: float) -> None: ...
 
 
 class Reporter:
@@ -248,7 +267,7 @@ def _slice_seconds(setup: Setup) -> float:
 
 # ---- the serial fine run ---------------------------------------------------------------------
 def _serial(
-    setup: Setup, x0: np.ndarray, times: np.ndarray, out: Path, key: dict, reporter: Reporter
+    setup: Setup, x0: np.ndarray, times: np.ndarray, out: Path, key: dict, reporter: ReporterLike
 ) -> tuple[np.ndarray, float]:
     """The serial fine solution F(T_n, T_0, x0) at every T_n (as ``parareal.serial_solution``) and
     its wall time. Saved to ``out/REFERENCE`` after every slice, and continued from there when
@@ -296,7 +315,7 @@ def _parareal(
     reference: np.ndarray | None,
     out: Path,
     key: dict,
-    reporter: Reporter,
+    reporter: ReporterLike,
 ) -> tuple[parareal.PararealResult, io.HistoryRecord]:
     """Parareal with the history of an interrupted run in ``out`` (if any) carried on.
 
@@ -379,14 +398,15 @@ def _speedups(
     result: parareal.PararealResult, elapsed: list[float], serial_time: float | None
 ) -> dict[str, Any]:
     """Eq. 14 measured and theoretical and eq. 15, for the run and after each iteration k."""
-    values = result.speedup(serial_time)
+    speedups = result.speedup(serial_time)
+    values: dict[str, Any] = dict(speedups)
     n = result.n_slices
-    g, f = values["gamma_G"], values["gamma_F"]
+    g, f = speedups["gamma_G"], speedups["gamma_F"]
     ks = list(range(1, result.iterations + 1))
-    models = [schedule_speedups(values["schedule"], g, f, k, n) for k in ks]
+    models = [schedule_speedups(speedups["schedule"], g, f, k, n) for k in ks]
     values["by_iteration"] = {
         "iterations": ks,
-        "measured": [values["serial_time"] / t for t in elapsed],
+        "measured": [speedups["serial_time"] / t for t in elapsed],
         "theoretical": [theoretical for theoretical, _ in models],
         "bound": [bound for _, bound in models],
     }
@@ -394,7 +414,7 @@ def _speedups(
     return values
 
 
-def _monitor(system: Any, states: np.ndarray) -> dict[str, float]:
+def _monitor(system: System, states: np.ndarray) -> dict[str, float]:
     """The stability monitor (rod length / vesicle area change) over the slice boundaries."""
     values = [system.monitor(state) for state in states]
     return {"max": float(max(values)), "final": float(values[-1]), "limit": system.monitor_limit}
@@ -413,7 +433,7 @@ def execute(
     *,
     resume: bool = False,
     overwrite: bool = False,
-    reporter: Reporter | None = None,
+    reporter: ReporterLike | None = None,
     files: dict[str, str] | None = None,
 ) -> dict[str, Any]:
     """Run ``cfg`` into the directory ``out``; returns the summary (also written to summary.json).
@@ -429,7 +449,7 @@ def execute(
     """
     with rundir.claim(out, resume=resume, overwrite=overwrite) as directory:
         for name, text in (files or {}).items():
-            atomic_write(directory.path / name, lambda handle, t=text: handle.write(t.encode()))
+            write_text(directory.path / name, text)
         return _execute(cfg, resolved, directory, reporter or Reporter())
 
 
@@ -441,7 +461,7 @@ def _kernels_cached() -> bool:
 
 
 def _execute(
-    cfg: Config, resolved: Resolved, directory: rundir.RunDirectory, reporter: Reporter
+    cfg: Config, resolved: Resolved, directory: rundir.RunDirectory, reporter: ReporterLike
 ) -> dict[str, Any]:
     from . import plots
 
@@ -479,6 +499,7 @@ def _execute(
             if writer is not None:
                 writer.close()
         final_states = result.states if result is not None else reference
+        assert final_states is not None  # run.mode is serial, parareal or both
         summary = {
             "title": cfg.title,
             "mode": mode,
@@ -494,7 +515,7 @@ def _execute(
                 "elapsed_by_iteration": [] if record is None else record.elapsed,
             },
             "speedup": None
-            if result is None
+            if result is None or record is None  # (both or neither)
             else _speedups(result, list(record.elapsed), serial_time),
             "workers": None if running.executor is None else running.executor.workers,
             "monitor": _monitor(system, final_states),

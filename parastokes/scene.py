@@ -122,6 +122,8 @@ class Scene:
             body_forces, body_torques = body.loads(t, x)
             forces[f : f + n] = body_forces
             if body_torques is not None:
+                if torques is None:  # torques from a body whose rates have no w
+                    torques = np.zeros_like(points)
                 torques[f : f + n] = body_torques
         value = mrs.velocity(points, points, forces, epsilon=self.source_epsilon(),
                              mu=self.viscosity, torques=torques, wall=self.wall, angular=angular,

@@ -11,13 +11,16 @@ here, when a run begins, so that reading, checking or building a configuration s
 
 from __future__ import annotations
 
-from concurrent.futures import Executor
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from . import parallel
 from .config import ConfigError, Setup
 from .contracts import oversubscription
 from .warmup import WarmUp
+
+if TYPE_CHECKING:
+    from .parallel.factory import WorkerPool
 
 __all__ = ["Session", "start"]
 
@@ -28,7 +31,7 @@ class Session:
     executor down on exit."""
 
     setup: Setup
-    executor: Executor | None
+    executor: WorkerPool | None
 
     def __enter__(self) -> Session:
         return self
@@ -50,15 +53,16 @@ class Session:
             abort()
 
 
-def _executor(setup: Setup) -> Executor:
+def _executor(setup: Setup) -> WorkerPool:
     """The executor of ``execution`` with its workers warmed up; a ConfigError when an MPI launch
     provides fewer workers than the coarse solver needs and oversubscription is not allowed."""
     cfg, resolved = setup.config, setup.resolved
     ex = cfg.execution
-    options = {} if ex.executor in ("serial", "gpu") else {"threads_per_worker": ex.threads}
+    threads = 1 if ex.executor in ("serial", "gpu") else ex.threads
     pool = parallel.make_executor(
-        ex.executor, resolved.workers, warmup=WarmUp(setup.system), **options
+        ex.executor, resolved.workers, warmup=WarmUp(setup.system), threads_per_worker=threads
     )
+    assert pool is not None  # None only on the serving ranks of an MPI comm, not used here
     problem = oversubscription(resolved.n_auxiliary, pool.workers, cfg.parareal.schedule)
     if resolved.workers is None and problem and not ex.allow_oversubscribe:
         pool.shutdown()

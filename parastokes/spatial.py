@@ -74,6 +74,7 @@ def fine_solver(
             f"{type(system).__name__} has no target_blocks field: its fluid cannot be split "
             "into blocks of targets"
         )
+    assert executor is not None  # exactly one of the two (checked above)
     blocks = TargetBlocks(executor, n_blocks)
     return integrate.Propagator(dataclasses.replace(system, target_blocks=blocks), scheme, dt)
 

@@ -47,7 +47,7 @@ __all__ = ["check_system", "fitted_order"]
 class _Part:
     """Assertions of one part of the contract, each naming the part and the system."""
 
-    def __init__(self, system: Any, part: str) -> None:
+    def __init__(self, system: System, part: str) -> None:
         self.where = f"check_system({type(system).__name__}): {part}"
 
     def __call__(self, condition: bool, message: str) -> None:
@@ -60,7 +60,7 @@ ROUND_OFF = 1e-11
 
 
 def fitted_order(
-    system: Any, x0: np.ndarray, t0: float, horizon: float, scheme: str,
+    system: System, x0: np.ndarray, t0: float, horizon: float, scheme: str,
     counts: Sequence[int], reference: np.ndarray, compiled: bool = True,
 ) -> float:
     """The slope of log(error) against log(1/steps) over ``[t0, t0 + horizon]``: the observed
@@ -79,7 +79,7 @@ def fitted_order(
     return float(-np.polyfit(np.log(n), np.log(e), 1)[0])
 
 
-def _check_state(system: Any, x: np.ndarray) -> None:
+def _check_state(system: System, x: np.ndarray) -> None:
     ok = _Part(system, "state")
     ok(isinstance(x, np.ndarray) and x.dtype == np.float64, "the state must be a float64 array")
     ok(bool(np.isfinite(x).all()), "the state is not finite")
@@ -88,7 +88,7 @@ def _check_state(system: Any, x: np.ndarray) -> None:
        f"positions(state) must be (N, 3), got {getattr(pos, 'shape', type(pos))}")
 
 
-def _check_rates(system: Any, x: np.ndarray, t: float, dt: float) -> np.ndarray:
+def _check_rates(system: System, x: np.ndarray, t: float, dt: float) -> np.ndarray:
     ok = _Part(system, "rates")
     copy = x.copy()
     r = system.rates(t, x)
@@ -109,25 +109,27 @@ def _check_rates(system: Any, x: np.ndarray, t: float, dt: float) -> np.ndarray:
     return r
 
 
-def _check_monitor(system: Any, x: np.ndarray) -> None:
+def _check_monitor(system: System, x: np.ndarray) -> None:
     ok = _Part(system, "monitor")
     m = system.monitor(x)
     limit = system.monitor_limit
-    ok(isinstance(m, float | np.floating) and math.isfinite(m) and m >= 0,
+    ok(isinstance(m, float | np.floating) and math.isfinite(m) and bool(m >= 0),
        f"monitor(state) must be a finite float >= 0, got {m!r}")
-    ok(isinstance(limit, float | int | np.number) and limit > 0,
+    ok(isinstance(limit, float | int | np.number) and bool(limit > 0),
        f"monitor_limit must be a number > 0, got {limit!r}")
     bound = integrate.BLOWUP_FACTOR * limit
     ok(m <= bound, f"monitor(state) = {m:g} is already beyond the blow-up bound {bound:g}")
 
 
-def _check_params(system: Any, x: np.ndarray, t: float) -> None:
+def _check_params(system: System, x: np.ndarray, t: float) -> None:
     ok = _Part(system, "with_params")
     params = dict(system.params)
     ok(all(isinstance(v, float | int) and not isinstance(v, bool) for v in params.values()),
        f"params must map names to numbers, got {params!r}")
     before = pickle.dumps(system)
-    fields = dataclasses.fields(system) if dataclasses.is_dataclass(system) else ()
+    fields: tuple[dataclasses.Field[Any], ...] = (
+        dataclasses.fields(system) if dataclasses.is_dataclass(system) else ()
+    )
     if not set(params) <= {f.name for f in fields}:
         fields = ()  # a composite (a scene): its parameters are not its own fields
     for name, value in params.items():
@@ -149,7 +151,7 @@ def _check_params(system: Any, x: np.ndarray, t: float) -> None:
         ok(False, "with_params(no_such_parameter=...) must raise ValueError")
 
 
-def _check_pickle(system: Any, x: np.ndarray, t: float, limit: int) -> None:
+def _check_pickle(system: System, x: np.ndarray, t: float, limit: int) -> None:
     ok = _Part(system, "pickle")
     try:
         blob = pickle.dumps(system)
@@ -162,7 +164,7 @@ def _check_pickle(system: Any, x: np.ndarray, t: float, limit: int) -> None:
        "the unpickled system gives other rates")
 
 
-def _check_project(system: Any, x: np.ndarray, r: np.ndarray, dt: float) -> None:
+def _check_project(system: System, x: np.ndarray, r: np.ndarray, dt: float) -> None:
     ok = _Part(system, "project")
     scale = max(1.0, float(np.abs(x).max()))
     px = system.project(x)
@@ -175,7 +177,7 @@ def _check_project(system: Any, x: np.ndarray, r: np.ndarray, dt: float) -> None
     ok(np.allclose(twice, once, rtol=0, atol=1e-13 * scale), "project is not idempotent")
 
 
-def _check_compiled(system: Any, x: np.ndarray, t: float, dt: float, n: int) -> None:
+def _check_compiled(system: System, x: np.ndarray, t: float, dt: float, n: int) -> None:
     ok = _Part(system, "compiled loop")
     for name in integrate.SCHEMES:
         a = integrate.run(system, x, t, t + n * dt, name, dt, compiled=True)
@@ -185,7 +187,7 @@ def _check_compiled(system: Any, x: np.ndarray, t: float, dt: float, n: int) -> 
            f"{np.abs(a.state - b.state).max():.3g}")
 
 
-def _check_orders(system: Any, x: np.ndarray, t: float, horizon: float,
+def _check_orders(system: System, x: np.ndarray, t: float, horizon: float,
                   counts: Sequence[int], tolerance: float) -> None:
     ok = _Part(system, "order")
     finest = 16 * max(counts)
@@ -201,7 +203,7 @@ def _check_orders(system: Any, x: np.ndarray, t: float, horizon: float,
            f"of {horizon:g}; pass state/horizon where the dynamics are too weak or too stiff)")
 
 
-def _default_horizon(system: Any, x: np.ndarray, t: float) -> float:
+def _default_horizon(system: System, x: np.ndarray, t: float) -> float:
     pos = system.positions(x)
     extent = float(np.ptp(pos, axis=0).max()) or 1.0
     speed = float(np.abs(system.rates(t, x)[:, :3]).max())
@@ -209,7 +211,7 @@ def _default_horizon(system: Any, x: np.ndarray, t: float) -> float:
     return 0.2 * extent / speed
 
 
-def _stable_horizon(system: Any, x: np.ndarray, t: float, horizon: float,
+def _stable_horizon(system: System, x: np.ndarray, t: float, horizon: float,
                     counts: Sequence[int], given: bool) -> float:
     """``horizon``, shrunk (by 4, at most 10 times) until the coarsest step of every scheme in the
     order check stays stable; a horizon the user ``given`` is not shrunk: its blow-up is named."""
@@ -230,7 +232,7 @@ def _stable_horizon(system: Any, x: np.ndarray, t: float, horizon: float,
 
 
 def check_system(
-    system: Any,
+    system: System,
     state: np.ndarray | None = None,
     *,
     t: float = 0.0,
@@ -252,7 +254,7 @@ def check_system(
     x = x0 if state is None else np.ascontiguousarray(state, dtype=float)
     _check_state(system, x)
     given = horizon is not None
-    horizon = float(horizon) if given else _default_horizon(system, x, t)
+    horizon = float(horizon) if horizon is not None else _default_horizon(system, x, t)
     horizon = _stable_horizon(system, x, t, horizon, counts, given)
     dt = horizon / max(counts)
     r = _check_rates(system, x, t, dt)

@@ -11,7 +11,10 @@ system is unpickled when the warm-up runs, after the limits are set.
 from __future__ import annotations
 
 import pickle
-from typing import Any
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # numpy is not imported here (see above)
+    from .contracts import System
 
 __all__ = ["WarmUp"]
 
@@ -21,7 +24,7 @@ class WarmUp:
     evaluate ``system.rates`` once, so that a worker loads (or compiles) what its solvers call
     before timing starts."""
 
-    def __init__(self, system: Any) -> None:
+    def __init__(self, system: System) -> None:
         self.system = pickle.dumps(system)
 
     def __call__(self) -> None:

@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from parastokes import integrate, models, parareal
+from parastokes import integrate, models, mrs, parareal
 from parastokes.kinds.chain import ChainSystem
 from parastokes.scene import Scene
 from parastokes.testing import check_system
@@ -109,3 +109,24 @@ def test_a_swimmer_beside_a_vesicle_above_the_wall_keeps_the_contract():
     # the vesicle feels the rod: its rates differ from its rates alone
     alone = vesicle.rates(0.0, x[31:, :3])
     assert np.abs(scene.rates(0.0, x)[31:, :3] - alone).max() > 1e-3 * np.abs(alone).max()
+
+
+class _TwistingChain(ChainSystem):
+    """A chain that also exerts a torque at every bead, though its rates have no w."""
+
+    def loads(self, t, state):
+        forces, _ = super().loads(t, state)
+        return forces, np.tile([0.0, 0.3, 1.0], (len(state), 1))
+
+
+def test_torques_of_a_body_without_angular_rates_drive_the_fluid():
+    # regression: Scene.rates allocated the torques only when some body's rates have w, and
+    # indexed None (TypeError) for a body that gives torques but is not angular
+    body = _TwistingChain(n_beads=5, stretch=1.2)
+    scene = Scene((body,), viscosity=body.viscosity)
+    x = scene.initial_state()
+    forces, torques = body.loads(0.0, x)
+    expected = mrs.velocity(x, x, forces, epsilon=body.epsilon, mu=body.viscosity,
+                            torques=torques)
+    np.testing.assert_allclose(scene.rates(0.0, x), expected, rtol=1e-12, atol=1e-15)
+    assert not np.allclose(expected, body.rates(0.0, x))  # the torques do move the fluid

@@ -109,6 +109,13 @@ def test_threaded_fine_solver_in_parareal_on_processes(pool):
     np.testing.assert_array_equal(res.states, reference.states)
 
 
+def test_a_blocked_fluid_without_blocks_says_so():
+    # regression: BlockedMRS without blocks failed at its first velocity with an AttributeError
+    # on None; it is now refused when made
+    with pytest.raises(ValueError, match="BlockedMRS needs blocks"):
+        BlockedMRS(1.0)
+
+
 def test_bad_arguments():
     system = CASES["vesicle"][0]
     executor = parallel.make_executor("serial")

@@ -252,6 +252,26 @@ def test_settings_weights_and_corner():
     assert s.n_auxiliary == 8
 
 
+def test_richardson_settings_without_r_are_named():
+    # regression: m >= 1 without r failed with a TypeError on None inside the weights
+    with pytest.raises(ValueError, match="r is required when m >= 1"):
+        Settings("euler", m=1).weight_sum({})
+
+
+def test_speedup_curve_needs_a_measured_candidate():
+    # regression: a candidate without a measured γ_G/γ_F failed with a TypeError on None
+    from types import SimpleNamespace
+
+    from parastokes.tuning.search import Candidate, TuneResult
+
+    cand = Candidate(Settings("euler", dt=0.1), pilot_errors=[1e-3, 1e-5])
+    result = TuneResult(None, None, None, cand, [], {}, SimpleNamespace(n_slices=3))
+    with pytest.raises(ValueError, match="no measured"):
+        result.speedup_curve(cand, np.array([1e-4]), 30)
+    cand.gamma_ratio = 0.01
+    assert result.speedup_curve(cand, np.array([1e-4]), 30)[0] > 1
+
+
 # ---- predictions and configurations --------------------------------------------------------
 def test_predicted_iterations_scale_with_slices_and_contract_geometrically():
     from parastokes.tuning import cost

@@ -12,11 +12,11 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol, TypeVar
 
 import numpy as np
 
-from ..fluid import MRS, BlockedMRS
+from ..fluid import MRS, BlockedMRS, TargetBlocks
 from ..stepping import registry
 from ..stepping.registry import RunSteps
 
@@ -33,6 +33,11 @@ def require_positive(**values: float) -> None:
 class FluidBody:
     """A body whose point loads act on the MRS fluid of its ``viscosity``, ``wall`` (if it has
     one), ``n_threads`` and ``target_blocks`` (:mod:`parastokes.fluid`)."""
+
+    # Provided by the class this is mixed into (annotations only: no fields, no defaults).
+    viscosity: float
+    n_threads: int | None
+    target_blocks: TargetBlocks | None
 
     @property
     def fluid(self) -> MRS:
@@ -58,6 +63,16 @@ class PointsInShear(FluidBody):
 
     #: Rates are velocities only (no angular part); for :class:`parastokes.scene.Scene`.
     angular: ClassVar[bool] = False
+
+    # Provided by the class this is mixed into (annotations only: no fields, no defaults).
+    epsilon: float
+    shear_rate: float
+
+    if TYPE_CHECKING:
+
+        def forces(self, state: np.ndarray) -> np.ndarray:
+            """The point forces the points exert on the fluid, (N, 3)."""
+            ...
 
     def loads(self, t: float, state: np.ndarray) -> tuple[np.ndarray, None]:
         """The point forces on the fluid, no torques."""
@@ -85,7 +100,19 @@ class PointsInShear(FluidBody):
         return np.array(state)
 
 
-def replace_params(system: Any, theta: dict[str, float]) -> Any:
+class DataclassSystem(Protocol):
+    """A system that is a dataclass instance (what :func:`replace_params` needs)."""
+
+    __dataclass_fields__: ClassVar[dict[str, dataclasses.Field[Any]]]
+
+    @property
+    def params(self) -> dict[str, float]: ...
+
+
+_D = TypeVar("_D", bound=DataclassSystem)
+
+
+def replace_params(system: _D, theta: dict[str, float]) -> _D:
     """``dataclasses.replace`` restricted to the names of ``system.params``."""
     unknown = sorted(set(theta) - set(system.params))
     if unknown:

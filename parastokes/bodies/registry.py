@@ -15,6 +15,7 @@ Modules are imported only when a kind is asked for, so this module imports no bo
 from __future__ import annotations
 
 import dataclasses
+import types
 import typing
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -25,6 +26,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, create_model
 
 from .. import plugins
+from ..contracts import System
 
 __all__ = [
     "BUILTIN",
@@ -93,7 +95,7 @@ class BodySection(BaseModel):
         """Θ⁰ in absolute units, the number of state rows and the grid length of ε's unit."""
         raise NotImplementedError
 
-    def build(self, threads: int = 1) -> Any:
+    def build(self, threads: int = 1) -> System:
         """The system of this section with Θ⁰, its kernels on ``threads`` threads."""
         raise NotImplementedError
 
@@ -119,7 +121,7 @@ class BodySection(BaseModel):
         """Whether ``output.tracked_points`` applies (its kind's ``tracks_points``)."""
         return get(self.kind).tracks_points
 
-    def layout(self, system: Any, frames: bool, tracked: Sequence[int] | None
+    def layout(self, system: System, frames: bool, tracked: Sequence[int] | None
                ) -> list[BodyLayout]:
         """The output layout of ``system`` built from this section (its kind's ``layout``)."""
         return get(self.kind).layout(self, system, frames, tracked)
@@ -240,7 +242,8 @@ def _field_type(annotation: Any) -> Any:
     """TOML has arrays, not tuples: ``tuple[float, ...]`` fields are read as lists."""
     if typing.get_origin(annotation) is tuple:
         args = [a for a in typing.get_args(annotation) if a is not Ellipsis]
-        return list[args[0]] if args else list
+        # list[args[0]], built at run time (a subscript of a variable is no static type)
+        return types.GenericAlias(list, (args[0],)) if args else list
     return annotation
 
 
@@ -262,28 +265,27 @@ def derived_kind(cls: type, name: str) -> BodyKind:
             default = list(default)
         fields[f.name] = (_field_type(hints[f.name]), default)
 
-    def resolve(self: BodySection) -> BodyResolution:
-        system = self.build()
-        theta0 = {k: float(v) for k, v in system.params.items()}
-        return BodyResolution(theta0, len(system.initial_state()))
+    class Derived(BodySection):
+        def resolve(self) -> BodyResolution:
+            system = self.build()
+            theta0 = {k: float(v) for k, v in system.params.items()}
+            return BodyResolution(theta0, len(system.initial_state()))
 
-    def build(self: BodySection, threads: int = 1) -> Any:
-        values = {k: tuple(v) if isinstance(v, list) else v
-                  for k, v in self.model_dump(exclude={"kind"}).items()}
-        if any(f.name == "n_threads" for f in dataclasses.fields(cls)):
-            values["n_threads"] = threads
-        return cls(**values)
+        def build(self, threads: int = 1) -> System:
+            values = {k: tuple(v) if isinstance(v, list) else v
+                      for k, v in self.model_dump(exclude={"kind"}).items()}
+            if any(f.name == "n_threads" for f in dataclasses.fields(cls)):
+                values["n_threads"] = threads
+            return cls(**values)
 
     section = create_model(
         f"{cls.__name__}Section",
-        __base__=BodySection,
+        __base__=Derived,
         __doc__=cls.__doc__,
         **fields,
     )
-    section.resolve = resolve  # type: ignore[method-assign]
-    section.build = build  # type: ignore[method-assign]
 
-    def layout(section_: Any, system: Any, frames: bool, tracked: Sequence[int] | None):
+    def layout(section_: Any, system: System, frames: bool, tracked: Sequence[int] | None):
         return [point_layout(f"{cls.__name__.lower()}_0", name, 0, len(system.initial_state()))]
 
     return BodyKind(name, section, layout)

@@ -25,6 +25,7 @@ from .. import integrate, parareal
 from ..bodies.registry import BodyResolution, Positive
 from ..config.checks import steps_on_slice
 from ..config.schema import LagrangeNodes, Richardson, Scheme
+from ..contracts import System
 from ..parareal import weights
 from .registry import CoarseResolution, CoarseSection
 
@@ -187,7 +188,7 @@ class Extrapolated(CoarseSection):
             )
         return total
 
-    def build(self, cfg: Any, resolved: Any, system: Any
+    def build(self, cfg: Any, resolved: Any, system: System
               ) -> parareal.Extrapolated | parareal.OnCoarseGrid:
         """G of eq. 30 with the base step τ = τ_c / r^m (``resolved.coarse_base_dt``)."""
         richardson = self.richardson

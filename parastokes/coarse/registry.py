@@ -22,6 +22,7 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field
 
 from .. import plugins
+from ..contracts import System
 
 __all__ = [
     "BUILTIN",
@@ -88,7 +89,7 @@ class CoarseSection(BaseModel):
         append ``("coarse.key", message)`` to ``issues`` and notes to ``warnings``."""
         raise NotImplementedError
 
-    def build(self, cfg: Any, resolved: Any, system: Any) -> Any:
+    def build(self, cfg: Any, resolved: Any, system: System) -> Any:
         """The coarse propagator G of this section for ``system`` (a propagator; with
         ``n_auxiliary`` and ``with_executor`` for a :class:`~parastokes.contracts.CoarseSolver`)."""
         raise NotImplementedError

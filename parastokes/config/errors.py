@@ -7,6 +7,7 @@ from collections.abc import Iterable, Sequence
 from typing import Any
 
 from pydantic import BaseModel, ValidationError
+from pydantic_core import ErrorDetails
 
 from ..bodies import registry
 from ..coarse import registry as coarse_registry
@@ -59,9 +60,10 @@ def key_path(loc: Iterable[Any]) -> str:
 
 def _section_class(loc: tuple[Any, ...], data: Any) -> type[BaseModel] | None:
     if loc == ("model",):
-        model = data.get("model") if isinstance(data, dict) else None
+        if not isinstance(data, dict):
+            return None
         try:
-            return registry.get(model["kind"]).section  # type: ignore[index]
+            return registry.get(data["model"]["kind"]).section
         except (TypeError, KeyError, registry.UnknownKindError):
             return None
     if len(loc) == 2 and loc[0] == "bodies":  # a [[bodies]] table: its kind's section
@@ -71,8 +73,10 @@ def _section_class(loc: tuple[Any, ...], data: Any) -> type[BaseModel] | None:
             return None
     if loc == ("coarse",):  # its family's section
         table = data.get("coarse") if isinstance(data, dict) else None
+        if not isinstance(table, dict):
+            return None
         try:
-            return coarse_registry.get(table.get("kind", coarse_registry.DEFAULT))  # type: ignore[union-attr]
+            return coarse_registry.get(table.get("kind", coarse_registry.DEFAULT))
         except (AttributeError, coarse_registry.UnknownFamilyError):
             return None
     if loc == ("scene",):
@@ -89,7 +93,7 @@ def _describe(value: Any) -> str:
     return f"{text[:60]}..." if len(text) > 60 else text
 
 
-def _message(error: dict[str, Any], loc: tuple[Any, ...], data: Any) -> str:
+def _message(error: ErrorDetails, loc: tuple[Any, ...], data: Any) -> str:
     kind = error["type"]
     if kind == "extra_forbidden":
         cls = _section_class(loc[:-1], data)
@@ -103,7 +107,7 @@ def _message(error: dict[str, Any], loc: tuple[Any, ...], data: Any) -> str:
 
 
 def from_validation_error(
-    error: ValidationError, data: Any, source: str = "", prefix: tuple[str, ...] = ()
+    error: ValidationError, data: Any, source: str = "", prefix: tuple[str | int, ...] = ()
 ) -> ConfigError:
     """A :class:`ConfigError` from pydantic's error, with key paths instead of pydantic's locations.
 

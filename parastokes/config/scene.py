@@ -19,13 +19,17 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Sequence
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, SerializeAsAny, ValidationError
 
 from ..bodies import registry
 from ..bodies.registry import BodyLayout, BodyResolution, BodySection, Positive
+from ..contracts import System
 from .errors import from_validation_error
+
+if TYPE_CHECKING:  # the scene (and the fluid's kernels) are imported on use
+    from ..scene import Scene
 
 __all__ = ["FLUID", "SceneModel", "SceneSettings", "scene_section"]
 
@@ -66,7 +70,7 @@ class SceneModel(BodySection):
             theta0 |= {f"{name}.{k}": v for k, v in part.theta0.items() if k != "viscosity"}
         return BodyResolution(theta0, sum(part.n_points for part in parts))
 
-    def build(self, threads: int = 1) -> Any:
+    def build(self, threads: int = 1) -> Scene:
         from ..scene import Scene
 
         return Scene(tuple(body.build(threads) for body in self.bodies), self.viscosity,
@@ -89,9 +93,13 @@ class SceneModel(BodySection):
                   for name, body in zip(self.names, self.bodies, strict=True)]
         return {"scene": fluid, "bodies": bodies}
 
-    def layout(self, system: Any, frames: bool, tracked: Sequence[int] | None
+    def layout(self, system: System, frames: bool, tracked: Sequence[int] | None
                ) -> list[BodyLayout]:
         """Every body's layout, rows offset by the bodies before it, named after its body."""
+        from ..scene import Scene
+
+        if not isinstance(system, Scene):
+            raise TypeError(f"a scene's layout needs a Scene, got {type(system).__name__}")
         out, first = [], 0
         for name, section, body in zip(self.names, self.bodies, system.bodies, strict=True):
             parts = section.layout(body, frames, None)

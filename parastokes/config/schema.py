@@ -191,7 +191,7 @@ class Config(_Section):
     time: Time
     fine: Fine
     coarse: SerializeAsAny[CoarseSection] = Field(
-        default_factory=lambda: coarse_registry.get(coarse_registry.DEFAULT)(),
+        default_factory=lambda: coarse_registry.get(coarse_registry.DEFAULT).model_validate({}),
         description="The coarse solver: a section of its family (`kind` = extrapolated, the "
         'default, or "package.module:ClassName", docs/extending.md).',
     )

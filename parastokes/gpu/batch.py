@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from .. import integrate
+from ..contracts import System
 from . import stepping
 
 __all__ = ["Outcome", "batch_key", "run_calls"]
@@ -31,11 +32,11 @@ def batch_key(fn: Any, args: tuple) -> tuple | None:
     """What members of one batch share, or None when the call is not batched on the GPU."""
     if not isinstance(fn, integrate.Propagator) or len(args) != 3:
         return None
-    kind = stepping.kind_of(fn.system)
-    if kind is None:
+    system = stepping.gpu_system(fn.system)
+    if system is None:
         return None
-    neutral = dict.fromkeys(fn.system.params, 1.0)
-    structure = dataclasses.replace(fn.system, n_threads=None, **neutral)
+    neutral = dict.fromkeys(system.params, 1.0)
+    structure = dataclasses.replace(system.with_params(**neutral), n_threads=None)
     return structure, fn.scheme, fn.blowup_factor
 
 
@@ -49,7 +50,9 @@ def _prepare(fn: integrate.Propagator, args: tuple) -> stepping.Member | Outcome
         return False, exc
     if n == 0:
         return True, x
-    return stepping.Member(fn.system, x, float(t_start), (t_end - t_start) / n, n)
+    system = stepping.gpu_system(fn.system)
+    assert system is not None  # a batched call (batch_key)
+    return stepping.Member(system, x, float(t_start), (t_end - t_start) / n, n)
 
 
 def _run_group(
@@ -103,14 +106,17 @@ def run_calls(
             groups.setdefault(key, []).append((index, fn, args))
     for group in groups.values():
         _run_group(group, outcomes, launch)
-    return outcomes  # type: ignore[return-value]
+    done = [outcome for outcome in outcomes if outcome is not None]
+    assert len(done) == len(calls)  # (every call has its outcome)
+    return done
 
 
-def warm_up(system: Any, launch: stepping.Launch | None = None) -> None:
+def warm_up(system: System, launch: stepping.Launch | None = None) -> None:
     """Compile the GPU kernels that solves of ``system`` use (one tiny RK2 step), so that timings
     that follow measure work; nothing happens for a system without a GPU path."""
-    if stepping.kind_of(system) is None:
+    gpu = stepping.gpu_system(system)
+    if gpu is None:
         return
-    x = system.project(np.array(system.initial_state(), dtype=float))
-    stepping.solve(integrate.SCHEMES["rk2"], [stepping.Member(system, x, 0.0, 1e-12, 1)],
-                   integrate.BLOWUP_FACTOR * system.monitor_limit, launch)
+    x = gpu.project(np.array(gpu.initial_state(), dtype=float))
+    stepping.solve(integrate.SCHEMES["rk2"], [stepping.Member(gpu, x, 0.0, 1e-12, 1)],
+                   integrate.BLOWUP_FACTOR * gpu.monitor_limit, launch)

@@ -26,14 +26,16 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numba import cuda
 
 from ..bodies.frames import advance_node
 from ..bodies.geometry import triangle_area2
+from ..contracts import System
 from ..integrate import BEYOND, DONE, NON_FINITE, Scheme
 from ..kinds.rod.mechanics import segment_loads
 from ..kinds.vesicle.mechanics import spring_pull
@@ -55,6 +57,10 @@ from .kernels import (
     launch_shape,
     velocity_kernels,
 )
+
+if TYPE_CHECKING:  # the kinds are imported when a solve needs them
+    from ..kinds.rod.system import RodSystem
+    from ..kinds.vesicle.system import VesicleSystem
 
 __all__ = ["Launch", "Member", "solve"]
 
@@ -94,7 +100,7 @@ class Member:
     """One solve of a batch: ``n`` steps of size ``h`` from ``(t0, x)`` (``x`` already projected)
     with the parameters of ``system`` (a variant of the batch's system: only Θ may differ)."""
 
-    system: Any
+    system: RodSystem | VesicleSystem
     x: np.ndarray
     t0: float
     h: float
@@ -381,7 +387,10 @@ def _body_kernels(kind: str, threads: int) -> tuple:
     return begin, stage, finish
 
 
-def _rod_body(system: Any, cuda: Any) -> tuple:
+def _rod_body(system: RodSystem | VesicleSystem, cuda: Any) -> tuple:
+    from ..models import RodSystem
+
+    assert isinstance(system, RodSystem)  # KINDS["RodSystem"]
     _, ds, _, shear, table, constant, amplitude, wavenumber, frequency = system.mechanics
     consts = np.array([1.0 / ds, *shear, *constant, amplitude, wavenumber, frequency,
                        system.length])
@@ -389,7 +398,10 @@ def _rod_body(system: Any, cuda: Any) -> tuple:
             int(system.n_points))
 
 
-def _vesicle_body(system: Any, cuda: Any) -> tuple:
+def _vesicle_body(system: RodSystem | VesicleSystem, cuda: Any) -> tuple:
+    from ..models import VesicleSystem
+
+    assert isinstance(system, VesicleSystem)  # KINDS["VesicleSystem"]
     edges = np.ascontiguousarray(system.edges, dtype=np.int64)
     n = system.mesh[0].shape[0]
     ends = np.concatenate([edges[:, 0], edges[:, 1]])
@@ -408,19 +420,26 @@ def _vesicle_body(system: Any, cuda: Any) -> tuple:
 
 #: Θ of each system kind: (the parameter held in ``mf[:, THETA]``, the kind's kernels, its
 #: constant tables, its state and rate columns).
-KINDS = {
+KINDS: dict[str, tuple[str, str, Callable[[RodSystem | VesicleSystem, Any], tuple], int, int]] = {
     "RodSystem": ("bending", "rod", _rod_body, 12, 6),
     "VesicleSystem": ("stiffness", "vesicle", _vesicle_body, 3, 3),
 }
 
 
-def kind_of(system: Any) -> str | None:
-    """The batched kind of ``system`` ("RodSystem", "VesicleSystem"), or None when the GPU path
-    does not reproduce it (another class, or a subclass, whose physics may differ)."""
+def gpu_system(system: System) -> RodSystem | VesicleSystem | None:
+    """``system`` itself when the GPU path reproduces it (exactly a ``RodSystem`` or a
+    ``VesicleSystem``), or None (another class, or a subclass, whose physics may differ)."""
     from ..models import RodSystem, VesicleSystem
 
-    cls = type(system)
-    return cls.__name__ if cls in (RodSystem, VesicleSystem) else None
+    if type(system) is RodSystem or type(system) is VesicleSystem:
+        return system
+    return None
+
+
+def kind_of(system: System) -> str | None:
+    """The batched kind of ``system`` ("RodSystem", "VesicleSystem"), or None when the GPU path
+    does not reproduce it (another class, or a subclass, whose physics may differ)."""
+    return None if gpu_system(system) is None else type(system).__name__
 
 
 #: Steps launched between two looks at the members' status (to stop once all have finished).

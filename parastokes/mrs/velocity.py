@@ -227,5 +227,5 @@ def velocity(
             compiled.full(tp, s3, f3, n3, eps, bool(wall), phi, denom, starts, u, w)
     if not batch:
         u = u[0]
-        w = None if fast else w[0]
+        w = None if w is None else w[0]  # None when fast
     return (u, w) if angular else u

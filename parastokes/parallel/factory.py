@@ -3,12 +3,18 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from concurrent.futures import Executor
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypeAlias
 
 from .mpi import make_mpi_executor
 from .processes import ProcessExecutor
 from .serial import SerialExecutor
+
+if TYPE_CHECKING:  # the GPU backend is imported on use
+    from ..gpu import GPUExecutor
+    from .mpi import MPIExecutor
+
+    #: The executors :func:`make_executor` makes, each with its ``workers``.
+    WorkerPool: TypeAlias = SerialExecutor | ProcessExecutor | MPIExecutor | GPUExecutor
 
 #: The kinds accepted by :func:`make_executor`.
 KINDS = ("serial", "processes", "mpi", "gpu")
@@ -23,7 +29,7 @@ def make_executor(
     warmup: Callable[[], Any] | None = None,
     threads_per_worker: int = 1,
     start_method: str | None = None,
-) -> Executor | None:
+) -> WorkerPool | None:
     """Make an executor with the ``concurrent.futures`` shape and a ``workers`` attribute.
 
     Args:

@@ -87,11 +87,13 @@ def make_mpi_executor(
     on the non-root ranks of ``comm``, after they have served the root's tasks.
     """
     _require_mpi4py()
-    options = {"initializer": _initialize_rank, "initargs": (threads_per_worker, warmup)}
+    initargs = (threads_per_worker, warmup)
     if comm is None:
         from mpi4py.futures import MPIPoolExecutor
 
-        pool = MPIPoolExecutor(max_workers=workers, **options)
+        pool = MPIPoolExecutor(
+            max_workers=workers, initializer=_initialize_rank, initargs=initargs
+        )
     else:
         size = comm.Get_size()
         # Every rank checks, so that all of them stop together.
@@ -102,7 +104,10 @@ def make_mpi_executor(
             )
         from mpi4py.futures import MPICommExecutor
 
-        pool = MPICommExecutor(comm, root, **options).__enter__()
+        # mpi4py's stub types __enter__ as Self | None; it returns the root's MPIPoolExecutor
+        pool = MPICommExecutor(  # type: ignore[assignment]
+            comm, root, initializer=_initialize_rank, initargs=initargs
+        ).__enter__()
         if pool is None:
             return None
     available = pool.num_workers  # waits until the workers are up and initialized

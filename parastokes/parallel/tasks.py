@@ -9,11 +9,18 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Callable, Iterable, Sequence
-from concurrent.futures import FIRST_EXCEPTION, BrokenExecutor, Executor, Future, wait
+from concurrent.futures import FIRST_EXCEPTION, BrokenExecutor, Future, wait
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 from .errors import TaskError, WorkerDiedError
+
+
+class Submitter(Protocol):
+    """What :func:`run_tasks` needs of an executor: ``submit`` (any ``concurrent.futures``
+    executor, or a proxy of one)."""
+
+    def submit(self, fn: Callable[..., Any], /, *args: Any) -> Future: ...
 
 
 @dataclass(frozen=True)
@@ -28,7 +35,7 @@ class Task:
     label: str = "task"
 
 
-def run_tasks(executor: Executor, tasks: Iterable[Task]) -> list[Any]:
+def run_tasks(executor: Submitter, tasks: Iterable[Task]) -> list[Any]:
     """Run ``tasks`` on ``executor`` and return their results in order.
 
     All tasks are submitted at once. On a failure, the tasks not yet started are cancelled and
@@ -60,11 +67,12 @@ def run_tasks(executor: Executor, tasks: Iterable[Task]) -> list[Any]:
     for future in futures:
         future.cancel()
     original = futures[index].exception()
+    assert original is not None  # futures[index] failed (_first_failure)
     raise TaskError(tasks[index].label, original) from original
 
 
 def run_labelled(
-    executor: Executor,
+    executor: Submitter,
     fn: Callable[..., Any],
     args_list: Sequence[Sequence[Any]],
     labels: Sequence[str],
@@ -79,7 +87,7 @@ def run_labelled(
     return run_tasks(executor, tasks)
 
 
-def _batched(executor: Executor) -> contextlib.AbstractContextManager:
+def _batched(executor: Submitter) -> contextlib.AbstractContextManager:
     """``executor.batch()`` where the executor has it, else a context that does nothing."""
     batch = getattr(executor, "batch", None)
     return contextlib.nullcontext() if batch is None else batch()
@@ -91,7 +99,7 @@ def _error(future: Future) -> BaseException | None:
     return future.exception()
 
 
-def _is_bystander(exc: BaseException) -> bool:
+def _is_bystander(exc: BaseException | None) -> bool:
     """A task that failed only because another task broke the pool."""
     return isinstance(exc, BrokenExecutor) and not isinstance(exc, WorkerDiedError)
 

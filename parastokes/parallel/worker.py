@@ -71,9 +71,11 @@ def die_with_parent(parent: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGHUP, signal.SIG_IGN)
     server = forkserver._forkserver  # the state a forkserver child inherits (private)
-    if getattr(server, "_forkserver_alive_fd", None) is not None:
-        os.close(server._forkserver_alive_fd)
-        server._forkserver_alive_fd = None
+    alive_fd = getattr(server, "_forkserver_alive_fd", None)
+    if alive_fd is not None:
+        os.close(alive_fd)
+        # a private attribute of ForkServer, which typeshed does not declare
+        server._forkserver_alive_fd = None  # type: ignore[attr-defined]
     if not sys.platform.startswith("linux"):
         return
     try:

@@ -166,7 +166,7 @@ def _kept_coarse_step(
     return value, end - start
 
 
-def coarse_error(exc: Exception, n: int, k: int) -> TaskError:
+def coarse_error(exc: BaseException, n: int, k: int) -> TaskError:
     """The TaskError of a failed coarse step G_n^k (``exc`` may be an auxiliary solve's)."""
     label = f"coarse solve of slice {n} in iteration {k}"
     if isinstance(exc, TaskError):
@@ -301,6 +301,7 @@ def _parallel_sweep(
     todo = [n for n in args if kept.get(n) is None]
 
     def keep(index: int, value: np.ndarray, seconds: float) -> None:
+        assert memo is not None  # keep is given with a memo only
         memo.put("fine", todo[index], k, *args[todo[index]], value, seconds)
 
     clock = _Clocked(executor, None if memo is None else keep)
@@ -425,6 +426,7 @@ class Bookkeeping:
         """Eq. 9 has completed: write the first checkpoint."""
         progress.timings.total = time.perf_counter() - self.session_start
         if self.checkpoint is not None:
+            assert self.memo is not None  # (made with the checkpoint)
             ckpt.save(self.checkpoint, progress, self.key)
             self.saved = 0
             self.memo.forget(0)
@@ -434,19 +436,23 @@ class Bookkeeping:
         record, save, report; return why the run stops now, or None."""
         final = progress.states[-1]
         progress.increments.append(relative_change(previous_final, final, self.positions))
+        error = None
         if self.reference is not None:
-            progress.errors.append(relative_change(final, self.reference[-1], self.positions))
+            assert progress.errors is not None  # a run with a reference records eta^k
+            error = relative_change(final, self.reference[-1], self.positions)
+            progress.errors.append(error)
         elapsed = time.perf_counter() - self.session_start
         progress.timings.total = self.earlier_total + elapsed
         logger.info(
             "parareal k=%d eta~=%.3e eta=%s parallel sweep %.3fs serial sweep %.3fs",
             progress.iteration,
             progress.increments[-1],
-            "n/a" if self.reference is None else f"{progress.errors[-1]:.3e}",
+            "n/a" if error is None else f"{error:.3e}",
             progress.timings.parallel_sweeps[-1],
             progress.timings.serial_sweeps[-1],
         )
         if self.checkpoint is not None:
+            assert self.memo is not None  # (made with the checkpoint)
             ckpt.save(self.checkpoint, progress, self.key)
             self.saved = progress.iteration
             self.memo.forget(progress.iteration)
@@ -455,7 +461,7 @@ class Bookkeeping:
                 IterationReport(
                     iteration=progress.iteration,
                     increment=progress.increments[-1],
-                    error=progress.errors[-1] if self.reference is not None else None,
+                    error=error,
                     final_state=final,
                     elapsed=progress.timings.total,
                 )
@@ -624,7 +630,7 @@ def run(
     book = Bookkeeping(stopping, saving, reporting, reference, positions, key, session_start)
 
     resume = saving is not None and saving.resume
-    progress = ckpt.load(saving.path, key) if resume else None
+    progress = ckpt.load(saving.path, key) if saving is not None and saving.resume else None
     if progress is not None:
         book.resume(progress)
         logger.info("parareal: resuming from %s after iteration %d", book.checkpoint, book.saved)
@@ -645,11 +651,12 @@ def run(
         problem = Problem(fine, coarse, x0, times, pool, project)
         progress, reason = strategy(progress, problem, book)
     except (TaskError, KeyboardInterrupt) as exc:
-        kept = 0 if book.memo is None else book.memo.count()
-        held = [] if book.saved is None else [f"the checkpoint {os.fspath(book.checkpoint)} "
-                                              f"holds iteration {book.saved}"]
-        if kept:
-            held.append(f"{book.memo.directory} keeps {kept} solves of the iteration after it")
+        memo, saved_to = book.memo, book.checkpoint
+        kept = 0 if memo is None else memo.count()
+        held = [] if book.saved is None or saved_to is None else [
+            f"the checkpoint {os.fspath(saved_to)} holds iteration {book.saved}"]
+        if kept and memo is not None:
+            held.append(f"{memo.directory} keeps {kept} solves of the iteration after it")
         if held:
             exc.add_note(
                 f"parareal: {' and '.join(held)}; rerun with the same checkpoint to resume from "

@@ -27,17 +27,24 @@ import logging
 import math
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Executor
-from typing import Any
+from typing import Required, TypedDict
 
 import numpy as np
 
 from .. import integrate
-from ..contracts import check_workers
+from ..contracts import System, check_workers
 from ..parallel import Task, run_tasks
 from .transfer import OnCoarseGrid
 from .weights import check_nodes, lagrange_weights, step_weights, validate_richardson
 
-__all__ = ["Extrapolated", "extrapolated"]
+__all__ = ["Extrapolated", "RichardsonSpec", "extrapolated"]
+
+
+class RichardsonSpec(TypedDict, total=False):
+    """The ``richardson`` of :func:`extrapolated`: the depth m, and the ratio r (m >= 1)."""
+
+    m: Required[int]
+    r: float | None
 
 logger = logging.getLogger(__name__)
 
@@ -63,7 +70,7 @@ class Extrapolated:
 
     def __init__(
         self,
-        system: Any,
+        system: System,
         scheme: str,
         dt: float,
         thetas: list[dict[str, float]],
@@ -99,9 +106,11 @@ class Extrapolated:
         """The auxiliary solvers' values, one task per solver, or one batch per worker when there
         are more solvers than workers (oversubscription, see `check_workers`)."""
         solvers = [p for row in self.auxiliary for p in row]
-        workers = getattr(self.executor, "workers", None)
+        executor = self.executor
+        assert executor is not None  # __call__ comes here with an executor only
+        workers = getattr(executor, "workers", None)
         if workers is None or workers == 1 or len(solvers) <= workers:
-            return run_tasks(self.executor, self.auxiliary_tasks(t_start, t_end, x))
+            return run_tasks(executor, self.auxiliary_tasks(t_start, t_end, x))
         batches = np.array_split(np.arange(len(solvers)), workers)
         tasks = [
             Task(
@@ -111,7 +120,7 @@ class Extrapolated:
             )
             for batch in batches
         ]
-        return [value for batch in run_tasks(self.executor, tasks) for value in batch]
+        return [value for batch in run_tasks(executor, tasks) for value in batch]
 
     def plan(self, t_start: float, t_end: float) -> tuple[np.ndarray, np.ndarray]:
         """The steps h_q = (t_end - t_start) / n_q actually taken on a slice, and their weights v_q.
@@ -219,7 +228,7 @@ class Extrapolated:
         return {**self.__dict__, "executor": None}
 
 
-def _lagrange_nodes(system: Any, lagrange: Mapping[str, Sequence[float]] | None):
+def _lagrange_nodes(system: System, lagrange: Mapping[str, Sequence[float]] | None):
     """Validate the Lagrange nodes; return (Theta^j list, flat weights w_j)."""
     if not lagrange:
         return [{}], np.ones(1)
@@ -241,11 +250,11 @@ def _lagrange_nodes(system: Any, lagrange: Mapping[str, Sequence[float]] | None)
 
 
 def extrapolated(
-    system: Any,
+    system: System,
     scheme: str,
     dt: float,
     lagrange: Mapping[str, Sequence[float]] | None = None,
-    richardson: Mapping[str, float] | None = None,
+    richardson: RichardsonSpec | None = None,
     grid: int | None = None,
     executor: Executor | None = None,
     allow_oversubscribe: bool = False,
@@ -270,11 +279,11 @@ def extrapolated(
         raise ValueError(f"dt must be positive and finite, got {dt!r}")
     integrate.scheme_order(scheme)
     thetas, weights = _lagrange_nodes(system, lagrange)
-    richardson = dict(richardson or {"m": 0})
-    extra = sorted(set(richardson) - {"m", "r"})
-    if extra or "m" not in richardson:
-        raise ValueError(f"richardson takes the keys 'm' and 'r', got {sorted(richardson)}")
-    m, r = richardson["m"], richardson.get("r")
+    spec: RichardsonSpec = richardson or {"m": 0}
+    extra = sorted(set(spec) - {"m", "r"})
+    if extra or "m" not in spec:
+        raise ValueError(f"richardson takes the keys 'm' and 'r', got {sorted(spec)}")
+    m, r = spec["m"], spec.get("r")
     validate_richardson(m, r)
     check_workers(len(thetas) * (m + 1), executor, allow_oversubscribe)
     if grid is not None:

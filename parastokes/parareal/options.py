@@ -29,7 +29,7 @@ __all__ = ["Checkpoint", "Reporting", "Stopping", "resolve"]
 
 
 def _is_count(value: object) -> bool:
-    return not isinstance(value, bool) and isinstance(value, int | np.integer) and value >= 1
+    return not isinstance(value, bool) and isinstance(value, int | np.integer) and bool(value >= 1)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -153,7 +153,9 @@ def resolve(
             "stopping=parareal.Stopping(tol=..., max_iterations=...)"
         )
     else:
-        stopping = Stopping(**flat_stopping)
+        stopping = Stopping(
+            tol=tol, max_iterations=max_iterations, wall_time_limit=wall_time_limit
+        )
     if isinstance(checkpoint, Checkpoint):
         _refuse_both("checkpoint", {"identity": identity})
     elif checkpoint is not None:

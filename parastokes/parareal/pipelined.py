@@ -191,13 +191,21 @@ class _Pipeline:
         return min(self.failures, default=math.inf)
 
     # ---- tasks ---------------------------------------------------------------------------
-    def kept(self, kind: str, n: int, k: int, args: tuple) -> tuple[np.ndarray, float] | None:
+    def kept(
+        self, kind: str, n: int, k: int, args: tuple[float, float, np.ndarray]
+    ) -> tuple[np.ndarray, float] | None:
         """The solve from the memo of a stopped session (:mod:`.solve_memo`), or None."""
         memo = self.book.memo
         return None if memo is None else memo.get(kind, n, k, *args)
 
     def keep(
-        self, kind: str, n: int, k: int, args: tuple, value: np.ndarray, seconds: float
+        self,
+        kind: str,
+        n: int,
+        k: int,
+        args: tuple[float, float, np.ndarray],
+        value: np.ndarray,
+        seconds: float,
     ) -> None:
         """Keep a completed solve in the memo (when the run has a checkpoint)."""
         if self.book.memo is not None:
@@ -329,8 +337,9 @@ class _Pipeline:
         errors = [(job.k, exc, job)]
         while self.workers.flight:
             other, future, *_ = self.workers.next()
-            if not future.cancelled() and future.exception() is not None:
-                errors.append((other.k, future.exception(), other))
+            failure = None if future.cancelled() else future.exception()
+            if failure is not None:
+                errors.append((other.k, failure, other))
         causes = [e for e in errors if not _is_bystander(e[1])] or errors
         _, cause, culprit = min(causes, key=lambda e: e[0])
         error = self.error_of(culprit, cause)
@@ -378,13 +387,14 @@ class _Pipeline:
             for n in range(1, n_slices + 1):
                 states[n] = self.x[n, 0]
             timings = Timings(coarse=[coarse], serial_sweeps=[coarse_span], tasks=tasks)
-            errors = [] if self.book.reference is not None else None
+            errors: list[float] | None = [] if self.book.reference is not None else None
             self.progress = ckpt.Progress(
                 0, states, states[1:].copy(), errors=errors, timings=timings
             )
             self.book.initial_sweep_done(self.progress)
             return None
         progress = self.progress
+        assert progress is not None  # set when iteration 0 closed, or by start (resumed)
         previous_final = progress.states[-1]
         states = progress.states.copy()  # X_n^k = X_n^{k-1} for n < k
         coarse_values = progress.coarse_values.copy()
@@ -446,4 +456,5 @@ def run_pipelined(
         reason = pipeline.run()
     finally:
         workers.cancel()
+    assert pipeline.progress is not None  # a reason comes from a closed iteration
     return pipeline.progress, reason

@@ -3,17 +3,33 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TypedDict
 
 import numpy as np
 
 from . import speedup as model
 from .timings import Timings
 
-__all__ = ["STOP_REASONS", "PararealResult"]
+__all__ = ["STOP_REASONS", "PararealResult", "Speedups"]
 
 #: Why a run stopped: eta~^k < tol; k reached N (the result is the serial fine solution);
 #: k reached max_iterations; the wall-time limit was reached after an iteration.
 STOP_REASONS = ("tolerance", "all_slices", "max_iterations", "wall_time")
+
+
+class Speedups(TypedDict):
+    """What :meth:`PararealResult.speedup` returns."""
+
+    measured: float
+    theoretical: float
+    bound: float
+    gamma_G: float
+    gamma_F: float
+    gamma_ratio: float
+    overhead: float
+    serial_time: float
+    serial_time_estimated: bool
+    schedule: str
 
 
 @dataclass
@@ -43,7 +59,7 @@ class PararealResult:
         """True when the run stopped on the tolerance or because k reached N."""
         return self.stop_reason in ("tolerance", "all_slices")
 
-    def speedup(self, serial_time: float | None = None) -> dict[str, float | bool]:
+    def speedup(self, serial_time: float | None = None) -> Speedups:
         """Speedups of eqs. 14-15 from the recorded timings.
 
         - ``measured``: Upsilon_F / Upsilon_pr, with Upsilon_pr the measured total and Upsilon_F the
@@ -58,7 +74,7 @@ class PararealResult:
         t = self.timings
         n, k = self.n_slices, self.iterations
         estimated = serial_time is None
-        serial = n * t.gamma_f if estimated else float(serial_time)
+        serial = n * t.gamma_f if serial_time is None else float(serial_time)
         theoretical, bound = model.schedule_speedups(t.schedule, t.gamma_g, t.gamma_f, k, n)
         return {
             "measured": serial / t.total,

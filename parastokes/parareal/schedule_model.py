@@ -101,7 +101,9 @@ class _Graph:
                     slot = heapq.heappop(free)
                 else:
                     slot, slots = slots, slots + 1
-                end = now + self.duration[node]
+                duration = self.duration[node]
+                assert duration is not None  # (only nodes with a duration are queued)
+                end = now + duration
                 heapq.heappush(running, (end, node, slot))
                 tasks.append((*self.label[node], now, end, slot))
             if not running:

@@ -14,8 +14,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
+
+if TYPE_CHECKING:  # typing.TypeIs is Python 3.13's
+    from typing_extensions import TypeIs
 
 __all__ = [
     "check_nodes",
@@ -26,7 +31,7 @@ __all__ = [
 ]
 
 
-def check_nodes(theta0: float, nodes: Sequence[float], name: str) -> np.ndarray:
+def check_nodes(theta0: float, nodes: npt.ArrayLike, name: str) -> np.ndarray:
     """Check the conditions 1-2 of section 4.1 on one parameter's nodes; return them as an array."""
     values = np.asarray(nodes, dtype=float)
     if values.ndim != 1 or values.size == 0:
@@ -55,6 +60,11 @@ def _lagrange_1d(theta0: float, nodes: np.ndarray) -> np.ndarray:
     return weights
 
 
+def _is_scalar(theta0: float | Sequence[float]) -> TypeIs[float]:
+    """One parameter's θ⁰ (a number), not several (a sequence)."""
+    return np.ndim(theta0) == 0
+
+
 def lagrange_weights(
     theta0: float | Sequence[float], nodes: Sequence[float] | Sequence[Sequence[float]]
 ) -> np.ndarray:
@@ -69,13 +79,14 @@ def lagrange_weights(
     Raises ValueError when the nodes of a parameter are not strictly increasing (condition 1 of
     section 4.1) or when theta^0 lies inside their interval (condition 2).
     """
-    if np.ndim(theta0) == 0:
+    if _is_scalar(theta0):
         return _lagrange_1d(float(theta0), check_nodes(float(theta0), nodes, "lagrange"))
     theta0 = [float(value) for value in theta0]
     if len(theta0) != len(nodes):
         raise ValueError(f"got {len(theta0)} values of theta0 but {len(nodes)} node sets")
     weights = np.ones(())
-    for i, (value, node_set) in enumerate(zip(theta0, nodes, strict=True)):
+    node_sets: Sequence[npt.ArrayLike] = nodes
+    for i, (value, node_set) in enumerate(zip(theta0, node_sets, strict=True)):
         weights = np.multiply.outer(
             weights, _lagrange_1d(value, check_nodes(value, node_set, f"parameter {i}"))
         )
@@ -110,7 +121,7 @@ def richardson_weights(m: int, r: float, order: int) -> np.ndarray:
     return weights
 
 
-def step_weights(steps: Sequence[float], order: int) -> np.ndarray:
+def step_weights(steps: Sequence[float] | np.ndarray, order: int) -> np.ndarray:
     """Richardson weights for the steps h_0..h_m actually taken (the general form of eq. 27).
 
     Solves sum_q v_q = 1 and sum_q v_q h_q^(alpha + j) = 0 for j = 0 .. m - 1 (alpha = ``order``),

@@ -39,7 +39,7 @@ import math
 import time
 import types
 from collections.abc import Callable
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 from numba import njit
@@ -66,6 +66,23 @@ __all__ = [
 ]
 
 _OPTS = dict(cache=True, error_model="numpy")
+
+
+class InFluid(Protocol):
+    """What the kernels take of a body: its regularization ε and the fluid's viscosity μ."""
+
+    @property
+    def epsilon(self) -> float: ...
+
+    @property
+    def viscosity(self) -> float: ...
+
+
+class ThreadedSystem(System, Protocol):
+    """A :class:`~parastokes.contracts.System` whose kernels run on ``n_threads`` threads."""
+
+    @property
+    def n_threads(self) -> int | None: ...
 
 
 # ---- the parts a system supplies (numba.extending.overload on its data type) ------------------
@@ -128,7 +145,9 @@ def pack_points(x, targets, sources):
             sources[0, i, j] = x[i, j]
 
 
-def kernel_arguments(system: System, n_points: int, threads: int) -> tuple:
+def kernel_arguments(
+    system: InFluid, n_points: int, threads: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(eps, denom, starts)`` as ``mrs.velocity`` passes them to the kernels for ``system``'s
     ε and μ (one system: (1,) arrays, denom = 8πμ) and ``n_points`` targets on ``threads``
     threads; ``starts[-1]`` is the padded target count."""
@@ -276,7 +295,7 @@ CALL_SECONDS = 0.25
 
 
 def run_steps(
-    system: System,
+    system: ThreadedSystem,
     make_data: Callable[[Any, int], tuple],
     scheme: Scheme,
     x: np.ndarray,

@@ -28,17 +28,20 @@ __all__ = ["compiled_data", "compiled_loop", "register", "register_data", "regis
 
 RunSteps = Callable[..., tuple[Any, float, int, int, float]]
 
-_LOOPS: dict[tuple[type, type], Callable[[Any], RunSteps]] = {}
+_LOOPS: dict[tuple[type, type], Callable[[Any], RunSteps | None]] = {}
 _DATA: dict[type, Callable[[Any, int], tuple]] = {}
 
 
-def _key(system: Any) -> tuple[type, type]:
+def _key(system: object) -> tuple[type, type]:
     return type(system), type(getattr(system, "fluid", None))
 
 
-def register(cls: type, factory: Callable[[Any], RunSteps], fluid: type | None = None) -> None:
+def register(
+    cls: type, factory: Callable[[Any], RunSteps | None], fluid: type | None = None
+) -> None:
     """Step systems of exactly the type ``cls`` whose ``fluid`` is exactly of the type ``fluid``
-    (None: systems without a ``fluid``) with ``factory(system)``."""
+    (None: systems without a ``fluid``) with ``factory(system)`` (None: this system has none,
+    e.g. a scene with a body without compiled parts)."""
     _LOOPS[cls, type(None) if fluid is None else fluid] = factory
 
 
@@ -47,7 +50,7 @@ def registered() -> list[tuple[type, type]]:
     return list(_LOOPS)
 
 
-def compiled_loop(system: Any) -> RunSteps | None:
+def compiled_loop(system: object) -> RunSteps | None:
     """The compiled ``run_steps`` of ``system`` if its exact types have one, else None."""
     factory = _LOOPS.get(_key(system))
     return None if factory is None else factory(system)
@@ -60,6 +63,6 @@ def register_data(cls: type, make_data: Callable[[Any, int], tuple]) -> None:
     _DATA[cls] = make_data
 
 
-def compiled_data(system: Any) -> Callable[[Any, int], tuple] | None:
+def compiled_data(system: object) -> Callable[[Any, int], tuple] | None:
     """The ``make_data`` registered for the exact type of ``system``, else None."""
     return _DATA.get(type(system))

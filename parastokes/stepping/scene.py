@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import functools
 import math
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 from numba import literal_unroll
@@ -31,6 +31,9 @@ from ..mrs.velocity import EIGHT_PI
 from . import loop, registry
 from .fluid import fluid_workspace, velocity_into
 from .registry import RunSteps
+
+if TYPE_CHECKING:  # parastokes.scene imports this module
+    from ..scene import Scene
 
 __all__ = ["SceneData", "scene_data", "scene_loop"]
 
@@ -49,11 +52,18 @@ class SceneData(NamedTuple):
     phi: bool = False  # the kernel's torque-blob flag, as mrs.velocity passes it
 
 
-def scene_data(scene: Any, threads: int) -> SceneData:
+def _body_data(body: Any, threads: int) -> tuple:
+    """The compiled data of one body of a scene (TypeError for a body without one)."""
+    make_data = registry.compiled_data(body)
+    if make_data is None:
+        raise TypeError(f"{type(body).__name__} has no compiled parts to join a scene's loop")
+    return make_data(body, threads)
+
+
+def scene_data(scene: Scene, threads: int) -> SceneData:
     """The :class:`SceneData` of ``scene`` for kernels on ``threads`` threads."""
     bodies = tuple(
-        (first, rows, cols, rate_cols, float(body.monitor_limit),
-         registry.compiled_data(body)(body, threads))
+        (first, rows, cols, rate_cols, float(body.monitor_limit), _body_data(body, threads))
         for body, (first, rows, cols), rate_cols in zip(
             scene.bodies, scene.shapes, scene.rate_columns, strict=True)
     )
@@ -70,7 +80,7 @@ def scene_data(scene: Any, threads: int) -> SceneData:
     )
 
 
-def scene_loop(scene: Any) -> RunSteps | None:
+def scene_loop(scene: Scene) -> RunSteps | None:
     """The compiled loop of ``scene`` (registered for :class:`parastokes.scene.Scene`), or None
     when a body's exact type has no compiled parts: the scene then runs the Python loop."""
     if any(registry.compiled_data(body) is None for body in scene.bodies):

@@ -123,6 +123,9 @@ def main(args: argparse.Namespace, console: Any) -> int:
     fine = integrate.Propagator(system, cfg.fine.scheme, cfg.fine.dt)
     console.print(f"tuning {cfg.title or args.config}: {args.cores} cores, η* = {args.target:g}")
     if pilot is not None:
+        from ..kinds.rod.kind import RodModel
+
+        assert isinstance(cfg.model, RodModel)  # only rods have a pilot (_pilot_system)
         console.print(f"pilot rod: {points} nodes per rod at the run's spacing σ_f (the run has "
                       f"{cfg.model.n_points})")
     bar = _Bar(console)

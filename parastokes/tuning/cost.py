@@ -55,6 +55,7 @@ def waves(n_auxiliary: int, cores: int) -> int:
 
 
 def _step_counts(settings: Settings, slice_length: float) -> list[int]:
+    assert settings.dt is not None  # (the search costs candidates once their step is set)
     r = settings.r or 1.0
     return [integrate.n_steps(0.0, slice_length, settings.dt * r**q) for q in range(settings.m + 1)]
 

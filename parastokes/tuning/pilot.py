@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from .. import integrate, parareal
+from ..contracts import System
 from .space import TuningError
 
 __all__ = ["Pilot", "PilotRun", "Screen"]
@@ -85,7 +86,7 @@ class Screen:
 class Pilot:
     """The pilot window [t0, t0 + P ΔT] of ``system`` with its serial fine reference."""
 
-    system: Any
+    system: System
     fine: integrate.Propagator
     x0: np.ndarray
     t0: float
@@ -166,6 +167,7 @@ class Pilot:
             reference=self.reference, positions=self.system.positions,
             project=self.system.project,
         )
+        assert res.errors is not None  # (run with a reference)
         errors = [float(e) for e in res.errors]
         if not all(math.isfinite(e) for e in errors):
             raise integrate.BlowUpError(times[-1], 0, math.nan, self.x0, "non-finite iterate")

@@ -24,17 +24,19 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
 from .. import integrate
+from ..contracts import System
 from ..parallel import TaskError
+from ..parareal.transfer import Transfer
 from . import cost, stability
 from .pilot import Pilot, Screen
 from .space import Settings, Space, TuningError, reach_table
 
-__all__ = ["Candidate", "Progress", "TuneResult", "tune"]
+__all__ = ["Candidate", "Progress", "ProgressLike", "TuneResult", "tune"]
 
 #: Default budget: this fraction of the estimated serial fine solve (the issue's 15 %).
 BUDGET_FRACTION = 0.15
@@ -63,6 +65,19 @@ _LIMIT_MODEL = {"epsilon": 4.0, "viscosity": 1.0, "bending": -1.0, "stiffness": 
 
 #: Stability intervals of the schemes on the negative real axis (for that model only).
 _INTERVAL = {"euler": 2.0, "rk2": 2.0, "rk4": 2.785}
+
+
+class ProgressLike(Protocol):
+    """What :func:`tune` reports its progress to: a :class:`Progress`, or any object with its
+    methods (the CLI's bar)."""
+
+    def note(self, text: str) -> None: ...
+
+    def start(self, total: int) -> None: ...
+
+    def advance(self, label: str) -> None: ...
+
+    def finish(self) -> None: ...
 
 
 class Progress:
@@ -120,8 +135,8 @@ class Candidate:
                 "gamma_ratio": self.gamma_ratio}
 
     def as_dict(self, fine_dt: float) -> dict[str, Any]:
-        stable = None if self.amplification is None else bool(
-            self.amplification <= self.allowed_amplification)
+        stable = (None if self.amplification is None or self.allowed_amplification is None
+                  else bool(self.amplification <= self.allowed_amplification))
         return {
             **self.settings.as_dict(fine_dt),
             "given": self.given,
@@ -174,13 +189,21 @@ class TuneResult:
                                                          "candidate": max(values)[1]}
         return {"targets": targets, "speedup": rows, "best": best}
 
-    def speedup_curve(self, candidate: Candidate, targets: np.ndarray, n_slices: int) -> list:
+    def speedup_curve(
+        self, candidate: Candidate, targets: np.ndarray, n_slices: int
+    ) -> list[float | None]:
         """Predicted speedup (eq. 14) against η* for one measured candidate (Fig. 6b)."""
-        out = []
+        out: list[float | None] = []
         for eta in targets:
             k = cost.predicted_iterations(candidate.pilot_errors, self.pilot.n_slices, n_slices,
                                           float(eta), candidate.contraction)
-            out.append(None if k is None else cost.speedup(candidate.gamma_ratio, k, n_slices))
+            if k is None:
+                out.append(None)
+                continue
+            if candidate.gamma_ratio is None:
+                raise ValueError(f"speedup_curve: {candidate.settings.label()} has no measured "
+                                 "γ_G/γ_F (it was not run on the pilot)")
+            out.append(cost.speedup(candidate.gamma_ratio, k, n_slices))
         return out
 
 
@@ -201,11 +224,25 @@ def _check_input(cores: Any, target: Any, n_slices: Any, t0: float, t1: float,
                           f"{pilot_slices}")
 
 
-def _seconds_per_step(system: Any, scheme: str, dt: float, x0: np.ndarray, steps: int) -> float:
+def _seconds_per_step(system: System, scheme: str, dt: float, x0: np.ndarray, steps: int) -> float:
     """CPU seconds per step of ``scheme`` (its compiled loop is loaded before, in ``tune``)."""
     start = time.process_time()
     integrate.run(system, x0, 0.0, steps * dt, scheme, dt)
     return (time.process_time() - start) / steps
+
+
+def _coarsened(system: System, factor: int) -> tuple[System, Transfer]:
+    """``system.coarsened(factor)``, an optional member of the System contract (AttributeError
+    for a system without it)."""
+    coarsened = getattr(system, "coarsened", None)
+    if coarsened is None:
+        raise AttributeError(f"{type(system).__name__} has no coarsened(factor) method")
+    return coarsened(factor)
+
+
+def _accepted_speedup(cand: Candidate) -> float:
+    assert cand.speedup is not None  # (set with the status "accepted")
+    return cand.speedup
 
 
 class _Search:
@@ -229,10 +266,10 @@ class _Search:
         self.calibrations: list[tuple[Settings, list[float]]] = []
 
     # ---- step limits ----
-    def _grid_system(self, grid: int) -> tuple[Any, np.ndarray]:
+    def _grid_system(self, grid: int) -> tuple[System, np.ndarray]:
         if grid == 1:
             return self.system, self.pilot.x0
-        coarse, transfer = self.system.coarsened(grid)
+        coarse, transfer = _coarsened(self.system, grid)
         return coarse, transfer.restrict(self.pilot.x0)
 
     def limit(self, settings: Settings) -> float:
@@ -281,7 +318,7 @@ class _Search:
                             self.n_slices)
 
     # ---- stage 1: step, bound, screen ----
-    def timed(self, cand: Candidate, stage: Callable[[Candidate], None]) -> None:
+    def timed(self, cand: Candidate, stage: Callable[[Candidate], object]) -> None:
         start = self.clock()
         try:
             stage(cand)
@@ -298,18 +335,19 @@ class _Search:
             return False
         _, cand.required_margin = stability.safe_step(limit, self.pilot.slice_length,
                                                       cand.weight_sum, self.target)
-        if s.dt is None:  # the largest safe step, times the candidate's fraction
+        dt = s.dt
+        if dt is None:  # the largest safe step, times the candidate's fraction
             dt = limit * (1.0 - cand.required_margin) * s.step_fraction
             dt = self.pilot.slice_length / math.ceil(self.pilot.slice_length / dt - 1e-9)
             cand.settings = s = replace(s, dt=dt)
-        cand.margin = 1.0 - s.dt / limit
+        cand.margin = 1.0 - dt / limit
         if s.m:
-            counts = [integrate.n_steps(0.0, self.pilot.slice_length, s.dt * s.r**q)
+            counts = [integrate.n_steps(0.0, self.pilot.slice_length, dt * s.ratio**q)
                       for q in range(s.m + 1)]
             if len(set(counts)) < len(counts):
                 cand.status, cand.reason = "rejected", f"Richardson steps coincide ({counts})"
                 return False
-        cand.estimated_speedup = self.estimate(s, s.dt)
+        cand.estimated_speedup = self.estimate(s, dt)
         return True
 
     def screen(self, cand: Candidate) -> None:
@@ -352,7 +390,8 @@ class _Search:
                   for i, e in enumerate(info["model_eta"])]
         k = cost.predicted_iterations(errors, self.pilot.n_slices, self.n_slices, self.target,
                                       self.base_rho)
-        info |= {"eta": errors, "calibrated_by": like[0].label() if factors else "baseline",
+        info |= {"eta": errors,
+                 "calibrated_by": like[0].label() if like is not None and factors else "baseline",
                  "iterations": k,
                  "speedup": None if k is None else cost.speedup(info["gamma_ratio"], k,
                                                                 self.n_slices)}
@@ -373,6 +412,7 @@ class _Search:
         if cand.amplification is None:
             cand.amplification = stability.amplification(
                 coarse, self.system, self.pilot.x0, *window, iterations=self.power_iterations)
+        assert self.reference_gain is not None  # (set by the baseline, measured first)
         cand.allowed_amplification = stability.allowed_amplification(self.reference_gain,
                                                                       self.n_slices)
         if not cand.amplification <= cand.allowed_amplification:
@@ -420,6 +460,7 @@ class _Search:
                 cand.coarse, self.system, self.pilot.x0, *window,
                 iterations=self.power_iterations)
         else:
+            assert cand.step_limit is not None  # (set by its step)
             half = replace(cand.settings, dt=self.pilot.slice_length /
                            math.ceil(self.pilot.slice_length / (0.5 * cand.step_limit)))
             self.reference_gain = stability.amplification(half.build(self.system), self.system,
@@ -428,10 +469,12 @@ class _Search:
         self.base_shot = cand.shot
         self.base_errors = cand.pilot_errors
         self.base_rho = cand.contraction
+        dt = cand.settings.dt
+        assert dt is not None  # (set by its step)
         if cand.gamma_ratio:
-            counted = self.counted_ratio(cand.settings, cand.settings.dt)
+            counted = self.counted_ratio(cand.settings, dt)
             self.cost_scale = min(1.0, BOUND_SAFETY * cand.gamma_ratio / counted)
-        cand.estimated_speedup = self.estimate(cand.settings, cand.settings.dt)
+        cand.estimated_speedup = self.estimate(cand.settings, dt)
         return cand
 
 
@@ -441,6 +484,7 @@ def _key(search: _Search, cand: Candidate) -> float:
     if cand.screen is None:
         return cand.estimated_speedup if cand.estimated_speedup is not None else -math.inf
     if "model_eta" not in cand.screen:  # no calibrated screen (the baseline's pilot failed)
+        assert cand.estimated_speedup is not None  # (set by its step, before its screen)
         return cand.estimated_speedup
     search.rescreen(cand)
     estimate = cand.screen["speedup"]
@@ -458,9 +502,9 @@ def tune(
     x0: np.ndarray | None = None,
     space: Space | None = None,
     budget: float | None = None,
-    pilot: Any = None,
+    pilot: System | None = None,
     pilot_slices: int | None = None,
-    progress: Progress | None = None,
+    progress: ProgressLike | None = None,
     clock: Callable[[], float] | None = None,
     exhaustive: bool = False,
 ) -> TuneResult:
@@ -496,7 +540,7 @@ def tune(
     def grid_ok(factor: int) -> bool:
         try:
             for s in {id(system): system, id(pilot_system): pilot_system}.values():
-                s.coarsened(factor)
+                _coarsened(s, factor)
         except (AttributeError, ValueError):
             return False
         return True
@@ -659,7 +703,7 @@ def tune(
 
     everything = [baseline, *candidates]
     accepted = [c for c in everything if c.status == "accepted"]
-    chosen = max(accepted, key=lambda c: c.speedup) if accepted else None
+    chosen = max(accepted, key=_accepted_speedup) if accepted else None
     seconds, cpu = time.perf_counter() - wall, time.process_time() - cpu
     from .report import build_report
 

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from .. import integrate, parareal
+from ..contracts import System
 
 __all__ = ["DIRECTION", "REACH", "Settings", "Space", "TuningError", "reach_table"]
 
@@ -41,7 +42,7 @@ class TuningError(ValueError):
     """Bad input to the tuner, found before the search: the message names what to change."""
 
 
-def reach_table(system: Any) -> dict[str, tuple[tuple[float, float, float], float]]:
+def reach_table(system: System) -> dict[str, tuple[tuple[float, float, float], float]]:
     """:data:`REACH` updated by the system's optional ``tuning_reach`` (same layout), checked."""
     table = dict(REACH)
     for name, entry in dict(getattr(system, "tuning_reach", None) or {}).items():
@@ -88,6 +89,13 @@ class Settings:
         return self.dt * (self.r or 1.0) ** self.m
 
     @property
+    def ratio(self) -> float:
+        """The Richardson ratio r (ValueError without one: it is required when m >= 1)."""
+        if self.r is None:
+            raise ValueError("richardson: r is required when m >= 1")
+        return self.r
+
+    @property
     def plain(self) -> bool:
         """True for G_{Θ⁰,τ} itself: no extrapolation, the fine grid."""
         return not self.lagrange and self.m == 0 and self.grid == 1
@@ -103,7 +111,7 @@ class Settings:
         v = 1.0
         if self.m:
             order = integrate.scheme_order(self.scheme)
-            v = float(np.abs(parareal.richardson_weights(self.m, self.r, order)).sum())
+            v = float(np.abs(parareal.richardson_weights(self.m, self.ratio, order)).sum())
         return w * v
 
     def corner(self) -> dict[str, float]:
@@ -129,7 +137,7 @@ class Settings:
         text = ", ".join(parts) if len(parts) > 1 else f"{self.scheme}, plain"
         return text if self.name is None else f"{self.name}: {text}"
 
-    def build(self, system: Any) -> Any:
+    def build(self, system: System) -> Any:
         """The propagator of eq. 30 on ``system`` (``parareal.extrapolated``)."""
         assert self.dt is not None
         return parareal.extrapolated(

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from .. import integrate
+from ..contracts import System
 
 __all__ = ["GROWTH", "allowed_amplification", "amplification", "step_limit", "step_margin"]
 
@@ -34,7 +35,7 @@ GROWTH = 100.0
 
 
 def step_limit(
-    system: Any, scheme: str, x0: np.ndarray, t0: float, span: float, dt_lo: float, dt_hi: float
+    system: System, scheme: str, x0: np.ndarray, t0: float, span: float, dt_lo: float, dt_hi: float
 ) -> float:
     """Largest step (1 % bisection) keeping ``system.monitor`` within its limit of its value at
     ``dt_lo`` over ``span`` (the monitor's physical change at a perturbed parameter, e.g. the
@@ -65,7 +66,7 @@ def safe_step(limit: float, slice_length: float, weight_sum: float, target: floa
     return slice_length / n, delta
 
 
-def _positions_view(system: Any, state: np.ndarray) -> np.ndarray | None:
+def _positions_view(system: System, state: np.ndarray) -> np.ndarray | None:
     """The positions as a writable view of ``state`` when they are its first three columns."""
     if state.ndim == 2 and state.shape[1] >= 3:
         view = state[:, :3]
@@ -76,7 +77,7 @@ def _positions_view(system: Any, state: np.ndarray) -> np.ndarray | None:
 
 def amplification(
     propagator: Any,
-    system: Any,
+    system: System,
     x0: np.ndarray,
     t0: float,
     t1: float,

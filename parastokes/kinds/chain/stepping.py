@@ -17,7 +17,7 @@ fluid by :func:`parastokes.stepping.loop.register_parts` (the end of :mod:`paras
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 from numba.extending import overload
@@ -25,6 +25,9 @@ from numba.extending import overload
 from ...stepping import loop
 from ...stepping.fluid import fluid_workspace, velocity_into
 from .mechanics import bond_strain, chain_forces
+
+if TYPE_CHECKING:  # the package imports this module
+    from . import ChainSystem
 
 __all__ = ["ChainData", "chain_data"]
 
@@ -45,7 +48,7 @@ class ChainData(NamedTuple):
     phi: bool = False  # the kernel's torque-blob flag, as mrs.velocity passes it
 
 
-def chain_data(system: Any, threads: int) -> ChainData:
+def chain_data(system: ChainSystem, threads: int) -> ChainData:
     """The :class:`ChainData` of ``system`` for kernels on ``threads`` threads."""
     return ChainData(
         float(system.bond),

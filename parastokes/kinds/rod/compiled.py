@@ -11,7 +11,7 @@ same order, so both loops give the same bits:
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 from numba.extending import overload
@@ -20,6 +20,9 @@ from ...bodies.frames import advance_rod
 from ...mrs import compiled
 from ...stepping import loop
 from .mechanics import length_change, preferred_strain, rod_loads
+
+if TYPE_CHECKING:  # system imports this module
+    from .system import RodSystem
 
 __all__ = ["RodData", "rod_data"]
 
@@ -38,7 +41,7 @@ class RodData(NamedTuple):
     # bool, not a literal False: the same compiled kernel as mrs.velocity's, not a second one)
 
 
-def rod_data(system: Any, threads: int) -> RodData:
+def rod_data(system: RodSystem, threads: int) -> RodData:
     """The :class:`RodData` of ``system`` for kernels on ``threads`` threads."""
     return RodData(
         system.mechanics,

@@ -11,9 +11,10 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import ClassVar
+from typing import ClassVar, TypedDict
 
 import numpy as np
 
@@ -195,8 +196,19 @@ class RodSystem(FluidBody):
         return coarse, RodTransfer(self.n_rods, self.n_points, m_c)
 
 
+class _Table2(TypedDict):
+    length: float
+    amplitude: float
+    frequency: float
+    wavelength: float
+    bending: float
+    shear: tuple[float, float, float]
+    height: float
+    viscosity: float
+
+
 #: Table 2 of the paper (units μm, s, g).
-TABLE2 = {
+TABLE2: _Table2 = {
     "length": 60.0,
     "amplitude": 1.0,
     "frequency": 40.0 * math.pi,
@@ -206,6 +218,14 @@ TABLE2 = {
     "height": 10.0,
     "viscosity": 1e-6,
 }
+
+
+def _three(name: str, values: Sequence[float], what: str) -> tuple[float, float, float]:
+    """``values`` as three floats; any other length is RodSystem's ValueError, raised here."""
+    if len(values) != 3:
+        raise ValueError(f"{name}: need three {what}, got {tuple(float(v) for v in values)!r}")
+    a, b, c = values
+    return float(a), float(b), float(c)
 
 
 def rod(
@@ -239,8 +259,8 @@ def rod(
         epsilon=epsilon,
         viscosity=viscosity,
         bending=bending,
-        shear=tuple(float(b) for b in shear),
-        preferred=tuple(float(p) for p in preferred),
+        shear=_three("shear", shear, "moduli > 0"),
+        preferred=_three("preferred", preferred, "strains"),
         amplitude=float(amplitude),
         wavelength=wavelength,
         frequency=float(frequency),

@@ -12,7 +12,7 @@ the same order, so both loops give the same bits:
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 from numba.extending import overload
@@ -21,6 +21,9 @@ from ...bodies.geometry import mesh_area
 from ...mrs import compiled
 from ...stepping import loop
 from .mechanics import spring_forces
+
+if TYPE_CHECKING:  # system imports this module
+    from .system import VesicleSystem
 
 __all__ = ["VesicleData", "vesicle_data"]
 
@@ -40,7 +43,7 @@ class VesicleData(NamedTuple):
     rate_columns: int = 3
 
 
-def vesicle_data(system: Any, threads: int) -> VesicleData:
+def vesicle_data(system: VesicleSystem, threads: int) -> VesicleData:
     """The :class:`VesicleData` of ``system`` for kernels on ``threads`` threads."""
     return VesicleData(
         system.edges,

@@ -54,6 +54,7 @@ class VesicleModel(BodySection):
         return BodyResolution(theta0, n_points, l_max, "l_max")
 
     def build(self, threads: int = 1) -> VesicleSystem:
+        x, y, z = self.center  # three, by the field's min_length and max_length
         return VesicleSystem(
             subdivisions=self.subdivisions,
             epsilon=self.resolve().theta0["epsilon"],
@@ -61,7 +62,7 @@ class VesicleModel(BodySection):
             stiffness=self.stiffness,
             shear_rate=self.shear_rate,
             n_threads=threads,
-            center=tuple(self.center),
+            center=(x, y, z),
             radius=self.radius,
         )
 
