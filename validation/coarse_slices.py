@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from parastokes import config, integrate, models, parareal
+from parastokes.coarse.extrapolated import Extrapolated
 from parastokes.config.build import build_coarse, build_system
 from validation.report import print_claims, write_results
 
@@ -225,7 +226,10 @@ def scalar_model(spectrum: VesicleSpectrum, name: str, span: float) -> dict:
     w = parareal.lagrange_weights(
         [resolved.theta0[n] for n in names], [resolved.lagrange[n] for n in names]
     ).ravel()
-    r = cfg.coarse.richardson
+    coarse = cfg.coarse
+    if not isinstance(coarse, Extrapolated):
+        raise TypeError(f"{name}: the scalar model needs an extrapolated coarse solver")
+    r = coarse.richardson
     steps = [resolved.coarse_base_dt * (r.r or 1.0) ** q for q in range(r.m + 1)]
     counts = [integrate.n_steps(0.0, span, h) for h in steps]
     used = [span / n for n in counts]

@@ -155,7 +155,7 @@ def select(
             f"{', '.join(by_name)}; figure groups: {', '.join(sorted(groups))}"
         )
     wanted = {j.name for j in jobs if j.name in only or j.group in only}
-    wanted |= {by_name[n].reference for n in wanted if by_name[n].reference}
+    wanted |= {ref for n in wanted if (ref := by_name[n].reference)}
     return [j for j in jobs if j.name in wanted]
 
 
@@ -524,7 +524,7 @@ def run_job(job: Job, layout: Layout) -> None:
         return
     cfg, resolved = load_config(job, layout)
     reporter = ProgressFile(directory / "progress.json")
-    if job.is_reference:
+    if job.reference is None:  # (job.is_reference)
         wall = serial_reference(cfg, resolved, directory, reporter)
         _write_json(layout.done(job), {"serial_fine_s": wall})
         return
@@ -545,7 +545,7 @@ def run_job(job: Job, layout: Layout) -> None:
 def _alive(pid: int | None) -> bool:
     from parastokes.rundir import process_alive
 
-    return bool(pid) and process_alive(pid)
+    return pid is not None and pid > 0 and process_alive(pid)
 
 
 def job_state(job: Job, layout: Layout, running: dict[str, int]) -> str:

@@ -96,7 +96,7 @@ def best_solver(records: dict[str, dict[str, Any]], desired: float) -> str | Non
     """The solver with the highest predicted speedup at a desired error (None: none reaches it)."""
     values = {label: speedup_at(r, desired) for label, r in records.items()}
     values = {k: v for k, v in values.items() if not math.isnan(v)}
-    return max(values, key=values.get) if values else None
+    return max(values, key=values.__getitem__) if values else None
 
 
 def _group(records: Records, group: str) -> dict[str, dict[str, Any]]:
@@ -349,7 +349,8 @@ def _fig6_g3_one(r: Records) -> tuple[str, bool]:
 def _ranges(r: Records, group: str, bounds: Sequence[tuple[float, float]]) -> list[set[str]]:
     runs = _group(r, group)
     return [
-        {best_solver(runs, e) for e in ERROR_GRID if lo <= e <= hi} - {None} for lo, hi in bounds
+        {best for e in ERROR_GRID if lo <= e <= hi if (best := best_solver(runs, e)) is not None}
+        for lo, hi in bounds
     ]
 
 

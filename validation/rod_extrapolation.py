@@ -37,6 +37,7 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -190,7 +191,15 @@ def first_iteration(setup: Setup, coarse, reference: np.ndarray) -> dict:
         project=rod.project,
     )
     monitor = max(rod.monitor(x) for x in res.states[1:])
+    assert res.errors is not None  # (run with a reference)
     return {"eta1": res.errors[0], "increment1": res.increments[0], "max_monitor": monitor}
+
+
+def _euler(rod: RodSystem, tau: float, **options) -> parareal.Extrapolated:
+    """``parareal.extrapolated`` with Euler on the fine grid (no ``grid``: never OnCoarseGrid)."""
+    solver = parareal.extrapolated(rod, "euler", tau, **options)
+    assert isinstance(solver, parareal.Extrapolated)
+    return solver
 
 
 def _assess(setup: Setup, coarse: parareal.Extrapolated, reference: np.ndarray) -> dict:
@@ -228,7 +237,7 @@ def fig3(setup: Setup, reference: np.ndarray, log=print) -> dict:
     rod = setup.rod()
 
     def plain(tau: float) -> parareal.Extrapolated:
-        return parareal.extrapolated(rod, "euler", tau)
+        return _euler(rod, tau)
 
     plain_row = _steps_and_errors(setup, plain, _largest_stable_step(setup, rod.epsilon), reference)
     log(f"fig3 plain eps0: {_summary(plain_row)}")
@@ -237,7 +246,7 @@ def fig3(setup: Setup, reference: np.ndarray, log=print) -> dict:
         nodes = epsilon_nodes(setup, factor, setup.fig3_n_nodes)
 
         def lagrange(tau: float, nodes=nodes) -> parareal.Extrapolated:
-            return parareal.extrapolated(rod, "euler", tau, lagrange={"epsilon": nodes})
+            return _euler(rod, tau, lagrange={"epsilon": nodes})
 
         row = {
             "epsilon1_over_sigma_f": factor,
@@ -267,15 +276,15 @@ def fig5(setup: Setup, reference: np.ndarray, log=print) -> dict:
     rod = setup.rod()
     tau_c = setup.fig5_tau_ratio * setup.tau_f
     r = setup.richardson_r
-    plain = _assess(setup, parareal.extrapolated(rod, "euler", tau_c), reference)
+    plain = _assess(setup, _euler(rod, tau_c), reference)
     log(f"fig5 plain eps0: eta1={plain['eta1']:.3e}")
     rows = []
     for count in setup.fig5_n_nodes:
         nodes = epsilon_nodes(setup, setup.fig5_epsilon1, count)
         lagrange = {"epsilon": nodes}
-        g3 = parareal.extrapolated(rod, "euler", tau_c, lagrange=lagrange)
-        g4 = parareal.extrapolated(
-            rod, "euler", tau_c / r, lagrange=lagrange, richardson={"m": 1, "r": r}
+        g3 = _euler(rod, tau_c, lagrange=lagrange)
+        g4 = _euler(
+            rod, tau_c / r, lagrange=lagrange, richardson={"m": 1, "r": r}
         )
         steps, weights = g4.plan(0.0, setup.slice_length)
         row = {
@@ -337,7 +346,7 @@ def run_all(setup: Setup, log=print) -> dict:
     start = time.perf_counter()
     reference = reference_solution(setup)
     log(f"reference solution: {time.perf_counter() - start:.1f}s")
-    results = {
+    results: dict[str, Any] = {
         "setup": {
             **dataclasses.asdict(setup),
             "sigma_f": setup.sigma_f,
