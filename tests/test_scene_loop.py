@@ -153,3 +153,27 @@ def test_the_compiled_loop_is_chosen_by_the_exact_types_never_inherited():
     with make_executor("serial") as executor:  # the blocked fluid has no compiled loop
         blocked = chain(target_blocks=TargetBlocks(executor, 2))
         assert registry.compiled_loop(blocked) is None
+
+
+@pytest.mark.parametrize("torqued", [False, True])
+def test_the_compiled_fluid_takes_torques_of_bodies_without_angular_rates(torqued):
+    # Scene.rates passes the torques of a body whose rates have no w to mrs.velocity (they drive
+    # the fluid); the compiled loops' fluid must take them too, bit for bit, and keep the
+    # force-only kernel when there are none
+    from parastokes.mrs import compiled
+    from parastokes.mrs.velocity import EIGHT_PI
+    from parastokes.stepping.fluid import fluid_workspace, velocity_into
+
+    rng = np.random.default_rng(3)
+    x = rng.normal(size=(17, 3))
+    forces = rng.normal(size=(17, 3))
+    torques = rng.normal(size=(17, 3)) if torqued else None
+    starts = compiled.tile_starts(compiled.padded_size(17), 1)
+    work = fluid_workspace(17, starts[-1])
+    work[2][0] = forces
+    if torques is not None:
+        work[3][0] = torques
+    velocity_into(x, work, np.full(1, 0.3), np.full(1, EIGHT_PI * MU), starts, False, False,
+                  False)
+    expected = mrs.velocity(x, x, forces, epsilon=0.3, mu=MU, torques=torques, n_threads=1)
+    np.testing.assert_array_equal(work[4][0], expected)

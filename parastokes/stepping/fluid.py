@@ -3,8 +3,9 @@
 
 :func:`velocity_into` packs the points as ``mrs.velocity`` pads them and calls the kernel
 ``mrs.velocity`` would call for the same flags: :func:`parastokes.mrs.compiled.free_u_f` for
-forces in free space, else :func:`parastokes.mrs.compiled.full` (with the wall, or when angular
-velocities are wanted; zero torques where a body has none, as ``mrs.velocity`` passes them). So a
+forces in free space, else :func:`parastokes.mrs.compiled.full` (with the wall, when angular
+velocities are wanted, or when a body whose rates have no w exerts torques; zero torques where
+a body has none, as ``mrs.velocity`` passes them). So a
 compiled loop that uses it gives the bits of a Python ``rates`` that calls ``mrs.velocity``
 (or :class:`parastokes.fluid.MRS`) with the same loads. ε is one per system, (1,), or one per
 source, (1, N) (a scene: every body's points with their body's ε).
@@ -39,7 +40,7 @@ def velocity_into(x, work, eps, denom, starts, wall, angular, phi):
     kernels as :func:`parastokes.mrs.compiled.full` takes them."""
     tp, s3, f, tq, u, w = work
     loop.pack_points(x, tp, s3)
-    if wall or angular:
+    if wall or angular or np.any(tq != 0.0):  # torques of a body whose rates have no w too
         compiled.full(tp, s3, f, tq, eps, wall, phi, denom, starts, u, w)
     else:
         compiled.free_u_f(tp, s3, f, eps, denom, starts, u)
