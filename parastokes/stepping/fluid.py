@@ -34,13 +34,25 @@ def fluid_workspace(n, padded):
 
 
 @njit(**_OPTS)
+def _any_set(a):
+    """Whether any entry of the 3-d ``a`` is non-zero (a scan that stops at the first, with no
+    temporary array)."""
+    for i in range(a.shape[0]):
+        for j in range(a.shape[1]):
+            for k in range(a.shape[2]):
+                if a[i, j, k] != 0.0:
+                    return True
+    return False
+
+
+@njit(**_OPTS)
 def velocity_into(x, work, eps, denom, starts, wall, angular, phi):
     """u (and w, with ``wall`` or ``angular``) at the points ``x[:, :3]`` from the forces and
     torques in ``work`` (:func:`fluid_workspace`), into its ``u`` and ``w``; arguments of the
     kernels as :func:`parastokes.mrs.compiled.full` takes them."""
     tp, s3, f, tq, u, w = work
     loop.pack_points(x, tp, s3)
-    if wall or angular or np.any(tq != 0.0):  # torques of a body whose rates have no w too
+    if wall or angular or _any_set(tq):  # torques of a body whose rates have no w too
         compiled.full(tp, s3, f, tq, eps, wall, phi, denom, starts, u, w)
     else:
         compiled.free_u_f(tp, s3, f, eps, denom, starts, u)

@@ -22,6 +22,7 @@ import numpy as np
 
 from .. import integrate, parareal
 from ..contracts import System
+from ..parareal.weights import validate_richardson
 
 __all__ = ["DIRECTION", "REACH", "Settings", "Space", "TuningError", "reach_table"]
 
@@ -90,10 +91,10 @@ class Settings:
 
     @property
     def ratio(self) -> float:
-        """The Richardson ratio r (ValueError without one: it is required when m >= 1)."""
-        if self.r is None:
-            raise ValueError("richardson: r is required when m >= 1")
-        return self.r
+        """The Richardson ratio r, 1 without Richardson (m = 0); the ValueError of
+        ``parareal.validate_richardson`` when m >= 1 comes without r."""
+        validate_richardson(self.m, self.r)
+        return 1.0 if self.r is None else self.r
 
     @property
     def plain(self) -> bool:
