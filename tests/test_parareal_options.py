@@ -106,11 +106,36 @@ def test_a_group_of_the_wrong_type_is_refused():
         ({"tol": 0.0, "max_iterations": 0}, "max_iterations"),
         ({"tol": 0.0, "max_iterations": True}, "max_iterations"),
         ({"tol": 0.0, "wall_time_limit": -1.0}, "wall_time_limit"),
+        ({"tol": True}, "tol"),
+        ({"tol": "1e-8"}, "tol"),
+        ({"tol": 0.0, "wall_time_limit": "5"}, "wall_time_limit"),
     ],
 )
 def test_a_bad_stopping_value_is_refused_when_made(fields, named):
     with pytest.raises(ValueError, match=named):
         parareal.Stopping(**fields)
+
+
+def test_numpy_numbers_are_valid_stopping_values():
+    stopping = parareal.Stopping(
+        tol=np.float64(1e-8), max_iterations=np.int64(3), wall_time_limit=np.float32(5.0)
+    )
+    assert stopping.max_iterations == 3
+
+
+@pytest.mark.parametrize(
+    ("identity", "named"),
+    [([1], "mapping"), ({"n": np.int64(3)}, "JSON values"), ({"f": print}, "JSON values")],
+)
+def test_a_checkpoint_identity_that_cannot_be_stored_is_refused_when_made(identity, named):
+    with pytest.raises(ValueError, match=named):
+        parareal.Checkpoint("run.npz", identity=identity)
+
+
+def test_the_span_must_be_two_real_numbers():
+    fine, coarse = _solvers()
+    with pytest.raises(ValueError, match="t0 < t1"):
+        parareal.run(fine, coarse, X0, None, 1.0, 4, tol=0.0)  # type: ignore[arg-type]
 
 
 def test_option_values_are_frozen():

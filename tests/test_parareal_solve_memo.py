@@ -7,9 +7,11 @@ of a run that was never stopped.
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 import pytest
-from odes import FailsOnSlice, Logistic, Recording, Stepper
+from odes import FailsOnSlice, Logistic, Recording, Sleeping, Stepper
 
 from parastokes import parallel, parareal, rundir
 from parastokes.parareal import checkpoint as ckpt
@@ -215,3 +217,62 @@ def test_a_run_stopped_in_a_correction_sweep_solves_no_fine_slice_again(tmp_path
     assert len(fine.calls) == (N_SLICES - 2) + (N_SLICES - 3)  # iteration 2's were all kept
     assert coarse.calls[0][0] == TIMES[4]  # iteration 2 went on from slice 5's coarse step
     assert len(coarse.calls) == 2 + (N_SLICES - 3) + (N_SLICES - 4)
+
+
+def test_a_wall_time_stop_keeps_the_solves_of_later_iterations(tmp_path):
+    """The batch loop `run(..., wall_time_limit=...)` resumed: the pipelined schedule's solves of
+    the iteration after the stop are kept for the next call, which uses every one of them."""
+    path = tmp_path / "run.npz"
+    # slow coarse steps: iteration 1 closes after a chain of 5 of them, while the fine solves of
+    # iteration 2 on the first slices (0.02 s each) have long completed
+    coarse = Sleeping(COARSE, 0.05)
+    with ThreadPoolExecutor(N_SLICES) as pool:
+        pool.workers = N_SLICES  # type: ignore[attr-defined]
+        first = parareal.run(
+            Sleeping(FINE, 0.02), coarse, X0, T0, T1, N_SLICES, tol=0.0,
+            max_iterations=ITERATIONS, reference=REFERENCE, executor=pool, checkpoint=path,
+            schedule="pipelined", wall_time_limit=1e-9,
+        )
+    assert first.stop_reason == "wall_time" and first.iterations == 1
+    kept = [f.name for f in memo_directory(path).glob("fine-*.npz")]
+    assert kept and all(int(name.split("-k")[1].split("-")[0]) >= 2 for name in kept)
+    fine = Recording(FINE)
+    resumed = _run(fine, checkpoint=path, schedule="pipelined")
+    _same(resumed)
+    todo = sum(N_SLICES - k + 1 for k in range(2, ITERATIONS + 1))
+    assert len(fine.calls) == todo - len(kept)  # every kept fine solve was used
+    assert not memo_directory(path).exists()  # a finished run forgets them
+
+
+def test_a_pipelined_resume_replays_hundreds_of_kept_coarse_steps(tmp_path):
+    """Kept solves are applied from a queue, not by recursion: 399 kept steps of the initial
+    sweep (more than Python's recursion limit allows as nested calls) resume bit for bit."""
+    n_slices = 400
+
+    def fine(t_start, t_end, x):
+        return x * np.exp(-(t_end - t_start))
+
+    def coarse(t_start, t_end, x):
+        return x * (1.0 - (t_end - t_start))
+
+    x0 = np.array([1.0])
+    clean = parareal.run(fine, coarse, x0, 0.0, 1.0, n_slices, tol=0.0, max_iterations=1)
+    times = parareal.time_points(0.0, 1.0, n_slices)
+    path = tmp_path / "run.npz"
+    faulty = _failing(tmp_path, coarse, times[-2], 1)  # the initial sweep's last step
+    with pytest.raises(parallel.TaskError, match=f"slice {n_slices}"):
+        parareal.run(
+            fine, faulty, x0, 0.0, 1.0, n_slices, tol=0.0, max_iterations=1, checkpoint=path,
+            schedule="pipelined",
+        )
+    assert len(list(memo_directory(path).glob("coarse-*.npz"))) == n_slices - 1
+    counted = Recording(coarse)
+    resumed = parareal.run(
+        fine, counted, x0, 0.0, 1.0, n_slices, tol=0.0, max_iterations=1, checkpoint=path,
+        schedule="pipelined",
+    )
+    np.testing.assert_array_equal(resumed.states, clean.states)
+    assert resumed.increments == clean.increments
+    # the step that had failed, then iteration 1's steps: none of the kept ones again
+    iteration_1 = [(times[n - 1], times[n]) for n in range(2, n_slices + 1)]
+    assert sorted(counted.calls) == sorted([(times[-2], times[-1]), *iteration_1])

@@ -2,6 +2,7 @@
 
 import itertools
 
+import numpy as np
 import pytest
 
 from parastokes import parareal
@@ -128,6 +129,18 @@ def test_bad_input():
         simulate("standard", 4, 1, 4, 0.1, n_auxiliary=0)
     with pytest.raises(ValueError, match="core counts"):
         parareal.predict_schedules(0.1, 1, [0])
+    with pytest.raises(ValueError, match="workers"):
+        parareal.predict_schedules(0.1, 2, [4], workers=0)
+    with pytest.raises(ValueError, match="workers"):
+        simulate("standard", 4, 1, 2.5, 0.1)
+    with pytest.raises(ValueError, match="coarse_cost"):
+        simulate("standard", 4, 1, 4, "a")
+
+
+def test_numpy_integers_are_counts():
+    assert simulate("standard", np.int64(4), np.int64(2), np.int64(4), 0.1).wall == (
+        simulate("standard", 4, 2, 4, 0.1).wall
+    )
 
 
 def test_the_handover_latency_is_the_median_wait_of_coarse_steps_for_their_inputs():

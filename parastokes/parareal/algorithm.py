@@ -15,6 +15,7 @@ from __future__ import annotations
 import functools
 import logging
 import math
+import numbers
 import os
 import threading
 import time
@@ -100,7 +101,8 @@ def _validate(
         raise ValueError("fine and coarse must be callables P(t_start, t_end, x) -> x")
     if isinstance(n_slices, bool) or not isinstance(n_slices, int | np.integer) or n_slices < 1:
         raise ValueError(f"n_slices must be an integer >= 1, got {n_slices!r}")
-    if not (math.isfinite(t0) and math.isfinite(t1) and t1 > t0):
+    real = all(isinstance(t, numbers.Real) and not isinstance(t, bool) for t in (t0, t1))
+    if not (real and math.isfinite(t0) and math.isfinite(t1) and t1 > t0):
         raise ValueError(f"need finite t0 < t1, got t0={t0!r}, t1={t1!r}")
     if x0.size == 0 or not np.all(np.isfinite(x0)):
         raise ValueError("x0 must be a non-empty array of finite numbers")
@@ -664,8 +666,10 @@ def run(
             )
         raise
 
-    if book.memo is not None:
-        book.memo.clear()  # (solves of later iterations the pipelined schedule had started)
+    if book.memo is not None and reason != "wall_time":
+        # a finished run forgets the solves of later iterations the pipelined schedule had
+        # completed; a wall-time stop keeps them for the call that continues it
+        book.memo.clear()
     progress.timings.total = book.earlier_total + (time.perf_counter() - session_start)
     progress.timings.schedule = schedule
     return PararealResult(

@@ -14,7 +14,9 @@ from, and refuses an option given both ways.
 
 from __future__ import annotations
 
+import json
 import math
+import numbers
 import os
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -28,13 +30,19 @@ if TYPE_CHECKING:
 __all__ = ["Checkpoint", "Reporting", "Stopping", "resolve"]
 
 
+def _is_real(value: object) -> bool:
+    """A real number (numpy's included), not a bool."""
+    return not isinstance(value, bool | np.bool_) and isinstance(value, numbers.Real)
+
+
 def _is_count(value: object) -> bool:
     return not isinstance(value, bool) and isinstance(value, int | np.integer) and bool(value >= 1)
 
 
 @dataclass(frozen=True, kw_only=True)
 class Stopping:
-    """When Parareal stops; checked after every iteration k, in this order.
+    """When Parareal stops; checked after every iteration k, in the order of the parameters
+    (the tolerance, then k = N, then ``max_iterations``, then the wall time).
 
     Parameters
     ----------
@@ -43,7 +51,7 @@ class Stopping:
         0 never stops on it. Finite and >= 0.
     max_iterations
         Stop at k = ``max_iterations`` (``"max_iterations"``); None: no limit but k = N, where the
-        iterate is the serial fine solution (``"all_slices"``, always checked first).
+        iterate is the serial fine solution (``"all_slices"``, checked before ``max_iterations``).
     wall_time_limit
         Stop after the iteration during which this many seconds of the call have passed
         (``"wall_time"``); None: no limit. A later call with the same checkpoint continues.
@@ -59,15 +67,14 @@ class Stopping:
     wall_time_limit: float | None = None
 
     def __post_init__(self) -> None:
-        if not (isinstance(self.tol, int | float | np.floating) and math.isfinite(self.tol)
-                and self.tol >= 0.0):
+        if not (_is_real(self.tol) and math.isfinite(self.tol) and self.tol >= 0.0):
             raise ValueError(f"tol must be finite and >= 0, got {self.tol!r}")
         if self.max_iterations is not None and not _is_count(self.max_iterations):
             raise ValueError(
                 f"max_iterations must be an integer >= 1 (or None), got {self.max_iterations!r}"
             )
         limit = self.wall_time_limit
-        if limit is not None and not limit > 0.0:
+        if limit is not None and not (_is_real(limit) and limit > 0.0):
             raise ValueError(f"wall_time_limit must be positive (or None), got {limit!r}")
 
 
@@ -94,6 +101,20 @@ class Checkpoint:
     def __post_init__(self) -> None:
         if not isinstance(self.path, str | os.PathLike):
             raise ValueError(f"Checkpoint path must be a file path, got {self.path!r}")
+        if self.identity is None:
+            return
+        if not isinstance(self.identity, Mapping):
+            raise ValueError(
+                f"Checkpoint identity must be a mapping of names to JSON values, got "
+                f"{self.identity!r}"
+            )
+        try:
+            json.dumps(dict(self.identity))
+        except (TypeError, ValueError) as exc:
+            raise ValueError(
+                f"Checkpoint identity must hold JSON values (str, int, float, bool, None, lists "
+                f"and dicts of them; convert numpy scalars with .item()): {exc}"
+            ) from exc
 
 
 @dataclass(frozen=True)

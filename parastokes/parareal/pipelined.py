@@ -32,6 +32,7 @@ import itertools
 import math
 import queue
 import time
+from collections import deque
 from collections.abc import Callable
 from concurrent.futures import BrokenExecutor, Executor, Future
 from dataclasses import dataclass, field
@@ -175,6 +176,10 @@ class _Pipeline:
     progress: ckpt.Progress | None = None
     completed: int = -1
     earlier_tasks: list = field(default_factory=list)
+    # kept solves found but not yet applied: (kind, n, k, value, seconds). Applying them from a
+    # queue, not from add_fine/add_coarse, keeps the stack flat when a resumed run replays
+    # hundreds of kept steps (each applied value enables the next slice's tasks).
+    replay: deque = field(default_factory=deque)
 
     @property
     def n_slices(self) -> int:
@@ -216,8 +221,7 @@ class _Pipeline:
             args = (self.times[n - 1], self.times[n], self.x[n - 1, k - 1])
             kept = self.kept(FINE, n, k, args)
             if kept is not None:
-                now = time.perf_counter()
-                self.fine_done(n, k, kept[0], now, now, kept[1])
+                self.replay.append((FINE, n, k, *kept))
                 return
             self.workers.add(_Job(FINE, n, k, self.fine, args, fine_label(n, k)))
 
@@ -227,8 +231,7 @@ class _Pipeline:
         t_start, t_end, x = self.times[n - 1], self.times[n], self.x[n - 1, k]
         kept = self.kept(COARSE, n, k, (t_start, t_end, x))
         if kept is not None:
-            now = time.perf_counter()
-            self.coarse_done(n, k, kept[0], now, now, kept[1])
+            self.replay.append((COARSE, n, k, *kept))
             return
         split = getattr(self.coarse, "split", None)
         try:
@@ -287,6 +290,14 @@ class _Pipeline:
             self.set_state(n, k, value)
         else:
             self.try_correct(n, k)
+
+    def apply_kept(self) -> None:
+        """Apply the kept solves found so far, and those they enable, one after the other."""
+        while self.replay:
+            kind, n, k, value, seconds = self.replay.popleft()
+            now = time.perf_counter()
+            done = self.fine_done if kind == FINE else self.coarse_done
+            done(n, k, value, now, now, seconds)
 
     def job_done(self, job: _Job, future: Future, begin: float, end: float, slot: int) -> None:
         self.tasks.append([job.kind, job.n, job.k, begin, end, slot])
@@ -430,6 +441,7 @@ class _Pipeline:
 
     def run(self) -> str:
         while True:
+            self.apply_kept()
             reason = self.close_iterations()
             if reason is not None:
                 return reason

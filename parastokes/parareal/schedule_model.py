@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import heapq
 import math
+import numbers
 import statistics
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -119,15 +120,28 @@ class _Graph:
                         release(child, now)
 
 
+def _is_integer(value: object, least: int) -> bool:
+    return (
+        not isinstance(value, bool)
+        and isinstance(value, numbers.Integral)
+        and int(value) >= least
+    )
+
+
+def _check_workers(workers: int | None) -> None:
+    if workers is not None and not _is_integer(workers, 1):
+        raise ValueError(f"workers must be an integer >= 1 (or None: unlimited), got {workers!r}")
+
+
 def _check(n_slices: int, iterations: int, workers: int | None, costs: dict[str, float]) -> None:
-    if isinstance(n_slices, bool) or not isinstance(n_slices, int) or n_slices < 1:
+    if not _is_integer(n_slices, 1):
         raise ValueError(f"n_slices must be an integer >= 1, got {n_slices!r}")
-    if isinstance(iterations, bool) or not isinstance(iterations, int) or iterations < 0:
+    if not _is_integer(iterations, 0):
         raise ValueError(f"iterations must be an integer >= 0, got {iterations!r}")
-    if workers is not None and (isinstance(workers, bool) or workers < 1):
-        raise ValueError(f"workers must be >= 1 (or None: unlimited), got {workers!r}")
+    _check_workers(workers)
     for name, value in costs.items():
-        if not (math.isfinite(value) and value >= 0.0):
+        real = isinstance(value, numbers.Real) and not isinstance(value, bool)
+        if not (real and math.isfinite(value) and value >= 0.0):
             raise ValueError(f"{name} must be finite and >= 0, got {value!r}")
 
 
@@ -214,9 +228,10 @@ def predict_schedules(
     """
     from .speedup import speedup_pipelined, speedup_standard
 
+    _check_workers(workers)
     rows = []
     for n_cores in cores:
-        if isinstance(n_cores, bool) or not isinstance(n_cores, int) or n_cores < 1:
+        if not _is_integer(n_cores, 1):
             raise ValueError(f"core counts must be integers >= 1, got {n_cores!r}")
         w = n_cores if workers is None else workers
         k = min(iterations, n_cores)
