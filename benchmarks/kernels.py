@@ -38,7 +38,7 @@ from parastokes import mrs
 SIZES = (301, 642, 1505, 5000)
 ORACLE_SIZES = (301, 642)
 THREADS = (1, 2)
-#: Conventional flop counts per pair (the issue's): ~20 for the free force kernel, ~200 for the full
+#: Conventional flop counts per pair: ~20 for the free force kernel, ~200 for the full
 #: wall kernel (free u, w from f, n plus the four image parts). docs/benchmarks.md details
 #: the operation counts of the compiled code.
 FLOPS_PER_PAIR = {"free": 20, "wall": 200}

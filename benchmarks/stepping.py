@@ -20,7 +20,7 @@ bead-spring chain (256 beads, free-space Stokeslets, shear flow), it times
   work that is not the two kernel evaluations;
 
 and reports ``run / (2 kernel)``, the overhead ratio of an RK2 step over its two kernel
-evaluations (issue target: at most 1.3), the same for the Python step, and the projected wall
+evaluations (target: at most 1.3), the same for the Python step, and the projected wall
 time of the paper's serial fine solve (one rod, T = 1, τ_f = 1e-6: 10^6 RK2 steps) from ``run``.
 For the rod it also prints the per-call time of the two non-kernel parts of a stage (``loads``,
 ``advance``), and for the machine a reference rate measured in the same run (a 2000 x 2000

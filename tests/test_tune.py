@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import math
+import signal
 import time
 import tomllib
 from pathlib import Path
@@ -20,7 +21,8 @@ import pytest
 
 from parastokes import cli, integrate, models, parareal, tuning
 from parastokes.tuning import Settings, Space, TuningError, stability
-from parastokes.tuning.report import toml_dumps
+from parastokes.tuning.report import _helps, toml_dumps
+from parastokes.tuning.search import Candidate
 from parastokes.tuning.space import REACH, reach_table
 
 SIGMA = 0.2  # grid spacing of the 21-node, 4 μm rod (the paper's σ_f)
@@ -62,6 +64,14 @@ class Spy(tuning.Progress):
         ({"target": 1e-16}, "below the fine solver's own time-discretization error"),
         ({"space": Space(parameters=("shear",))}, "cannot extrapolate in 'shear'"),
         ({"space": Space(grid_factors=(7,))}, "grid factor 7 does not fit"),
+        ({"space": Space(grid_factors=(0,))}, "grid factors must be integers >= 1"),
+        ({"space": Space(schemes=(), nodes=())}, "nothing to choose from in schemes, nodes"),
+        ({"space": Space(parameters=("epsilon", "epsilon"))}, "name one twice"),
+        ({"space": Space(extra=(Settings("euler", grid=7, dt=1e-5, name="paper"),))},
+         "compared solver paper: euler, grid 7"),
+        ({"budget": "5"}, "budget must be a positive number"),
+        ({"pilot_slices": 2.5}, "pilot_slices must lie"),
+        ({"n_slices": 1, "cores": 1}, "Parareal needs two slices"),
     ],
 )
 def test_bad_input_stops_before_the_search(changes, message):
@@ -160,6 +170,40 @@ def test_budget_stops_the_search_and_keeps_the_baseline():
     assert {c.status for c in res.candidates[1:]} <= {"not reached", "pruned"}
 
 
+def test_a_candidates_step_search_is_charged_to_it(monkeypatch):
+    """The bisection for a candidate's step limit (10-15 one-slice solves for a new corner) is
+    part of its cost, as the baseline's is: the budget's estimates of a screen rest on it."""
+    from parastokes.tuning.search import _Search
+
+    ticks, step = [0.0], _Search.step
+
+    def charged(self, cand):
+        found = step(self, cand)
+        ticks[0] += 5.0
+        return found
+
+    monkeypatch.setattr(_Search, "step", charged)
+    fine = integrate.Propagator(small_rod(), "rk2", 1e-6)
+    res = tuning.tune(fine, t0=0.0, t1=8e-3, n_slices=4, cores=4, target=1e-6, space=SMALL,
+                      budget=1e6, clock=lambda: ticks[0])
+    stepped = [c for c in res.candidates if c.step_limit is not None]
+    assert len(stepped) > 1 and all(c.seconds >= 5.0 for c in stepped)
+
+
+@pytest.mark.parametrize(("signum", "stopped"), [(signal.SIGTERM, "terminated"),
+                                                 (signal.SIGHUP, "hung up")])
+def test_a_signal_during_the_search_is_named(signum, stopped):
+    class Signalled(Spy):
+        def advance(self, label: str) -> None:
+            raise cli.Terminated(signum)
+
+    fine = integrate.Propagator(small_rod(), "rk2", 1e-6)
+    res = tuning.tune(fine, t0=0.0, t1=8e-3, n_slices=4, cores=4, target=1e-6, space=SMALL,
+                      budget=1e6, progress=Signalled())
+    assert res.report["search"]["stopped"] == stopped
+    assert res.baseline.pilot_errors  # what was measured is kept
+
+
 def test_interrupt_keeps_what_was_measured():
     fine = integrate.Propagator(small_rod(), "rk2", 1e-6)
     res = tuning.tune(fine, t0=0.0, t1=8e-3, n_slices=4, cores=4, target=1e-6, space=SMALL,
@@ -197,6 +241,26 @@ reach = [1]
 nodes = [2, 3]
 step_fractions = [1.0]
 """
+
+
+@pytest.mark.parametrize(
+    ("flags", "message"),
+    [
+        (["--cores", "1"], "--cores must be at least 2"),
+        (["--cores", "4", "--pilot-points", "1"], "--pilot-points must be at least 3"),
+        (["--cores", "4", "--pilot-points", "0"], "--pilot-points must be at least 3"),
+        (["--cores", "4", "--pilot-slices", "0"], "--pilot-slices must be at least 2"),
+    ],
+)
+def test_tune_command_refuses_bad_flags_before_any_work(tmp_path, capsys, flags, message):
+    # regression: --pilot-points 1 failed with a ZeroDivisionError; 0 fell back to the default
+    source = tmp_path / "rod.toml"
+    source.write_text(CONFIG)
+    out = tmp_path / "TUNED.toml"
+    code = cli.main(["tune", str(source), *flags, "--target", "1e-6", "--out", str(out), "-q"])
+    assert code == cli.ExitCode.CONFIG
+    assert message in capsys.readouterr().err
+    assert not list(tmp_path.glob("TUNED*"))
 
 
 def test_tune_command_writes_a_config_that_runs_to_the_target(tmp_path):
@@ -252,10 +316,20 @@ def test_settings_weights_and_corner():
     assert s.n_auxiliary == 8
 
 
-def test_richardson_settings_without_r_are_named():
-    # regression: m >= 1 without r failed with a TypeError on None inside the weights
+def test_richardson_settings_without_r_are_refused_when_made():
+    # regression: m >= 1 without r failed with a TypeError on None inside the weights and label
     with pytest.raises(ValueError, match="r is required when m >= 1"):
-        Settings("euler", m=1).weight_sum({})
+        Settings("euler", m=1)
+
+
+def test_a_plain_choice_is_not_called_extrapolation():
+    # regression: with the baseline rejected, a plain chosen solver was reported as "helps"
+    baseline = Candidate(Settings("euler"), status="rejected", reason="unstable")
+    chosen = Candidate(Settings("rk2", step_fraction=0.6), status="accepted", speedup=3.0)
+    verdict = _helps(chosen, baseline)
+    assert verdict["helps"] is False and "not extrapolated" in verdict["note"]
+    lagrange = Settings("euler", (("epsilon", (1.0, 1.1)),))
+    assert _helps(Candidate(lagrange, status="accepted", speedup=3.0), baseline)["helps"] is True
 
 
 def test_speedup_curve_needs_a_measured_candidate():

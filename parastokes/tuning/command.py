@@ -88,6 +88,11 @@ def _pilot_system(cfg: Any, resolved: Any, points: int) -> Any:
     return configuration.build_system(cfg.model_copy(update={"model": short}), resolved)
 
 
+def _given(*values: Any) -> Any:
+    """The first value that is not None (the command line, then the config, then a default)."""
+    return next((value for value in values if value is not None), None)
+
+
 def _space(cfg: Any, args: argparse.Namespace, compare: tuple) -> Any:
     """The config's [tune] table, narrowed further by the command line; ``compare`` added."""
     from .space import parse_space
@@ -103,21 +108,30 @@ def _space(cfg: Any, args: argparse.Namespace, compare: tuple) -> Any:
 
 
 def main(args: argparse.Namespace, console: Any) -> int:
-    """Run the command; returns 0, or 130 when the search was interrupted (results kept)."""
+    """Run the command; returns 0, or 130, 143, 129 when Ctrl-C, SIGTERM or SIGHUP stopped the
+    search (what was measured is written)."""
     from .. import config as configuration
     from .. import integrate, io
     from .report import config_text, draw_curves, table
     from .search import tune
     from .space import TuningError, settings_from_config
 
+    if args.cores < 2:
+        raise TuningError(f"--cores must be at least 2 (one slice per core; Parareal needs two "
+                          f"slices), got {args.cores}")
     cfg, resolved = configuration.load(args.config, args.set)
+    pilot_slices = _given(args.pilot_slices, cfg.tune.pilot_slices)
+    points = _given(args.pilot_points, cfg.tune.pilot_points, PILOT_POINTS)
+    if pilot_slices is not None and pilot_slices < 2:
+        raise TuningError(f"--pilot-slices must be at least 2, got {pilot_slices}")
+    if points < 3:
+        raise TuningError(f"--pilot-points must be at least 3 (nodes of the pilot rod), got "
+                          f"{points}")
     compare = []
     for path in args.compare:
         other, other_resolved = configuration.load(path)
         compare.append(settings_from_config(other, other_resolved, name=Path(path).stem))
     space = _space(cfg, args, tuple(compare))
-    pilot_slices = args.pilot_slices or cfg.tune.pilot_slices or None
-    points = args.pilot_points or cfg.tune.pilot_points or PILOT_POINTS
     system = configuration.build_system(cfg, resolved)
     pilot = _pilot_system(cfg, resolved, points)
     fine = integrate.Propagator(system, cfg.fine.scheme, cfg.fine.dt)
@@ -165,4 +179,4 @@ def main(args: argparse.Namespace, console: Any) -> int:
               if k != "model"} | cfg.model.tables()
     out.write_text(config_text(dumped, result, args.cores, args.config), encoding="utf-8")
     console.print(f"wrote {out}, {out.with_suffix('.json')}, {out.with_suffix('.png')}")
-    return 130 if search["stopped"] == "interrupted" else 0
+    return {"interrupted": 130, "terminated": 143, "hung up": 129}.get(search["stopped"], 0)

@@ -24,6 +24,10 @@ HELPS = 1.3
 def _helps(chosen: Any, baseline: Any) -> dict[str, Any]:
     if chosen is None:
         return {"helps": False, "ratio": None, "note": "no candidate reaches the target"}
+    if baseline.speedup is None and chosen.settings.plain:
+        return {"helps": False, "ratio": None,
+                "note": f"the baseline does not reach the target ({baseline.reason}); the "
+                        f"chosen solver ({chosen.settings.label()}) is not extrapolated either"}
     if baseline.speedup is None:
         return {"helps": True, "ratio": None,
                 "note": f"the plain solver does not reach the target ({baseline.reason})"}

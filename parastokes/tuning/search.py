@@ -21,10 +21,12 @@ from __future__ import annotations
 
 import heapq
 import math
+import numbers
+import signal
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import Any, Protocol
+from typing import Any, Protocol, TypeVar
 
 import numpy as np
 
@@ -36,10 +38,16 @@ from . import cost, stability
 from .pilot import Pilot, Screen
 from .space import Settings, Space, TuningError, reach_table
 
+T = TypeVar("T")
+
 __all__ = ["Candidate", "Progress", "ProgressLike", "TuneResult", "tune"]
 
-#: Default budget: this fraction of the estimated serial fine solve (the issue's 15 %).
+#: Default budget: this fraction of the estimated serial fine solve (15 %).
 BUDGET_FRACTION = 0.15
+
+#: How a search stopped by a signal is reported (the CLI raises SIGTERM and SIGHUP as
+#: KeyboardInterrupts that carry ``signum``; Ctrl-C is "interrupted").
+STOPPED_BY: dict[int | None, str] = {signal.SIGTERM: "terminated", signal.SIGHUP: "hung up"}
 
 #: Fewest coarse steps per slice considered (the step-limit bisection starts below slice / 10).
 MIN_STEPS = 10
@@ -207,19 +215,26 @@ class TuneResult:
         return out
 
 
+def _is_integer(value: Any) -> bool:
+    return not isinstance(value, bool) and isinstance(value, numbers.Integral)
+
+
 def _check_input(cores: Any, target: Any, n_slices: Any, t0: float, t1: float,
-                 budget: Any, pilot_slices: int | None) -> None:
-    if isinstance(cores, bool) or not isinstance(cores, int) or cores < 1:
+                 budget: Any, pilot_slices: Any) -> None:
+    if not _is_integer(cores) or cores < 1:
         raise TuningError(f"cores must be an integer >= 1, got {cores!r}")
-    if isinstance(n_slices, bool) or not isinstance(n_slices, int) or n_slices < 2:
-        raise TuningError(f"n_slices must be an integer >= 2, got {n_slices!r}")
+    if not _is_integer(n_slices) or n_slices < 2:
+        raise TuningError(f"n_slices must be an integer >= 2 (Parareal needs two slices), got "
+                          f"{n_slices!r}")
     if not (isinstance(target, int | float) and 0.0 < target < 1.0):
         raise TuningError(f"target: the relative error η* must lie in (0, 1), got {target!r}")
     if not t1 > t0:
         raise TuningError(f"t1 must exceed t0, got [{t0}, {t1}]")
-    if budget is not None and not budget > 0:
+    real = isinstance(budget, numbers.Real) and not isinstance(budget, bool)
+    if budget is not None and not (real and budget > 0):
         raise TuningError(f"budget must be a positive number of seconds, got {budget!r}")
-    if pilot_slices is not None and not 2 <= pilot_slices <= n_slices:
+    if pilot_slices is not None and not (_is_integer(pilot_slices)
+                                         and 2 <= pilot_slices <= n_slices):
         raise TuningError(f"pilot_slices must lie in [2, n_slices = {n_slices}], got "
                           f"{pilot_slices}")
 
@@ -318,10 +333,11 @@ class _Search:
                             self.n_slices)
 
     # ---- stage 1: step, bound, screen ----
-    def timed(self, cand: Candidate, stage: Callable[[Candidate], object]) -> None:
+    def timed(self, cand: Candidate, stage: Callable[[Candidate], T]) -> T:
+        """``stage(cand)``, its time added to the candidate's seconds."""
         start = self.clock()
         try:
-            stage(cand)
+            return stage(cand)
         finally:
             cand.seconds += self.clock() - start
 
@@ -590,8 +606,8 @@ def tune(
         else:
             budget = default_budget
     frugal = budget < FRUGAL_SLICES * slice_seconds
-    if pilot_slices is None:
-        pilot_slices = 2 if frugal else 3
+    if pilot_slices is None:  # never longer than the run
+        pilot_slices = min(2 if frugal else 3, n_slices)
     one_candidate, needed = needs(pilot_slices)
     if given_budget and budget < needed:
         raise TuningError(
@@ -675,7 +691,7 @@ def tune(
                     search.calibrate(cand)
                     queue = [(g, -_key(search, candidates[m]), m) for g, _, m in queue]
                     heapq.heapify(queue)
-            elif search.step(cand) and cand.estimated_speedup > floor:
+            elif search.timed(cand, search.step) and cand.estimated_speedup > floor:
                 search.timed(cand, search.screen)
             if cand.status == "pending" and cand.estimated_speedup <= floor:
                 cand.status = "pruned"
@@ -690,8 +706,8 @@ def tune(
                     spent[True].append(cand.seconds - before)
                 done += 1
                 progress.advance(cand.settings.label())
-    except KeyboardInterrupt:
-        stopped = "interrupted"
+    except KeyboardInterrupt as stop:  # Ctrl-C, or SIGTERM/SIGHUP as the CLI raises them
+        stopped = STOPPED_BY.get(getattr(stop, "signum", None), "interrupted")
     finally:
         progress.finish()
     for cand in candidates:

@@ -78,6 +78,9 @@ class Settings:
     step_fraction: float = 1.0
     name: str | None = field(default=None, compare=False)
 
+    def __post_init__(self) -> None:
+        validate_richardson(self.m, self.r)
+
     @property
     def n_auxiliary(self) -> int:
         """N_G = N_θ1 N_θ2 N_θ3 (m + 1)."""
@@ -91,9 +94,8 @@ class Settings:
 
     @property
     def ratio(self) -> float:
-        """The Richardson ratio r, 1 without Richardson (m = 0); the ValueError of
-        ``parareal.validate_richardson`` when m >= 1 comes without r."""
-        validate_richardson(self.m, self.r)
+        """The Richardson ratio r, 1 without Richardson (m = 0; m >= 1 without r is refused when
+        the settings are made, by ``parareal.validate_richardson``)."""
         return 1.0 if self.r is None else self.r
 
     @property
@@ -130,7 +132,7 @@ class Settings:
         if self.reach is not None and self.lagrange:
             parts.append(f"reach {self.reach}")
         if self.m:
-            parts.append(f"m={self.m} r={self.r:g}")
+            parts.append(f"m={self.m} r={self.ratio:g}")
         if self.grid > 1:
             parts.append(f"grid {self.grid}")
         if self.step_fraction != 1.0:
@@ -219,11 +221,21 @@ class Space:
 
     def check(self, params: Mapping[str, float], grid_ok: Any) -> None:
         """Raise :class:`TuningError` for choices the system cannot take."""
+        choices = {"schemes": self.schemes, "reach": self.reach, "nodes": self.nodes,
+                   "richardson": self.richardson, "grid_factors": self.grid_factors,
+                   "step_fractions": self.step_fractions}
+        empty = [name for name, values in choices.items() if not values]
+        if empty:
+            raise TuningError(f"tune: nothing to choose from in {', '.join(empty)}; give at least "
+                              "one value (or leave the option out for its default)")
+        parameters = self.parameters or ()
+        if len(set(parameters)) < len(parameters):
+            raise TuningError(f"tune: parameters {list(parameters)} name one twice; give each once")
         for scheme in self.schemes:
             if scheme not in integrate.SCHEMES:
                 known = sorted(integrate.SCHEMES)
                 raise TuningError(f"tune: unknown scheme {scheme!r}; use one of {known}")
-        for name in self.parameters or ():
+        for name in parameters:
             if name not in params or name not in DIRECTION:
                 known = sorted(set(params) & set(DIRECTION))
                 raise TuningError(f"tune: cannot extrapolate in {name!r}; this system has {known}")
@@ -236,10 +248,19 @@ class Space:
         if any(not 0.0 < f <= 1.0 for f in self.step_fractions):
             raise TuningError("tune: step fractions must lie in (0, 1]")
         for factor in self.grid_factors:
+            if isinstance(factor, bool) or not isinstance(factor, int) or factor < 1:
+                raise TuningError(f"tune: grid factors must be integers >= 1, got {factor!r}")
             if factor > 1 and not grid_ok(factor):
                 raise TuningError(
                     f"tune: grid factor {factor} does not fit this system (it must divide the "
                     "number of rod segments of the run and of the pilot); drop it"
+                )
+        for given in self.extra:
+            if given.grid > 1 and not grid_ok(given.grid):
+                raise TuningError(
+                    f"tune: the compared solver {given.label()} has grid factor {given.grid}, "
+                    "which does not divide the number of rod segments of the run and of the "
+                    "pilot; compare it on a run whose rods it fits, or change --pilot-points"
                 )
 
     def subsets(self, params: Mapping[str, float]) -> list[tuple[str, ...]]:
