@@ -42,10 +42,16 @@ def target(kind: str, builtin: Mapping[str, str], group: str,
 def import_target(target: str, name: str, error: type[Exception]) -> Any:
     """The object at ``"module:attribute.path"``; ``error`` naming ``name`` and what is missing."""
     module_name, _, attribute = target.partition(":")
+    if not module_name or not attribute or module_name.startswith("."):
+        raise error(f"{name!r}: give it as \"package.module:Name\" (an absolute module path, a "
+                    "colon, then the name in the module)")
     try:
         obj: Any = importlib.import_module(module_name)
-    except ImportError as failure:
-        raise error(f"{name!r}: cannot import module {module_name!r} ({failure})") from None
+    except Exception as failure:  # ImportError, or any error raised while the module ran
+        raise error(
+            f"{name!r}: cannot import module {module_name!r} "
+            f"({type(failure).__name__}: {failure})"
+        ) from failure
     for part in attribute.split("."):
         try:
             obj = getattr(obj, part)

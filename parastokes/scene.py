@@ -41,6 +41,10 @@ from .stepping.scene import scene_loop
 __all__ = ["Scene"]
 
 
+#: What a body offers a scene beside the System contract (docs/contracts.md).
+SCENE_MEMBERS = ("loads", "angular", "body_rates", "epsilon")
+
+
 def _name(body: Any) -> str:
     return type(body).__name__.removesuffix("System").lower()
 
@@ -68,7 +72,22 @@ class Scene:
             object.__setattr__(self, "names", tuple(names))
         if len(self.names) != len(self.bodies) or len(set(self.names)) != len(self.names):
             raise ValueError(f"names: need one distinct name per body, got {self.names!r}")
+        if not all(isinstance(n, str) and n and "." not in n for n in self.names):
+            raise ValueError(f"names: need non-empty strings without '.' (Θ's keys are "
+                             f"\"name.param\"), got {self.names!r}")
         for name, body in zip(self.names, self.bodies, strict=True):
+            missing = [m for m in SCENE_MEMBERS if not hasattr(body, m)]
+            if missing:
+                raise ValueError(
+                    f"{name}: a {type(body).__name__} cannot join a scene: it lacks "
+                    f"{', '.join(missing)} (what a body offers a scene: docs/contracts.md, "
+                    "'System')"
+                )
+            if hasattr(body, "viscosity") and "viscosity" not in body.params:
+                raise ValueError(
+                    f"{name}: its viscosity is not among its params, so the scene's one "
+                    f"viscosity could not be varied; add it to {type(body).__name__}.params"
+                )
             for key in ("viscosity", "wall", "shear_rate"):
                 if hasattr(body, key) and getattr(body, key) != getattr(self, key):
                     raise ValueError(

@@ -221,6 +221,30 @@ def test_a_body_contradicting_the_scene_fluid_is_named():
     assert "bodies[0].viscosity" in found["bodies[1].viscosity"]
 
 
+def test_a_body_whose_viscosity_is_required_makes_the_scene_ask_for_it(tmp_path, monkeypatch):
+    # regression: the scene's viscosity was read from that field's missing default
+    (tmp_path / "reqvisc.py").write_text(
+        "from typing import Literal\n"
+        "from parastokes.bodies.registry import BodyKind, BodySection, point_layout\n"
+        "class Section(BodySection):\n"
+        "    kind: Literal['reqvisc:KIND']\n"
+        "    viscosity: float\n"
+        "KIND = BodyKind('reqvisc:KIND', Section, lambda *a: [point_layout('p', 'p', 0, 1)])\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    found = issues(scene_text(fluid="", bodies="[[bodies]]\nkind = 'reqvisc:KIND'\n"))
+    assert found["scene.viscosity"].startswith("required key is missing")
+
+
+def test_a_scene_of_a_body_that_cannot_join_one_fails_its_check(tmp_path):
+    # regression: `check` passed and `run` failed at its first step with an AttributeError
+    path = tmp_path / "cloud_scene.toml"
+    path.write_text(scene_text(fluid="viscosity = 1.0", lagrange="{}",
+                               bodies="[[bodies]]\nkind = 'user_body:SedimentingCloud'\n"))
+    assert cli.main(["check", str(path), "-q"]) == cli.ExitCode.CONFIG
+    assert "cannot join a scene" in issues(path.read_text())["bodies"]
+
+
 def test_scene_without_bodies_and_bad_names_are_named():
     assert "[[bodies]]" in issues(small_rod(rest="[scene]\nwall = true\n"))["scene"]
     found = issues(scene_text(bodies=ROD + "name = 'a'\n" + VESICLE + "name = 'a'\n"))

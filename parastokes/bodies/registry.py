@@ -239,12 +239,29 @@ class BodyKind:
 
 # ---- kinds derived from a system class ----------------------------------------------------------
 def _field_type(annotation: Any) -> Any:
-    """TOML has arrays, not tuples: ``tuple[float, ...]`` fields are read as lists."""
+    """TOML has arrays, not tuples: ``tuple[float, ...]`` fields are read as lists, and
+    ``tuple[float, float, float]`` as lists of exactly three."""
     if typing.get_origin(annotation) is tuple:
-        args = [a for a in typing.get_args(annotation) if a is not Ellipsis]
+        args = typing.get_args(annotation)
+        if not args:
+            return list
         # list[args[0]], built at run time (a subscript of a variable is no static type)
-        return types.GenericAlias(list, (args[0],)) if args else list
+        items = types.GenericAlias(list, (args[0],))
+        if Ellipsis in args:
+            return items
+        return Annotated[items, Field(min_length=len(args), max_length=len(args))]
     return annotation
+
+
+def _field_default(f: dataclasses.Field) -> Any:
+    """The config default of a dataclass field (``...``: required); tuples as lists."""
+    if f.default is not dataclasses.MISSING:
+        default = f.default
+    elif f.default_factory is not dataclasses.MISSING:
+        default = f.default_factory()
+    else:
+        return ...
+    return list(default) if isinstance(default, tuple) else default
 
 
 def derived_kind(cls: type, name: str) -> BodyKind:
@@ -255,15 +272,18 @@ def derived_kind(cls: type, name: str) -> BodyKind:
         raise UnknownKindError(
             f"{name!r}: {cls!r} is neither a BodyKind nor a dataclass system class"
         )
-    hints = typing.get_type_hints(cls)
     fields: dict[str, Any] = {"kind": (Literal[name], Field(description="This body's class."))}
-    for f in dataclasses.fields(cls):
-        if f.name == "n_threads" or not f.init:
-            continue
-        default = f.default if f.default is not dataclasses.MISSING else ...
-        if isinstance(default, tuple):
-            default = list(default)
-        fields[f.name] = (_field_type(hints[f.name]), default)
+    try:
+        hints = typing.get_type_hints(cls)
+        for f in dataclasses.fields(cls):
+            if f.name == "n_threads" or not f.init:
+                continue
+            fields[f.name] = (_field_type(hints[f.name]), _field_default(f))
+    except Exception as error:  # a hint that does not resolve, a default that fails
+        raise UnknownKindError(
+            f"{name!r}: cannot derive a config section from the fields of {cls.__name__} "
+            f"({type(error).__name__}: {error}); give it a BodyKind (docs/extending.md)"
+        ) from error
 
     class Derived(BodySection):
         def resolve(self) -> BodyResolution:
@@ -278,12 +298,19 @@ def derived_kind(cls: type, name: str) -> BodyKind:
                 values["n_threads"] = threads
             return cls(**values)
 
-    section = create_model(
-        f"{cls.__name__}Section",
-        __base__=Derived,
-        __doc__=cls.__doc__,
-        **fields,
-    )
+    try:
+        section = create_model(
+            f"{cls.__name__}Section",
+            __base__=Derived,
+            __doc__=cls.__doc__,
+            **fields,
+        )
+    except Exception as error:  # a field type pydantic cannot validate (e.g. an array)
+        raise UnknownKindError(
+            f"{name!r}: cannot derive a config section from the fields of {cls.__name__} "
+            f"({type(error).__name__}: {error}); mark fields that are not configuration with "
+            "field(init=False), or give it a BodyKind (docs/extending.md)"
+        ) from error
 
     def layout(section_: Any, system: System, frames: bool, tracked: Sequence[int] | None):
         return [point_layout(f"{cls.__name__.lower()}_0", name, 0, len(system.initial_state()))]
@@ -315,9 +342,26 @@ def _unknown(kind: str) -> Callable[[list[str]], UnknownKindError]:
     )
 
 
-@cache
 def get(kind: str) -> BodyKind:
-    """The :class:`BodyKind` of ``kind``; :class:`UnknownKindError` naming the known kinds."""
+    """The :class:`BodyKind` of ``kind``; :class:`UnknownKindError` naming the known kinds.
+
+    A kind found under another string than its own name (an entry point, a class's
+    ``body_kind``, a built-in's full ``"module:NAME"`` path) is returned renamed to ``kind``,
+    its section taking ``kind`` as written in the config."""
     if not isinstance(kind, str) or not kind:
         raise UnknownKindError(f"kind must be a non-empty string, got {kind!r}")
-    return _load(plugins.target(kind, BUILTIN, ENTRY_POINT_GROUP, _unknown(kind)), kind)
+    return _get(kind)
+
+
+@cache
+def _get(kind: str) -> BodyKind:
+    found = _load(plugins.target(kind, BUILTIN, ENTRY_POINT_GROUP, _unknown(kind)), kind)
+    if found.name == kind:
+        return found
+    renamed = create_model(
+        found.section.__name__,
+        __base__=found.section,
+        __doc__=found.section.__doc__,
+        kind=(Literal[kind], Field(description=f"The body kind ({found.name!r}).")),
+    )
+    return dataclasses.replace(found, name=kind, section=typing.cast(type[BodySection], renamed))

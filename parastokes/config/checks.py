@@ -159,7 +159,8 @@ def resolve(cfg: Config, source: str = "") -> Resolved:
     try:
         body = model.resolve()
     except ValueError as error:  # a user section whose system rejects its values
-        raise ConfigError([("model", str(error))], source) from None
+        where = "bodies" if model.kind == "scene" else "model"
+        raise ConfigError([(where, str(error))], source) from None
     theta0, n_points = body.theta0, body.n_points
 
     t0, t1 = cfg.time.t0, cfg.time.t1

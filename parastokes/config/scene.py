@@ -63,7 +63,10 @@ class SceneModel(BodySection):
     shear_rate: float = Field(allow_inf_nan=False)
 
     def resolve(self) -> BodyResolution:
-        """Θ⁰ named as :attr:`Scene.params`; the rows of all bodies."""
+        """Θ⁰ named as :attr:`Scene.params`; the rows of all bodies. The scene is built once
+        here, so that a body that cannot join a scene is named by ``check``, not by a run's
+        first step (ValueError)."""
+        self.build()
         parts = [body.resolve() for body in self.bodies]
         theta0 = {"viscosity": float(self.viscosity)}
         for name, part in zip(self.names, parts, strict=True):
@@ -124,7 +127,8 @@ def _fluid(tables: list[dict[str, Any]], sections: list[type[BodySection]],
         value, where = getattr(settings, key), f"scene.{key}"
         if value is None:
             stated = [(i, t[key]) for i, t in enumerate(tables) if key in t]
-            having = [i for i, s in enumerate(sections) if key in s.model_fields]
+            having = [i for i, s in enumerate(sections)
+                      if key in s.model_fields and not s.model_fields[key].is_required()]
             if stated:
                 value, where = stated[0][1], f"bodies[{stated[0][0]}].{key}"
             elif having:
@@ -132,7 +136,8 @@ def _fluid(tables: list[dict[str, Any]], sections: list[type[BodySection]],
             elif key in _DEFAULTS:
                 value = _DEFAULTS[key]
             else:
-                issues.append((where, "required key is missing (no body has a viscosity)"))
+                issues.append((where, "required key is missing (give it here or in a body "
+                                      "table)"))
                 continue
         out[key] = value
         for i, (table, section) in enumerate(zip(tables, sections, strict=True)):
