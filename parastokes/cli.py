@@ -346,6 +346,20 @@ def estimated_gamma_ratio(cfg, resolved, cores: int) -> float:
     return cfg.coarse.gamma_ratio(cfg, resolved, cores)
 
 
+def measured_auxiliary_ratio(summary: dict) -> float:
+    """γ of one auxiliary solve over γ_F, from a Parareal run's ``summary``: its γ_G is a
+    whole coarse step, whose N_G auxiliary solves ran in ceil(N_G / W) rounds on its W workers
+    (one worker without an executor); the pipelined schedule records one round already (the
+    longest auxiliary solve plus the combination). The combination's share is divided with the
+    rounds, a small part of a step."""
+    ratio = float(summary["speedup"]["gamma_ratio"])
+    if summary["timings"].get("schedule") == "pipelined":
+        return ratio
+    n_auxiliary = summary["config"]["resolved"]["n_auxiliary"]
+    workers = summary.get("workers") or 1
+    return ratio / math.ceil(n_auxiliary / workers)
+
+
 def cmd_predict(args: argparse.Namespace, console: Console) -> ExitCode:
     from . import io, parareal
 
@@ -367,7 +381,8 @@ def cmd_predict(args: argparse.Namespace, console: Console) -> ExitCode:
     if args.ratio is not None:
         source, auxiliary = "given", args.ratio
     elif measured is not None:
-        source, auxiliary = f"measured in {args.measured}", measured["speedup"]["gamma_ratio"]
+        source = f"measured in {args.measured}"
+        auxiliary = measured_auxiliary_ratio(measured)
     else:
         source = f"estimated by the coarse-solver family ({cfg.coarse.kind!r})"
         auxiliary = estimated_gamma_ratio(cfg, resolved, n_aux)  # one auxiliary solve

@@ -84,6 +84,11 @@ def write_summary(path: str | os.PathLike, summary: Mapping[str, Any]) -> None:
     write_text(path, text)
 
 
+#: The keys every run's ``summary.json`` has (docs/design.md); what reads one relies on them.
+SUMMARY_KEYS = ("config", "mode", "iterations", "increments", "errors", "timings", "speedup",
+                "workers", "final_positions")
+
+
 def read_summary(path: str | os.PathLike) -> dict[str, Any]:
     """Read a ``summary.json``; :class:`~parastokes.files.CorruptFileError` names a damaged one."""
     path = Path(path)
@@ -97,6 +102,9 @@ def read_summary(path: str | os.PathLike) -> dict[str, Any]:
         raise CorruptFileError(path, f"not a readable summary ({error})") from None
     if not isinstance(summary, dict):
         raise CorruptFileError(path, "not a parastokes summary (not a JSON object)")
+    missing = [key for key in SUMMARY_KEYS if key not in summary]
+    if missing:
+        raise CorruptFileError(path, f"not a complete parastokes summary (no {', '.join(missing)})")
     return summary
 
 

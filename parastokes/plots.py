@@ -194,9 +194,11 @@ def speedup_by_iteration(runs: Sequence[RunData], stem: Path, formats: Sequence[
         model = ("pipelined model" if run.summary["speedup"].get("schedule") == "pipelined"
                  else "eq. 14")
         k = np.asarray(data["iterations"], dtype=float)
+        # an iteration whose time was lost (an interrupt between checkpoint and history) is
+        # null in the summary: nan here, no bar
+        measured = np.asarray(data["measured"], dtype=float)
         offset = (2 * i - len(runs) + 0.5) * width
-        ax.bar(k + offset, data["measured"], width, color=f"C{i}",
-               label=_named(runs, run, "measured"))
+        ax.bar(k + offset, measured, width, color=f"C{i}", label=_named(runs, run, "measured"))
         ax.bar(
             k + offset + width,
             data["theoretical"],
@@ -206,7 +208,7 @@ def speedup_by_iteration(runs: Sequence[RunData], stem: Path, formats: Sequence[
             hatch="//",
             label=_named(runs, run, f"theoretical ({model})"),
         )
-        tops = np.maximum(data["measured"], data["theoretical"])
+        tops = np.fmax(measured, np.asarray(data["theoretical"], dtype=float))
         for x, top, bound in zip(k + offset + width / 2, tops, data["bound"], strict=True):
             ax.annotate(f"≤{bound:.3g}", (x, top), xytext=(0, 2), textcoords="offset points",
                         ha="center", va="bottom", fontsize=6, color="0.3")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import os
 import signal
 import subprocess
@@ -256,8 +257,16 @@ def test_predict_prints_eq_14_for_each_core_count(tiny_runs, capsys):
     for (n, theory, bound), row in zip(parareal.predict(0.05, 2, [4, 40]), rows, strict=True):
         assert [int(row[0]), float(row[3]), float(row[4])] == [n, round(theory, 3), round(bound, 3)]
     assert cli.main(["predict", str(path), "--cores", "8", "--measured", str(out)]) == 0
-    ratio = io.read_summary(out / "summary.json")["speedup"]["gamma_ratio"]
-    assert f"{ratio:.4f}" in capsys.readouterr().out
+    # the run's γ_G is a whole coarse step: N_G auxiliary solves in ceil(N_G / W) rounds on its
+    # W workers; predict takes one auxiliary solve from it (regression: it took the whole step
+    # for one, and counted the rounds again)
+    summary = io.read_summary(out / "summary.json")
+    n_aux, workers = summary["config"]["resolved"]["n_auxiliary"], summary["workers"] or 1
+    one = summary["speedup"]["gamma_ratio"] / math.ceil(n_aux / workers)
+    text = capsys.readouterr().out
+    assert f"one auxiliary solve: {one:.4g}; N_G = {n_aux}" in text
+    alpha = float(text.splitlines()[2].split()[2])
+    assert alpha == pytest.approx(math.ceil(n_aux / 8) * one, abs=1e-4)
     assert cli.main(["predict", str(path), "--cores", "8"]) == 0
     assert "estimated" in capsys.readouterr().out
 

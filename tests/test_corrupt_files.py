@@ -33,6 +33,8 @@ DAMAGE = {
     "truncated": lambda data: data[: len(data) // 2],
     "garbage": lambda data: b"not what parastokes wrote\n" * 3,
     "empty": lambda data: b"",
+    # valid JSON that is not a whole summary (regression: KeyErrors, exit status 1)
+    "foreign": lambda data: b'{"speedup": {"measured": 1.0}, "increments": [0.1]}',
 }
 
 
@@ -82,3 +84,20 @@ def test_a_foreign_array_file_and_an_old_checkpoint_are_named(tmp_path):
     np.savez(old, meta=np.array(meta), states=np.zeros((2, 1)), coarse_values=np.zeros((1, 1)))
     with pytest.raises(files.CorruptFileError, match=r"old\.npz.*version"):
         ckpt.load(old, {})
+
+
+def test_a_gap_in_the_history_is_drawn_as_a_missing_bar(finished, tmp_path, capsys):
+    """An interrupt between an iteration's checkpoint and its history entry leaves a gap (nan,
+    null in the summary); the resumed run completes and draws its figures (regression: the
+    figure raised a TypeError on None and the run's results were dropped)."""
+    path, source = finished
+    out = tmp_path / "out"
+    shutil.copytree(source, out)
+    meta, arrays = io.load_arrays(out / runner.HISTORY)
+    io.save_arrays(out / runner.HISTORY, meta, **{k: v[:1] for k, v in arrays.items()})
+    command = ["run", str(path), "--out", str(out), "--resume", "-q",
+               "--set", "parareal.max_iterations=3"]
+    assert cli.main(command) == cli.ExitCode.OK, capsys.readouterr().err
+    measured = io.read_summary(out / "summary.json")["speedup"]["by_iteration"]["measured"]
+    assert measured[0] is not None and measured[1] is None and measured[2] is not None
+    assert (out / "speedup_by_iteration.png").stat().st_size > 0
