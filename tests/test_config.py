@@ -183,6 +183,28 @@ def test_overrides_parse_toml_values():
         config.loads(BASE, overrides=["parareal.n_slices"])
 
 
+def test_an_override_replaces_a_table_and_reaches_quoted_and_indexed_keys():
+    # regression: a table was merged into the old one (coarse.lagrange={} kept every node), and
+    # a key holding a dot or a [[bodies]] index could not be reached
+    table4 = ROOT / "experiments" / "quick" / "table4_g1.toml"
+    assert config.load(table4)[1].n_auxiliary == 36
+    _, resolved = config.load(table4, overrides=["coarse.lagrange={}"])
+    assert resolved.lagrange == {} and resolved.n_auxiliary == 1
+    _, resolved = config.load(table4, overrides=["coarse.lagrange={bending=[0.7, 0.8]}"])
+    assert list(resolved.lagrange) == ["bending"] and resolved.n_auxiliary == 2
+    scene = ("[[bodies]]\nkind = 'chain'\nn_beads = 5\n[[bodies]]\nkind = 'chain'\n"
+             "n_beads = 6\nheight = 2.0\n[time]\nt1 = 0.02\n[fine]\ndt = 1e-3\n"
+             "[coarse]\ndt_ratio = 2\n[parareal]\nn_slices = 2\n[execution]\n"
+             "executor = 'serial'\n")
+    cfg, resolved = config.loads(scene, overrides=[
+        "bodies.1.n_beads=7", 'coarse.lagrange."chain1.bending"=[0.8, 0.9]'])
+    assert [body.n_beads for body in cfg.model.bodies] == [5, 7]
+    assert resolved.lagrange == {"chain1.bending": [0.8, 0.9]}
+    for bad, fragment in (("bodies.2.n_beads=7", "not an index"), ("a..b=1", "dotted key")):
+        with pytest.raises(ConfigError, match=fragment):
+            config.loads(scene, overrides=[bad])
+
+
 def test_base_files_merge_and_cycles_are_caught(tmp_path):
     (tmp_path / "full.toml").write_text(BASE)
     (tmp_path / "variant.toml").write_text('base = "full.toml"\n[parareal]\nn_slices = 2\n')

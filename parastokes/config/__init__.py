@@ -98,18 +98,49 @@ def _value(text: str) -> Any:
         return text
 
 
+def _key_path(path: str, item: str) -> list[str]:
+    """The keys of a TOML dotted key (``coarse.lagrange."rod.epsilon"``, ``bodies.0.name``)."""
+    try:
+        node: Any = tomllib.loads(f"{path} = 0")
+    except tomllib.TOMLDecodeError:
+        raise ConfigError([(path, f"--set expects KEY=VALUE with KEY a TOML dotted key (quote a "
+                                  f"key that holds a dot: a.\"b.c\"), got {item!r}")]) from None
+    keys = []
+    while isinstance(node, dict):
+        ((key, node),) = node.items()
+        keys.append(key)
+    return keys
+
+
+def _assign(node: Any, keys: list[str], value: Any, path: str) -> Any:
+    """A copy of ``node`` with the value at ``keys`` replaced by ``value`` (tables on the way
+    made as needed; a digit key indexes an array of tables, e.g. ``bodies.0``)."""
+    if not keys:
+        return value
+    key, rest = keys[0], keys[1:]
+    if isinstance(node, list):
+        if not (key.isdigit() and int(key) < len(node)):
+            raise ConfigError([(path, f"--set: {key!r} is not an index of this array of "
+                                      f"{len(node)} tables (0 to {len(node) - 1})")])
+        items = list(node)
+        items[int(key)] = _assign(items[int(key)], rest, value, path)
+        return items
+    table = dict(node) if isinstance(node, dict) else {}
+    table[key] = _assign(table.get(key), rest, value, path)
+    return table
+
+
 def apply_overrides(data: dict[str, Any], overrides: Iterable[str]) -> dict[str, Any]:
-    """``data`` with ``"section.key=value"`` assignments (values in TOML syntax) applied."""
+    """``data`` with ``"section.key=value"`` assignments (values in TOML syntax) applied: the
+    value replaces what is at the key, a table included (``coarse.lagrange={}`` removes every
+    node). The key is a TOML dotted key: quoted parts hold dots, digits index arrays of tables."""
     out = data
     for item in overrides:
         path, sep, text = item.partition("=")
-        keys = path.strip().split(".")
-        if not sep or not all(keys):
-            raise ConfigError([(path.strip(), f"--set expects KEY=VALUE, got {item!r}")])
-        update = _value(text.strip())
-        for key in reversed(keys):
-            update = {key: update}
-        out = merge(out, update)
+        path = path.strip()
+        if not sep or not path:
+            raise ConfigError([(path, f"--set expects KEY=VALUE, got {item!r}")])
+        out = _assign(out, _key_path(path, item), _value(text.strip()), path)
     return out
 
 
