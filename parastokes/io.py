@@ -42,7 +42,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from .bodies.registry import BodyLayout
+from .bodies.registry import RESERVED_NAMES, BodyLayout
 from .files import CorruptFileError, read_npz, write_npz, write_text
 
 __all__ = [
@@ -174,6 +174,15 @@ class TrajectoryWriter:
     ) -> None:
         if not layout:
             raise ValueError("layout: need at least one body")
+        names = [body.name for body in layout]
+        bad = sorted({n for n in names
+                      if names.count(n) > 1 or "/" in n or n in RESERVED_NAMES or not n})
+        if bad:
+            raise ValueError(
+                f"body names {bad} cannot be written: each must be distinct, non-empty, without "
+                f"'/' and none of {list(RESERVED_NAMES)} (a body's layout is named after it, and "
+                "a body of several parts gets '_part' suffixes); rename the body"
+            )
         self.path = Path(path)
         self.layout = list(layout)
         kinds = sorted({body.kind for body in self.layout})

@@ -205,6 +205,13 @@ def test_an_override_replaces_a_table_and_reaches_quoted_and_indexed_keys():
             config.loads(scene, overrides=[bad])
 
 
+def test_a_file_that_is_not_utf8_is_named(tmp_path):
+    path = tmp_path / "latin.toml"
+    path.write_bytes('title = "caf\u00e9"\n'.encode("latin-1"))
+    with pytest.raises(ConfigError, match=r"latin\.toml[\s\S]*not UTF-8"):
+        config.load(path)
+
+
 def test_base_files_merge_and_cycles_are_caught(tmp_path):
     (tmp_path / "full.toml").write_text(BASE)
     (tmp_path / "variant.toml").write_text('base = "full.toml"\n[parareal]\nn_slices = 2\n')

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import xml.etree.ElementTree as ET
@@ -105,6 +106,14 @@ def test_reading_a_missing_run_fails_clearly(tmp_path):
     with pytest.raises(ValueError, match="run must be one of"):
         writer = io.TrajectoryWriter(tmp_path / "b.h5", rod_layout(1, 3), config={})
         writer.append("other", 0.0, rod_state(1, 3, 0.0))
+
+
+@pytest.mark.parametrize("names", [("a", "a"), ("time",), ("a/b",), ("",)])
+def test_layout_names_that_cannot_be_written_are_refused_before_the_file(tmp_path, names):
+    layouts = [dataclasses.replace(rod_layout(1, 3)[0], name=name) for name in names]
+    with pytest.raises(ValueError, match="cannot be written"):
+        io.TrajectoryWriter(tmp_path / "t.h5", layouts, config={})
+    assert not (tmp_path / "t.h5").exists()
 
 
 def check_xdmf(xdmf_path, h5_path) -> ET.Element:

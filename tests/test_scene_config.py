@@ -249,6 +249,10 @@ def test_scene_without_bodies_and_bad_names_are_named():
     assert "[[bodies]]" in issues(small_rod(rest="[scene]\nwall = true\n"))["scene"]
     found = issues(scene_text(bodies=ROD + "name = 'a'\n" + VESICLE + "name = 'a'\n"))
     assert "distinct" in found["bodies[1].name"]
+    # names that would break trajectory.h5 (regression: found only after the whole run)
+    for name in ("time", "a/b"):
+        found = issues(scene_text(bodies=ROD + f"name = '{name}'\n" + VESICLE))
+        assert "without '.' or '/', and not 'time'" in found["bodies[0].name"]
     assert "did you mean" in issues(scene_text(fluid="wal = true"))["scene.wal"]
 
 

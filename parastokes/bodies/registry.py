@@ -31,6 +31,7 @@ from ..contracts import System
 __all__ = [
     "BUILTIN",
     "ENTRY_POINT_GROUP",
+    "RESERVED_NAMES",
     "BodyKind",
     "BodyLayout",
     "BodyResolution",
@@ -56,6 +57,10 @@ BUILTIN: dict[str, str] = {
 #: The entry point group of installed body packages: ``name = "package.module:Name"``.
 ENTRY_POINT_GROUP = "parastokes.bodies"
 
+
+#: Names a body's layout may not take: they sit beside the bodies' groups in a run's group of
+#: ``trajectory.h5`` (:class:`parastokes.io.TrajectoryWriter`).
+RESERVED_NAMES = ("time",)
 
 #: A finite number > 0 (for config fields).
 Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]

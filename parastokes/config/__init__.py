@@ -164,6 +164,8 @@ def _read(path: Path, chain: tuple[Path, ...] = ()) -> dict[str, Any]:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
     except OSError as error:
         raise ConfigError([("", f"cannot read the file: {error.strerror}")], source) from None
+    except UnicodeDecodeError as error:
+        raise ConfigError([("", f"not UTF-8 text, as TOML must be ({error})")], source) from None
     except tomllib.TOMLDecodeError as error:
         raise ConfigError([("", f"TOML syntax error: {error}")], source) from None
     base = data.pop("base", None)

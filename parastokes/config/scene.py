@@ -24,7 +24,13 @@ from typing import TYPE_CHECKING, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, SerializeAsAny, ValidationError
 
 from ..bodies import registry
-from ..bodies.registry import BodyLayout, BodyResolution, BodySection, Positive
+from ..bodies.registry import (
+    RESERVED_NAMES,
+    BodyLayout,
+    BodyResolution,
+    BodySection,
+    Positive,
+)
 from ..contracts import System
 from .errors import from_validation_error
 
@@ -189,9 +195,10 @@ def scene_section(data: dict[str, Any], issues: list[tuple[str, str]], source: s
     default = _default_names([t["kind"] for t in tables])
     names = [n if n is not None else d for n, d in zip(names, default, strict=True)]
     bad = [f"bodies[{i}].name" for i, n in enumerate(names)
-           if not isinstance(n, str) or not n or "." in n or names.count(n) > 1]
+           if not isinstance(n, str) or not n or "." in n or "/" in n or n in RESERVED_NAMES
+           or names.count(n) > 1]
     if bad:
-        issues += [(path, f"names must be distinct strings without '.', got {names}")
-                   for path in bad]
+        issues += [(path, f"names must be distinct strings without '.' or '/', and not "
+                          f"{' or '.join(map(repr, RESERVED_NAMES))}, got {names}") for path in bad]
         return None
     return SceneModel(bodies=bodies, names=names, **fluid)
