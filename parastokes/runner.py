@@ -441,16 +441,14 @@ def execute(
     The directory is claimed first (:func:`parastokes.rundir.claim`), before any work: a file, an
     unwritable path, a directory in use by another run, or one holding a finished, interrupted or
     foreign run (unless ``resume`` or ``overwrite``) raises a ValueError that says what to do.
-    ``files`` (name -> text) are then written into it (the demo's ``config.toml``). With
-    ``resume`` the serial solution and the Parareal checkpoint found there are continued; a run
-    of another configuration is refused (:class:`ConfigError` naming the keys). Results go to the
+    With ``resume`` the serial solution and the Parareal checkpoint found there are continued; a
+    run of another configuration is refused (:class:`ConfigError` naming the keys). ``files``
+    (name -> text, the demo's ``config.toml``) are written into it once that check has passed. Results go to the
     directory whole once complete; figures are drawn last (``output.figures``). Raises
     ``integrate.BlowUpError`` on a numerical blow-up, after saving the last good state.
     """
     with rundir.claim(out, resume=resume, overwrite=overwrite) as directory:
-        for name, text in (files or {}).items():
-            write_text(directory.path / name, text)
-        return _execute(cfg, resolved, directory, reporter or Reporter())
+        return _execute(cfg, resolved, directory, reporter or Reporter(), files or {})
 
 
 def _kernels_cached() -> bool:
@@ -461,7 +459,8 @@ def _kernels_cached() -> bool:
 
 
 def _execute(
-    cfg: Config, resolved: Resolved, directory: rundir.RunDirectory, reporter: ReporterLike
+    cfg: Config, resolved: Resolved, directory: rundir.RunDirectory, reporter: ReporterLike,
+    files: dict[str, str],
 ) -> dict[str, Any]:
     from . import plots
 
@@ -469,6 +468,8 @@ def _execute(
     conf = resolved_dict(cfg, resolved)
     key = identity(cfg)
     _check_resumable(out, cfg)
+    for name, text in files.items():
+        write_text(out / name, text)
     mode = cfg.run.mode
     start = time.perf_counter()
     if not _kernels_cached():

@@ -144,6 +144,13 @@ def test_demo_writes_summary_trajectory_and_figures(tmp_path, capsys):
     assert summary["workers"] == 2
     assert summary["iterations"] == 2
     assert summary["errors"][-1] == 0.0  # k = N: Parareal equals the serial fine solution
+    # a resume of another configuration is refused and leaves the demo's config.toml as it was
+    # (regression: the new file was written before the check)
+    written = (out / "config.toml").read_text()
+    status = cli.main(["demo", "--out", str(out), "--resume", "-q", "--set", "time.t1=0.004",
+                       "--set", "coarse.dt_ratio=8"])
+    assert status == cli.ExitCode.CONFIG
+    assert (out / "config.toml").read_text() == written
 
 
 @pytest.mark.slow
