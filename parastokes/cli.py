@@ -425,7 +425,11 @@ def cmd_plot(args: argparse.Namespace, console: Console) -> ExitCode:
     elif not args.dirs:
         raise ValueError("plot: give run directories or --benchmark FILE.json")
     elif len(args.dirs) == 1 and args.out is None:
-        written = plots.draw_run(args.dirs[0], formats)
+        from . import rundir
+
+        with rundir.locked(args.dirs[0]) as directory:  # not while a run writes there
+            written = plots.draw_run(args.dirs[0], formats)
+            directory.add_results([path.name for path in written])
     else:
         written = plots.draw_comparison(args.dirs, args.out or "comparison", formats)
     for path in written:

@@ -35,17 +35,19 @@ From the JSON of ``benchmarks/parareal.py --json`` (:func:`draw_benchmark`):
 
 from __future__ import annotations
 
+import functools
 import json
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 import numpy as np
 from matplotlib.figure import Figure
 
 from . import io
 from .bodies import registry
+from .files import atomic_write
 
 __all__ = [
     "RunData",
@@ -123,12 +125,17 @@ def _titled(ax, runs: Sequence[RunData]) -> None:
 
 
 def _save(fig: Figure, stem: Path, formats: Sequence[str]) -> list[Path]:
+    """``fig`` as ``stem.FMT`` for every format, each written atomically (never half a file)."""
     paths = []
     for fmt in formats:
         path = stem.with_suffix(f".{fmt}")
-        fig.savefig(path, dpi=150, bbox_inches="tight")
+        atomic_write(path, functools.partial(_savefig, fig, fmt))
         paths.append(path)
     return paths
+
+
+def _savefig(fig: Figure, fmt: str, handle: IO[bytes]) -> None:
+    fig.savefig(handle, format=fmt, dpi=150, bbox_inches="tight")
 
 
 # ---- accuracy and speedup --------------------------------------------------------------------

@@ -28,7 +28,7 @@ import shutil
 import socket
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -234,6 +234,13 @@ class RunDirectory:
         shutil.rmtree(self.staging, ignore_errors=True)
         self.staging.mkdir()
 
+    def add_results(self, names: Sequence[str]) -> None:
+        """List files written beside the results (``parastokes plot DIR``'s figures) among them,
+        so that the next ``--overwrite`` replaces them with the rest (hold :func:`locked`)."""
+        listed = sorted(self._previous_results() | set(names))
+        text = json.dumps({"files": listed})
+        atomic_write(self.path / MANIFEST, lambda handle: handle.write(text.encode()))
+
     def commit(self) -> list[str]:
         """Move every file of the staging directory into place, remove the previous results
         that the new ones do not replace; returns the names of the new results."""
@@ -269,6 +276,24 @@ def _directory(out: Path) -> None:
         ) from None
     if not os.access(out, os.W_OK | os.X_OK):
         raise RunDirectoryError(f"--out {out}: the directory is not writable; choose another")
+
+
+@contextmanager
+def locked(out: str | os.PathLike) -> Iterator[RunDirectory]:
+    """Hold the lock of the existing run directory ``out`` without running in it (to add
+    figures to its results); :class:`DirectoryInUse` while a run holds it."""
+    path = Path(out)
+    try:
+        record = _lock(path)
+    except OSError as error:
+        raise RunDirectoryError(
+            f"{path}: cannot write there ({error.strerror or error}); choose another --out"
+        ) from None
+    try:
+        yield RunDirectory(path)
+    finally:
+        if _owner(path / LOCK) == record:
+            (path / LOCK).unlink(missing_ok=True)
 
 
 @contextmanager

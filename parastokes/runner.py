@@ -443,9 +443,9 @@ def execute(
     foreign run (unless ``resume`` or ``overwrite``) raises a ValueError that says what to do.
     With ``resume`` the serial solution and the Parareal checkpoint found there are continued; a
     run of another configuration is refused (:class:`ConfigError` naming the keys). ``files``
-    (name -> text, the demo's ``config.toml``) are written into it once that check has passed. Results go to the
-    directory whole once complete; figures are drawn last (``output.figures``). Raises
-    ``integrate.BlowUpError`` on a numerical blow-up, after saving the last good state.
+    (name -> text, the demo's ``config.toml``) are written into it once that check has passed.
+    Results go to the directory whole once complete; figures are drawn last (``output.figures``).
+    Raises ``integrate.BlowUpError`` on a numerical blow-up, after saving the last good state.
     """
     with rundir.claim(out, resume=resume, overwrite=overwrite) as directory:
         return _execute(cfg, resolved, directory, reporter or Reporter(), files or {})

@@ -142,6 +142,26 @@ def test_overwrite_replaces_results_whole_and_removes_stale_figures(finished, tm
     assert not (out / rundir.STAGING).exists()
 
 
+def test_figures_that_plot_added_are_results_the_next_overwrite_replaces(finished, tmp_path):
+    # regression: `plot DIR`'s pdfs stayed beside the next run's results, a mixture of two runs
+    path, source = finished
+    out = tmp_path / "out"
+    shutil.copytree(source, out)
+    assert cli.main(["plot", str(out), "--formats", "pdf", "-q"]) == 0
+    assert list(out.glob("*.pdf")) and not (out / rundir.LOCK).exists()
+    assert _run(path, "--out", out, "--overwrite", "--set", "output.figures=false") == 0
+    assert not list(out.glob("*.pdf")) and not list(out.glob("*.png"))
+
+
+def test_plot_waits_for_no_run_it_would_mix_with(finished, tmp_path, capsys):
+    _, source = finished
+    out = tmp_path / "out"
+    shutil.copytree(source, out)
+    with rundir.claim(out, resume=True, overwrite=False):  # a run holds the directory
+        assert cli.main(["plot", str(out), "-q"]) == cli.ExitCode.CONFIG
+    assert "in use by another parastokes run" in capsys.readouterr().err
+
+
 def test_interrupted_and_foreign_directories_are_refused(finished, tmp_path, capsys):
     path, source = finished
     interrupted = tmp_path / "interrupted"
