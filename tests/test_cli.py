@@ -169,7 +169,7 @@ RESUMABLE = TINY.replace("n_points = 21\nlength = 4.0", "n_points = 41\nlength =
 )
 
 
-def test_interrupted_run_resumes_from_its_checkpoint(tmp_path):
+def test_interrupted_run_resumes_from_its_checkpoint(tmp_path, capsys):
     path = tmp_path / "run.toml"
     path.write_text(RESUMABLE)
     out = tmp_path / "out"
@@ -188,8 +188,18 @@ def test_interrupted_run_resumes_from_its_checkpoint(tmp_path):
     assert process.returncode == cli.ExitCode.INTERRUPTED, stderr
     assert "--resume" in stderr
     assert (out / runner.CHECKPOINT).exists() and not (out / "summary.json").exists()
+    _, history = io.load_arrays(out / runner.HISTORY)
+    done = len(history["elapsed"])  # the iterations checkpointed before the interrupt
+    assert done >= 1
 
-    assert cli.main(["run", str(path), "--out", str(out), "--resume", "-q"]) == 0
+    capsys.readouterr()
+    assert cli.main(["run", str(path), "--out", str(out), "--resume"]) == 0
+    printed = capsys.readouterr().out
+    # the resume computed neither the serial solution nor the iterations it had checkpointed
+    assert "serial fine solution reloaded from reference.npz" in printed
+    rows = [int(line.split()[0]) for line in printed.splitlines()
+            if line.split() and line.split()[0].isdigit() and len(line.split()) == 4]
+    assert rows == list(range(done + 1, 4))
     resumed = io.read_summary(out / "summary.json")
     assert cli.main(["run", str(path), "--out", str(tmp_path / "again"), "-q"]) == 0
     fresh = io.read_summary(tmp_path / "again" / "summary.json")
@@ -199,13 +209,13 @@ def test_interrupted_run_resumes_from_its_checkpoint(tmp_path):
     assert resumed["increments"] == fresh["increments"]
 
 
-def test_resume_refuses_another_configuration(tiny_runs):
+def test_resume_refuses_another_configuration(tiny_runs, capsys):
     path, (out, _) = tiny_runs
     status = cli.main(
         ["run", str(path), "--out", str(out), "--resume", "--set", "coarse.dt_ratio=5"]
     )
     assert status == cli.ExitCode.CONFIG
-
+    assert "coarse.dt_ratio" in capsys.readouterr().err  # the differing key is named
 
 def test_bad_configuration_exits_2_naming_the_key(tmp_path, capsys):
     path = tmp_path / "bad.toml"
