@@ -116,3 +116,27 @@ def test_measure_slice_costs_rejects_no_repeats():
     solver = FakeSolver(clock, 0.1, 1.0, 0.0)
     with pytest.raises(ValueError, match="repeats must be >= 1"):
         parareal.measure_slice_costs(solver, solver, 0.0, 1.0, np.zeros(1), repeats=0)
+
+
+def test_a_richardson_ratio_near_one_is_timed_with_the_slices_coefficients():
+    """With r = 0.995 the step counts of the 50-step probe span coincide (50 and 50) where the
+    slice's differ (1000 and 1005); the probe combines with the slice's coefficients
+    (regression: it raised the Richardson rule's ValueError on the short span)."""
+    system = ToySystem(n_points=2, decay=1.0)
+    coarse = parareal.extrapolated(system, "euler", 1e-3, richardson={"m": 1, "r": 0.995})
+    fine = integrate.Propagator(system, "rk2", 1e-4)
+    costs = parareal.measure_slice_costs(fine, coarse, 0.0, 1.0, system.initial_state(),
+                                         repeats=1)
+    assert costs.auxiliary_steps == [(50, 1000), (50, 1005)]
+    assert len(costs.auxiliary[0]) == 2 and min(costs.auxiliary[0]) > 0
+
+
+def test_an_empty_interval_is_the_projected_state_as_for_a_plain_propagator():
+    # regression: the extrapolated solver divided by its zero step count
+    system = ToySystem(n_points=2, decay=1.0)
+    coarse = parareal.extrapolated(system, "euler", 0.1, lagrange={"a": [0.9, 1.1]},
+                                   richardson={"m": 1, "r": 0.5})
+    x = system.initial_state()
+    plain = integrate.Propagator(system, "euler", 0.1)(0.5, 0.5, x)
+    np.testing.assert_array_equal(coarse(0.5, 0.5, x), plain)
+    assert coarse.split(0.5, 0.5, x) is None

@@ -167,15 +167,20 @@ class Extrapolated:
 
     def split(
         self, t_start: float, t_end: float, x: np.ndarray
-    ) -> tuple[list[Task], Callable[[list[np.ndarray]], np.ndarray]]:
+    ) -> tuple[list[Task], Callable[[list[np.ndarray]], np.ndarray]] | None:
         """One call as separate work: its auxiliary tasks, and the function that combines their
         values (in task order) into exactly what the call returns. Used by the pipelined schedule
-        (:mod:`parastokes.parareal.pipelined`) to run every auxiliary solve as its own task."""
+        (:mod:`parastokes.parareal.pipelined`) to run every auxiliary solve as its own task.
+        None on an empty interval, where the call itself is the (projected) state."""
+        if t_end == t_start:
+            return None
         coefficients = self.coefficients(t_start, t_end)
         tasks = self.auxiliary_tasks(t_start, t_end, x)
         return tasks, functools.partial(self.combine, t_start, t_end, x, coefficients)
 
     def __call__(self, t_start: float, t_end: float, x: np.ndarray) -> np.ndarray:
+        if t_end == t_start:  # no step: the state, projected (as a plain propagator gives it)
+            return self.system.project(np.array(x, dtype=float))
         coefficients = self.coefficients(t_start, t_end)
         if self.executor is None:
             values = [p(t_start, t_end, x) for row in self.auxiliary for p in row]

@@ -155,7 +155,10 @@ def measure_slice_costs(
     fines, auxes, overheads, linear = [], [], [], []
     for _ in range(repeats):
         short = timed(fine, t_start, t_start + fine_span, x0)[1]
-        parts, t_split = timed(split, t_start, coarse_end, x0) if split else (None, 0.0)
+        # split on the whole slice: the coefficients a run uses (steps rounded to whole counts
+        # on a short span can coincide where the slice's do not); its tasks then run on the
+        # short span, each scaled to the slice below
+        parts, t_split = timed(split, t_start, t_end, x0) if split else (None, 0.0)
         if parts is None:
             x_aux, over = (xc, 0.0) if transfer is None else timed(transfer.restrict, x0)
             values, aux = zip(*(timed(p, t_start, coarse_end, x_aux) for p in solvers), strict=True)
@@ -163,7 +166,8 @@ def measure_slice_costs(
                 over += timed(transfer.prolong, values[0])[1]
         else:
             tasks, combine = parts
-            values, aux = zip(*(timed(task.fn, *task.args) for task in tasks), strict=True)
+            values, aux = zip(*(timed(task.fn, task.args[0], coarse_end, *task.args[2:])
+                                for task in tasks), strict=True)
             over = t_split + timed(combine, list(values))[1]
         double = timed(fine, t_start, t_start + double_span, x0)[1]
         fines.append((short + double) / (n_fine[0] + n_double) * n_fine[1])

@@ -50,9 +50,10 @@ class OnCoarseGrid:
         """The wrapped combinator's ``split`` on the restricted state, its combination prolonged
         (see :meth:`Extrapolated.split`); None when the wrapped propagator cannot be split."""
         split = getattr(self.propagator, "split", None)
-        if split is None:
+        parts = None if split is None else split(t_start, t_end, self.transfer.restrict(x))
+        if parts is None:
             return None
-        tasks, combine = split(t_start, t_end, self.transfer.restrict(x))
+        tasks, combine = parts
         return tasks, lambda values: self.transfer.prolong(combine(values))
 
     @property
