@@ -280,3 +280,13 @@ def test_repeated_kinds_are_numbered_and_each_extrapolated_in_its_own_units():
     assert resolved.theta0["rod0.epsilon"] == pytest.approx(5 * 0.6)
     layout = cfg.model.layout(build(cfg, resolved).system, False, None)
     assert [(b.name, b.first, b.rows) for b in layout] == [("rod0", 0, 11), ("rod1", 11, 21)]
+
+
+def test_default_names_are_those_a_scene_gives_in_python():
+    from parastokes.config.scene import _default_names
+    from parastokes.kinds.chain import ChainSystem
+
+    assert _default_names(["rod", "mybodies:CloudSystem", "chain", "chain"]) == [
+        "rod", "cloud", "chain0", "chain1"]
+    scene = Scene((ChainSystem(n_beads=4), ChainSystem(n_beads=4, height=2.0)), viscosity=1.0)
+    assert list(scene.names) == _default_names(["chain", "chain"])

@@ -120,7 +120,9 @@ class SceneModel(BodySection):
 
 
 def _default_names(kinds: list[str]) -> list[str]:
-    short = [k.rpartition(":")[2].lower() for k in kinds]
+    """The kinds' last parts, lower case and without a "System" suffix (as ``Scene`` names its
+    bodies), numbered where repeated."""
+    short = [k.rpartition(":")[2].lower().removesuffix("system") or "body" for k in kinds]
     return [k if short.count(k) == 1 else f"{k}{short[:i].count(k)}" for i, k in enumerate(short)]
 
 
