@@ -284,9 +284,10 @@ def run_result(
     if outcome == NON_FINITE:
         raise BlowUpError(t, taken, math.nan, x, "non-finite state")
     if outcome == BEYOND:
-        raise BlowUpError(
-            t, taken, m, x, f"monitor beyond {blowup_factor:g} x its limit {system.monitor_limit:g}"
-        )
+        reason = f"monitor beyond {blowup_factor:g} x its limit {system.monitor_limit:g}"
+        if m == math.inf:  # the monitors' sign of a point on or below the wall z = 0
+            reason += " (infinite: a point reached the wall z = 0; a smaller step keeps it off)"
+        raise BlowUpError(t, taken, m, x, reason)
     return RunResult(system.project(x), worst, taken, dt, completed=outcome == DONE)
 
 

@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 
 from . import mrs
+from .bodies.geometry import crossed_wall
 from .stepping import registry
 from .stepping.scene import scene_loop
 
@@ -83,6 +84,9 @@ class Scene:
                     f"{', '.join(missing)} (what a body offers a scene: docs/contracts.md, "
                     "'System')"
                 )
+            if self.wall and crossed_wall(np.asarray(body.initial_state()), True):
+                raise ValueError(f"{name}: points on or below the wall z = 0 (wall=True); raise "
+                                 "the body above the wall")
             if hasattr(body, "viscosity") and "viscosity" not in body.params:
                 raise ValueError(
                     f"{name}: its viscosity is not among its params, so the scene's one "
@@ -209,7 +213,10 @@ class Scene:
     monitor_limit = 1.0
 
     def monitor(self, state: np.ndarray) -> float:
-        """The largest of the bodies' monitors, each over its own limit."""
+        """The largest of the bodies' monitors, each over its own limit; infinite when a point
+        is on or below the wall."""
+        if crossed_wall(state, self.wall):
+            return math.inf
         values = [body.monitor(x) / body.monitor_limit
                   for body, x in zip(self.bodies, self.blocks(state), strict=True)]
         return float(max(values)) if all(math.isfinite(v) for v in values) else math.nan

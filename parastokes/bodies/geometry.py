@@ -19,6 +19,18 @@ from numba import njit
 from scipy.spatial import ConvexHull
 
 
+@njit(cache=True)
+def crossed_wall(x: np.ndarray, wall: bool) -> bool:
+    """Whether a point of the state ``x`` (positions in columns 0-2) is on or below the wall
+    z = 0 when there is one: the images of the method are valid for z > 0 only (physics.md), so
+    the bodies' monitors report such a state as infinitely unstable."""
+    if wall:
+        for i in range(x.shape[0]):
+            if not x[i, 2] > 0.0:
+                return True
+    return False
+
+
 def straight_rods(
     n_rods: int, n_points: int, length: float, height: float, spacing: float
 ) -> np.ndarray:

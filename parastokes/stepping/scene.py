@@ -26,6 +26,7 @@ import numpy as np
 from numba import literal_unroll
 from numba.extending import overload
 
+from ..bodies.geometry import crossed_wall
 from ..mrs import compiled
 from ..mrs.velocity import EIGHT_PI
 from . import loop, registry
@@ -142,6 +143,8 @@ def _monitor(data, x):
     if loop.is_data(data, SceneData):
 
         def impl(data, x):
+            if crossed_wall(x, data.wall):
+                return math.inf
             worst = -math.inf
             finite = True
             for body in literal_unroll(data.bodies):

@@ -27,6 +27,7 @@ import numpy as np
 from pydantic import Field
 
 from ...bodies.base import PointsInShear, replace_params
+from ...bodies.geometry import crossed_wall
 from ...bodies.registry import (
     BodyKind,
     BodyLayout,
@@ -110,7 +111,10 @@ class ChainSystem(PointsInShear):
         return 0.5
 
     def monitor(self, state: np.ndarray) -> float:
-        """The largest relative deviation of a bond length from the rest length b."""
+        """The largest relative deviation of a bond length from the rest length b; infinite
+        when a bead is on or below the wall."""
+        if crossed_wall(state, self.wall):
+            return math.inf
         return float(bond_strain(state, self.bond))
 
 

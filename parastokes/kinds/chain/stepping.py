@@ -17,11 +17,13 @@ fluid by :func:`parastokes.stepping.loop.register_parts` (the end of :mod:`paras
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 from numba.extending import overload
 
+from ...bodies.geometry import crossed_wall
 from ...stepping import loop
 from ...stepping.fluid import fluid_workspace, velocity_into
 from .mechanics import bond_strain, chain_forces
@@ -115,7 +117,12 @@ def _advance(data, x, rates, dt):
 @overload(loop.monitor)
 def _monitor(data, x):
     if loop.is_data(data, ChainData):
-        return lambda data, x: bond_strain(x, data.bond)
+        def impl(data, x):
+            if crossed_wall(x, data.wall):
+                return math.inf
+            return bond_strain(x, data.bond)
+
+        return impl
 
 
 @overload(loop.bracket_into)

@@ -11,12 +11,14 @@ same order, so both loops give the same bits:
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 from numba.extending import overload
 
 from ...bodies.frames import advance_rod
+from ...bodies.geometry import crossed_wall
 from ...mrs import compiled
 from ...stepping import loop
 from .mechanics import length_change, preferred_strain, rod_loads
@@ -93,7 +95,12 @@ def _advance(data, x, rates, dt):
 @overload(loop.monitor)
 def _monitor(data, x):
     if loop.is_data(data, RodData):
-        return lambda data, x: length_change(x, data.mechanics[0], data.length)
+        def impl(data, x):
+            if crossed_wall(x, data.wall):
+                return math.inf
+            return length_change(x, data.mechanics[0], data.length)
+
+        return impl
 
 
 @overload(loop.bracket_into)

@@ -20,6 +20,7 @@ import numpy as np
 
 from ...bodies import frames, geometry
 from ...bodies.base import FluidBody, replace_params, require_positive
+from ...bodies.geometry import crossed_wall
 from ...fluid import MRS, TargetBlocks
 from ...mrs.velocity import thread_count
 from ...stepping import loop
@@ -175,7 +176,10 @@ class RodSystem(FluidBody):
         return 0.01
 
     def monitor(self, state: np.ndarray) -> float:
-        """Largest relative change of a rod's length Σ|X_{k+1} - X_k| from L (section 5.1)."""
+        """Largest relative change of a rod's length Σ|X_{k+1} - X_k| from L (section 5.1);
+        infinite when a node is on or below the wall."""
+        if crossed_wall(state, self.wall):
+            return math.inf
         return float(kirchhoff.length_change(state, self.n_rods, self.length))
 
     # ---- coarse grid (Remark 4) ------------------------------------------------------------
