@@ -33,10 +33,12 @@ A run is described by one TOML file with the sections below (`parastokes check F
 (`n_slices = "4"` and `n_slices = 4.0` are rejected; integers are accepted for numbers), and every
 error names its key, e.g. `coarse.lagrange.epsilon: nodes must be strictly increasing`.
 
-Besides the schema, every check of `parastokes/config/checks.py` runs before any solver starts:
-Lagrange nodes strictly increasing with θ⁰ outside their interval (section 4.1), Richardson step
-counts that differ on a slice, N_G <= workers unless `execution.allow_oversubscribe`, a coarse grid
-factor dividing M - 1, t1 > t0, τ_f no longer than a slice.
+Besides the schema, every cross-key check runs before any solver starts
+(`parastokes/config/checks.py`, and the coarse-solver family's own, `parastokes/coarse/extrapolated.py`
+for the default): Lagrange nodes strictly increasing with θ⁰ outside their interval (section 4.1),
+Richardson step counts that differ on a slice, N_G <= workers unless
+`execution.allow_oversubscribe` or `parareal.schedule = "pipelined"` (which queues the auxiliary
+solves as tasks), a coarse grid factor dividing M - 1, t1 > t0, τ_f no longer than a slice.
 
 Two more things the loader understands:
 
@@ -44,11 +46,15 @@ Two more things the loader understands:
   applies this one on top of it, table by table: the `experiments/quick/*.toml` variants are written
   this way.
 - `--set KEY=VALUE` on the command line (repeatable) overrides any key with a TOML value, e.g.
-  `--set parareal.n_slices=8 --set fine.scheme='"rk4"'`.
+  `--set parareal.n_slices=8 --set fine.scheme='"rk4"'`. The value replaces what is at the key,
+  a whole table included (`--set 'coarse.lagrange={}'` removes every Lagrange node). KEY is a
+  TOML dotted key: quote a part that holds a dot, and index `[[bodies]]` tables by number, e.g.
+  `--set 'coarse.lagrange."rod.epsilon"=[5.5, 5.6]' --set bodies.1.subdivisions=2`.
 
 Several bodies in one fluid (a scene, `parastokes.scene.Scene`): instead of `[model]`, one
 `[[bodies]]` table per body, each a section of its kind (the `model (kind = ...)` sections below)
-plus an optional `name` (default: its kind, numbered when it repeats: `rod0`, `rod1`), and a
+plus an optional `name` (default: its kind, numbered when it repeats: `rod0`, `rod1`; names are
+distinct, without `.` or `/`, and not `time`), and a
 `[scene]` table with the fluid they share. A body table may omit `viscosity`, `wall` and
 `shear_rate` (it gets the scene's); one that states another value than `[scene]` is an error.
 Lagrange nodes then name `"body.parameter"` (`coarse.lagrange."rod.epsilon"`, in that body's

@@ -503,8 +503,10 @@ def _parser() -> argparse.ArgumentParser:
         "--workers", type=int, help="workers W for the simulation (default: W = N_c, one per slice)"
     )
     source = p.add_mutually_exclusive_group()
-    source.add_argument("--ratio", type=float, help="γ_G/γ_F to use")
-    source.add_argument("--measured", metavar="DIR", help="take γ_G/γ_F from a run directory")
+    source.add_argument("--ratio", type=float,
+                        help="γ/γ_F of one auxiliary solve (a coarse step takes ceil(N_G/W) of them)")
+    source.add_argument("--measured", metavar="DIR",
+                        help="take it from a run directory (its coarse step over its rounds)")
     p.add_argument("--iterations", type=int, help="N_it (default: measured, else max_iterations)")
     p.set_defaults(func=cmd_predict)
 

@@ -110,8 +110,8 @@ class Execution(_Section):
     workers: int | None = Field(
         None,
         ge=1,
-        description="Workers; default: min(n_slices, available cores) (mpi: all ranks; gpu: the "
-        "most solves per batch, default max(n_slices, N_G)).",
+        description="Workers; default: min(n_slices, available cores // threads) (mpi: all "
+        "ranks; gpu: the most solves per batch, default max(n_slices, N_G)).",
     )
     threads: int = Field(1, ge=1, description="Kernel threads per worker (spatial parallelism).")
     allow_oversubscribe: bool = Field(
