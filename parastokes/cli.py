@@ -504,7 +504,7 @@ def _parser() -> argparse.ArgumentParser:
     )
     source = p.add_mutually_exclusive_group()
     source.add_argument("--ratio", type=float,
-                        help="γ/γ_F of one auxiliary solve (a coarse step takes ceil(N_G/W) of them)")
+                        help="γ/γ_F of one auxiliary solve (a coarse step: ceil(N_G/W) of them)")
     source.add_argument("--measured", metavar="DIR",
                         help="take it from a run directory (its coarse step over its rounds)")
     p.add_argument("--iterations", type=int, help="N_it (default: measured, else max_iterations)")
