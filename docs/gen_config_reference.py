@@ -38,7 +38,8 @@ Besides the schema, every cross-key check runs before any solver starts
 `parastokes/coarse/extrapolated.py` for the default): Lagrange nodes strictly increasing with θ⁰
 outside their interval (section 4.1), Richardson step counts that differ on a slice,
 N_G <= workers unless `execution.allow_oversubscribe` or `parareal.schedule = "pipelined"` (which
-queues the auxiliary solves as tasks), a coarse grid factor dividing M - 1, t1 > t0, τ_f no longer than a slice.
+queues the auxiliary solves as tasks), a coarse grid factor dividing M - 1, t1 > t0, τ_f no
+longer than a slice.
 
 Two more things the loader understands:
 
