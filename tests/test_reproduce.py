@@ -335,3 +335,11 @@ def test_status_counts_the_iterations_of_earlier_sessions(tmp_path, done, total,
         (kept / f"{name}.npz").touch()
     text = reproduce.progress_text(job, layout, "running")
     assert text.startswith(shown) and text.endswith("(next: 2 fine, 1 coarse solves kept)")
+
+
+def test_collect_refuses_only(tmp_path, capsys):
+    # --collect regenerates the page from every finished run: --only cannot narrow it
+    with pytest.raises(SystemExit) as info:
+        reproduce.main(["--out", str(tmp_path), "--collect", "--only", "fig5"])
+    assert info.value.code == 2
+    assert "--collect gathers every finished run" in capsys.readouterr().err

@@ -24,11 +24,12 @@ Usage (from the repository root, ``PYTHONPATH=$PWD``)::
     python -m validation.reproduce --dry-run                 # plan and cost of every run
     nohup nice -n 19 env NUMBA_NUM_THREADS=1 python -m validation.reproduce --resume --jobs 2 \\
         > /work/repro-runs/scheduler.log 2>&1 &              # run (resumes after any stop)
-    python -m validation.reproduce --status                  # what is done / running / waiting
+    python -m validation.reproduce --status                  # done / running / not started
     python -m validation.reproduce --collect                 # finished runs -> docs/reproduction/
 
-``--only NAME...`` restricts any of these to runs, references or figure groups (``fig5``,
-``fig12``...); a run brings its reference along.
+``--only NAME...`` restricts the runs, ``--status`` and ``--dry-run`` to runs, references or
+figure groups (``fig5``, ``fig12``...); a run brings its reference along. ``--collect`` gathers
+every finished run and refuses ``--only``.
 """
 
 from __future__ import annotations
@@ -765,6 +766,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         jobs = select(plan(), args.only, args.all)
         if args.jobs < 1:
             raise ValueError(f"--jobs must be at least 1, got {args.jobs}")
+        if args.collect and args.only:
+            raise ValueError("--collect gathers every finished run (the page is regenerated "
+                             "whole); drop --only")
     except ValueError as error:
         parser.error(str(error))
     if args.status:
