@@ -164,7 +164,10 @@ def _combine(
     terms = [(c, kj) for c, kj in zip(coefs, k, strict=False) if c != 0.0]
     if len(terms) == 1 and terms[0][0] == 1.0 and not brackets:
         return terms[0][1]
-    r = terms[0][0] * terms[0][1]
+    if not terms:  # a stage row of zeros: the stage is evaluated at the step's start state
+        r = np.zeros_like(k[0])
+    else:
+        r = terms[0][0] * terms[0][1]
     for c, kj in terms[1:]:
         r += c * kj
     bracket = getattr(system, "bracket", None)

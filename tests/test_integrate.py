@@ -165,3 +165,19 @@ def test_largest_stable_step_passes_and_twice_it_fails():
     assert res.max_monitor <= rod.monitor_limit
     with pytest.raises(ValueError, match="dt_lo"):
         integrate.largest_stable_step(rod, "euler", 2.0, 2 * dt, 4 * dt)
+
+
+@pytest.mark.parametrize("compiled", [True, False], ids=["compiled", "python"])
+def test_a_stage_of_zero_coefficients_is_evaluated_at_the_start_state(compiled):
+    """A tableau whose second stage has a zero row (c = (0, 0), b = (1/2, 1/2)) is Euler exactly:
+    both loops give Euler's bits (regression: the compiled loop reused the previous stage's
+    combination, the Python one raised an IndexError)."""
+    from parastokes.kinds.chain import ChainSystem
+
+    chain = ChainSystem(n_beads=6, stiffness=20.0, bending=2.0, shear_rate=1.0, stretch=1.2)
+    x = chain.initial_state()
+    twice = integrate.Scheme("euler twice", 1, c=(0.0, 0.0), a=((), (0.0,)), b=(0.5, 0.5),
+                             stage_brackets=((), ()))
+    euler = integrate.run(chain, x, 0.0, 0.05, "euler", 0.01).state
+    np.testing.assert_array_equal(
+        integrate.run(chain, x, 0.0, 0.05, twice, 0.01, compiled=compiled).state, euler)

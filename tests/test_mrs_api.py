@@ -188,6 +188,13 @@ BAD = {
         dict(targets=XB, sources=np.stack([X, X, X]), forces=np.stack([F, F, F])),
         "sources",
     ),
+    # regressions: a complex array lost its imaginary part with only a warning, text was
+    # parsed, a complex ε raised a TypeError, no targets an IndexError
+    "targets complex": (dict(targets=X + 1j), "targets"),
+    "forces text": (dict(forces=F.astype(str)), "forces"),
+    "epsilon complex": (dict(epsilon=0.1 + 0.1j), "epsilon"),
+    "mu text": (dict(mu="1.0"), "mu"),
+    "no targets": (dict(targets=np.zeros((0, 3))), "targets"),
 }
 
 

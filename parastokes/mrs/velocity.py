@@ -19,10 +19,20 @@ EIGHT_PI = 8.0 * math.pi
 SCALE_LIMIT = 1e18
 
 
+def _real(name: str, value) -> np.ndarray:
+    """``value`` as float64; ValueError for what is not real numbers (complex, text, objects)."""
+    arr = np.asarray(value)
+    if arr.dtype.kind not in "biuf":
+        raise ValueError(f"{name}: must be real numbers, got an array of dtype {arr.dtype}")
+    return arr.astype(np.float64, copy=False)
+
+
 def _points(name: str, value, batch: int | None = None) -> np.ndarray:
-    arr = np.asarray(value, dtype=np.float64)
+    arr = _real(name, value)
     if arr.ndim not in (2, 3) or arr.shape[-1] != 3:
         raise ValueError(f"{name}: expected shape (N, 3) or (B, N, 3), got {arr.shape}")
+    if arr.shape[-2] == 0:
+        raise ValueError(f"{name}: no points (shape {arr.shape})")
     if batch is not None and (arr.ndim == 3) != (batch > 0):
         raise ValueError(
             f"{name}: all point arrays must be batched or all unbatched, got {arr.shape}"
@@ -33,7 +43,7 @@ def _points(name: str, value, batch: int | None = None) -> np.ndarray:
 
 
 def _positive(name: str, value, batch: int) -> np.ndarray:
-    arr = np.asarray(value, dtype=np.float64)
+    arr = _real(name, value)
     if arr.ndim == 0:
         arr = np.full(max(batch, 1), float(arr))
     elif batch == 0 or arr.shape != (batch,):
@@ -53,7 +63,7 @@ def per_source(epsilon, batch: int) -> bool:
 
 def _epsilon(value, batch: int, n_sources: int) -> np.ndarray:
     if per_source(value, batch):
-        eps = np.asarray(value, dtype=np.float64)
+        eps = _real("epsilon", value)
         want = (batch, n_sources) if batch else (n_sources,)
         if eps.shape != want:
             raise ValueError(f"epsilon: one per source needs shape {want}, got {eps.shape}")

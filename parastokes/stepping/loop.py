@@ -191,6 +191,8 @@ def _combine(data, coefs, k, brackets, stage, dt, out):
             for q in range(out.shape[1]):
                 out[i, q] = c * k[j, i, q] if first else out[i, q] + c * k[j, i, q]
         first = False
+    if first:  # no non-zero coefficient: zero rates (the Python _combine gives the same)
+        out[:] = 0.0
     off = 0 if stage < 0 else 1
     for row in range(brackets.shape[0]):
         if stage < 0 or brackets[row, 0] == stage:
