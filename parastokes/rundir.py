@@ -110,14 +110,23 @@ def _owner(path: Path) -> dict | None:
     return record if isinstance(record, dict) else None
 
 
+def _age(path: Path) -> float:
+    """Seconds since ``path`` was last written (0 if it is gone)."""
+    try:
+        return time.time() - path.stat().st_mtime
+    except OSError:
+        return 0.0
+
+
 def _stale(owner: dict) -> bool:
     if owner.get("host") != socket.gethostname() or not isinstance(owner.get("pid"), int):
         return False
     return not process_alive(owner["pid"], owner.get("started"))
 
 
-def _take_over(path: Path, owner: dict) -> None:
-    """Remove the stale lock ``path`` unless another process is doing so or has replaced it."""
+def _take_over(path: Path, owner: dict | None) -> None:
+    """Remove the stale lock ``path`` (``owner``: its record, None for an unreadable one)
+    unless another process is doing so or has replaced it."""
     breaker = path.with_name(path.name + ".break")
     try:
         fd = os.open(breaker, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
@@ -153,10 +162,12 @@ def _lock(out: Path) -> dict:
             owner = _owner(path)
             if (owner is not None and not _stale(owner)) or time.monotonic() > deadline:
                 raise DirectoryInUse(out, owner or {}) from None
-            if owner is None:
-                time.sleep(0.05)  # being written: read it again
-            else:
+            if owner is not None:
                 _take_over(path, owner)
+            elif _age(path) > _BREAK_TIMEOUT:  # a record never written: its writer was killed
+                _take_over(path, None)
+            else:
+                time.sleep(0.05)  # being written: read it again
             continue
         with os.fdopen(fd, "w", encoding="utf-8") as handle:
             json.dump(record, handle)

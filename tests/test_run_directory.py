@@ -111,6 +111,19 @@ def test_a_stale_lock_is_taken_over_and_a_foreign_host_named(tmp_path, capsys):
     assert "node-17" in message and str(out / rundir.LOCK) in message
 
 
+def test_an_empty_lock_left_by_a_killed_writer_is_taken_over(tmp_path):
+    # regression: such a lock was never stale, every later claim waited and was refused
+    out = tmp_path / "out"
+    out.mkdir()
+    lock = out / rundir.LOCK
+    lock.write_text("")
+    then = time.time() - 60
+    os.utime(lock, (then, then))
+    with rundir.claim(out, resume=False, overwrite=False):
+        assert json.loads(lock.read_text())["pid"] == os.getpid()
+    assert not lock.exists()
+
+
 def test_a_finished_run_is_kept_without_overwrite(finished, tmp_path, capsys):
     path, source = finished
     out = tmp_path / "out"
