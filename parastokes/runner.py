@@ -447,8 +447,12 @@ def execute(
     Results go to the directory whole once complete; figures are drawn last (``output.figures``).
     Raises ``integrate.BlowUpError`` on a numerical blow-up, after saving the last good state.
     """
+    reporter = reporter or Reporter()
     with rundir.claim(out, resume=resume, overwrite=overwrite) as directory:
-        return _execute(cfg, resolved, directory, reporter or Reporter(), files or {})
+        found = directory.entries()
+        if resume and not found["state"] and not found["results"]:
+            reporter.note(f"--resume: {out} holds no run to continue; starting afresh")
+        return _execute(cfg, resolved, directory, reporter, files or {})
 
 
 def _kernels_cached() -> bool:

@@ -335,3 +335,11 @@ def test_the_kept_solves_are_resume_state(tmp_path):
     with rundir.claim(out, resume=False, overwrite=True):
         pass
     assert not (out / "checkpoint.solves").exists()
+
+
+def test_resume_in_an_empty_directory_says_it_starts_afresh(tmp_path, capsys):
+    # a mistyped --out with --resume used to start a fresh run without a word
+    path = _config(tmp_path)
+    out = tmp_path / "typo"
+    assert cli.main(["run", str(path), "--out", str(out), "--resume"]) == 0
+    assert f"--resume: {out} holds no run to continue; starting afresh" in capsys.readouterr().out
