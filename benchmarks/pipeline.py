@@ -36,7 +36,7 @@ Sections:
   labelled. A table and a figure (speedup against desired error, like Fig. 6b).
 
   PYTHONPATH=. NUMBA_NUM_THREADS=1 python benchmarks/pipeline.py --sections p40 \\
-      --records docs/reproduction /work/repro-runs/runs \\
+      --records docs/reproduction \\
       --costs docs/figures/pipeline_p40_costs.json --figures docs/figures
 """
 
@@ -225,6 +225,7 @@ def emulation_case(
             }[schedule]
             step_alpha = math.ceil(n_auxiliary / workers) * alpha
             row[schedule] = {
+                "emulated": True,  # sleeping propagators stand in for the cores
                 "wall": wall,
                 "speedup": workers * fine_s / wall,
                 "formula": formula(step_alpha, iterations, workers),
@@ -291,11 +292,11 @@ def emulation(args: argparse.Namespace) -> tuple[str, Any]:
         "N_G",
         "std formula",
         "std sim",
-        "std measured",
+        "std emulated",
         "std wall/sim",
         "pipe formula",
         "pipe sim",
-        "pipe measured",
+        "pipe emulated",
         "pipe wall/sim",
         "pipe wall/bare",
         "latency ms",
@@ -374,8 +375,10 @@ def real(args: argparse.Namespace) -> tuple[str, Any]:
                         positions=case.system.positions,
                         schedule=schedule,
                     )
-                    walls[schedule].append(time.perf_counter() - start)
-                    results[schedule] = res
+                    elapsed = time.perf_counter() - start
+                    if not walls[schedule] or elapsed < min(walls[schedule]):
+                        results[schedule] = res  # the fastest repeat: its wall and its γ's
+                    walls[schedule].append(elapsed)
         std, pipe = results["standard"], results["pipelined"]
         assert np.array_equal(std.states, pipe.states), "iterates differ"
         n_aux = (
@@ -393,7 +396,7 @@ def real(args: argparse.Namespace) -> tuple[str, Any]:
             sim = parareal.simulate(
                 schedule, n_slices, iterations, workers, aux / gamma_f, 1.0, n_aux
             )
-            wall = min(walls[schedule])
+            wall = min(walls[schedule])  # the repeat whose timings ``res`` holds
             row[schedule] = {
                 "wall": wall,
                 "walls": walls[schedule],
@@ -415,8 +418,6 @@ def real(args: argparse.Namespace) -> tuple[str, Any]:
         "pipe wall (s)",
         "pipe sim (s)",
         "pipe wall/sim",
-        "pipe wall/bare",
-        "latency ms",
         "pipe gain",
     ]
     table_rows = [
