@@ -180,3 +180,35 @@ def test_dying_worker_names_its_task_instead_of_hanging():
     assert isinstance(error.original, parallel.WorkerDiedError)
     assert error.original.exitcode == 7 and error.original.pid in ex.worker_pids
     assert str(error).startswith("slice 1 failed: WorkerDiedError: worker process")
+
+
+def _alive(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as stat:
+            return stat.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+@pytest.mark.timeout(60)
+def test_no_worker_outlives_a_pool_that_a_dying_worker_broke():
+    """The first task's worker dies while the others run: after the error and shutdown, every
+    worker process is gone (regression: cancelling the pending tasks raced with the pool marking
+    them failed, its manager thread crashed and the surviving worker was left running)."""
+    args = [(i, 0, 0.1 if i == 0 else 1.0) for i in range(8)]
+    with parallel.make_executor("processes", 2) as ex:
+        with pytest.raises(parallel.TaskError, match="slice 0 failed: WorkerDiedError"):
+            parallel.run_labelled(ex, tasks.die_on, args, _labels(8))
+    assert not [pid for pid in ex.worker_pids if _alive(pid)]
+
+
+@pytest.mark.parametrize(
+    ("options", "named"),
+    [({"workers": "2"}, "workers"), ({"workers": 2.0}, "workers"), ({"workers": True}, "workers"),
+     ({"threads_per_worker": 1.5}, "threads_per_worker"),
+     ({"threads_per_worker": "2"}, "threads_per_worker"),
+     ({"warmup": lambda: None}, "warmup must pickle")],
+)
+def test_bad_executor_options_are_named_before_any_worker_starts(options, named):
+    with pytest.raises(ValueError, match=named):
+        parallel.make_executor("processes", **options)

@@ -363,10 +363,13 @@ def _get(kind: str) -> BodyKind:
     found = _load(plugins.target(kind, BUILTIN, ENTRY_POINT_GROUP, _unknown(kind)), kind)
     if found.name == kind:
         return found
+    fields: dict[str, Any] = {
+        "kind": (Literal[kind], Field(description=f"The body kind ({found.name!r})."))
+    }
     renamed = create_model(
         found.section.__name__,
         __base__=found.section,
         __doc__=found.section.__doc__,
-        kind=(Literal[kind], Field(description=f"The body kind ({found.name!r}).")),
+        **fields,
     )
     return dataclasses.replace(found, name=kind, section=typing.cast(type[BodySection], renamed))

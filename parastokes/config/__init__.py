@@ -118,7 +118,7 @@ def _assign(node: Any, keys: list[str], value: Any, path: str) -> Any:
     if not keys:
         return value
     key, rest = keys[0], keys[1:]
-    if isinstance(node, list):
+    if isinstance(node, list) and node and all(isinstance(item, dict) for item in node):
         if not (key.isdigit() and int(key) < len(node)):
             raise ConfigError([(path, f"--set: {key!r} is not an index of this array of "
                                       f"{len(node)} tables (0 to {len(node) - 1})")])

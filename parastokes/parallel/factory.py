@@ -2,12 +2,19 @@
 
 from __future__ import annotations
 
+import numbers
+import pickle
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, TypeAlias
 
 from .mpi import make_mpi_executor
 from .processes import ProcessExecutor
 from .serial import SerialExecutor
+
+
+def _count(value: Any) -> bool:
+    """An integer >= 1 (numpy's included), not a bool."""
+    return not isinstance(value, bool) and isinstance(value, numbers.Integral) and int(value) >= 1
 
 if TYPE_CHECKING:  # the GPU backend is imported on use
     from ..gpu import GPUExecutor
@@ -59,8 +66,10 @@ def make_executor(
     """
     if kind not in KINDS:
         raise ValueError(f"unknown executor kind {kind!r}; valid kinds: {', '.join(KINDS)}")
-    if workers is not None and workers < 1:
-        raise ValueError(f"workers must be >= 1, got {workers}")
+    if workers is not None and not _count(workers):
+        raise ValueError(f"workers must be an integer >= 1 (or None), got {workers!r}")
+    if not _count(threads_per_worker):
+        raise ValueError(f"threads_per_worker must be an integer >= 1, got {threads_per_worker!r}")
     if kind != "mpi" and (comm is not None or root != 0):
         raise ValueError(f"comm and root apply to kind='mpi' only, not {kind!r}")
     if kind != "processes" and start_method is not None:
@@ -80,8 +89,14 @@ def make_executor(
         from ..gpu import GPUExecutor
 
         return GPUExecutor(workers, warmup)
-    if threads_per_worker < 1:
-        raise ValueError(f"threads_per_worker must be >= 1, got {threads_per_worker}")
+    if warmup is not None:  # (before any worker starts: an MPI pool would hang on it)
+        try:
+            pickle.dumps(warmup)
+        except Exception as error:
+            raise ValueError(
+                f"warmup must pickle to reach the workers (a module-level function, not a lambda "
+                f"or closure): {error}"
+            ) from None
     if kind == "processes":
         return ProcessExecutor(
             workers, threads_per_worker=threads_per_worker, warmup=warmup, start_method=start_method

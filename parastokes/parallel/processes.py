@@ -180,6 +180,9 @@ class ProcessExecutor(Executor):
             return tuple(future.result() for future in futures)
         except BaseException as exc:
             self._slots[2 * self.workers] = 1  # release the workers still waiting to check in
+            if not isinstance(exc, Exception):  # Ctrl-C, SIGTERM: do not wait for the warm-ups
+                for process in list(self._pool._processes.values()):
+                    process.kill()
             self._pool.shutdown(wait=True, cancel_futures=True)
             if isinstance(exc, Exception):
                 raise RuntimeError(f"starting the worker processes failed: {exc!r}") from exc
@@ -210,8 +213,14 @@ class ProcessExecutor(Executor):
         return _PoolFuture(inner, functools.partial(self._explain, task_id))
 
     def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
-        """Stop the workers once the submitted tasks are done (see ProcessPoolExecutor)."""
+        """Stop the workers once the submitted tasks are done (see ProcessPoolExecutor); with
+        ``wait``, no worker outlives the call (a pool that a dead worker broke may leave some)."""
         self._pool.shutdown(wait=wait, cancel_futures=cancel_futures)
+        if wait:
+            for process in self._processes.values():
+                if process.is_alive():
+                    process.kill()
+                    process.join(_ABORT_SECONDS)
 
     def abort(self) -> None:
         """Stop now: cancel the queued tasks, kill the workers (running tasks are lost) and

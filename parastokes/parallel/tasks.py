@@ -111,8 +111,10 @@ def _first_failure(futures: list[Future]) -> int | None:
         failed = [i for i, f in enumerate(futures) if _error(f) is not None]
         if not failed:
             return None
-        if any(_is_bystander(_error(futures[i])) for i in failed):
-            wait(futures)  # a broken pool fails every pending task at once: collect them all
+        if any(isinstance(_error(futures[i]), BrokenExecutor) for i in failed):
+            # a broken pool (a worker died) fails every pending task at once: collect them all
+            # before anything is cancelled, which would race with the pool marking them failed
+            wait(futures)
             break
         earlier = [f for f in futures[: min(failed)] if not f.done()]
         if not earlier:
