@@ -212,3 +212,25 @@ def test_no_worker_outlives_a_pool_that_a_dying_worker_broke():
 def test_bad_executor_options_are_named_before_any_worker_starts(options, named):
     with pytest.raises(ValueError, match=named):
         parallel.make_executor("processes", **options)
+
+
+@pytest.mark.timeout(60)
+def test_ctrl_c_during_start_up_does_not_wait_for_the_warm_ups():
+    """Workers ignore SIGINT: an interrupt while they warm up kills them at once (regression: it
+    waited for every warm-up, up to a minute of first compilations)."""
+    import os
+    import signal
+    import threading
+    import time
+
+    # a real SIGINT (it interrupts a blocking wait), handled as Ctrl-C even where this suite runs
+    # with SIGINT ignored (a background job)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        threading.Timer(1.0, os.kill, (os.getpid(), signal.SIGINT)).start()
+        start = time.monotonic()
+        with pytest.raises(KeyboardInterrupt):
+            parallel.make_executor("processes", 2, warmup=tasks.slow_warmup)
+        assert time.monotonic() - start < 15.0  # the warm-ups alone take 20 s
+    finally:
+        signal.signal(signal.SIGINT, previous)

@@ -61,6 +61,11 @@ def failing_warmup() -> None:
     raise OSError("no numba cache here")
 
 
+def slow_warmup() -> None:
+    """A warm-up that takes 20 s (a first compilation, say)."""
+    time.sleep(20.0)
+
+
 def pid_after(seconds: float) -> int:
     """Sleep, then return this process's pid (spreads tasks over the workers)."""
     time.sleep(seconds)
