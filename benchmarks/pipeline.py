@@ -255,7 +255,7 @@ def gantt_figures(fine_s: float, out: Path) -> None:
             )
             title = (
                 f"EMULATION (sleeping tasks): {schedule} schedule, 8 slices, 8 workers, "
-                f"alpha = 0.2, K = 2, wall {res.timings.total:.2f} s"
+                f"γ_F = {1000 * fine_s:g} ms, alpha = 0.2, K = 2, wall {res.timings.total:.2f} s"
             )
             gantt(res.timings.tasks, out / f"pipeline_gantt_{schedule}", ["png"], title)
 

@@ -2,7 +2,7 @@
 
 Run from the repository root::
 
-    PYTHONPATH=. python benchmarks/stepping.py [--repeats 7] [--threads 1] [--out PATH]
+    PYTHONPATH=. python benchmarks/stepping.py [--repeats 31] [--threads 1] [--out PATH]
 
 For one rod swimmer (M = 301, ε = 5 σ_f, wall kernels with torques), five rods (1505 points), the
 vesicle (642 points, free-space Stokeslets), a scene of the rod and the vesicle above the wall (943
