@@ -32,7 +32,7 @@ from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 
-from .files import atomic_write
+from .files import CorruptFileError, atomic_write
 
 __all__ = ["DirectoryInUse", "RunDirectory", "RunDirectoryError", "claim", "process_alive"]
 
@@ -262,7 +262,15 @@ class RunDirectory:
         return names
 
     def _roll_forward(self) -> None:
-        names = json.loads((self.staging / _COMMIT).read_text(encoding="utf-8"))["files"]
+        record = self.staging / _COMMIT
+        try:
+            names = json.loads(record.read_text(encoding="utf-8"))["files"]
+        except (OSError, ValueError, KeyError, TypeError) as error:
+            raise CorruptFileError(
+                record, f"the record of an interrupted commit cannot be read ({error})",
+                f"move the files of {self.staging} into {self.path} by hand, or remove "
+                f"{self.staging} to keep the previous results",
+            ) from None
         for name in names:
             if (self.staging / name).exists():
                 os.replace(self.staging / name, self.path / name)

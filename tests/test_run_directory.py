@@ -244,6 +244,17 @@ def test_a_commit_cut_short_is_completed_by_the_next_claim(tmp_path):
     assert (out / "trajectory.h5").read_text() == "new"
 
 
+def test_a_damaged_commit_record_is_named(tmp_path, capsys):
+    # regression: a bare JSONDecodeError at every later claim
+    path = _config(tmp_path)
+    out = tmp_path / "out"
+    (out / rundir.STAGING).mkdir(parents=True)
+    (out / rundir.STAGING / "COMMIT").write_text("{trunc")
+    assert _run(path, "--out", out, "--resume") == cli.ExitCode.CONFIG
+    err = capsys.readouterr().err
+    assert "the record of an interrupted commit cannot be read" in err and "COMMIT" in err
+
+
 @pytest.mark.parametrize("case", ["file", "under_a_file", "unwritable"])
 def test_bad_out_fails_before_any_work(tmp_path, monkeypatch, capsys, case):
     if case == "unwritable" and os.geteuid() == 0:
