@@ -36,7 +36,7 @@ def test_unknown_kind_names_the_valid_ones():
 @pytest.mark.parametrize("kind", parallel.KINDS)
 @pytest.mark.parametrize("workers", [0, -2])
 def test_fewer_than_one_worker_is_refused(kind, workers):
-    with pytest.raises(ValueError, match="workers must be >= 1"):
+    with pytest.raises(ValueError, match="workers must be an integer >= 1"):
         parallel.make_executor(kind, workers)
 
 
@@ -46,7 +46,7 @@ def test_fewer_than_one_worker_is_refused(kind, workers):
         ("serial", {"workers": 2}, "exactly 1 worker"),
         ("serial", {"threads_per_worker": 4}, "threads_per_worker does not apply"),
         ("processes", {"comm": object()}, "comm and root apply to kind='mpi' only"),
-        ("processes", {"threads_per_worker": 0}, "threads_per_worker must be >= 1"),
+        ("processes", {"threads_per_worker": 0}, "threads_per_worker must be an integer >= 1"),
         ("processes", {"start_method": "fork"}, "numba's threading layer"),
         ("mpi", {"start_method": "spawn"}, "start_method applies to kind='processes' only"),
     ],
@@ -234,3 +234,19 @@ def test_ctrl_c_during_start_up_does_not_wait_for_the_warm_ups():
         assert time.monotonic() - start < 15.0  # the warm-ups alone take 20 s
     finally:
         signal.signal(signal.SIGINT, previous)
+
+
+@pytest.mark.timeout(120)
+def test_spawned_workers_outlive_the_thread_that_started_them():
+    """With spawn, a worker's parent is the thread that started it; the kernel's parent-death
+    signal would kill the workers when that thread ends (regression: the pool broke)."""
+    import threading
+
+    made = {}
+    thread = threading.Thread(
+        target=lambda: made.update(ex=parallel.make_executor("processes", 2, start_method="spawn")))
+    thread.start()
+    thread.join()
+    with made["ex"] as ex:
+        assert sorted(ex.map(tasks.pid_after, [0.05] * 2)) and len(ex.worker_pids) == 2
+        assert list(ex.map(abs, [-1, -2])) == [1, 2]

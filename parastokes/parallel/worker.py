@@ -59,11 +59,12 @@ _PR_SET_PDEATHSIG = 1
 def die_with_parent(parent: int) -> None:
     """Make this worker end when its parent (process ``parent``) does, even on SIGKILL.
 
-    On Linux the kernel sends SIGKILL when the parent exits (``prctl(PR_SET_PDEATHSIG)``); a parent
-    that is already gone by then makes this process exit at once. A worker started by the
-    forkserver also closes the forkserver's "alive" pipe that it inherits: the forkserver exits when
-    the last holder of that pipe (now: the manager alone) is gone, and its workers with it.
-    Elsewhere nothing is done: the workers then notice the manager's end only between tasks.
+    A worker started by the forkserver closes the forkserver's "alive" pipe that it inherits (the
+    forkserver exits when the last holder of that pipe, now the manager alone, is gone), and on
+    Linux has the kernel send it SIGKILL when the forkserver exits (``prctl(PR_SET_PDEATHSIG)``);
+    a forkserver already gone by then makes it exit at once. Elsewhere (spawn, whose workers'
+    parent is the manager *thread* that started them: the signal would fire when that thread
+    ends) nothing is done: the workers then notice the manager's end only between tasks.
     SIGINT and SIGHUP are ignored: the manager handles Ctrl-C and hang-ups and stops its workers.
     """
     from multiprocessing import forkserver
@@ -72,10 +73,11 @@ def die_with_parent(parent: int) -> None:
     signal.signal(signal.SIGHUP, signal.SIG_IGN)
     server = forkserver._forkserver  # the state a forkserver child inherits (private)
     alive_fd = getattr(server, "_forkserver_alive_fd", None)
-    if alive_fd is not None:
-        os.close(alive_fd)
-        # a private attribute of ForkServer, which typeshed does not declare
-        server._forkserver_alive_fd = None  # type: ignore[attr-defined]
+    if alive_fd is None:  # not a forkserver child
+        return
+    os.close(alive_fd)
+    # a private attribute of ForkServer, which typeshed does not declare
+    server._forkserver_alive_fd = None  # type: ignore[attr-defined]
     if not sys.platform.startswith("linux"):
         return
     try:
