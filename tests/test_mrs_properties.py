@@ -285,6 +285,28 @@ def test_epsilon_per_source_matches_the_oracle_body_by_body(wall, loads, angular
         np.testing.assert_array_equal(a, b)
 
 
+@pytest.mark.parametrize("wall", [False, True], ids=["free", "wall"])
+def test_batched_epsilon_per_source_is_each_systems_own(wall):
+    """(B, N) ε with a μ per system: system b is the oracle with ε[b] and μ[b] (an index of the
+    first system's ε instead of each system's would pass the unbatched test, not this one)."""
+    rng = np.random.default_rng(5 + wall)
+    n, batch = 40, 3
+    x = np.stack([_cloud(rng, n) for _ in range(batch)])
+    f = rng.normal(size=(batch, n, 3))
+    t = rng.normal(size=(batch, n, 3))
+    eps = rng.uniform(0.1, 0.4, size=(batch, n))
+    mu = np.array([0.5, 1.0, 2.0])
+    got = mrs.velocity(x, x, f, epsilon=eps, mu=mu, torques=t, wall=wall, angular=True)
+    for b in range(batch):
+        want = [np.zeros((n, 3)), np.zeros((n, 3))]
+        for j in range(n):  # one source at a time, each with its own ε
+            u, w = ref.velocity(x[b], x[b, j:j + 1], f[b, j:j + 1], epsilon=eps[b, j], mu=mu[b],
+                                torques=t[b, j:j + 1], wall=wall, angular=True)
+            want[0] += u
+            want[1] += w
+        assert _relerr(got[0][b], want[0]) < 1e-12 and _relerr(got[1][b], want[1]) < 1e-12
+
+
 def test_epsilon_per_source_of_the_wrong_length_is_an_error():
     x = np.ones((5, 3))
     with pytest.raises(ValueError, match=r"^epsilon: one per source needs shape \(5,\)"):
