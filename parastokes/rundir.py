@@ -34,7 +34,9 @@ from pathlib import Path
 
 from .files import CorruptFileError, atomic_write
 
-__all__ = ["DirectoryInUse", "RunDirectory", "RunDirectoryError", "claim", "process_alive"]
+__all__ = [
+    "DirectoryInUse", "RunDirectory", "RunDirectoryError", "claim", "locked", "process_alive"
+]
 
 LOCK = ".parastokes.lock"
 STAGING = ".partial"
@@ -302,11 +304,13 @@ def locked(out: str | os.PathLike) -> Iterator[RunDirectory]:
     """Hold the lock of the existing run directory ``out`` without running in it (to add
     figures to its results); :class:`DirectoryInUse` while a run holds it."""
     path = Path(out)
+    if not path.is_dir():
+        raise RunDirectoryError(f"{path} is not a directory: give a run's output directory")
     try:
         record = _lock(path)
     except OSError as error:
         raise RunDirectoryError(
-            f"{path}: cannot write there ({error.strerror or error}); choose another --out"
+            f"{path}: cannot write there ({error.strerror or error})"
         ) from None
     try:
         yield RunDirectory(path)

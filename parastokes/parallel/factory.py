@@ -11,11 +11,6 @@ from .mpi import make_mpi_executor
 from .processes import ProcessExecutor
 from .serial import SerialExecutor
 
-
-def _count(value: Any) -> bool:
-    """An integer >= 1 (numpy's included), not a bool."""
-    return not isinstance(value, bool) and isinstance(value, numbers.Integral) and int(value) >= 1
-
 if TYPE_CHECKING:  # the GPU backend is imported on use
     from ..gpu import GPUExecutor
     from .mpi import MPIExecutor
@@ -25,6 +20,11 @@ if TYPE_CHECKING:  # the GPU backend is imported on use
 
 #: The kinds accepted by :func:`make_executor`.
 KINDS = ("serial", "processes", "mpi", "gpu")
+
+
+def _count(value: Any) -> bool:
+    """An integer >= 1 (numpy's included), not a bool."""
+    return not isinstance(value, bool) and isinstance(value, numbers.Integral) and int(value) >= 1
 
 
 def make_executor(
