@@ -357,7 +357,9 @@ def measured_auxiliary_ratio(summary: dict) -> float:
         return ratio
     n_auxiliary = summary["config"]["resolved"]["n_auxiliary"]
     workers = summary.get("workers") or 1
-    return ratio / math.ceil(n_auxiliary / workers)
+    from .contracts import rounds
+
+    return ratio / rounds(n_auxiliary, workers)
 
 
 def cmd_predict(args: argparse.Namespace, console: Console) -> ExitCode:

@@ -33,6 +33,7 @@ __all__ = [
     "auxiliary_count",
     "check_workers",
     "oversubscription",
+    "rounds",
     "with_executor",
 ]
 
@@ -96,6 +97,12 @@ class SizedExecutor(Protocol):
     def submit(self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> Any: ...
 
 
+def rounds(n_auxiliary: int, workers: int) -> int:
+    """The rounds in which ``workers`` workers run a coarse step's N_G = ``n_auxiliary``
+    auxiliary solves: ceil(N_G / W) (one when N_G <= W, as Algorithm 1 assumes)."""
+    return math.ceil(n_auxiliary / workers)
+
+
 def oversubscription(
     n_auxiliary: int, workers: int | None, schedule: str = "standard"
 ) -> str | None:
@@ -129,12 +136,12 @@ def check_workers(n_auxiliary: int, executor: Executor | None, allow_oversubscri
     if problem is None:
         return
     assert workers is not None  # oversubscription is None for an unknown count
-    rounds = math.ceil(n_auxiliary / workers)
     if not allow_oversubscribe:
         raise ValueError(
             f"{problem}; use at least {n_auxiliary} workers or fewer Lagrange nodes / Richardson "
             "steps, or pass allow_oversubscribe=True to batch them (each coarse step of the "
-            f"serial sweep then takes ceil({n_auxiliary}/{workers}) = {rounds} rounds)"
+            f"serial sweep then takes ceil({n_auxiliary}/{workers}) = "
+            f"{rounds(n_auxiliary, workers)} rounds)"
         )
     logger.warning(
         "N_G = %d auxiliary coarse solvers on N_c = %d workers (allow_oversubscribe=True): "

@@ -32,7 +32,7 @@ from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 
-from .files import CorruptFileError, atomic_write
+from .files import CorruptFileError, write_text
 
 __all__ = [
     "DirectoryInUse", "RunDirectory", "RunDirectoryError", "claim", "locked", "process_alive"
@@ -250,16 +250,13 @@ class RunDirectory:
     def add_results(self, names: Sequence[str]) -> None:
         """List files written beside the results (``parastokes plot DIR``'s figures) among them,
         so that the next ``--overwrite`` replaces them with the rest (hold :func:`locked`)."""
-        listed = sorted(self._previous_results() | set(names))
-        text = json.dumps({"files": listed})
-        atomic_write(self.path / MANIFEST, lambda handle: handle.write(text.encode()))
+        _write_names(self.path / MANIFEST, sorted(self._previous_results() | set(names)))
 
     def commit(self) -> list[str]:
         """Move every file of the staging directory into place, remove the previous results
         that the new ones do not replace; returns the names of the new results."""
         names = sorted(p.name for p in self.staging.iterdir() if not p.name.endswith(".tmp"))
-        text = json.dumps({"files": names})
-        atomic_write(self.staging / _COMMIT, lambda handle: handle.write(text.encode()))
+        _write_names(self.staging / _COMMIT, names)
         self._roll_forward()
         return names
 
@@ -278,9 +275,13 @@ class RunDirectory:
                 os.replace(self.staging / name, self.path / name)
         for name in self._previous_results() - set(names):
             (self.path / name).unlink(missing_ok=True)
-        text = json.dumps({"files": names})
-        atomic_write(self.path / MANIFEST, lambda handle: handle.write(text.encode()))
+        _write_names(self.path / MANIFEST, names)
         shutil.rmtree(self.staging, ignore_errors=True)
+
+
+def _write_names(path: Path, names: Sequence[str]) -> None:
+    """The record ``{"files": names}`` (the manifest, a commit's record), written atomically."""
+    write_text(path, json.dumps({"files": list(names)}))
 
 
 def _directory(out: Path) -> None:

@@ -25,7 +25,7 @@ from .. import integrate, parareal
 from ..bodies.registry import BodyResolution, Positive
 from ..config.checks import steps_on_slice
 from ..config.schema import LagrangeNodes, Richardson, Scheme
-from ..contracts import System
+from ..contracts import System, rounds
 from ..parareal import weights
 from .registry import CoarseResolution, CoarseSection
 
@@ -207,5 +207,4 @@ class Extrapolated(CoarseSection):
         stages = integrate.SCHEMES
         fine = resolved.fine_steps * stages[cfg.fine.scheme].stages * resolved.n_points**2
         slowest = max(resolved.coarse_steps) * stages[self.scheme].stages
-        waves = math.ceil(resolved.n_auxiliary / cores)
-        return waves * slowest * resolved.coarse_points**2 / fine
+        return rounds(resolved.n_auxiliary, cores) * slowest * resolved.coarse_points**2 / fine

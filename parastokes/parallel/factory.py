@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-import numbers
 import pickle
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, TypeAlias
 
+from ..values import is_integer
 from .mpi import make_mpi_executor
 from .processes import ProcessExecutor
 from .serial import SerialExecutor
@@ -20,11 +20,6 @@ if TYPE_CHECKING:  # the GPU backend is imported on use
 
 #: The kinds accepted by :func:`make_executor`.
 KINDS = ("serial", "processes", "mpi", "gpu")
-
-
-def _count(value: Any) -> bool:
-    """An integer >= 1 (numpy's included), not a bool."""
-    return not isinstance(value, bool) and isinstance(value, numbers.Integral) and int(value) >= 1
 
 
 def make_executor(
@@ -66,9 +61,9 @@ def make_executor(
     """
     if kind not in KINDS:
         raise ValueError(f"unknown executor kind {kind!r}; valid kinds: {', '.join(KINDS)}")
-    if workers is not None and not _count(workers):
+    if workers is not None and not is_integer(workers, 1):
         raise ValueError(f"workers must be an integer >= 1 (or None), got {workers!r}")
-    if not _count(threads_per_worker):
+    if not is_integer(threads_per_worker, 1):
         raise ValueError(f"threads_per_worker must be an integer >= 1, got {threads_per_worker!r}")
     if kind != "mpi" and (comm is not None or root != 0):
         raise ValueError(f"comm and root apply to kind='mpi' only, not {kind!r}")

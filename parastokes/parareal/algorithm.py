@@ -15,7 +15,6 @@ from __future__ import annotations
 import functools
 import logging
 import math
-import numbers
 import os
 import threading
 import time
@@ -30,6 +29,7 @@ import numpy as np
 from ..contracts import PropagatorLike, check_workers
 from ..contracts import with_executor as _with_executor
 from ..parallel import SerialExecutor, TaskError, run_labelled
+from ..values import is_real
 from . import checkpoint as ckpt
 from . import options
 from .metrics import Positions, relative_change
@@ -101,8 +101,7 @@ def _validate(
         raise ValueError("fine and coarse must be callables P(t_start, t_end, x) -> x")
     if isinstance(n_slices, bool) or not isinstance(n_slices, int | np.integer) or n_slices < 1:
         raise ValueError(f"n_slices must be an integer >= 1, got {n_slices!r}")
-    real = all(isinstance(t, numbers.Real) and not isinstance(t, bool) for t in (t0, t1))
-    if not (real and math.isfinite(t0) and math.isfinite(t1) and t1 > t0):
+    if not (is_real(t0) and is_real(t1) and math.isfinite(t0) and math.isfinite(t1) and t1 > t0):
         raise ValueError(f"need finite t0 < t1, got t0={t0!r}, t1={t1!r}")
     if x0.size == 0 or not np.all(np.isfinite(x0)):
         raise ValueError("x0 must be a non-empty array of finite numbers")

@@ -16,27 +16,17 @@ from __future__ import annotations
 
 import json
 import math
-import numbers
 import os
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
+from ..values import is_integer, is_real
 
 if TYPE_CHECKING:
     from .algorithm import IterationReport
 
 __all__ = ["Checkpoint", "Reporting", "Stopping", "resolve"]
-
-
-def _is_real(value: object) -> bool:
-    """A real number (numpy's included), not a bool."""
-    return not isinstance(value, bool | np.bool_) and isinstance(value, numbers.Real)
-
-
-def _is_count(value: object) -> bool:
-    return not isinstance(value, bool) and isinstance(value, int | np.integer) and bool(value >= 1)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -67,14 +57,14 @@ class Stopping:
     wall_time_limit: float | None = None
 
     def __post_init__(self) -> None:
-        if not (_is_real(self.tol) and math.isfinite(self.tol) and self.tol >= 0.0):
+        if not (is_real(self.tol) and math.isfinite(self.tol) and self.tol >= 0.0):
             raise ValueError(f"tol must be finite and >= 0, got {self.tol!r}")
-        if self.max_iterations is not None and not _is_count(self.max_iterations):
+        if self.max_iterations is not None and not is_integer(self.max_iterations, 1):
             raise ValueError(
                 f"max_iterations must be an integer >= 1 (or None), got {self.max_iterations!r}"
             )
         limit = self.wall_time_limit
-        if limit is not None and not (_is_real(limit) and limit > 0.0):
+        if limit is not None and not (is_real(limit) and limit > 0.0):
             raise ValueError(f"wall_time_limit must be positive (or None), got {limit!r}")
 
 

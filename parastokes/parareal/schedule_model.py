@@ -18,12 +18,13 @@ from __future__ import annotations
 
 import heapq
 import math
-import numbers
 import statistics
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from ..contracts import rounds
+from ..values import is_integer, is_real
 from .pipelined import AUXILIARY, FINE, priority
 
 __all__ = ["Simulation", "handover_latency", "predict_schedules", "simulate"]
@@ -120,28 +121,19 @@ class _Graph:
                         release(child, now)
 
 
-def _is_integer(value: object, least: int) -> bool:
-    return (
-        not isinstance(value, bool)
-        and isinstance(value, numbers.Integral)
-        and int(value) >= least
-    )
-
-
 def _check_workers(workers: int | None) -> None:
-    if workers is not None and not _is_integer(workers, 1):
+    if workers is not None and not is_integer(workers, 1):
         raise ValueError(f"workers must be an integer >= 1 (or None: unlimited), got {workers!r}")
 
 
 def _check(n_slices: int, iterations: int, workers: int | None, costs: dict[str, float]) -> None:
-    if not _is_integer(n_slices, 1):
+    if not is_integer(n_slices, 1):
         raise ValueError(f"n_slices must be an integer >= 1, got {n_slices!r}")
-    if not _is_integer(iterations, 0):
+    if not is_integer(iterations, 0):
         raise ValueError(f"iterations must be an integer >= 0, got {iterations!r}")
     _check_workers(workers)
     for name, value in costs.items():
-        real = isinstance(value, numbers.Real) and not isinstance(value, bool)
-        if not (real and math.isfinite(value) and value >= 0.0):
+        if not (is_real(value) and math.isfinite(value) and value >= 0.0):
             raise ValueError(f"{name} must be finite and >= 0, got {value!r}")
 
 
@@ -231,11 +223,11 @@ def predict_schedules(
     _check_workers(workers)
     rows = []
     for n_cores in cores:
-        if not _is_integer(n_cores, 1):
+        if not is_integer(n_cores, 1):
             raise ValueError(f"core counts must be integers >= 1, got {n_cores!r}")
         w = n_cores if workers is None else workers
         k = min(iterations, n_cores)
-        alpha = math.ceil(n_auxiliary / w) * coarse_cost
+        alpha = rounds(n_auxiliary, w) * coarse_cost
         row = {"cores": n_cores, "workers": w, "iterations": k, "alpha": alpha}
         row["standard_formula"] = speedup_standard(alpha, k, n_cores)
         row["pipelined_formula"] = speedup_pipelined(alpha, k, n_cores)

@@ -26,14 +26,14 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 
 from .. import integrate, parareal
+from ..contracts import rounds
 from .space import Settings
 
 __all__ = ["caution", "contraction", "estimated_ratio", "gamma_ratio", "predicted_errors",
-           "predicted_iterations", "screened_errors", "speedup", "waves"]
+           "predicted_iterations", "screened_errors", "speedup"]
 
 
 def caution(iterations: int | None, measured: int, contraction: float | None) -> str | None:
@@ -49,11 +49,6 @@ def caution(iterations: int | None, measured: int, contraction: float | None) ->
             f"{iterations} iterations in a real run")
 
 
-def waves(n_auxiliary: int, cores: int) -> int:
-    """Rounds of auxiliary solvers per coarse call: ceil(N_G / cores)."""
-    return math.ceil(n_auxiliary / cores)
-
-
 def _step_counts(settings: Settings, slice_length: float) -> list[int]:
     assert settings.dt is not None  # (the search costs candidates once their step is set)
     r = settings.r or 1.0
@@ -67,7 +62,7 @@ def gamma_ratio(
     counts = _step_counts(settings, slice_length)
     n_theta = settings.n_auxiliary // (settings.m + 1)
     slowest = coarse_seconds * max(counts) / (n_theta * sum(counts))
-    return waves(settings.n_auxiliary, cores) * slowest / gamma_f
+    return rounds(settings.n_auxiliary, cores) * slowest / gamma_f
 
 
 def estimated_ratio(
@@ -84,7 +79,7 @@ def estimated_ratio(
     stages = integrate.SCHEMES[settings.scheme].stages
     fine = fine_steps * integrate.SCHEMES[fine_scheme].stages * points**2
     slowest = max(_step_counts(settings, slice_length)) * stages * coarse_points**2
-    return waves(settings.n_auxiliary, cores) * slowest / fine
+    return rounds(settings.n_auxiliary, cores) * slowest / fine
 
 
 def predicted_errors(

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import heapq
 import math
-import numbers
 import signal
 import time
 from collections.abc import Callable
@@ -34,6 +33,7 @@ from .. import integrate
 from ..contracts import System
 from ..parallel import TaskError
 from ..parareal.transfer import Transfer
+from ..values import is_integer, is_real
 from . import cost, stability
 from .pilot import Pilot, Screen
 from .space import Settings, Space, TuningError, reach_table
@@ -215,25 +215,20 @@ class TuneResult:
         return out
 
 
-def _is_integer(value: Any) -> bool:
-    return not isinstance(value, bool) and isinstance(value, numbers.Integral)
-
-
 def _check_input(cores: Any, target: Any, n_slices: Any, t0: float, t1: float,
                  budget: Any, pilot_slices: Any) -> None:
-    if not _is_integer(cores) or cores < 1:
+    if not is_integer(cores, 1):
         raise TuningError(f"cores must be an integer >= 1, got {cores!r}")
-    if not _is_integer(n_slices) or n_slices < 2:
+    if not is_integer(n_slices, 2):
         raise TuningError(f"n_slices must be an integer >= 2 (Parareal needs two slices), got "
                           f"{n_slices!r}")
     if not (isinstance(target, int | float) and 0.0 < target < 1.0):
         raise TuningError(f"target: the relative error η* must lie in (0, 1), got {target!r}")
     if not t1 > t0:
         raise TuningError(f"t1 must exceed t0, got [{t0}, {t1}]")
-    real = isinstance(budget, numbers.Real) and not isinstance(budget, bool)
-    if budget is not None and not (real and budget > 0):
+    if budget is not None and not (is_real(budget) and budget > 0):
         raise TuningError(f"budget must be a positive number of seconds, got {budget!r}")
-    if pilot_slices is not None and not (_is_integer(pilot_slices)
+    if pilot_slices is not None and not (is_integer(pilot_slices)
                                          and 2 <= pilot_slices <= n_slices):
         raise TuningError(f"pilot_slices must lie in [2, n_slices = {n_slices}], got "
                           f"{pilot_slices}")
