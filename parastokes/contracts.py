@@ -136,12 +136,12 @@ def check_workers(n_auxiliary: int, executor: Executor | None, allow_oversubscri
     if problem is None:
         return
     assert workers is not None  # oversubscription is None for an unknown count
+    n_rounds = rounds(n_auxiliary, workers)
     if not allow_oversubscribe:
         raise ValueError(
             f"{problem}; use at least {n_auxiliary} workers or fewer Lagrange nodes / Richardson "
             "steps, or pass allow_oversubscribe=True to batch them (each coarse step of the "
-            f"serial sweep then takes ceil({n_auxiliary}/{workers}) = "
-            f"{rounds(n_auxiliary, workers)} rounds)"
+            f"serial sweep then takes ceil({n_auxiliary}/{workers}) = {n_rounds} rounds)"
         )
     logger.warning(
         "N_G = %d auxiliary coarse solvers on N_c = %d workers (allow_oversubscribe=True): "
@@ -150,7 +150,7 @@ def check_workers(n_auxiliary: int, executor: Executor | None, allow_oversubscri
         workers,
         n_auxiliary,
         workers,
-        rounds,
+        n_rounds,
     )
 
 
