@@ -290,3 +290,42 @@ def test_default_names_are_those_a_scene_gives_in_python():
         "rod", "cloud", "chain0", "chain1"]
     scene = Scene((ChainSystem(n_beads=4), ChainSystem(n_beads=4, height=2.0)), viscosity=1.0)
     assert list(scene.names) == _default_names(["chain", "chain"])
+
+
+def tracking(text: str, tracked: str) -> str:
+    """``text`` with ``output.tracked_points = tracked``."""
+    return text.replace("[output]\n", f"[output]\ntracked_points = {tracked}\n", 1)
+
+
+def test_tracked_points_of_a_scene_are_given_by_body_and_marked_at_that_body():
+    two = ROD + VESICLE + VESICLE.replace("[3.0, 2.5, 3.0]", "[3.0, -2.5, 3.0]")
+    cfg, resolved = loads(tracking(scene_text(bodies=two, lagrange="{}"), "{vesicle1 = [0, 41]}"))
+    system = build(cfg, resolved).system
+    parts = cfg.model.layout(system, False, cfg.output.tracked_points)
+    layout = {part.name: part for part in parts}
+    np.testing.assert_array_equal(np.flatnonzero(layout["vesicle1"].marks["tracked"]), [0, 41])
+    default = cfg.model.bodies[1].layout(system.bodies[1], False, None)[0].marks["tracked"]
+    np.testing.assert_array_equal(layout["vesicle0"].marks["tracked"], default)  # left out
+    assert len(np.flatnonzero(default)) == 3
+    assert not layout["rod"].marks
+    # [] marks none of that body's points
+    none = cfg.model.layout(system, False, {"vesicle0": []})
+    assert not next(p for p in none if p.name == "vesicle0").marks["tracked"].any()
+
+
+@pytest.mark.parametrize(
+    ("tracked", "fragment"),
+    [("[0, 5]", "give a table, e.g. {vesicle = [0, 5]}"),
+     ("{vesicel = [0]}", "no body is named 'vesicel'; the bodies that mark points: vesicle"),
+     ("{rod = [0]}", "rod: a rod model marks no points"),
+     ("{vesicle = [42]}", "vesicle: indices must be below 42, got 42")],
+    ids=["list", "unknown body", "rod", "index"],
+)
+def test_bad_tracked_points_of_a_scene_are_named(tracked, fragment):
+    found = issues(tracking(scene_text(lagrange="{}"), tracked))
+    assert fragment in found["output.tracked_points"]
+
+
+def test_a_table_of_tracked_points_for_one_body_is_named():
+    found = issues(small_rod(rest="[output]\ntracked_points = {rod = [0]}\n"))
+    assert "a table by body name is for scenes" in found["output.tracked_points"]

@@ -62,6 +62,9 @@ ENTRY_POINT_GROUP = "parastokes.bodies"
 #: ``trajectory.h5`` (:class:`parastokes.io.TrajectoryWriter`).
 RESERVED_NAMES = ("time",)
 
+#: ``output.tracked_points``: point indices of one body, or by body name in a scene.
+Tracked = Sequence[int] | Mapping[str, Sequence[int]] | None
+
 #: A finite number > 0 (for config fields).
 Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 
@@ -126,9 +129,22 @@ class BodySection(BaseModel):
         """Whether ``output.tracked_points`` applies (its kind's ``tracks_points``)."""
         return get(self.kind).tracks_points
 
-    def layout(self, system: System, frames: bool, tracked: Sequence[int] | None
-               ) -> list[BodyLayout]:
+    def tracked_issues(self, tracked: Tracked, n_points: int) -> list[str]:
+        """What is wrong with ``output.tracked_points = tracked`` for this body of ``n_points``
+        rows (empty if nothing): a list of point indices, for a kind that marks points."""
+        if isinstance(tracked, Mapping):
+            return ["a table by body name is for scenes ([[bodies]]); give a list of point "
+                    "indices, e.g. [0, 5]"]
+        if tracked and not self.tracks_points():
+            return [f"a {self.kind} model marks no points (vesicles only)"]
+        if tracked and max(tracked) >= n_points:
+            return [f"indices must be below {n_points}, got {max(tracked)}"]
+        return []
+
+    def layout(self, system: System, frames: bool, tracked: Tracked) -> list[BodyLayout]:
         """The output layout of ``system`` built from this section (its kind's ``layout``)."""
+        if isinstance(tracked, Mapping):
+            raise TypeError(self.tracked_issues(tracked, 0)[0])
         return get(self.kind).layout(self, system, frames, tracked)
 
 

@@ -203,14 +203,8 @@ def resolve(cfg: Config, source: str = "") -> Resolved:
                 f"got {every}",
             )
         )
-    tracked = cfg.output.tracked_points
-    if tracked:
-        if not model.tracks_points():
-            issues.append(
-                ("output.tracked_points", f"a {model.kind} model marks no points (vesicles only)")
-            )
-        elif max(tracked) >= n_points:
-            issues.append(("output.tracked_points", f"indices must be below {n_points}"))
+    issues += [("output.tracked_points", issue)
+               for issue in model.tracked_issues(cfg.output.tracked_points, n_points)]
 
     workers = _workers(cfg, coarse.n_auxiliary, issues, warnings)
     if issues:

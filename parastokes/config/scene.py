@@ -18,7 +18,7 @@ all bodies with their rows offset, and it builds a :class:`~parastokes.scene.Sce
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
+from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, SerializeAsAny, ValidationError
@@ -30,6 +30,7 @@ from ..bodies.registry import (
     BodyResolution,
     BodySection,
     Positive,
+    Tracked,
 )
 from ..contracts import System
 from .errors import from_validation_error
@@ -93,7 +94,27 @@ class SceneModel(BodySection):
         return "absolute", {}
 
     def tracks_points(self) -> bool:
-        return False
+        return any(body.tracks_points() for body in self.bodies)
+
+    def tracked_issues(self, tracked: Tracked, n_points: int) -> list[str]:
+        """A table by body name, each body's indices checked by its own section (bodies left
+        out keep their kind's default points)."""
+        marking = [n for n, body in zip(self.names, self.bodies, strict=True)
+                   if body.tracks_points()]
+        example = f"{{{marking[0] if marking else 'vesicle0'} = [0, 5]}}"
+        if not isinstance(tracked, Mapping):
+            return [] if tracked is None else [
+                f"a scene names the body of its points: give a table, e.g. {example}"]
+        out = []
+        for name, indices in tracked.items():
+            if name not in self.names:
+                out.append(f"no body is named {name!r}; the bodies that mark points: "
+                           f"{', '.join(marking) or 'none (vesicles only)'}")
+                continue
+            body = self.bodies[self.names.index(name)]
+            out += [f"{name}: {issue}"
+                    for issue in body.tracked_issues(indices, body.resolve().n_points)]
+        return out
 
     def tables(self) -> dict[str, Any]:
         """``[scene]`` and one ``[[bodies]]`` table per body, named."""
@@ -102,16 +123,20 @@ class SceneModel(BodySection):
                   for name, body in zip(self.names, self.bodies, strict=True)]
         return {"scene": fluid, "bodies": bodies}
 
-    def layout(self, system: System, frames: bool, tracked: Sequence[int] | None
-               ) -> list[BodyLayout]:
-        """Every body's layout, rows offset by the bodies before it, named after its body."""
+    def layout(self, system: System, frames: bool, tracked: Tracked) -> list[BodyLayout]:
+        """Every body's layout, rows offset by the bodies before it, named after its body;
+        ``tracked``: the marked points by body name (bodies left out: their kind's default)."""
         from ..scene import Scene
 
         if not isinstance(system, Scene):
             raise TypeError(f"a scene's layout needs a Scene, got {type(system).__name__}")
+        issues = self.tracked_issues(tracked, 0)
+        if issues:
+            raise TypeError(issues[0])
+        by_body = tracked if isinstance(tracked, Mapping) else {}
         out, first = [], 0
         for name, section, body in zip(self.names, self.bodies, system.bodies, strict=True):
-            parts = section.layout(body, frames, None)
+            parts = section.layout(body, frames, by_body.get(name))
             for part in parts:
                 label = name if len(parts) == 1 else f"{name}_{part.name}"
                 out.append(dataclasses.replace(part, name=label, first=first + part.first))

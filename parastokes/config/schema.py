@@ -121,6 +121,10 @@ class Execution(_Section):
     )
 
 
+#: A point index (``output.tracked_points``).
+Index = Annotated[int, Field(ge=0)]
+
+
 class Output(_Section):
     """What a run writes to its output directory."""
 
@@ -137,8 +141,11 @@ class Output(_Section):
     formats: list[Literal["png", "pdf"]] = Field(
         ["png", "pdf"], min_length=1, description="Figure file formats."
     )
-    tracked_points: list[Annotated[int, Field(ge=0)]] | None = Field(
-        None, description="Vesicle points highlighted in the pictures (Fig. 11); default three."
+    tracked_points: list[Index] | dict[str, list[Index]] | None = Field(
+        None,
+        description="Vesicle points marked in the output and highlighted in the pictures "
+        "(Fig. 11); default three. A scene gives a table by body name, e.g. "
+        "{vesicle0 = [0, 5]}; its bodies left out keep the default, [] marks none.",
     )
 
 
