@@ -49,8 +49,8 @@ Two more things the loader understands:
 - `--set KEY=VALUE` on the command line (repeatable) overrides any key with a TOML value, e.g.
   `--set parareal.n_slices=8 --set fine.scheme='"rk4"'`. The value replaces what is at the key,
   a whole table included (`--set 'coarse.lagrange={}'` removes every Lagrange node). KEY is a
-  TOML dotted key: quote a part that holds a dot, and index `[[bodies]]` tables by number, e.g.
-  `--set 'coarse.lagrange."rod.epsilon"=[5.5, 5.6]' --set bodies.1.subdivisions=2`.
+  TOML dotted key: quote a part that holds a dot or `=`, and index `[[bodies]]` tables by
+  number, e.g. `--set 'coarse.lagrange."rod.epsilon"=[5.5, 5.6]' --set bodies.1.subdivisions=2`.
 
 Several bodies in one fluid (a scene, `parastokes.scene.Scene`): instead of `[model]`, one
 `[[bodies]]` table per body, each a section of its kind (the `model (kind = ...)` sections below)

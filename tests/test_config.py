@@ -200,6 +200,11 @@ def test_an_override_replaces_a_table_and_reaches_quoted_and_indexed_keys():
         "bodies.1.n_beads=7", 'coarse.lagrange."chain1.bending"=[0.8, 0.9]'])
     assert [body.n_beads for body in cfg.model.bodies] == [5, 7]
     assert resolved.lagrange == {"chain1.bending": [0.8, 0.9]}
+    # a quoted key part may hold "=" (a body named "a=b"); the first "=" outside quotes splits
+    named = scene.replace("n_beads = 6\n", "n_beads = 6\nname = 'a=b'\n")
+    _, resolved = config.loads(named, overrides=['coarse.lagrange."a=b.bending"=[0.8, 0.9]'])
+    assert resolved.lagrange == {"a=b.bending": [0.8, 0.9]}
+    assert config.apply_overrides({}, ['x."y\\"=z".w = "u=v"']) == {"x": {'y"=z': {"w": "u=v"}}}
     for bad, fragment in (("bodies.2.n_beads=7", "not an index"), ("a..b=1", "dotted key")):
         with pytest.raises(ConfigError, match=fragment):
             config.loads(scene, overrides=[bad])

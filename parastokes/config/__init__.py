@@ -130,13 +130,29 @@ def _assign(node: Any, keys: list[str], value: Any, path: str) -> Any:
     return table
 
 
+def _split(item: str) -> tuple[str, str, str]:
+    """``item`` split at its first ``=`` outside a quoted key part (``a."b=c"=1``)."""
+    quote, escaped = "", False
+    for i, char in enumerate(item):
+        if quote:
+            if char == quote and not escaped:
+                quote = ""
+            escaped = not escaped and quote == '"' and char == "\\"
+        elif char in "\"'":
+            quote = char
+        elif char == "=":
+            return item[:i], "=", item[i + 1:]
+    return item, "", ""
+
+
 def apply_overrides(data: dict[str, Any], overrides: Iterable[str]) -> dict[str, Any]:
     """``data`` with ``"section.key=value"`` assignments (values in TOML syntax) applied: the
     value replaces what is at the key, a table included (``coarse.lagrange={}`` removes every
-    node). The key is a TOML dotted key: quoted parts hold dots, digits index arrays of tables."""
+    node). The key is a TOML dotted key: quoted parts hold dots and ``=``, digits index arrays
+    of tables."""
     out = data
     for item in overrides:
-        path, sep, text = item.partition("=")
+        path, sep, text = _split(item)
         path = path.strip()
         if not sep or not path:
             raise ConfigError([(path, f"--set expects KEY=VALUE, got {item!r}")])
