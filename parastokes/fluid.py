@@ -1,8 +1,9 @@
 """The fluid as a value: what turns the point loads of the bodies into velocities.
 
 A system's rates are the background flow plus ``fluid.velocity(points, forces, epsilon=ε,
-torques=..., angular=...)`` of its loads (eq. 6; with torques the rotlets, physics.md (2)-(4); with
-``wall`` the images of (5)-(8)). Two implementations compute the same numbers, bit for bit:
+torques=..., angular=...)`` of its loads (eq. 6; with torques the rotlets, docs/physics.md
+(2)-(4); with ``wall`` the images of (5)-(8)). Two implementations compute the same numbers, bit
+for bit:
 
 - :class:`MRS`: regularized Stokeslets through :func:`parastokes.mrs.velocity`, the targets in
   tiles over ``n_threads`` numba threads (the threaded spatial parallelization of Remark 1);

@@ -1,7 +1,7 @@
 """Explicit Runge-Kutta time stepping over the System interface (docs/contracts.md).
 
 A scheme is a Butcher tableau applied through ``system.rates`` and ``system.advance`` only, so one
-implementation serves every body type (physics.md section 3, "Time stepping"):
+implementation serves every body type (docs/physics.md section 3, "Time stepping"):
 
 - stage states are built from the *old* state with ``advance(x, sum_j a_ij k_j, dt)``;
 - the step ends with ``advance(x, sum_j b_j k_j, dt)``.
@@ -9,7 +9,7 @@ implementation serves every body type (physics.md section 3, "Time stepping"):
 For positions ``advance`` is ``x + dt * rate``, which makes this the classical Runge-Kutta
 method. For rod frames ``advance`` is the exact rotation by ``dt * |w|`` about ``w`` (eq. 13),
 which makes it a Runge-Kutta-Munthe-Kaas (RKMK) method on SO(3). RKMK needs no correction up to
-order 2, so forward Euler and RK2 (Heun, exactly as physics.md describes: predict with Euler,
+order 2, so forward Euler and RK2 (Heun, exactly as docs/physics.md describes: predict with Euler,
 evaluate at ``t + dt``, advance the old state by the averaged rates) are plain tableaux. Order 4
 on SO(3) needs two commutator terms (Munthe-Kaas 1999; Hairer, Lubich & Wanner, *Geometric
 Numerical Integration*, section IV.8):
@@ -417,9 +417,9 @@ def largest_stable_step(
     Bisects geometrically on runs of length ``t_span`` (steps of exactly dt, see
     :func:`is_stable`) until the bracket is narrower than ``rtol``: the result passes and a step at
     most ``result * (1 + rtol)`` failed. The paper picks its coarse steps "close to the largest time
-    step permitted" (section 5.1.1, Fig. 3) with the limits of physics.md (rod length 1%, vesicle
-    area 0.01%). ``dt_lo`` must pass
-    (ValueError otherwise); if ``dt_hi`` passes it is returned with a warning.
+    step permitted" (section 5.1.1, Fig. 3) with the limits of docs/physics.md (rod length 1%,
+    vesicle area 0.01%). ``dt_lo`` must pass (ValueError otherwise); if ``dt_hi`` passes it is
+    returned with a warning.
     """
     if not 0 < dt_lo < dt_hi:
         raise ValueError(f"dt_lo, dt_hi: need 0 < dt_lo < dt_hi, got {dt_lo}, {dt_hi}")

@@ -3,7 +3,7 @@
 ``Scene(bodies=(rod, vesicle), viscosity=1e-6, wall=True)`` couples its bodies through the fluid:
 every body's point loads (forces, and torques for rods) drive the velocity at the points of all
 bodies, each source with its own body's ε (regularized Stokeslets and rotlets, eq. 6 and
-physics.md (1)-(8); ``wall``: images in the plane z = 0), plus the background shear
+docs/physics.md (1)-(8); ``wall``: images in the plane z = 0), plus the background shear
 u∞ = (γ̇ z, 0, 0) with its rotation w∞ = (0, γ̇/2, 0) for bodies with frames.
 
 - **State**: the bodies' states stacked by rows, padded with zero columns to the widest (a rod's

@@ -155,11 +155,12 @@ def test_the_compiled_loop_is_chosen_by_the_exact_types_never_inherited():
         assert registry.compiled_loop(blocked) is None
 
 
-@pytest.mark.parametrize("torqued", [False, True])
+@pytest.mark.parametrize("torqued", ["none", "zero", "random"])
 def test_the_compiled_fluid_takes_torques_of_bodies_without_angular_rates(torqued):
     # Scene.rates passes the torques of a body whose rates have no w to mrs.velocity (they drive
     # the fluid); the compiled loops' fluid must take them too, bit for bit, and keep the
-    # force-only kernel when there are none
+    # force-only kernel when there are none or all are zero (regression: mrs.velocity took the
+    # full kernel for zero torques, the compiled fluid the force-only one; bits differed)
     from parastokes.mrs import compiled
     from parastokes.mrs.velocity import EIGHT_PI
     from parastokes.stepping.fluid import fluid_workspace, velocity_into
@@ -167,7 +168,7 @@ def test_the_compiled_fluid_takes_torques_of_bodies_without_angular_rates(torque
     rng = np.random.default_rng(3)
     x = rng.normal(size=(17, 3))
     forces = rng.normal(size=(17, 3))
-    torques = rng.normal(size=(17, 3)) if torqued else None
+    torques = {"none": None, "zero": np.zeros((17, 3)), "random": rng.normal(size=(17, 3))}[torqued]
     starts = compiled.tile_starts(compiled.padded_size(17), 1)
     work = fluid_workspace(17, starts[-1])
     work[2][0] = forces

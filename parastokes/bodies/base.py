@@ -3,7 +3,8 @@
 - :class:`FluidBody`: the ``fluid`` value of a body from its ``viscosity``, ``wall``, ``n_threads``
   and ``target_blocks`` (:mod:`parastokes.fluid`), and its compiled loop if its type has one;
 - :class:`PointsInShear`: points moved by the fluid under the forces they exert, in the shear flow
-  u∞ = (γ̇ z, 0, 0) (physics.md (15)): the base of the vesicle, the chain and users' point bodies;
+  u∞ = (γ̇ z, 0, 0) (docs/physics.md (15)): the base of the vesicle, the chain and users' point
+  bodies;
 - :func:`replace_params`: ``with_params`` for a frozen dataclass system;
 - :func:`require_positive`: the input check of a system's positive scalars.
 """
@@ -58,8 +59,8 @@ class FluidBody:
 
 class PointsInShear(FluidBody):
     """Points that move with the fluid under the forces ``forces(state)`` they exert (no frames,
-    no torques), in the background shear u∞ = (γ̇ z, 0, 0), γ̇ = ``shear_rate`` (physics.md (15)).
-    The state is the positions, ``project`` the identity."""
+    no torques), in the background shear u∞ = (γ̇ z, 0, 0), γ̇ = ``shear_rate``
+    (docs/physics.md (15)). The state is the positions, ``project`` the identity."""
 
     #: Rates are velocities only (no angular part); for :class:`parastokes.scene.Scene`.
     angular: ClassVar[bool] = False

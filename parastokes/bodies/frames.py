@@ -1,4 +1,4 @@
-"""Orthonormal frames: Rodrigues rotations and re-orthonormalization (physics.md (9), (13)).
+"""Orthonormal frames: Rodrigues rotations and re-orthonormalization (docs/physics.md (9), (13)).
 
 A rod state has one row per node, ``[X(3), D1(3), D2(3), D3(3)]`` (docs/contracts.md). Everything
 here is compiled with numba and loops over rows inside the compiled code.

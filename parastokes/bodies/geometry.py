@@ -1,4 +1,5 @@
-"""Initial shapes: straight rods (paper section 5.1) and icospheres (section 5.2; physics.md 4).
+"""Initial shapes: straight rods (paper section 5.1) and icospheres (section 5.2; docs/physics.md
+section 4).
 
 - :func:`straight_rods`: rods X(s) = (s, y_j, height), s = k Δs, with frames D1 = e_y, D2 = e_z,
   D3 = e_x (the tangent), parallel and side by side in y (Table 2; section 5.1.4).
@@ -6,7 +7,7 @@
   through edge midpoints projected onto the sphere; level 3 has 642 vertices, 1280 triangles and
   1920 edges (l_max ≈ 0.165). Triangles are oriented with outward normals.
 - :func:`mesh_edges`, :func:`edge_lengths`, :func:`surface_area`: mesh quantities used by the spring
-  network (eq. 14 of physics.md) and the vesicle's area monitor.
+  network (eq. 14 of docs/physics.md) and the vesicle's area monitor.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from scipy.spatial import ConvexHull
 @njit(cache=True)
 def crossed_wall(x: np.ndarray, wall: bool) -> bool:
     """Whether a point of the state ``x`` (positions in columns 0-2) is on or below the wall
-    z = 0 when there is one: the images of the method are valid for z > 0 only (physics.md), so
+    z = 0 when there is one: the images of the method are valid for z > 0 only (docs/physics.md), so
     the bodies' monitors report such a state as infinitely unstable."""
     if wall:
         for i in range(x.shape[0]):

@@ -47,7 +47,7 @@ def velocity_kernels(tx: int, sy: int) -> tuple:
       ``out`` (B, M, >= 6) gets u in columns 0-2 and w in 3-5, divided by 8πμ; ε, 8πμ and the
       status of member b are ``mf[b, EPS]``, ``mf[b, DENOM]``, ``mi[b, STATUS]``.
     - ``free_u_f[grid, block](x, y, f, mf, mi, shear, out)``: u from forces in free space (eq. 6)
-      plus the shear flow (shear · z, 0, 0) (physics.md (15)), into columns 0-2.
+      plus the shear flow (shear · z, 0, 0) (docs/physics.md (15)), into columns 0-2.
 
     Launch with :func:`launch_shape`. Compiled on first use, once per process and ``(tx, sy)``
     (not cached on disk: numba's cache does not key closures on their constants).

@@ -175,7 +175,7 @@ def _body_kernels(kind: str, threads: int) -> tuple:
 
     @jit
     def vesicle_loads(x, b, t, tid, theta, body, f, tq):
-        """Spring forces at the vertices of member b (physics.md (14)), each vertex summing its
+        """Spring forces at the vertices of member b (docs/physics.md (14)), each vertex summing its
         springs in edge order, as ``kinds.vesicle.mechanics.spring_forces`` does."""
         offsets, incident, edges, rest = body[0], body[1], body[2], body[3]
         two = cuda.local.array((2, 3), float64)

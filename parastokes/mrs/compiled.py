@@ -125,7 +125,7 @@ def _rsqrt3(d):
 def _free_pair(rx, ry, rz, e2, fx, fy, fz, nx, ny, nz, phi):
     """8π × (u, w) at r from a force f and a torque n in free space ([1]-[4]); with ``phi``, the
     torque parts of variant Φ instead (the blob φ_ε for them too: u = ½ Q n × r,
-    w = ¼ [D1 n + D2 (n·r) r], physics.md section 1)."""
+    w = ¼ [D1 n + D2 (n·r) r], docs/physics.md section 1)."""
     r2 = rx * rx + ry * ry + rz * rz
     inv = _rsqrt(r2 + e2)
     inv2 = inv * inv
@@ -165,7 +165,7 @@ def _wall_pair(rx, ry, z, h, e2, fx, fy, fz, nx, ny, nz):
         w = B1 (f × r) + B2 (f × e3) + B3 n + B4 r + B5 e3,
 
     so each pair costs one contraction per output component instead of one per formula. The
-    scalar coefficients are those of physics.md (1)-(8) regrouped and simplified with
+    scalar coefficients are those of docs/physics.md (1)-(8) regrouped and simplified with
     1/R_ε³ = (|R|² + ε²)/R_ε⁵ and R3 - h = z, which collapses several of them: A4 = 6ε² z/R_ε⁵,
     A5 = 2h (Q6 - 6ε² z fz/R_ε⁵), B2 = 6h (z K/R_ε⁷ - 1/R_ε³), and the f × r part of B5 becomes
     6hz (2|R|² + 7ε²)/R_ε⁷ (derivation in docs/kernels.md). 140 vector operations per pair in

@@ -59,7 +59,7 @@ def rotlet_curl(r: np.ndarray, n: np.ndarray, eps: float) -> np.ndarray:
 
 
 def rotlet_phi(r: np.ndarray, n: np.ndarray, eps: float) -> np.ndarray:
-    """Torque -> velocity with the blob φ_ε (variant Φ of physics.md section 1): ½ Q n × r
+    """Torque -> velocity with the blob φ_ε (variant Φ of docs/physics.md section 1): ½ Q n × r
     (times μ)."""
     r2 = _dot(r, r)
     q = (2 * r2 + 5 * eps**2) / (EIGHT_PI * (r2 + eps**2) ** 2.5)
@@ -77,7 +77,7 @@ def rotlet_phi_curl(r: np.ndarray, n: np.ndarray, eps: float) -> np.ndarray:
 
 
 def _image_geometry(targets: np.ndarray, sources: np.ndarray, eps: float):
-    """R = x - y*, h, R3 = z + h, R², R_ε (section 2 of physics.md), all (M, N[, 3])."""
+    """R = x - y*, h, R3 = z + h, R², R_ε (section 2 of docs/physics.md), all (M, N[, 3])."""
     h = np.broadcast_to(sources[None, :, 2], (targets.shape[0], sources.shape[0]))
     img = sources * np.array([1.0, 1.0, -1.0])
     big_r = _pairs(targets, img)

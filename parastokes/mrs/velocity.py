@@ -168,7 +168,8 @@ def velocity(
     sources : (N, 3) or (B, N, 3) array
         Positions of the point forces.
     forces, torques : (N, 3) or (B, N, 3) arrays
-        Point forces (and torques) exerted on the fluid, same shape as ``sources``.
+        Point forces (and torques) exerted on the fluid, same shape as ``sources``. Torques that
+        are all zero count as none (without ``wall`` or ``angular``: the force-only kernel).
     epsilon, mu : float, or (B,) arrays for batched input
         Regularization parameter ε > 0 and viscosity μ > 0 (one per system when batched).
         ``epsilon`` may also be one per source, (N,) or (B, N): each source's blob has its own
@@ -181,7 +182,7 @@ def velocity(
         The blob of the torque parts. ``"psi"`` (default, "variant L", the paper's authors'
         choice): ψ_ε = 3ε²/(4π r_ε⁵), regularized rotlet [3] and potential dipole [4], free and
         above the wall. ``"phi"`` ("variant Φ"): the force blob φ_ε for the torques too, u = ½ Q
-        n × r and w = ¼ [D1 n + D2 (n·r) r] (physics.md section 1); free space only.
+        n × r and w = ¼ [D1 n + D2 (n·r) r] (docs/kernels.md, variant Φ); free space only.
     n_threads : int, optional
         Threads over target tiles (default 1). Results are bit-identical for any thread count.
     check : bool
@@ -221,7 +222,9 @@ def velocity(
     padded = compiled.padded_size(m)
     tp = _soa(t3, padded)
     denom = EIGHT_PI * visc
-    fast = torques is None and not wall and not angular  # u from f in free space only
+    # u from f in free space only; torques that are all zero count as none (as in the
+    # compiled loops' fluid, parastokes.stepping.fluid), so both give the same bits
+    fast = not wall and not angular and (torques is None or not np.any(torques))
     u = np.empty((nb, m, 3))
     w = None if fast else np.empty((nb, m, 3))
     with kernel_threads(n_threads) as n:

@@ -13,7 +13,7 @@ length b, unit tangents t̂_i. The elastic energy is
 and the force each bead exerts on the fluid is F_i = -∂E/∂X_i plus an optional uniform external
 load (e.g. its weight). The beads move with the fluid: u(X_i) = u∞(X_i) + Σ_j S_ε(X_i, X_j) F_j,
 the regularized Stokeslets of eq. 6 (free space, or above the plane wall z = 0 with images), with
-the background shear u∞ = (γ̇ z, 0, 0) as for the vesicle (physics.md (15)). Θ = (ε, μ, k, κ).
+the background shear u∞ = (γ̇ z, 0, 0) as for the vesicle (docs/physics.md (15)). Θ = (ε, μ, k, κ).
 """
 
 from __future__ import annotations

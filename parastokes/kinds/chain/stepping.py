@@ -7,7 +7,7 @@ the same order, so the loops give the same bits:
 - loads: :func:`.mechanics.chain_forces` plus the external load on every bead;
 - rates: the loads, the fluid's velocity as :class:`parastokes.fluid.MRS` computes it
   (:func:`parastokes.stepping.fluid.velocity_into`: free-space Stokeslets, or with the wall's
-  images), plus the shear flow γ̇ z e_x (physics.md (15));
+  images), plus the shear flow γ̇ z e_x (docs/physics.md (15));
 - advance: ``x + dt * rates``; no bracket (positions commute);
 - monitor: :func:`.mechanics.bond_strain`.
 

@@ -1,17 +1,18 @@
-"""The discrete Kirchhoff rod (paper section 5.1; physics.md section 3; Lim et al. 2008).
+"""The discrete Kirchhoff rod (paper section 5.1; docs/physics.md section 3; Lim et al. 2008).
 
 :func:`rod_loads` computes, for any number of rods stored one after the other in a state
 array ``(n_rods * M, 12)`` of rows ``[X, D1, D2, D3]``, the point forces and torques that the rods
 exert on the fluid. For each half point k+½ (k = 0..M-2) of each rod it forms
 
 - the half-point frame D_i^{k+½} = sqrt(A_k) D_i^k, A_k = Σ_i D_i^{k+1} (D_i^k)^T, as the rotation
-  by half the angle of A_k about its axis (physics.md (9)); the axis-angle of A_k comes from
+  by half the angle of A_k about its axis (docs/physics.md (9)); the axis-angle of A_k comes from
   v = ½ Σ_i D_i^k × D_i^{k+1} = sin θ e and tr A_k = 1 + 2 cos θ, and the half rotation (cosine
   ½ sqrt(tr A_k + 1), sine |v| over twice that) is applied with Rodrigues' formula;
-- the strains Ω_i (paper eq. 10; physics.md (10));
-- the moment N and force F (paper eq. 11; physics.md (11)) with the preferred strain Ω̂ (eq. 36);
+- the strains Ω_i (paper eq. 10; docs/physics.md (10));
+- the moment N and force F (paper eq. 11; docs/physics.md (11)) with the preferred strain Ω̂
+  (eq. 36);
 
-and accumulates the point values (paper eq. 12; physics.md (12)) with free ends
+and accumulates the point values (paper eq. 12; docs/physics.md (12)) with free ends
 (F = N = 0 outside 0..M-2). Everything runs in one compiled loop; no Python loop over points.
 """
 
@@ -47,7 +48,7 @@ def segment_loads(p, q, inv_ds, a1, a2, a3, b1, b2, b3, o1, o2, o3):
     inv_ch = rc * (1.0 + ch)
     sp = 0.5 * inv_ch
     kq = 0.25 * inv_ch * rc
-    # half-point frame H_i (physics.md (9))
+    # half-point frame H_i (docs/physics.md (9))
     h1x, h1y, h1z = rodrigues(p[3], p[4], p[5], vx, vy, vz, ch, kq, sp)
     h2x, h2y, h2z = rodrigues(p[6], p[7], p[8], vx, vy, vz, ch, kq, sp)
     h3x, h3y, h3z = rodrigues(p[9], p[10], p[11], vx, vy, vz, ch, kq, sp)

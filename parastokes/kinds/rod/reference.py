@@ -1,6 +1,6 @@
 """Plain-numpy oracles of the rod's compiled functions (readable, slow; used by the tests).
 
-Each function restates a formula of the paper / physics.md with whole-array operations and a
+Each function restates a formula of the paper / docs/physics.md with whole-array operations and a
 different route (scipy's ``Rotation`` for the half-point frames and the Rodrigues update), so that
 agreement with the compiled code (:mod:`.mechanics`, :func:`parastokes.bodies.frames.advance_rod`)
 is evidence for both.

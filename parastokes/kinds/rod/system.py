@@ -1,10 +1,11 @@
-"""The rod system: Kirchhoff rods in Stokes flow (paper section 5.1; physics.md section 3), and its
-public factories (:func:`rod`, :func:`rod_swimmer`, defaults = Table 2).
+"""The rod system: Kirchhoff rods in Stokes flow (paper section 5.1; docs/physics.md section 3),
+and its public factories (:func:`rod`, :func:`rod_swimmer`, defaults = Table 2).
 
 Rods in free space or above the no-slip wall z = 0; point forces and torques (eq. 12) drive u and w
-through the regularized Stokeslet/rotlet kernels with images (physics.md (1)-(8)); Θ = (ε, μ, a).
-The system is a frozen dataclass of scalars (the initial shape is rebuilt on demand), so it pickles
-in a few hundred bytes. Importing this module registers its compiled loop (:mod:`.compiled`).
+through the regularized Stokeslet/rotlet kernels with images (docs/physics.md (1)-(8));
+Θ = (ε, μ, a). The system is a frozen dataclass of scalars (the initial shape is rebuilt on
+demand), so it pickles in a few hundred bytes. Importing this module registers its compiled loop
+(:mod:`.compiled`).
 """
 
 from __future__ import annotations
@@ -142,7 +143,7 @@ class RodSystem(FluidBody):
         return np.concatenate([u, w], axis=1)
 
     def rates(self, t: float, state: np.ndarray) -> np.ndarray:
-        """``[u, w]`` per node (physics.md (13)): velocities from all points of all rods."""
+        """``[u, w]`` per node (docs/physics.md (13)): velocities from all points of all rods."""
         f, n = self.loads(t, state)
         u, w = self.fluid.velocity(state[:, :3], f, epsilon=self.epsilon, torques=n, angular=True)
         return self.body_rates(u, w)

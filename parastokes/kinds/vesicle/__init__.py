@@ -1,6 +1,6 @@
 """The vesicle: a spring-network sphere in shear flow (paper section 5.2), in one folder.
 
-- :mod:`.mechanics`: the compiled Hookean edge springs (physics.md (14));
+- :mod:`.mechanics`: the compiled Hookean edge springs (docs/physics.md (14));
 - :mod:`.system`: :class:`~.system.VesicleSystem` (the System contract: rates, advance,
   Θ = (ε, μ, κ)) and its factory ``vesicle`` (public as :mod:`parastokes.models`);
 - :mod:`.compiled`: its parts for the compiled loop of steps (:mod:`parastokes.stepping.loop`),

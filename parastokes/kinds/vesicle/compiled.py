@@ -3,9 +3,9 @@
 The same compiled functions as :class:`.system.VesicleSystem`'s Python methods, in
 the same order, so both loops give the same bits:
 
-- rates: the spring forces (physics.md (14)), the free-space kernel
+- rates: the spring forces (docs/physics.md (14)), the free-space kernel
   :func:`parastokes.mrs.compiled.free_u_f` (eq. 6) on the points padded as ``mrs.velocity`` pads
-  them, plus the shear flow γ̇ z e_x (physics.md (15));
+  them, plus the shear flow γ̇ z e_x (docs/physics.md (15));
 - advance: ``x + dt * rates``; no bracket (positions commute);
 - monitor: the relative change of the surface area.
 """

@@ -1,4 +1,4 @@
-"""The spring-network vesicle (paper section 5.2; physics.md section 4, (14)).
+"""The spring-network vesicle (paper section 5.2; docs/physics.md section 4, (14)).
 
 Every mesh edge is a Hookean spring of stiffness κ with rest length ℓ⁰ = its initial length; the
 point force on the fluid at vertex i is

@@ -1,8 +1,8 @@
-"""The vesicle system: the spring-network sphere in shear flow (paper section 5.2; physics.md
+"""The vesicle system: the spring-network sphere in shear flow (paper section 5.2; docs/physics.md
 section 4), and its public factory :func:`vesicle` (defaults = the paper's).
 
-Free-space regularized Stokeslets (eq. 6) of the spring forces (physics.md (14)) plus the shear
-flow u∞ = (γ̇ z, 0, 0) (physics.md (15)); Θ = (ε, μ, κ). The system is a frozen dataclass of
+Free-space regularized Stokeslets (eq. 6) of the spring forces (docs/physics.md (14)) plus the shear
+flow u∞ = (γ̇ z, 0, 0) (docs/physics.md (15)); Θ = (ε, μ, κ). The system is a frozen dataclass of
 scalars (the mesh is rebuilt on demand and cached per process), so it pickles in a few hundred
 bytes. Importing this module registers its compiled loop (:mod:`.compiled`).
 """
@@ -117,7 +117,7 @@ class VesicleSystem(PointsInShear):
         return self.mesh[0] + np.asarray(self.center, dtype=float)
 
     def forces(self, state: np.ndarray) -> np.ndarray:
-        """Spring forces on the fluid (physics.md (14))."""
+        """Spring forces on the fluid (docs/physics.md (14))."""
         return spring_forces(state, self.edges, self.rest_lengths, self.stiffness)
 
     @property
