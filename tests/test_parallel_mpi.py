@@ -54,3 +54,14 @@ def test_failing_warmup_fails_before_the_first_task(tmp_path):
     assert "the MPI workers failed to start" in run.stderr
     assert "OSError: no numba cache here" in run.stderr  # the worker's own traceback
     assert not (tmp_path / "results.npy").exists()
+
+
+def test_an_aborted_run_cancels_the_queued_tasks_and_waits_for_the_running_one(tmp_path):
+    # regression: MPI pools had no abort, so an interrupted run's close ran every queued task
+    # of the sweep before the manager could exit
+    run = mpiexec([*POOL, str(SCRIPTS / "abort_run.py"), str(tmp_path)])
+    assert run.returncode == 0, run.stderr
+    started = sorted(int(p.name) for p in (tmp_path / "started").iterdir())
+    report = json.loads((tmp_path / "report.json").read_text())
+    assert started[0] == 0 and len(started) <= 2  # the running task (and at most one sent next)
+    assert report["cancelled"] == 6 - len(started)

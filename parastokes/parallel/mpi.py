@@ -71,6 +71,12 @@ class MPIExecutor(Executor):
         """Release the worker ranks (in ``comm`` mode, they return from ``make_executor``)."""
         self._pool.shutdown(wait=wait, cancel_futures=cancel_futures)
 
+    def abort(self) -> None:
+        """Stop as soon as MPI allows: cancel the queued tasks; the tasks the worker ranks are
+        running finish (mpi4py has no way to stop one), and a later :meth:`shutdown` waits for
+        them only. For an interrupted or failed run."""
+        self._pool.shutdown(wait=False, cancel_futures=True)
+
 
 def make_mpi_executor(
     workers: int | None = None,

@@ -115,3 +115,10 @@ def fail_after(seconds: float, message: str) -> None:
     """Sleep, then raise RuntimeError(message)."""
     time.sleep(seconds)
     raise RuntimeError(message)
+
+
+def mark_and_sleep(directory: str, index: int, seconds: float) -> int:
+    """Write ``directory/index`` (the task started), sleep ``seconds``, return ``index``."""
+    (pathlib.Path(directory) / str(index)).write_text("")
+    time.sleep(seconds)
+    return index
