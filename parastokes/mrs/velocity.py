@@ -182,7 +182,7 @@ def velocity(
         The blob of the torque parts. ``"psi"`` (default, "variant L", the paper's authors'
         choice): ψ_ε = 3ε²/(4π r_ε⁵), regularized rotlet [3] and potential dipole [4], free and
         above the wall. ``"phi"`` ("variant Φ"): the force blob φ_ε for the torques too, u = ½ Q
-        n × r and w = ¼ [D1 n + D2 (n·r) r] (docs/kernels.md, variant Φ); free space only.
+        n × r and w = ¼ [D1 n + D2 (n·r) r] (docs/physics.md section 1); free space only.
     n_threads : int, optional
         Threads over target tiles (default 1). Results are bit-identical for any thread count.
     check : bool
