@@ -182,6 +182,13 @@ def test_collect_writes_records_figures_and_the_page(finished, tmp_path):
     assert "| `table4_g1` | fig6 | not started |" in page
     assert "runs not finished: table4_g1, table4_g2, table4_g3 | pending" in page
 
+    # on a machine without the reference's files (lost --out, fresh clone), the runs vouch for it
+    bare = reproduce.Layout(tmp_path / "bare", layout.experiments, layout.overrides)
+    again = reproduce_report.status_table(reproduce.plan(), bare,
+                                          reproduce_report.load_records(docs / "reproduction"))
+    assert "| `ref_rod_eps5` | fig5 | done (by the records of table4_g4) |" in again
+    assert "| `ref_rod_eps7` | fig7 | not started |" in again  # none of its runs is recorded
+
     def stable(text):  # all but the time stamp of the status table
         return [line for line in text.splitlines() if not line.startswith("As of ")]
 

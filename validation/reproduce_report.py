@@ -238,7 +238,11 @@ def fig5_table(records: Records) -> str:
 
 
 def status_table(jobs: Sequence[reproduce.Job], layout: reproduce.Layout, records: Records) -> str:
-    """Every job: done (its record is committed) / running / started / failed / not started."""
+    """Every job: done (its record is committed) / running / started / failed / not started.
+
+    A reference not on this machine (``--out`` lost, or a fresh clone) but with committed runs
+    that were measured against it is shown done "by its runs' records": the runs' η^k hold it
+    (its progress, if it is computed again for other runs, follows as "again here")."""
     sched = reproduce._read_json(layout.scheduler) or {}
     running = sched.get("running", {}) if reproduce._alive(sched.get("pid")) else {}
     when = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
@@ -255,6 +259,11 @@ def status_table(jobs: Sequence[reproduce.Job], layout: reproduce.Layout, record
         else:
             state = reproduce.job_state(job, layout, running)
             progress = reproduce.progress_text(job, layout, state)
+            users = [j.name for j in jobs if j.reference == job.name and j.name in records]
+            if users and state != "done":  # computed again here for runs not yet recorded
+                progress = f"again here ({state}): {progress}" if progress else ""
+                named = ", ".join(users[:3]) + (f" and {len(users) - 3} more" if users[3:] else "")
+                state = f"done (by the records of {named})"
             if not job.reachable:
                 state = "out of reach on 2 cores"
         command = f"`python -m validation.reproduce --resume --only {job.name}`"
