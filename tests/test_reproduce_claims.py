@@ -133,16 +133,19 @@ def test_a_claim_reads_only_the_runs_it_needs(claim):
     assert records.read <= set(claim.needs)
 
 
-def test_the_table_marks_agree_differ_and_pending():
+def test_the_table_marks_agree_differ_pending_and_out_of_reach():
     records = _records(COUNTEREXAMPLES["as N_ε increases, … Algorithm "])
-    del records["table3_g1"]
+    del records["table3_g1"], records["table6_eps2"]
     table = reproduce_report.claims_table(records)
     rows = {line.split("|")[2].strip()[1:31]: line.rsplit("|", 2)[1].strip()
             for line in table.splitlines()[2:]}
     assert rows["as N_ε increases, … Algorithm "] == "**differ**"
     assert rows["the relative error of Algorith"] == "pending"
     assert rows["[Richardson] reduces η¹ from a"] == "agree"
-    assert list(rows.values()).count("n/a") == len(reproduce_report.UNTESTABLE)
+    # a claim that needs a run beyond two cores (ε⁰ = 2σ_f) is not "pending": it will not come
+    assert rows["The speedup is higher in the c"] == "n/a"
+    assert "needs table6_eps2, out of reach" in table
+    assert list(rows.values()).count("n/a") == len(reproduce_report.UNTESTABLE) + 1
 
 
 def test_g4_and_g3_at_the_round_off_floor_are_equally_accurate():
