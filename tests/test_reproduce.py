@@ -188,6 +188,14 @@ def test_collect_writes_records_figures_and_the_page(finished, tmp_path):
                                           reproduce_report.load_records(docs / "reproduction"))
     assert "| `ref_rod_eps5` | fig5 | done (by the records of table4_g4) |" in again
     assert "| `ref_rod_eps7` | fig7 | not started |" in again  # none of its runs is recorded
+    # computed again there (for a run not yet recorded): still done, its progress shown beside
+    partial = bare.directory(_job("ref_rod_eps5"))
+    partial.mkdir(parents=True)
+    (partial / "progress.json").write_text(json.dumps({"phase": "serial", "done": 3, "total": 40}))
+    again = reproduce_report.status_table(reproduce.plan(), bare,
+                                          reproduce_report.load_records(docs / "reproduction"))
+    assert ("| `ref_rod_eps5` | fig5 | done (by the records of table4_g4) | "
+            "again here (started): serial 3/40 |") in again
 
     def stable(text):  # all but the time stamp of the status table
         return [line for line in text.splitlines() if not line.startswith("As of ")]
