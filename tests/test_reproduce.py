@@ -6,6 +6,7 @@ generated blocks. The runs use ``experiments/quick`` (same file names) with two 
 """
 
 import json
+import re
 import shutil
 import subprocess
 import sys
@@ -358,3 +359,36 @@ def test_collect_refuses_only(tmp_path, capsys):
         reproduce.main(["--out", str(tmp_path), "--collect", "--only", "fig5"])
     assert info.value.code == 2
     assert "--collect gathers every finished run" in capsys.readouterr().err
+
+
+# ---- the page's prose against the committed records ----------------------------------------------
+
+_SUP = {"¹": 1, "²": 2, "³": 3, "⁴": 4}
+
+
+def _quoted(value: str, exact: float) -> bool:
+    """``value`` is ``exact`` rounded to the digits it shows."""
+    digits = len(value.split("e")[0].replace(".", "")) - 1
+    return float(value) == float(f"{exact:.{digits}e}")
+
+
+def test_the_hand_written_errors_and_cost_ratios_of_each_run_are_its_records():
+    """The prose of docs/reproduction.md states each run's errors as "Table T G^i (...) finished
+    ... UTC: η¹ = ..., η² = ..." and its cost as "Its γ_G/γ_F is ... from the probe": those
+    numbers are typed by hand, so they are checked against the committed records."""
+    page = (REPO / "docs" / "reproduction.md").read_text()
+    records = reproduce_report.load_records(REPO / "docs" / "reproduction")
+    opening = re.compile(r"Table (\d) (?:G([¹²³⁴])|for ε⁰ = (\d)σ_f) \((?:[^()]|\([^()]*\))*\) "
+                         r"finished [^.]*? UTC:((?:\s*η[¹²³⁴] = [0-9.]+e-\d+,?(?: and)?)+)")
+    stated = set()
+    for paragraph in page.split("\n\n"):
+        for table, g, eps, errors in opening.findall(paragraph):
+            name = f"table{table}_g{_SUP[g]}" if g else f"table{table}_eps{eps}"
+            record = records[name]
+            for k, value in re.findall(r"η([¹²³⁴]) = ([0-9.]+e-\d+)", errors):
+                assert _quoted(value, record["errors"][_SUP[k] - 1]), (name, k, value)
+            stated.add(name)
+            if ratio := re.search(r"Its γ_G/γ_F is ([0-9.]+) from the probe", paragraph):
+                assert float(ratio[1]) == round(record["gamma_ratio"], len(ratio[1]) - 2), name
+    # every extrapolated rod run of several iterations is written up this way
+    assert stated == {n for n in records if re.fullmatch(r"table[3-6]_(g[123]|eps\d)", n)}
