@@ -135,6 +135,14 @@ def _causes(error: BaseException):
         stack += [getattr(item, "original", None), item.__cause__, item.__context__]
 
 
+def _body_error(error: BaseException) -> BaseException | None:
+    """The :class:`~parastokes.bodies.contract.BodyError` that ``error`` is or wraps (a worker's
+    task), if any: a user's body that broke the System contract."""
+    from .bodies.contract import BodyError
+
+    return next((e for e in _causes(error) if isinstance(e, BodyError)), None)
+
+
 def exit_code(error: BaseException) -> ExitCode:
     """The exit status for an error that ended a command."""
     from .config import ConfigError
@@ -149,7 +157,7 @@ def exit_code(error: BaseException) -> ExitCode:
         return ExitCode.INTERRUPTED
     if any(isinstance(e, BlowUpError) for e in causes):
         return ExitCode.BLOWUP
-    if isinstance(error, ConfigError):
+    if isinstance(error, ConfigError) or _body_error(error) is not None:
         return ExitCode.CONFIG
     if any(isinstance(e, TaskError | BrokenProcessPool) for e in causes):
         return ExitCode.PARALLEL
@@ -317,14 +325,20 @@ def cmd_demo(args: argparse.Namespace, console: Console) -> ExitCode:
 
 
 def cmd_check(args: argparse.Namespace, console: Console) -> ExitCode:
-    from .config import ConfigError
+    from .bodies.contract import BodyError
+    from .config import ConfigError, preflight
 
     status = ExitCode.OK
     for path in args.config:
         try:
             cfg, r = _load(path, args.set)
+            preflight(cfg, r, path)  # as a run does before its workers start
         except ConfigError as error:
             print(error, file=sys.stderr)
+            status = ExitCode.CONFIG
+            continue
+        except BodyError as error:
+            print(f"{path}: {error}", file=sys.stderr)
             status = ExitCode.CONFIG
             continue
         console.print(
@@ -582,7 +596,7 @@ def _report(error: BaseException, console: Console) -> ExitCode:
         logger.exception("unexpected error")
         return code
     else:
-        lines = [f"error: {error}", *notes]
+        lines = [f"error: {_body_error(error) or error}", *notes]
         if code is ExitCode.PARALLEL:
             lines.append("rerun with --resume to continue from the last iteration")
     print("\n".join(lines), file=sys.stderr)

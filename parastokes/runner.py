@@ -33,7 +33,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from . import __version__, io, parareal, rundir, session
-from .config import Config, ConfigError, Resolved, Setup, build, resolved_dict
+from .config import Config, ConfigError, Resolved, Setup, preflight, resolved_dict
 from .config.checks import estimated_fine_seconds
 from .contracts import System
 from .files import CorruptFileError, write_text
@@ -446,13 +446,18 @@ def execute(
     (name -> text, the demo's ``config.toml``) are written into it once that check has passed.
     Results go to the directory whole once complete; figures are drawn last (``output.figures``).
     Raises ``integrate.BlowUpError`` on a numerical blow-up, after saving the last good state.
+    Before all of that (:func:`parastokes.config.preflight`, as ``parastokes check``): the
+    configuration is built and a user's body called once at its initial state; a body that breaks
+    the System contract raises :class:`~parastokes.bodies.contract.BodyError` naming the method,
+    before the directory is claimed or a worker started.
     """
     reporter = reporter or Reporter()
+    setup = preflight(cfg, resolved)
     with rundir.claim(out, resume=resume, overwrite=overwrite) as directory:
         found = directory.entries()
         if resume and not found["state"] and not found["results"]:
             reporter.note(f"--resume: {out} holds no run to continue; starting afresh")
-        return _execute(cfg, resolved, directory, reporter, files or {})
+        return _execute(setup, directory, reporter, files or {})
 
 
 def _kernels_cached() -> bool:
@@ -463,11 +468,11 @@ def _kernels_cached() -> bool:
 
 
 def _execute(
-    cfg: Config, resolved: Resolved, directory: rundir.RunDirectory, reporter: ReporterLike,
-    files: dict[str, str],
+    setup: Setup, directory: rundir.RunDirectory, reporter: ReporterLike, files: dict[str, str],
 ) -> dict[str, Any]:
     from . import plots
 
+    cfg, resolved = setup.config, setup.resolved
     out, staging = directory.path, directory.staging
     conf = resolved_dict(cfg, resolved)
     key = identity(cfg)
@@ -478,8 +483,7 @@ def _execute(
     start = time.perf_counter()
     if not _kernels_cached():
         reporter.note("compiling the numerical kernels (first run only; up to a minute) ...")
-    with session.start(build(cfg, resolved)) as running:
-        setup = running.setup
+    with session.start(setup) as running:
         system = setup.system
         x0 = system.initial_state()
         times = parareal.time_points(cfg.time.t0, cfg.time.t1, cfg.parareal.n_slices)

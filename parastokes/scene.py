@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 
 from . import mrs
+from .bodies import contract
 from .bodies.geometry import crossed_wall
 from .stepping import registry
 from .stepping.scene import scene_loop
@@ -143,18 +144,23 @@ class Scene:
         torques = np.zeros_like(points) if angular else None
         for body, x, (f, n, _) in zip(self.bodies, self.blocks(state), self.shapes, strict=True):
             body_forces, body_torques = body.loads(t, x)
-            forces[f : f + n] = body_forces
+            forces[f : f + n] = contract.array(body, "loads(t, state)[0]", body_forces,
+                                               shape=(n, 3), what="forces, one row per point")
             if body_torques is not None:
                 if torques is None:  # torques from a body whose rates have no w
                     torques = np.zeros_like(points)
-                torques[f : f + n] = body_torques
+                torques[f : f + n] = contract.array(
+                    body, "loads(t, state)[1]", body_torques, shape=(n, 3),
+                    what="torques, one row per point")
         value = mrs.velocity(points, points, forces, epsilon=self.source_epsilon(),
                              mu=self.viscosity, torques=torques, wall=self.wall, angular=angular,
                              n_threads=self.n_threads, check=False)
         u, w = value if angular else (value, np.zeros_like(points))
         u[:, 0] += self.shear_rate * points[:, 2]
         w[:, 1] += 0.5 * self.shear_rate
-        parts = [body.body_rates(u[f : f + n], w[f : f + n])
+        parts = [contract.array(body, "body_rates(u, w)", body.body_rates(u[f : f + n],
+                                                                          w[f : f + n]),
+                                rows=n, ndim=2, what="one row per point")
                  for body, (f, n, _) in zip(self.bodies, self.shapes, strict=True)]
         return self._stack(parts)
 
@@ -165,7 +171,8 @@ class Scene:
 
     def advance(self, state: np.ndarray, rates: np.ndarray, dt: float) -> np.ndarray:
         parts = [
-            body.advance(x, r, dt)
+            contract.array(body, "advance(state, rates, dt)", body.advance(x, r, dt),
+                           shape=x.shape, what="the state's shape")
             for body, x, r in zip(self.bodies, self.blocks(state),
                                   self.blocks(rates, self.rate_columns), strict=True)
         ]
@@ -182,8 +189,11 @@ class Scene:
         return self._stack(parts)
 
     def project(self, state: np.ndarray) -> np.ndarray:
-        return self._stack([body.project(x) for body, x in zip(self.bodies, self.blocks(state),
-                                                                 strict=True)])
+        return self._stack([
+            contract.array(body, "project(state)", body.project(x), shape=x.shape,
+                           what="the state's shape")
+            for body, x in zip(self.bodies, self.blocks(state), strict=True)
+        ])
 
     # ---- parameters and monitor ----------------------------------------------------------
     @property
