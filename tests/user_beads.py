@@ -4,7 +4,6 @@ each with one mistake a body author makes (issue 32: the fault table in docs/val
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -40,7 +39,8 @@ class Beads(PointsInShear):
         return x
 
     def forces(self, state: np.ndarray) -> np.ndarray:
-        return self.stiffness * (state - self.rest())
+        """The springs' pull on each bead, which the bead exerts on the fluid (N, 3)."""
+        return self.stiffness * (self.rest() - state)
 
     @property
     def params(self) -> dict[str, float]:
@@ -134,6 +134,3 @@ class LateNaN(Beads):
         return super().rates(t, state) * (np.nan if t >= 0.05 - 1e-12 else 1.0)
 
 
-__all__ = [name for name, value in dict(globals()).items()
-           if isinstance(value, type) and issubclass(value, Beads)]
-_ = dataclasses  # (re-exported for variants built in tests)

@@ -55,7 +55,18 @@ class BodyError(ValueError):
 
 def _fail(system: Any, call: str, found: str, expected: str) -> BodyError:
     method = f"{type(system).__name__}.{call}"
-    return BodyError(f"{method} {found}; expected {expected}", method)
+    return BodyError(f"{method} {found}" + (f"; expected {expected}" if expected else ""), method)
+
+
+#: What :class:`~parastokes.bodies.base.PointsInShear` reads of the class it is mixed into
+#: (docs/extending.md): name -> how to declare it.
+POINTS_IN_SHEAR = {
+    "epsilon": "epsilon: float",
+    "viscosity": "viscosity: float",
+    "shear_rate": "shear_rate: float",
+    "n_threads": "n_threads: int | None = None",
+    "target_blocks": "target_blocks: TargetBlocks | None = field(default=None, init=False)",
+}
 
 
 def _shape_text(shape: tuple[int, ...]) -> str:
@@ -156,6 +167,13 @@ def _method_calls(system: Any) -> Iterator[tuple[str, tuple[str, ...]]]:
 def signatures(system: Any) -> None:
     """:class:`BodyError` naming the first method of the contract that cannot be called as the
     package calls it (e.g. ``forces(self)`` without ``state``), or a property written as a method."""
+    from .base import PointsInShear  # (base imports this module)
+
+    if isinstance(system, PointsInShear):
+        for name, declaration in POINTS_IN_SHEAR.items():
+            if not hasattr(system, name):
+                raise _fail(system, name, "is missing (PointsInShear reads it)",
+                            f"a field `{declaration}` (docs/extending.md)")
     for name, args in _method_calls(system):
         method = getattr(system, name, None)
         if not callable(method):
@@ -185,9 +203,21 @@ def signatures(system: Any) -> None:
 
 
 # ---- the probe at the initial state ------------------------------------------------------------
+def _call(system: Any, call: str, method: Any, *args: Any) -> Any:
+    """``method(*args)``; an error it raises (but a :class:`BodyError`) as a :class:`BodyError`
+    naming ``Type.call``, the original chained."""
+    try:
+        return method(*args)
+    except BodyError:
+        raise
+    except Exception as error:
+        raise _fail(system, call, f"raised {type(error).__name__} at the initial state: {error}",
+                    "") from error
+
+
 def _probe_loads(system: Any, t: float, x: np.ndarray) -> None:
     rows = (len(x), 3)
-    loads = system.loads(t, x)
+    loads = _call(system, "loads(t, state)", system.loads, t, x)
     if not (isinstance(loads, tuple) and len(loads) == 2):
         raise _fail(system, "loads(t, state)", f"returned {type(loads).__name__}",
                     "a pair (forces, torques or None)")
@@ -206,25 +236,28 @@ def probe(system: Any, t: float = 0.0, dt: float = 0.0) -> np.ndarray:
     from .base import PointsInShear  # (base imports this module)
 
     signatures(system)
-    x = array(system, "initial_state()", system.initial_state(), ndim=2, finite=True,
-              what="one row per point")
-    points = array(system, "positions(state)", system.positions(x), ndim=2, finite=True,
+    x = array(system, "initial_state()", _call(system, "initial_state()", system.initial_state),
+              ndim=2, finite=True, what="one row per point")
+    points = array(system, "positions(state)",
+                   _call(system, "positions(state)", system.positions, x), ndim=2, finite=True,
                    what="(N, 3), the points' x, y, z")
     if points.shape[1] != 3:
         raise _fail(system, "positions(state)", f"returned shape {_shape_text(points.shape)}",
                     "(N, 3): the points' x, y, z")
     if isinstance(system, PointsInShear):
-        array(system, "forces(state)", system.forces(x), shape=(len(x), 3), finite=True,
-              what="one row per point")
+        array(system, "forces(state)", _call(system, "forces(state)", system.forces, x),
+              shape=(len(x), 3), finite=True, what="one row per point")
     if hasattr(system, "loads"):
         _probe_loads(system, t, x)
-    r = array(system, "rates(t, state)", system.rates(t, x), rows=len(x), ndim=x.ndim,
-              finite=True, what="one row per state row")
-    y = array(system, "advance(state, rates, dt)", system.advance(x, r, dt), shape=x.shape,
+    r = array(system, "rates(t, state)", _call(system, "rates(t, state)", system.rates, t, x),
+              rows=len(x), ndim=x.ndim, finite=True, what="one row per state row")
+    call = "advance(state, rates, dt)"
+    y = array(system, call, _call(system, call, system.advance, x, r, dt), shape=x.shape,
               finite=True, what="the state's shape")
-    array(system, "project(state)", system.project(y), shape=x.shape, finite=True,
-          what="the state's shape")
-    m = number(system, "monitor(state)", system.monitor(x), finite=True)
+    array(system, "project(state)", _call(system, "project(state)", system.project, y),
+          shape=x.shape, finite=True, what="the state's shape")
+    m = number(system, "monitor(state)", _call(system, "monitor(state)", system.monitor, x),
+               finite=True)
     if m < 0:
         raise _fail(system, "monitor(state)", f"is {m!r} at the initial state", "a number >= 0")
     number(system, "monitor_limit", system.monitor_limit, finite=True, positive=True)
