@@ -125,10 +125,8 @@ def test_a_points_in_shear_body_without_target_blocks_is_told_how_to_declare_it(
 
 
 # ---- the command line: check and run ----------------------------------------------------------
-CONFIG = """
-[model]
-kind = "user_beads:{name}"
-
+#: The rest of a small run's configuration, after its ``[model]``.
+RUN = """
 [time]
 t1 = 0.1
 
@@ -145,6 +143,7 @@ n_slices = 2
 executor = "{executor}"
 {workers}
 """
+CONFIG = '[model]\nkind = "user_beads:{name}"\n' + RUN
 
 
 def _config(folder: Path, name: str, executor: str = "serial") -> Path:
@@ -205,29 +204,8 @@ def test_a_body_error_in_a_worker_is_exit_2_in_one_line(capsys):
 
 
 # ---- item 13: the chain on the wall ------------------------------------------------------------
-CHAIN = """
-[model]
-kind = "chain"
-n_beads = 6
-wall = true
-height = {height}
-tilt = {tilt}
-
-[time]
-t1 = 0.1
-
-[fine]
-dt = 0.01
-
-[coarse]
-dt = 0.05
-
-[parareal]
-n_slices = 2
-
-[execution]
-executor = "serial"
-"""
+CHAIN = ("[model]\nkind = \"chain\"\nn_beads = 6\nwall = true\nheight = {height}\n"
+         "tilt = {tilt}\n" + RUN.format(executor="serial", workers=""))
 
 
 @pytest.mark.parametrize(("height", "tilt", "low"), [(0.0, 0.0, "0"), (1.0, 0.5, "-0.198")])

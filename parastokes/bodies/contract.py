@@ -124,7 +124,8 @@ def number(system: Any, call: str, value: Any, *, finite: bool = False,
     is a real number (not a bool), finite with ``finite``, > 0 with ``positive``."""
     real = isinstance(value, int | float | np.integer | np.floating) and not isinstance(
         value, bool | np.bool_)
-    if not real and isinstance(value, np.ndarray) and value.shape == () and value.dtype.kind in "iuf":
+    if (not real and isinstance(value, np.ndarray) and value.shape == ()
+            and value.dtype.kind in "iuf"):
         real, value = True, value.item()
     if not real:
         raise _fail(system, call, f"is {value!r} ({type(value).__name__})", "a real number")
@@ -166,7 +167,8 @@ def _method_calls(system: Any) -> Iterator[tuple[str, tuple[str, ...]]]:
 
 def signatures(system: Any) -> None:
     """:class:`BodyError` naming the first method of the contract that cannot be called as the
-    package calls it (e.g. ``forces(self)`` without ``state``), or a property written as a method."""
+    package calls it (e.g. ``forces(self)`` without ``state``), a property written as a method,
+    or a field that :class:`~parastokes.bodies.base.PointsInShear` reads and the body lacks."""
     from .base import PointsInShear  # (base imports this module)
 
     if isinstance(system, PointsInShear):

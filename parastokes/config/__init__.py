@@ -8,9 +8,9 @@
 schema (:mod:`.schema`, unknown keys are errors) and the rules across keys (:mod:`.checks`), and
 raises :class:`ConfigError` whose lines each name a key path. :func:`build` makes the system, the
 fine propagator and the coarse propagator of eq. 30; :func:`preflight` builds them and calls a
-user's body once (what ``parastokes check`` and every run do before any worker starts). This package is pure data: nothing here starts
-a process or an executor (the run layer does, :mod:`parastokes.session`). :data:`DEMO` is the
-built-in configuration of ``parastokes demo``.
+user's body once (what ``parastokes check`` and every run do before any worker starts). This
+package is pure data: nothing here starts a process or an executor (the run layer does,
+:mod:`parastokes.session`). :data:`DEMO` is the built-in configuration of ``parastokes demo``.
 """
 
 from __future__ import annotations
@@ -27,8 +27,8 @@ from ..bodies import registry
 from ..coarse import registry as coarse_registry
 from .build import Setup, build, build_system
 from .checks import Resolved, resolve, resolved_dict
-from .preflight import preflight
 from .errors import ConfigError, from_validation_error
+from .preflight import preflight
 from .scene import scene_section
 from .schema import Config
 
