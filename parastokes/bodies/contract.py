@@ -122,6 +122,8 @@ def number(system: Any, call: str, value: Any, *, finite: bool = False,
            positive: bool = False) -> float:
     """``value`` (what ``system.call`` returned or holds) as a float; :class:`BodyError` unless it
     is a real number (not a bool), finite with ``finite``, > 0 with ``positive``."""
+    if type(value) in (float, np.float64) and not (finite or positive):  # the loop's case
+        return float(value)
     real = isinstance(value, int | float | np.integer | np.floating) and not isinstance(
         value, bool | np.bool_)
     if (not real and isinstance(value, np.ndarray) and value.shape == ()
