@@ -40,7 +40,7 @@ def _selection(run: RunFrames, args: argparse.Namespace) -> tuple[np.ndarray, np
     if args.average is not None:
         t0, t1 = args.average
         frames, weights = average_frames(run, t0, t1)
-        return frames, weights, f"mean_{t0:g}_{t1:g}"
+        return frames, weights, f"mean_{t0:g}-{t1:g}"
     frame = run.frame(args.frame, args.time)
     return np.array([frame]), np.ones(1), f"frame{frame}"
 
@@ -60,7 +60,7 @@ def cmd_flow(args: argparse.Namespace, console: Any) -> int:
     from .fields import frames_velocity, run_grid, save_png
     from .grids import parse_box, parse_plane, parse_resolution
     from .run import load_run
-    from .xdmf import write_grid
+    from .xdmf import suffixed, write_grid
 
     plane = parse_plane(args.plane) if args.plane is not None else None
     box = parse_box(args.box) if args.box is not None else None
@@ -71,13 +71,15 @@ def cmd_flow(args: argparse.Namespace, console: Any) -> int:
     grid = run_grid(run, list(frames), plane, box, resolution)
     background = not args.no_background
     stem = Path(args.out) if args.out else run.directory / f"flow_{label}"
+    if stem.suffix in (".h5", ".xdmf", ".png"):  # --out flow.h5: the stem flow
+        stem = stem.with_suffix("")
     values = frames_velocity(run, frames, weights, grid.points(), background, args.threads)
     shown = int(frames[len(frames) // 2])
     attrs = {"run": run.data["run"], "frames": np.asarray(frames), "background": background}
     if stem.parent != Path(""):
         stem.parent.mkdir(parents=True, exist_ok=True)
     written = [*write_grid(stem, grid, run.times[frames[-1:]], values[None], attrs),
-               save_png(stem.with_suffix(".png"), grid, values, run, shown,
+               save_png(suffixed(stem, ".png"), grid, values, run, shown,
                         _title(run, frames, background))]
     if args.out is None:
         from .. import rundir
@@ -134,7 +136,7 @@ def write_run_flow(directory: Path, every: int, plane: str | None, resolution: i
     from .fields import frames_velocity, run_grid, save_png
     from .grids import PlaneSpec, parse_plane
     from .run import load_run
-    from .xdmf import write_grid
+    from .xdmf import suffixed, write_grid
 
     run = load_run(directory)
     frames = list(range(0, len(run.times), every))
@@ -145,7 +147,7 @@ def write_run_flow(directory: Path, every: int, plane: str | None, resolution: i
     stem = directory / "flow"
     written = [*write_grid(stem, grid, run.times[frames], values,
                            {"run": run.data["run"], "frames": np.asarray(frames)})]
-    written.append(save_png(stem.with_suffix(".png"), grid, values[-1], run, frames[-1],
+    written.append(save_png(suffixed(stem, ".png"), grid, values[-1], run, frames[-1],
                             _title(run, np.array(frames[-1:]), True)))
     return written
 

@@ -28,7 +28,7 @@ import numpy as np
 from ..files import write_text
 from .grids import Grid
 
-__all__ = ["FORMAT", "read_grid", "write_grid"]
+__all__ = ["FORMAT", "read_grid", "suffixed", "write_grid"]
 
 FORMAT = "parastokes.flow"
 
@@ -77,6 +77,11 @@ def _xdmf(h5name: str, grid: Grid, times: np.ndarray) -> str:
             + ET.tostring(root, encoding="unicode") + "\n")
 
 
+def suffixed(stem: Path, suffix: str) -> Path:
+    """``stem`` + ``suffix`` (a stem may hold dots: ``flow_mean_0.01-0.02``)."""
+    return stem.with_name(stem.name + suffix)
+
+
 def write_grid(stem: str | os.PathLike, grid: Grid, times: np.ndarray, velocities: np.ndarray,
                attrs: Mapping[str, Any] | None = None) -> tuple[Path, Path]:
     """Write ``stem.h5`` and ``stem.xdmf`` (module text): ``velocities`` (F, points, 3) at the
@@ -85,7 +90,7 @@ def write_grid(stem: str | os.PathLike, grid: Grid, times: np.ndarray, velocitie
     times = np.atleast_1d(np.asarray(times, dtype=float))
     nx, ny, nz = grid.shape
     fields = np.asarray(velocities, dtype=float).reshape(len(times), nz, ny, nx, 3)
-    h5_path, xdmf_path = stem.with_suffix(".h5"), stem.with_suffix(".xdmf")
+    h5_path, xdmf_path = suffixed(stem, ".h5"), suffixed(stem, ".xdmf")
     tmp = h5_path.with_name(f"{h5_path.name}.{os.getpid()}.tmp")
     try:
         with h5py.File(tmp, "w", locking=False) as f:
@@ -110,7 +115,9 @@ def write_grid(stem: str | os.PathLike, grid: Grid, times: np.ndarray, velocitie
 
 def read_grid(path: str | os.PathLike) -> tuple[Grid, np.ndarray, np.ndarray]:
     """The grid, times (F,) and velocities (F, nz, ny, nx, 3) of a file of :func:`write_grid`."""
-    with h5py.File(Path(path).with_suffix(".h5"), "r", locking=False) as f:
+    path = Path(path)
+    with h5py.File(path if path.suffix == ".h5" else suffixed(path, ".h5"), "r",
+                   locking=False) as f:
         if f.attrs.get("format") != FORMAT:
             raise ValueError(f"{path}: not a parastokes flow file")
         grid = Grid.of(f.attrs["origin"], f.attrs["spacing"], f.attrs["shape"])
