@@ -1,5 +1,5 @@
 """The fluid itself: velocity fields, streamlines and movies of any run (docs/tutorial.md, "From a
-run to its flow"; docs/flow.md).
+run to its flow").
 
 - :mod:`.evaluate`: :func:`velocity` of any system or scene at any points (eq. 6 with images and
   u∞), through the compiled kernels;

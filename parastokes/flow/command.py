@@ -80,7 +80,7 @@ def cmd_flow(args: argparse.Namespace, console: Any) -> int:
         stem.parent.mkdir(parents=True, exist_ok=True)
     written = [*write_grid(stem, grid, run.times[frames[-1:]], values[None], attrs),
                save_png(suffixed(stem, ".png"), grid, values, run, shown,
-                        _title(run, frames, background))]
+                        _title(run, frames, background), dpi=args.dpi)]
     if args.out is None:
         from .. import rundir
 
@@ -178,6 +178,7 @@ def add_commands(sub: Any, parents: list[argparse.ArgumentParser]) -> None:
                    help="leave out the background shear u∞ (the bodies' disturbance only)")
     p.add_argument("--out", metavar="STEM",
                    help="output files STEM.h5, STEM.xdmf, STEM.png (default: RUN_DIR/flow_<frame>)")
+    p.add_argument("--dpi", type=int, default=120, help="the picture's dots per inch (7 x 4 in)")
     p.set_defaults(func=cmd_flow)
 
     p = sub.add_parser("movie", parents=[*parents, common],

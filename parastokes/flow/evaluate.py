@@ -9,7 +9,7 @@ shear u∞ = (γ̇ z, 0, 0) of the system's ``shear_rate`` (eq. 15; ``background
 
 Below the wall (z < 0) there is no fluid: the velocity there is zero (the image system's values
 below the plane are a mathematical continuation, not a flow). On the plane z = 0 itself the
-images cancel the sources to MRS accuracy (docs/flow.md).
+images cancel the sources (to round-off: tests/test_flow.py).
 """
 
 from __future__ import annotations

@@ -69,7 +69,7 @@ def plane_of(grid: Grid, values: np.ndarray, y: float) -> tuple[Grid, np.ndarray
 
 
 def save_png(path: Path, grid: Grid, values: np.ndarray, run: RunFrames, frame: int,
-             title: str, size: tuple[float, float] = (7.0, 4.0), dpi: int = 150) -> Path:
+             title: str, size: tuple[float, float] = (7.0, 4.0), dpi: int = 120) -> Path:
     """The picture of :func:`.render.draw_plane` (a box: its x-z slice through the bodies) with
     the bodies of ``frame``, written atomically to ``path``."""
     plane, field = plane_of(grid, values, float(run.positions(frame)[:, 1].mean()))
