@@ -335,3 +335,29 @@ def test_a_rod_run_without_its_frames_is_refused_naming_the_option(tmp_path):
         writer.append("serial", 0.0, scene.initial_state())
     with pytest.raises(ValueError, match=r"rod.*output\.frames = true"):
         flow.load_run(tmp_path)
+
+
+def test_vtk_reads_the_flow_grid_as_paraview_would(tmp_path):
+    """VTK's XDMF reader (behind ParaView's "XDMF Reader"; skipped without the vtk package, as in
+    tests/test_io.py): the time steps, the axes and the velocity at every node as written."""
+    xdmf2 = pytest.importorskip("vtkmodules.vtkIOXdmf2", reason="VTK (pip install vtk) not found")
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    from vtkmodules.vtkCommonExecutionModel import vtkStreamingDemandDrivenPipeline
+
+    grid = grid_for(np.array([[-1.0, 3.0], [0.0, 2.0], [0.5, 1.5]]), (5, 3, 2))
+    points = grid.points()
+    _, xdmf = flow.write_grid(tmp_path / "f", grid, np.array([0.0, 0.5]),
+                              np.stack([points, 2 * points]))
+    reader = xdmf2.vtkXdmfReader()
+    reader.SetFileName(str(xdmf))
+    reader.UpdateInformation()
+    info = reader.GetOutputInformation(0)
+    assert info.Get(vtkStreamingDemandDrivenPipeline.TIME_STEPS()) == pytest.approx((0.0, 0.5))
+    reader.UpdateTimeStep(0.5)
+    read = reader.GetOutputDataObject(0)
+    assert read.GetDimensions() == (5, 3, 2)
+    for axis, values in zip((read.GetXCoordinates(), read.GetYCoordinates(),
+                             read.GetZCoordinates()), grid.axes(), strict=True):
+        np.testing.assert_array_equal(vtk_to_numpy(axis), values)
+    np.testing.assert_array_equal(vtk_to_numpy(read.GetPointData().GetArray("velocity")),
+                                  2 * points)
