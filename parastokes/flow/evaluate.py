@@ -73,5 +73,8 @@ def velocity(system: object, state: np.ndarray, points: np.ndarray, t: float = 0
     sources = fluid_sources(system, t, np.asarray(state, dtype=np.float64))
     u = sources_velocity(sources, targets, float(system.viscosity), wall, n_threads)
     if background:
-        u += background_velocity(system, targets) * (targets[:, 2:3] >= 0 if wall else 1.0)
+        u_inf = background_velocity(system, targets)
+        if wall:
+            u_inf[targets[:, 2] < 0] = 0.0
+        u += u_inf
     return u

@@ -4,7 +4,8 @@ MP4 through imageio with imageio-ffmpeg (whose wheel ships an ffmpeg binary: the
 a GIF through Pillow when the name ends in ``.gif`` or MP4 cannot be written (no imageio-ffmpeg).
 Without the flow, each picture shows the bodies in the planes the figures use (x-y above, x-z,
 the distance to the wall, below), on fixed axes that hold every frame; with the flow, the x-z plane
-(or the given one) with the speed, the streamlines and the bodies (:mod:`.render`).
+(or the given one) with the speed, the streamlines and the bodies (:mod:`.render`), the speed's
+colour scale fixed over the movie (all frames' flows are computed first).
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from .render import draw_bodies, draw_plane
+from .render import draw_bodies, draw_plane, speed_limits
 from .run import RunFrames
 
 __all__ = ["choose_frames", "movie_writer", "render_frame", "write_movie"]
@@ -101,6 +102,13 @@ def write_movie(run: RunFrames, path: Path, frames: Sequence[int], fps: float,
 
     dpi = 100
     limits = _bodies_limits(run)
+    fields, scale = {}, None
+    if flow is not None:  # every frame's flow first: one colour scale for the whole movie
+        for frame in tqdm(frames, desc="flow", unit="frame", disable=not progress,
+                          file=sys.stderr, leave=False):
+            fields[frame] = flow(frame)
+        scale = speed_limits(np.concatenate([np.linalg.norm(v, axis=1)
+                                             for _, v in fields.values()]))
     with movie_writer(path, fps) as append:
         for frame in tqdm(frames, desc="movie", unit="frame", disable=not progress,
                           file=sys.stderr, leave=False):
@@ -108,8 +116,8 @@ def write_movie(run: RunFrames, path: Path, frames: Sequence[int], fps: float,
             if flow is None:
                 draw_bodies_frame(fig, run, frame, limits)
             else:
-                grid, values = flow(frame)
+                grid, values = fields[frame]
                 draw_plane(fig, grid, values, f"t = {run.times[frame]:.5g} s ({run.data['run']})",
-                           run.wall, run.data["bodies"], frame, density=1.0)
+                           run.wall, run.data["bodies"], frame, density=1.0, speed_range=scale)
             append(render_frame(fig))
     return path

@@ -20,7 +20,7 @@ from matplotlib.figure import Figure
 from ..plots import _edges
 from .grids import AXES, Grid
 
-__all__ = ["draw_bodies", "draw_plane"]
+__all__ = ["draw_bodies", "draw_plane", "speed_limits"]
 
 
 def draw_bodies(ax: Any, bodies: Mapping[str, Mapping[str, np.ndarray]], frame: int,
@@ -40,11 +40,25 @@ def draw_bodies(ax: Any, bodies: Mapping[str, Mapping[str, np.ndarray]], frame: 
                                          linewidths=width))
 
 
+def speed_limits(speed: np.ndarray) -> tuple[float, float] | None:
+    """The colour scale of ``speed`` values: three decades below their 99.5th percentile (or
+    from their 1st percentile if higher); None when all are zero."""
+    positive = speed[speed > 0]
+    if not positive.size:
+        return None
+    high = float(np.percentile(positive, 99.5))
+    low = max(float(np.percentile(positive, 1.0)), 1e-3 * high)
+    return low, max(high, low * 1.0001)
+
+
 def draw_plane(fig: Figure, grid: Grid, velocity: np.ndarray, title: str, wall: bool = False,
                bodies: Mapping[str, Mapping[str, np.ndarray]] | None = None,
-               frame: int = -1, density: float = 1.2) -> Any:
+               frame: int = -1, density: float = 1.2,
+               speed_range: tuple[float, float] | None = None) -> Any:
     """The speed and streamlines of ``velocity`` (points of ``grid``, 3) in the plane ``grid``,
-    with ``bodies`` at ``frame`` over them and the wall z = 0 shaded; returns the axes."""
+    with ``bodies`` at ``frame`` over them and the wall z = 0 shaded; returns the axes.
+    ``speed_range``: the colour scale's (low, high) (default: :func:`speed_range` of this
+    field; a movie passes one for all its frames)."""
     plane = grid.plane_axes
     if plane is None:
         raise ValueError("draw_plane: the grid is not a plane")
@@ -53,12 +67,11 @@ def draw_plane(fig: Figure, grid: Grid, velocity: np.ndarray, title: str, wall: 
     axes = grid.axes()
     a, b = axes[i], axes[j]
     speed = np.linalg.norm(field, axis=-1)
-    positive = speed[speed > 0]
     ax = fig.subplots()
-    if positive.size:
-        high = float(np.percentile(positive, 99.5))
-        low = max(float(np.percentile(positive, 1.0)), 1e-3 * high)
-        norm = LogNorm(vmin=low, vmax=max(high, low * 1.0001))
+    limits = speed_range or speed_limits(speed)
+    if limits is not None:
+        low, high = limits
+        norm = LogNorm(vmin=low, vmax=high)
         mesh = ax.pcolormesh(a, b, np.clip(speed, low, None), norm=norm, cmap="magma",
                              shading="gouraud", rasterized=True)
         fig.colorbar(mesh, ax=ax, label="|u| (μm/s)", shrink=0.85)
