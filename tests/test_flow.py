@@ -166,6 +166,30 @@ def test_the_time_average_of_a_flow_linear_in_time_is_the_flow_at_the_middle():
         flow.time_average(system, states, times, points, 0.75, 0.9)
 
 
+@dataclass(frozen=True)
+class Rotlet:
+    """One point torque n = (0, 0, 1) at the origin: u = n × r / (8π μ r_ε³), circles about z."""
+
+    epsilon: float = 0.5
+    viscosity: float = 1.0
+
+    def loads(self, t, state):
+        return np.zeros((1, 3)), np.array([[0.0, 0.0, 1.0]])
+
+
+def test_streamlines_of_a_rotlet_are_circles_about_its_axis():
+    seeds = np.array([[1.0, 0.0, 0.0], [0.0, 2.0, 0.5], [-0.5, 0.0, -1.0]])
+    lines = flow.streamlines(Rotlet(), np.zeros((1, 3)), seeds, length=2 * math.pi, samples=65)
+    for seed, line in zip(seeds, lines, strict=True):
+        assert line.shape == (129, 3)
+        np.testing.assert_allclose(line[64], seed)
+        radius = np.hypot(seed[0], seed[1])
+        np.testing.assert_allclose(np.hypot(line[:, 0], line[:, 1]), radius, rtol=1e-6)
+        np.testing.assert_allclose(line[:, 2], seed[2], atol=1e-9)
+        angle = np.unwrap(np.arctan2(line[:, 1], line[:, 0]))
+        np.testing.assert_allclose(np.diff(angle), 2 * math.pi / 64 / radius, rtol=1e-6)
+
+
 def test_the_xdmf_grid_reads_back_with_its_shape_origin_spacing_and_node_order(tmp_path):
     box = np.array([[-1.0, 3.0], [0.0, 2.0], [0.5, 1.5]])
     grid = grid_for(box, (5, 3, 2))
