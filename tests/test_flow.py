@@ -4,6 +4,7 @@ decay, time averages, the XDMF grid read back, and the commands flow and movie o
 from __future__ import annotations
 
 import itertools
+import json
 import math
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, replace
@@ -385,3 +386,23 @@ def test_vtk_reads_the_flow_grid_as_paraview_would(tmp_path):
         np.testing.assert_array_equal(vtk_to_numpy(axis), values)
     np.testing.assert_array_equal(vtk_to_numpy(read.GetPointData().GetArray("velocity")),
                                   2 * points)
+
+
+def test_a_run_with_flow_every_writes_its_flow_and_lists_it_with_its_results(tmp_path):
+    from configs import small_rod
+
+    path = tmp_path / "rod.toml"
+    path.write_text(small_rod(rest='[execution]\nexecutor = "serial"\n[run]\nmode = "serial"\n'
+                                   "[output]\nfigures = false\nflow_every = 2\n"
+                                   "flow_resolution = 10\n"))
+    out = tmp_path / "run"
+    assert main(["run", str(path), "--out", str(out), "-q"]) == 0
+    grid, times, velocity = flow.read_grid(out / "flow.h5")
+    saved = io.read_trajectory(out / "trajectory.h5")["time"]
+    np.testing.assert_array_equal(times, saved[::2])  # 5 frames: 0, 2, 4
+    run = flow.load_run(out)
+    np.testing.assert_allclose(velocity[-1].reshape(-1, 3),
+                               flow.velocity(run.system, run.state(4), grid.points(), saved[4]),
+                               rtol=1e-12)
+    assert {"flow.h5", "flow.xdmf", "flow.png"} <= set(
+        json.loads((out / ".parastokes-results.json").read_text())["files"])
