@@ -37,6 +37,7 @@ import numpy as np
 from . import mrs
 from .bodies import contract
 from .bodies.geometry import crossed_wall
+from .bodies.sources import FluidSources, fluid_sources
 from .stepping import registry
 from .stepping.scene import scene_loop
 
@@ -135,24 +136,30 @@ class Scene:
         return np.repeat([float(body.epsilon) for body in self.bodies],
                          [rows for _, rows, _ in self.shapes])
 
+    def fluid_sources(self, t: float, state: np.ndarray) -> FluidSources:
+        """Every body's point loads on the fluid (:func:`~parastokes.bodies.sources.fluid_sources`),
+        stacked in the order of the bodies, each source with its body's ε; torques None when no
+        body has any."""
+        parts = [fluid_sources(body, t, x) for body, x in zip(self.bodies, self.blocks(state),
+                                                               strict=True)]
+        torques = None
+        if any(p.torques is not None for p in parts):
+            torques = np.concatenate([np.zeros_like(p.forces) if p.torques is None else p.torques
+                                      for p in parts])
+        return FluidSources(np.concatenate([p.points for p in parts]),
+                            np.concatenate([p.forces for p in parts]), torques,
+                            np.concatenate([p.epsilon for p in parts]))
+
     def rates(self, t: float, state: np.ndarray) -> np.ndarray:
         """Each body's rates from u∞ + the velocities that all bodies' loads induce at its points:
         one evaluation of the fluid over all points, each source with its body's ε."""
         points = np.ascontiguousarray(state[:, :3])
         angular = any(body.angular for body in self.bodies)
-        forces = np.zeros_like(points)
-        torques = np.zeros_like(points) if angular else None
-        for body, x, (f, n, _) in zip(self.bodies, self.blocks(state), self.shapes, strict=True):
-            body_forces, body_torques = body.loads(t, x)
-            forces[f : f + n] = contract.array(body, "loads(t, state)[0]", body_forces,
-                                               shape=(n, 3), what="forces, one row per point")
-            if body_torques is not None:
-                if torques is None:  # torques from a body whose rates have no w
-                    torques = np.zeros_like(points)
-                torques[f : f + n] = contract.array(
-                    body, "loads(t, state)[1]", body_torques, shape=(n, 3),
-                    what="torques, one row per point")
-        value = mrs.velocity(points, points, forces, epsilon=self.source_epsilon(),
+        sources = self.fluid_sources(t, state)
+        torques = sources.torques
+        if angular and torques is None:
+            torques = np.zeros_like(points)
+        value = mrs.velocity(points, sources.points, sources.forces, epsilon=sources.epsilon,
                              mu=self.viscosity, torques=torques, wall=self.wall, angular=angular,
                              n_threads=self.n_threads, check=False)
         u, w = value if angular else (value, np.zeros_like(points))

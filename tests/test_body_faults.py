@@ -64,6 +64,15 @@ def test_forces_are_checked_where_they_enter_without_the_probe():
     with pytest.raises(BodyError, match=r"OneRowShort\.forces\(state\)"):
         scene.rates(0.0, scene.initial_state())
 
+    class ShortLoads(ub.Beads):  # a body's own loads, as a scene and the flow take them
+        def loads(self, t, state):
+            return self.forces(state), np.zeros((2, 3))
+
+    scene = Scene((ub.Beads(), ShortLoads()), viscosity=1.0, shear_rate=1.0)
+    with pytest.raises(BodyError, match=r"ShortLoads\.loads\(t, state\)\[1\] returned shape "
+                                        r"\(2, 3\); expected \(8, 3\): torques"):
+        scene.rates(0.0, scene.initial_state())
+
 
 def test_values_the_package_can_use_pass_unchanged():
     """A float64 array is passed on as is (the same object: no copy, the same bits); other
