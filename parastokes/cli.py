@@ -564,7 +564,10 @@ def _catch_termination() -> dict[int, _Handler]:
     """Handle SIGTERM and SIGHUP like Ctrl-C (main thread only); returns the previous handlers."""
     if threading.current_thread() is not threading.main_thread():
         return {}
-    return {signum: signal.signal(signum, _terminate) for signum in _TERMINATING}
+    handlers = {signum: signal.signal(signum, _terminate) for signum in _TERMINATING}
+    if hasattr(signal, "SIGXFSZ"):  # past a file-size limit a write fails (EFBIG), not the process
+        handlers[signal.SIGXFSZ] = signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+    return handlers
 
 
 def _report(error: BaseException, console: Console) -> ExitCode:

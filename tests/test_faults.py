@@ -1,0 +1,140 @@
+"""The fault campaign of issue #32 as regression tests: full disks and descriptor limits, numerical
+failures inside Parareal, advice on blow-ups, unbounded input, `tune --out` and `predict` abuse,
+`plot` during a cut-short commit, `--resume` of a finished run with a stricter stopping rule, and
+the smaller ones (a BOM, SIGTERM outside a run, orphan temporary files, scripts without the
+`__main__` guard). docs/validation.md, "Hardening: the fault campaign", lists them."""
+
+from __future__ import annotations
+
+import errno
+import os
+import resource
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from configs import small_rod
+
+from parastokes import cli, files, io, rundir, runner
+
+ROOT = Path(__file__).resolve().parents[1]
+ENV = {**os.environ, "PYTHONPATH": str(ROOT), "OMP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1"}
+
+# A small rod problem run in-process (serial executor): a few seconds; its trajectory.h5 is about
+# 75 kB, every other file under 40 kB.
+TINY = 'title = "tiny rod"\n' + small_rod(
+    parareal="max_iterations = 2",
+    rest='[execution]\nexecutor = "serial"\n[output]\nfigures = false\n',
+)
+
+
+def _config(tmp_path: Path, text: str = TINY, name: str = "run.toml") -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def _run(*args: str) -> int:
+    return cli.main(["run", *map(str, args), "-q"])
+
+
+def _command(*args: str, limit: int | None = None, **kwargs) -> subprocess.CompletedProcess:
+    """``python -m parastokes ARGS`` in a subprocess, its file size limited to ``limit`` bytes."""
+
+    def limited() -> None:
+        if limit is not None:
+            resource.setrlimit(resource.RLIMIT_FSIZE, (limit, resource.RLIM_INFINITY))
+
+    return subprocess.run(
+        [sys.executable, "-m", "parastokes", *map(str, args)], env=ENV, capture_output=True,
+        text=True, preexec_fn=limited, timeout=300, **kwargs,
+    )
+
+
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory) -> tuple[Path, Path]:
+    """A finished TINY run (2 iterations): (its configuration, its directory)."""
+    root = tmp_path_factory.mktemp("finished")
+    path = _config(root)
+    assert _run(path, "--out", root / "out") == 0
+    return path, root / "out"
+
+
+def _copy(source: Path, target: Path) -> Path:
+    import shutil
+
+    shutil.copytree(source, target)
+    return target
+
+
+# ---- 5: a full disk while trajectory.h5 is written -------------------------------------------
+def test_a_file_size_limit_while_the_trajectory_is_written_is_exit_2_naming_it(finished, tmp_path):
+    path, source = finished
+    out = _copy(source, tmp_path / "out")
+    checkpoint = (out / runner.CHECKPOINT).read_bytes()
+    trajectory = (out / runner.TRAJECTORY).read_bytes()
+    # --resume of a finished run only writes its results again: the trajectory (75 kB) exceeds
+    # the limit, the checkpoint and the summary do not
+    done = _command("run", path, "--out", out, "--resume", "-q", limit=40_000)
+    assert done.returncode == 2, done.stderr
+    assert "Segmentation" not in done.stderr and "Traceback" not in done.stderr
+    assert f"cannot write {out / rundir.STAGING / runner.TRAJECTORY}" in done.stderr
+    assert "file size limit" in done.stderr
+    assert (out / runner.CHECKPOINT).read_bytes() == checkpoint  # the checkpoint is intact
+    assert (out / runner.TRAJECTORY).read_bytes() == trajectory  # the old results are kept
+    assert not (out / rundir.LOCK).exists() and not (out / rundir.STAGING).exists()
+
+
+def test_the_trajectory_writer_survives_a_failed_write_and_names_the_file(tmp_path):
+    from test_io import rod_layout, rod_state
+
+    path = tmp_path / "trajectory.h5"
+    script = f"""
+import sys
+sys.path.insert(0, {str(ROOT / 'tests')!r})
+from test_io import rod_layout, rod_state
+from parastokes import io
+from parastokes.files import FileWriteError
+writer = io.TrajectoryWriter({str(path)!r}, rod_layout(1, 50), config={{}})
+try:
+    for i in range(1000):
+        writer.append("serial", float(i), rod_state(1, 50, 0.0))
+except FileWriteError as error:
+    print("raised:", error)
+try:
+    writer.close()
+except FileWriteError as error:
+    print("closed:", error)
+"""
+
+    def limited() -> None:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (60_000, resource.RLIM_INFINITY))
+
+    done = subprocess.run([sys.executable, "-c", script], env=ENV, capture_output=True,
+                          text=True, preexec_fn=limited, timeout=120)
+    assert done.returncode == 0, done.stderr  # (h5py alone: -11, a segmentation fault)
+    assert f"raised: cannot write {path}: File too large" in done.stdout
+    assert not path.exists()  # the damaged file is removed
+    with io.TrajectoryWriter(path, rod_layout(1, 3), config={}) as writer:  # (unlimited: fine)
+        writer.append("serial", 0.0, rod_state(1, 3, 0.0))
+    assert io.read_trajectory(path)["time"].tolist() == [0.0]
+
+
+@pytest.mark.parametrize("number", [errno.ENOSPC, errno.EMFILE])
+def test_every_atomic_write_names_its_file_and_the_cause(tmp_path, monkeypatch, number):
+    def failing(*args, **kwargs):
+        raise OSError(number, os.strerror(number))
+
+    monkeypatch.setattr(os, "fsync", failing)
+    target = tmp_path / "summary.json"
+    with pytest.raises(files.FileWriteError) as caught:
+        io.write_summary(target, {"a": 1})
+    text = str(caught.value)
+    assert text.startswith(f"cannot write {target}: {os.strerror(number)}")
+    assert ("file system is full" if number == errno.ENOSPC else "ulimit -n") in text
+    assert cli.exit_code(caught.value) == cli.ExitCode.CONFIG
+    assert list(tmp_path.iterdir()) == []  # no temporary file left
