@@ -229,8 +229,12 @@ class RunDirectory:
             )
 
     def discard_state(self) -> None:
-        """Remove the resume state (``--overwrite``): nothing of the old run is resumed."""
+        """Remove the resume state (``--overwrite``): nothing of the old run is resumed. The
+        record of its blow-up (``blowup.npz``) stays until the new run completes, so that a
+        blow-up of the new run can be compared with it (same time with another step?)."""
         for name in STATE_FILES:
+            if name == "blowup.npz":
+                continue
             path = self.path / name
             if path.is_dir():  # checkpoint.solves: the solves of the iteration in progress
                 shutil.rmtree(path)

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import itertools
 import logging
+import math
 import os
 import platform
 import time
@@ -168,17 +169,92 @@ def _check_resumable(out: Path, cfg: Config) -> None:
             _same_run(path, io.load_arrays(path)[0].get("key"), key)
 
 
-def _blow_up_note(out: Path, error: BlowUpError, where: str, fix: str) -> str:
-    """Save the last good state of a blow-up to ``out/BLOWUP``; the note that says so."""
+def _blow_up_note(out: Path, error: BlowUpError, where: str, fix: str, step: float) -> str:
+    """Save the last good state of a blow-up to ``out/BLOWUP`` (with the step of the solver that
+    failed, ``step``, for :func:`_same_time`); the note that says so."""
     io.save_arrays(
         out / BLOWUP,
-        {"where": where, "t": error.t, "step": error.step, "monitor": error.monitor},
+        {"where": where, "t": error.t, "step": error.step, "monitor": error.monitor, "dt": step},
         last_state=error.last_state,
     )
+    taken = "" if where.startswith("the correction") else f" (step {error.step} of that solve)"
     return (
-        f"{where} blew up at t = {error.t:.10g} (step {error.step} of that solve); the last good "
-        f"state is in {out / BLOWUP}; {fix}"
+        f"{where} blew up at t = {error.t:.10g}{taken}; the last good state is in "
+        f"{out / BLOWUP}; {fix}"
     )
+
+
+def _previous_blow_up(out: Path) -> dict[str, Any] | None:
+    """The record of the blow-up of an earlier run in ``out`` (kept through ``--overwrite``
+    until a run completes), or None."""
+    try:
+        meta, _ = io.load_arrays(out / BLOWUP)
+    except (OSError, ValueError):
+        return None
+    return meta
+
+
+def _solver_step(cfg: Config, resolved: Resolved, label: str) -> float:
+    """The step of the solver a blow-up of the solve ``label`` happened in."""
+    fine = "fine solve" in label or label == "serial"
+    return float(resolved.fine_dt if fine else resolved.coarse_dt)
+
+
+def _near_wall(setup: Setup, state: np.ndarray) -> str | None:
+    """Why a blow-up at ``state`` is the body reaching the wall z = 0 (its lowest point closer to
+    the wall than the blob size ε, where the regularised kernels stop resolving the gap), else
+    None."""
+    r = setup.resolved
+    scale = r.epsilon if math.isfinite(r.epsilon) else r.grid_spacing
+    if not getattr(setup.system, "wall", False) or not math.isfinite(scale):
+        return None
+    try:
+        lowest = float(np.min(np.asarray(setup.system.positions(state))[:, 2]))
+    except (ValueError, IndexError):
+        return None
+    if not lowest < scale:
+        return None
+    return (
+        f"a body is at the wall: its lowest point is {lowest:.3g} above z = 0, closer than the "
+        f"blob size ε = {scale:.3g}, where the regularised flow no longer keeps it off; it gets "
+        "there at this time whatever the step, so a smaller step does not help: start it "
+        "farther from the wall (model.height), end the run before (time.t1), or change the "
+        "forces that drive it there"
+    )
+
+
+def _same_time(previous: dict[str, Any] | None, error: BlowUpError, where: str, step: float,
+               span: float) -> str | None:
+    """A note when the earlier run in the directory blew up in the same solver at (about) the
+    same time with another step: the time does not move with the step, so the step is not the
+    cause."""
+    if not previous or previous.get("where") != where:
+        return None
+    try:
+        t_before, step_before = float(previous["t"]), float(previous["dt"])
+    except (KeyError, TypeError, ValueError):
+        return None
+    changed = max(step, step_before) / min(step, step_before) >= 1.2
+    if not (changed and abs(error.t - t_before) <= 0.05 * span):
+        return None
+    return (
+        f"the run before blew up there too, at t = {t_before:.6g} with a step of "
+        f"{step_before:.3g} (now t = {error.t:.6g} with {step:.3g}): the time does not move with "
+        "the step, so the step is not the cause; look at the model (a body reaching the wall, "
+        "forces too strong for it)"
+    )
+
+
+def _advice(setup: Setup, label: str, error: BlowUpError, where: str,
+            previous: dict[str, Any] | None) -> str:
+    """What to change after a blow-up of the solve ``label`` (:func:`_fix`), or why the step is
+    not the cause (:func:`_near_wall`, :func:`_same_time`)."""
+    cfg = setup.config
+    span = cfg.time.t1 - cfg.time.t0
+    step = _solver_step(cfg, setup.resolved, label)
+    found = [note for note in (_near_wall(setup, error.last_state),
+                               _same_time(previous, error, where, step, span)) if note]
+    return "; ".join(found) if found else _fix(cfg, label)
 
 
 def _fix(cfg: Config, label: str) -> str:
@@ -267,7 +343,8 @@ def _slice_seconds(setup: Setup) -> float:
 
 # ---- the serial fine run ---------------------------------------------------------------------
 def _serial(
-    setup: Setup, x0: np.ndarray, times: np.ndarray, out: Path, key: dict, reporter: ReporterLike
+    setup: Setup, x0: np.ndarray, times: np.ndarray, out: Path, key: dict, reporter: ReporterLike,
+    previous: dict[str, Any] | None = None,
 ) -> tuple[np.ndarray, float]:
     """The serial fine solution F(T_n, T_0, x0) at every T_n (as ``parareal.serial_solution``) and
     its wall time. Saved to ``out/REFERENCE`` after every slice, and continued from there when
@@ -298,7 +375,8 @@ def _serial(
         except BlowUpError as error:
             cfg = setup.config
             where = f"the fine solver F ({cfg.fine.scheme}) in slice {n} of the serial fine run"
-            error.add_note(_blow_up_note(out, error, where, _fix(cfg, "serial")))
+            fix = _advice(setup, "serial", error, where, previous)
+            error.add_note(_blow_up_note(out, error, where, fix, cfg.fine.dt))
             raise
         wall += time.perf_counter() - start
         io.save_arrays(path, {"key": key, "done": n, "wall_time": wall}, states=states)
@@ -316,6 +394,7 @@ def _parareal(
     out: Path,
     key: dict,
     reporter: ReporterLike,
+    previous: dict[str, Any] | None = None,
 ) -> tuple[parareal.PararealResult, io.HistoryRecord]:
     """Parareal with the history of an interrupted run in ``out`` (if any) carried on.
 
@@ -378,7 +457,9 @@ def _parareal(
         if found is not None:
             blow, label = found
             where = f"the {label or 'solve'} (Parareal)"
-            error.add_note(_blow_up_note(out, blow, where, _fix(cfg, label)))
+            fix = _advice(setup, label, blow, where, previous)
+            step = _solver_step(cfg, setup.resolved, label)
+            error.add_note(_blow_up_note(out, blow, where, fix, step))
         raise
     reporter.finish()
     if len(elapsed) >= result.iterations > 0:  # the last one as the report's total (same speedup)
@@ -472,6 +553,7 @@ def _execute(
     conf = resolved_dict(cfg, resolved)
     key = identity(cfg)
     _check_resumable(out, cfg)
+    previous = _previous_blow_up(out)  # (an earlier run's, to compare a new blow-up with)
     for name, text in files.items():
         write_text(out / name, text)
     mode = cfg.run.mode
@@ -488,12 +570,14 @@ def _execute(
             reference = serial_time = result = record = None
             if mode in ("serial", "both"):
                 reference, serial_time = _serial(
-                    setup, x0, times, out, fine_identity(cfg), reporter
+                    setup, x0, times, out, fine_identity(cfg), reporter, previous
                 )
                 if writer is not None:
                     _append_frames(writer, "serial", running, times, reference)
             if mode in ("parareal", "both"):
-                result, record = _parareal(running, x0, times, reference, out, key, reporter)
+                result, record = _parareal(
+                    running, x0, times, reference, out, key, reporter, previous
+                )
                 if writer is not None:
                     _append_frames(writer, "parareal", running, times, result.states)
                     writer.write_history(record)

@@ -138,3 +138,44 @@ def test_every_atomic_write_names_its_file_and_the_cause(tmp_path, monkeypatch, 
     assert ("file system is full" if number == errno.ENOSPC else "ulimit -n") in text
     assert cli.exit_code(caught.value) == cli.ExitCode.CONFIG
     assert list(tmp_path.iterdir()) == []  # no temporary file left
+
+
+# ---- 6, 7: numerical failures inside Parareal; advice on blow-ups ----------------------------
+# The rod starts 0.001 above the wall (ε = 1): the first corrections make a frame singular.
+AT_THE_WALL = TINY.replace("length = 4.0", "length = 4.0\nheight = 0.001").replace(
+    "lagrange = { epsilon = [5.6, 5.65] }\nrichardson = { m = 1, r = 0.83 }\n", ""
+) + '[run]\nmode = "parareal"\n'
+# The rod starts 0.5 above the wall and is drawn to it at t = 0.00213 whatever the step.
+TO_THE_WALL = TINY.replace("length = 4.0", "length = 4.0\nheight = 0.5").replace(
+    "t1 = 0.002", "t1 = 0.0024"
+) + '[run]\nmode = "serial"\n'
+
+
+@pytest.mark.parametrize("schedule", ["standard", "pipelined"])
+def test_a_correction_that_breaks_the_state_is_a_blow_up_naming_slice_and_iteration(
+    tmp_path, capsys, schedule
+):
+    path = _config(tmp_path, AT_THE_WALL)
+    if schedule == "pipelined":  # (one [parareal] table)
+        path.write_text(AT_THE_WALL.replace("max_iterations = 2",
+                                            'max_iterations = 2\nschedule = "pipelined"'))
+    out = tmp_path / "out"
+    assert _run(path, "--out", out) == cli.ExitCode.BLOWUP
+    err = capsys.readouterr().err
+    assert "the correction (eq. 11) of slice 2 in iteration 1 (Parareal) blew up" in err
+    assert "a frame is singular" in err
+    meta, arrays = io.load_arrays(out / runner.BLOWUP)
+    assert meta["where"].startswith("the correction") and np.isfinite(arrays["last_state"]).all()
+    assert "reduce" not in err and "a body is at the wall" in err  # 7: the step is not the cause
+
+
+def test_a_blow_up_at_the_wall_at_the_same_time_for_every_step_says_so(tmp_path, capsys):
+    path = _config(tmp_path, TO_THE_WALL)
+    out = tmp_path / "out"
+    assert _run(path, "--out", out) == cli.ExitCode.BLOWUP
+    first = capsys.readouterr().err
+    assert "a body is at the wall" in first and "reduce fine.dt" not in first
+    assert _run(path, "--out", out, "--overwrite", "--set", "fine.dt=5e-7") == cli.ExitCode.BLOWUP
+    second = capsys.readouterr().err
+    assert "the time does not move with the step" in second
+    assert "with a step of 1e-06 (now t = 0.00213" in second
