@@ -138,6 +138,7 @@ def _causes(error: BaseException):
 def exit_code(error: BaseException) -> ExitCode:
     """The exit status for an error that ended a command."""
     from .config import ConfigError
+    from .files import is_resource_error
     from .integrate import BlowUpError
     from .parallel import TaskError
 
@@ -151,6 +152,8 @@ def exit_code(error: BaseException) -> ExitCode:
         return ExitCode.BLOWUP
     if isinstance(error, ConfigError):
         return ExitCode.CONFIG
+    if any(isinstance(e, MemoryError) or is_resource_error(e) for e in causes):
+        return ExitCode.CONFIG  # out of memory, a full disk, too many open files: the machine's
     if any(isinstance(e, TaskError | BrokenProcessPool) for e in causes):
         return ExitCode.PARALLEL
     if isinstance(error, ValueError | OSError | ImportError):
@@ -554,7 +557,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BaseException as error:  # map every failure to a documented exit status
         if isinstance(error, SystemExit):
             raise
-        return int(_report(error, console))
+        return int(_report(error, console, args.command in ("run", "demo")))
     finally:
         for signum, handler in handlers.items():
             signal.signal(signum, handler)
@@ -570,8 +573,24 @@ def _catch_termination() -> dict[int, _Handler]:
     return handlers
 
 
-def _report(error: BaseException, console: Console) -> ExitCode:
-    """Print what ended the command (with the notes that say what was saved); its exit status."""
+def _machine_limit(error: BaseException) -> str | None:
+    """A line naming the machine's limit (memory, disk, open files) behind ``error`` when its
+    own message does not."""
+    from .files import describe_os_error, is_resource_error
+
+    for cause in _causes(error):
+        if isinstance(cause, MemoryError):
+            return ("cause: out of memory (MemoryError): use fewer points, slices or workers, or "
+                    "a machine with more memory")
+        if is_resource_error(cause) and isinstance(cause, OSError):
+            text = describe_os_error(cause)
+            return None if text in str(error) else f"cause: {text}"
+    return None
+
+
+def _report(error: BaseException, console: Console, resumable: bool = True) -> ExitCode:
+    """Print what ended the command (with the notes that say what was saved); its exit status.
+    ``resumable``: the command is a run (``run``, ``demo``), which ``--resume`` continues."""
     code = exit_code(error)
     console.finish()
     if not is_manager() and mpi_processes() > 1 and code is ExitCode.CONFIG:
@@ -580,13 +599,15 @@ def _report(error: BaseException, console: Console) -> ExitCode:
     if code in (ExitCode.INTERRUPTED, ExitCode.TERMINATED, ExitCode.HANGUP):
         what = {130: "interrupted", 143: "terminated (SIGTERM)", 129: "hung up (SIGHUP)"}[code]
         lines = [f"{what}: the workers are stopped and the checkpoint is consistent; rerun with "
-                 "--resume to continue"]
+                 "--resume to continue" if resumable else f"{what}; no run was in progress, so there is "
+                 "nothing to resume"]
     elif code is ExitCode.UNEXPECTED:
         logger.exception("unexpected error")
         return code
     else:
-        lines = [f"error: {error}", *notes]
-        if code is ExitCode.PARALLEL:
+        limit = _machine_limit(error)
+        lines = [f"error: {error}", *notes, *([limit] if limit else [])]
+        if code is ExitCode.PARALLEL and resumable:
             lines.append("rerun with --resume to continue from the last iteration")
     print("\n".join(lines), file=sys.stderr)
     return code

@@ -166,7 +166,39 @@ def _check_resumable(out: Path, cfg: Config) -> None:
                       (CHECKPOINT, identity(cfg))):
         path = out / name
         if path.exists():
-            _same_run(path, io.load_arrays(path)[0].get("key"), key)
+            meta = io.load_arrays(path)[0]
+            _same_run(path, meta.get("key"), key)
+            if name == CHECKPOINT:
+                _stops_before(path, meta, cfg)
+
+
+def _stops_before(path: Path, meta: dict[str, Any], cfg: Config) -> None:
+    """Refuse to resume from the checkpoint ``path`` (its ``meta``) when the stopping rule of
+    ``cfg`` would have stopped before the iteration it holds: a lower ``max_iterations`` or a
+    looser ``tol`` met at an earlier iteration. Only the last iterate is kept, so the run cannot
+    go back to that iteration (finished or interrupted alike); a ConfigError says what to do."""
+    try:
+        done = int(meta["iteration"])
+        increments = [float(value) for value in meta["increments"]]
+    except (KeyError, TypeError, ValueError):
+        return  # (read again, and named if damaged, when Parareal loads it)
+    p = cfg.parareal
+    met = next((k for k, value in enumerate(increments, 1) if value < p.tol), None)
+    issues = []
+    if p.max_iterations is not None and done > p.max_iterations:
+        issues.append(("parareal.max_iterations",
+                       f"{p.max_iterations} now, but the run to resume has done {done} iterations"))
+    if met is not None and met < done:
+        issues.append(("parareal.tol", f"{p.tol:g} now: met after iteration {met} (η̃ = "
+                                       f"{increments[met - 1]:.3g}), but the run to resume has "
+                                       f"done {done} iterations"))
+    if issues:
+        issues.append(("--resume", f"{path} keeps only the iterate of iteration {done}, so the run "
+                                   f"cannot stop earlier: keep parareal.max_iterations >= {done} "
+                                   "and a tol not met before it (that run's result is then "
+                                   "reported as it is), or pass --overwrite to run it again with "
+                                   "the new rule"))
+        raise ConfigError(issues, f"{path} (the run to resume)")
 
 
 def _blow_up_note(out: Path, error: BlowUpError, where: str, fix: str, step: float) -> str:

@@ -179,3 +179,124 @@ def test_a_blow_up_at_the_wall_at_the_same_time_for_every_step_says_so(tmp_path,
     second = capsys.readouterr().err
     assert "the time does not move with the step" in second
     assert "with a step of 1e-06 (now t = 0.00213" in second
+
+
+# ---- 10: unbounded input ---------------------------------------------------------------------
+def test_a_device_or_a_huge_file_is_not_read_as_a_configuration(tmp_path, capsys):
+    based = _config(tmp_path, 'base = "/dev/zero"\n' + TINY, "based.toml")
+    huge = tmp_path / "huge.toml"
+    huge.write_text("# " + "x" * (2 << 20) + "\n" + TINY)
+    for path in ("/dev/zero", based, huge):
+        assert cli.main(["check", str(path)]) == cli.ExitCode.CONFIG
+    err = capsys.readouterr().err
+    assert err.count("not a regular file") == 2 and "larger than 1 MiB" in err
+
+
+def test_a_value_nested_5000_deep_is_a_configuration_error(tmp_path, capsys):
+    path = _config(tmp_path)
+    deep = "[" * 5000 + "]" * 5000
+    assert cli.main(["check", str(path), "--set", f"coarse.lagrange={deep}"]) == 2
+    assert "coarse.lagrange: arrays or tables nested more than 32 deep" in capsys.readouterr().err
+    nested = _config(tmp_path, TINY + f"[tune]\nx = {deep}\n", "nested.toml")
+    assert cli.main(["check", str(nested)]) == 2
+
+
+def test_a_problem_that_cannot_fit_in_memory_is_refused_by_check_and_run(tmp_path, capsys,
+                                                                          monkeypatch):
+    from parastokes.config import checks
+
+    path = _config(tmp_path, TINY.replace("n_points = 21", "n_points = 100000000"))
+    monkeypatch.setattr(checks, "physical_memory", lambda: 16.0 * 2**30)
+    assert cli.main(["check", str(path)]) == cli.ExitCode.CONFIG
+    assert _run(path, "--out", tmp_path / "out") == cli.ExitCode.CONFIG
+    err = capsys.readouterr().err
+    assert err.count("model.n_points: 100000000 points: the run's states alone need more than "
+                     "53.6 GiB, and this machine has 16 GiB") == 2
+    assert not (tmp_path / "out").exists()  # refused before the directory is made
+
+
+def test_out_of_memory_in_a_run_is_exit_2_with_one_line(capsys, monkeypatch):
+    def fail(*args, **kwargs):
+        raise MemoryError()
+
+    monkeypatch.setattr(runner, "execute", fail)
+    assert cli.main(["demo", "--out", "unused", "-q"]) == cli.ExitCode.CONFIG
+    assert "cause: out of memory (MemoryError)" in capsys.readouterr().err
+
+
+# ---- 11: plot during a commit cut short; 14: orphan temporary files --------------------------
+def test_plot_completes_a_commit_cut_short_before_drawing(finished, tmp_path):
+    path, source = finished
+    new = tmp_path / "new"
+    assert _run(path, "--out", new, "--set", "parareal.max_iterations=1") == 0
+    out = _copy(source, tmp_path / "out")
+    staging = out / rundir.STAGING
+    staging.mkdir()
+    names = ["summary.json", "trajectory.h5", "trajectory.xdmf"]
+    for name in names:
+        (staging / name).write_bytes((new / name).read_bytes())
+    rundir._write_names(staging / "COMMIT", names)
+    os.replace(staging / "summary.json", out / "summary.json")  # killed here
+    orphan = out / f"{rundir.MANIFEST}.999999999.tmp"  # killed while writing the manifest
+    orphan.write_text("{")
+    assert cli.main(["plot", str(out), "-q", "--formats", "png"]) == 0
+    assert not staging.exists() and not orphan.exists()
+    for name in names:  # the new results whole, and the figures drawn from them
+        assert (out / name).read_bytes() == (new / name).read_bytes()
+    assert io.read_history(out / "trajectory.h5")["increments"].shape == (1,)
+
+
+# ---- 12: --resume of a finished run with a stricter stopping rule ----------------------------
+@pytest.mark.parametrize("change", ["parareal.max_iterations=1", "parareal.tol=1"])
+def test_resume_that_would_have_stopped_earlier_is_refused_saying_why(finished, tmp_path, capsys,
+                                                                     change):
+    path, source = finished
+    out = _copy(source, tmp_path / "out")
+    before = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
+    assert _run(path, "--out", out, "--resume", "--set", change) == cli.ExitCode.CONFIG
+    err = capsys.readouterr().err
+    assert f"{change.split('=')[0]}:" in err and "has done 2 iterations" in err
+    assert "cannot stop earlier" in err and "--overwrite" in err
+    assert {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()} == before
+    # a rule that the stored iterate does not pass still resumes (no new iteration is needed)
+    assert _run(path, "--out", out, "--resume", "--set", "parareal.max_iterations=2") == 0
+
+
+# ---- 14: the smaller ones ----------------------------------------------------------------------
+def test_a_configuration_with_a_utf8_bom_is_read(tmp_path, capsys):
+    path = tmp_path / "bom.toml"
+    path.write_bytes(b"\xef\xbb\xbf" + TINY.encode())
+    assert cli.main(["check", str(path)]) == 0
+
+
+@pytest.mark.parametrize("command", ["check", "predict"])
+def test_sigterm_outside_a_run_does_not_advise_resume(tmp_path, command):
+    path = _config(tmp_path)
+    extra = ["--cores", "4"] if command == "predict" else []
+    slow = tmp_path / "slow.py"  # the command, held at its start until SIGTERM arrives
+    slow.write_text(
+        "import sys, time\nfrom parastokes import cli\n"
+        "from parastokes import config\n"
+        "loading = config.load\n"
+        "def load(*a, **k):\n    print('ready', flush=True)\n    time.sleep(60)\n"
+        "config.load = load\n"
+        "if __name__ == '__main__':\n    sys.exit(cli.main(sys.argv[1:]))\n"
+    )
+    process = subprocess.Popen([sys.executable, str(slow), command, str(path), *extra], env=ENV,
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert process.stdout.readline().strip() == "ready"
+    process.send_signal(signal.SIGTERM)
+    _, err = process.communicate(timeout=30)
+    assert process.returncode == 143
+    assert "terminated (SIGTERM); no run was in progress" in err and "--resume" not in err
+
+
+def test_a_script_without_the_main_guard_is_told_so_in_one_line(tmp_path):
+    script = tmp_path / "unguarded.py"
+    script.write_text("from parastokes.parallel import ProcessExecutor\nProcessExecutor(1)\n")
+    done = subprocess.run([sys.executable, str(script)], env=ENV, capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 1
+    last = done.stderr.strip().splitlines()[-1]
+    assert last.startswith("RuntimeError: starting the worker processes failed")
+    assert f'If {script} starts the run, put its code under `if __name__ == "__main__":`' in last
