@@ -401,14 +401,22 @@ def cmd_predict(args: argparse.Namespace, console: Console) -> ExitCode:
         f"{'N_c':>6} {'N_it':>5} {'γ_G/γ_F':>9} {'speedup (eq. 14)':>17} {'bound (eq. 15)':>15}"
         f" {'std':>7} {'std sim':>8} {'pipe':>7} {'pipe sim':>9}"
     )
+    skipped = []
     for n in args.cores:
         (row,) = parareal.predict_schedules(auxiliary, iterations, [n], n_aux, args.workers)
         ((_, theory, bound),) = parareal.predict(row["alpha"], iterations, [n])
+        if not row["simulated"]:
+            skipped.append(n)
         print(
             f"{n:>6} {row['iterations']:>5} {row['alpha']:>9.4f} {theory:>17.3f} {bound:>15.3f}"
             f" {row['standard_formula']:>7.3f} {row['standard']:>8.3f}"
-            f" {row['pipelined_formula']:>7.3f} {row['pipelined']:>9.3f}"
+            f" {row['pipelined_formula']:>7.3f} {row['pipelined']:>9.3f}".replace("nan", "  -")
         )
+    if skipped:
+        from .parareal.schedule_model import MAX_SIMULATED_TASKS
+
+        print(f"sim -: not simulated for N_c = {', '.join(map(str, skipped))} (more than "
+              f"{MAX_SIMULATED_TASKS} tasks); the closed formulas std and pipe hold there")
     return ExitCode.OK
 
 
@@ -567,7 +575,9 @@ def _catch_termination() -> dict[int, _Handler]:
     """Handle SIGTERM and SIGHUP like Ctrl-C (main thread only); returns the previous handlers."""
     if threading.current_thread() is not threading.main_thread():
         return {}
-    handlers = {signum: signal.signal(signum, _terminate) for signum in _TERMINATING}
+    handlers: dict[int, _Handler] = {
+        signum: signal.signal(signum, _terminate) for signum in _TERMINATING
+    }
     if hasattr(signal, "SIGXFSZ"):  # past a file-size limit a write fails (EFBIG), not the process
         handlers[signal.SIGXFSZ] = signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
     return handlers
@@ -598,9 +608,11 @@ def _report(error: BaseException, console: Console, resumable: bool = True) -> E
     notes = [f"  {note}" for note in getattr(error, "__notes__", ())]
     if code in (ExitCode.INTERRUPTED, ExitCode.TERMINATED, ExitCode.HANGUP):
         what = {130: "interrupted", 143: "terminated (SIGTERM)", 129: "hung up (SIGHUP)"}[code]
-        lines = [f"{what}: the workers are stopped and the checkpoint is consistent; rerun with "
-                 "--resume to continue" if resumable else f"{what}; no run was in progress, so there is "
-                 "nothing to resume"]
+        if resumable:
+            lines = [f"{what}: the workers are stopped and the checkpoint is consistent; rerun "
+                     "with --resume to continue"]
+        else:
+            lines = [f"{what}; no run was in progress, so there is nothing to resume"]
     elif code is ExitCode.UNEXPECTED:
         logger.exception("unexpected error")
         return code

@@ -117,7 +117,7 @@ class GuardedFile(io.RawIOBase):
         super().__init__()
         self.path = Path(path)
         try:
-            self._raw = open(self.path, "w+b", buffering=0)  # noqa: SIM115 (closed by close())
+            self._raw = open(self.path, "w+b", buffering=0)
         except OSError as error:
             raise FileWriteError(self.path, error, "create") from None
         self.failed: OSError | None = None

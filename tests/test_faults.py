@@ -12,7 +12,6 @@ import resource
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -300,3 +299,48 @@ def test_a_script_without_the_main_guard_is_told_so_in_one_line(tmp_path):
     last = done.stderr.strip().splitlines()[-1]
     assert last.startswith("RuntimeError: starting the worker processes failed")
     assert f'If {script} starts the run, put its code under `if __name__ == "__main__":`' in last
+
+
+# ---- 8: tune --out never overwrites other files ----------------------------------------------
+@pytest.mark.parametrize("name", ["summary.json", "x.json", "d.png", "existing.toml", "adir"])
+def test_tune_out_is_checked_before_the_search(finished, tmp_path, capsys, name):
+    path, source = finished
+    out = _copy(source, tmp_path / "run")  # a finished run's directory
+    (out / "existing.toml").write_text("kept")
+    (out / "adir").mkdir()
+    before = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
+    code = cli.main(["tune", str(path), "--cores", "4", "--target", "1e-6", "--out",
+                     str(out / name), "-q"])
+    assert code == cli.ExitCode.CONFIG
+    err = capsys.readouterr().err
+    reason = {"summary.json": "must not end in .json", "x.json": "must not end in .json",
+              "d.png": "must not end in .png", "existing.toml": "already exist",
+              "adir": "is a directory"}[name]
+    assert reason in err
+    assert {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()} == before
+
+
+def test_tune_outputs_are_three_distinct_new_files_unless_overwrite(tmp_path):
+    from parastokes.tuning.command import outputs
+
+    toml, record, figure = outputs(tmp_path / "sub" / "t.toml", overwrite=False)
+    assert (toml.name, record.name, figure.name) == ("t.toml", "t.json", "t.png")
+    assert toml.parent.is_dir()
+    record.write_text("{}")
+    assert outputs(toml, overwrite=True) == (toml, record, figure)
+
+
+# ---- 9: predict at any core count --------------------------------------------------------------
+def test_predict_beyond_the_simulated_size_gives_the_closed_formulas_at_once(finished, capsys):
+    from parastokes.parareal import predict_schedules, schedule_model
+
+    path, _ = finished
+    assert cli.main(["predict", str(path), "--cores", "4", "1000000000"]) == 0  # (was: 24 GB)
+    lines = capsys.readouterr().out.splitlines()
+    big = next(line for line in lines if line.split()[0] == "1000000000").split()
+    assert big[6] == "-" and big[8] == "-" and float(big[7]) == pytest.approx(20.0, rel=1e-3)
+    assert "not simulated for N_c = 1000000000" in lines[-1]
+    small = next(line for line in lines if line.split()[0] == "4").split()
+    (row,) = predict_schedules(float(small[2]), 2, [4], 4)  # (W = 4 >= N_G: one round)
+    assert float(small[6]) == pytest.approx(row["standard"], abs=1e-3)
+    assert schedule_model.simulated_tasks(10**9, 2, 4) > schedule_model.MAX_SIMULATED_TASKS

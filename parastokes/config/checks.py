@@ -32,7 +32,10 @@ from ..parallel import available_cores
 from .errors import ConfigError
 from .schema import Config
 
-__all__ = ["Resolved", "estimated_bytes", "estimated_fine_seconds", "physical_memory", "resolve", "resolved_dict", "steps_on_slice"]
+__all__ = [
+    "Resolved", "estimated_bytes", "estimated_fine_seconds", "physical_memory", "resolve",
+    "resolved_dict", "steps_on_slice",
+]
 
 #: Most fine steps (all slices) a configuration may ask for: beyond, the run cannot end.
 MAX_FINE_STEPS = 10**12
