@@ -122,6 +122,40 @@ def _check_launch(argv: Sequence[str]) -> None:
         )
 
 
+def shadowing_note(package: Path, cwd: Path, installed: Path | None) -> str | None:
+    """A note when the package directory ``package`` that runs lies in the current directory
+    ``cwd`` (``python -m`` puts it first on the path: a checkout's parent folder, or a checkout's
+    root) while another copy is installed in ``installed`` (None: none)."""
+    if installed is None or package.parent != cwd or installed == package:
+        return None
+    return (
+        f"note: running the parastokes of {package} (python -m looks in the current directory "
+        f"first), not the installed one in {installed}; run from another directory to use the "
+        "installed package"
+    )
+
+
+def _installed_package() -> Path | None:
+    """The directory of the installed (non-editable) parastokes, if there is one."""
+    from importlib import metadata
+
+    try:
+        located = Path(str(metadata.distribution("parastokes").locate_file("parastokes")))
+    except metadata.PackageNotFoundError:
+        return None
+    return located.resolve() if (located / "__init__.py").is_file() else None
+
+
+def _check_shadowing() -> None:
+    """Print :func:`shadowing_note` if the package runs from the current directory."""
+    here = Path(__file__).resolve().parent
+    if here.parent != Path.cwd().resolve():
+        return
+    note = shadowing_note(here, Path.cwd().resolve(), _installed_package())
+    if note and is_manager():
+        print(note, file=sys.stderr)
+
+
 def _causes(error: BaseException):
     """The error, what it wraps (``TaskError.original``) and its chained causes."""
     seen: set[int] = set()
@@ -558,6 +592,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         format="%(levelname)s %(name)s: %(message)s",
     )
     console = Console(args.quiet)
+    _check_shadowing()
     handlers = _catch_termination()
     try:
         _check_launch(sys.argv[1:] if argv is None else argv)

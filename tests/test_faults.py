@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from configs import small_rod
+from test_run_directory import _config, _run
 
 from parastokes import cli, files, io, rundir, runner
 
@@ -29,16 +30,6 @@ TINY = 'title = "tiny rod"\n' + small_rod(
     parareal="max_iterations = 2",
     rest='[execution]\nexecutor = "serial"\n[output]\nfigures = false\n',
 )
-
-
-def _config(tmp_path: Path, text: str = TINY, name: str = "run.toml") -> Path:
-    path = tmp_path / name
-    path.write_text(text)
-    return path
-
-
-def _run(*args: str) -> int:
-    return cli.main(["run", *map(str, args), "-q"])
 
 
 def _command(*args: str, limit: int | None = None, **kwargs) -> subprocess.CompletedProcess:
@@ -58,7 +49,7 @@ def _command(*args: str, limit: int | None = None, **kwargs) -> subprocess.Compl
 def finished(tmp_path_factory) -> tuple[Path, Path]:
     """A finished TINY run (2 iterations): (its configuration, its directory)."""
     root = tmp_path_factory.mktemp("finished")
-    path = _config(root)
+    path = _config(root, TINY)
     assert _run(path, "--out", root / "out") == 0
     return path, root / "out"
 
@@ -192,7 +183,7 @@ def test_a_device_or_a_huge_file_is_not_read_as_a_configuration(tmp_path, capsys
 
 
 def test_a_value_nested_5000_deep_is_a_configuration_error(tmp_path, capsys):
-    path = _config(tmp_path)
+    path = _config(tmp_path, TINY)
     deep = "[" * 5000 + "]" * 5000
     assert cli.main(["check", str(path), "--set", f"coarse.lagrange={deep}"]) == 2
     assert "coarse.lagrange: arrays or tables nested more than 32 deep" in capsys.readouterr().err
@@ -270,7 +261,7 @@ def test_a_configuration_with_a_utf8_bom_is_read(tmp_path, capsys):
 
 @pytest.mark.parametrize("command", ["check", "predict"])
 def test_sigterm_outside_a_run_does_not_advise_resume(tmp_path, command):
-    path = _config(tmp_path)
+    path = _config(tmp_path, TINY)
     extra = ["--cores", "4"] if command == "predict" else []
     slow = tmp_path / "slow.py"  # the command, held at its start until SIGTERM arrives
     slow.write_text(
@@ -344,3 +335,15 @@ def test_predict_beyond_the_simulated_size_gives_the_closed_formulas_at_once(fin
     (row,) = predict_schedules(float(small[2]), 2, [4], 4)  # (W = 4 >= N_G: one round)
     assert float(small[6]) == pytest.approx(row["standard"], abs=1e-3)
     assert schedule_model.simulated_tasks(10**9, 2, 4) > schedule_model.MAX_SIMULATED_TASKS
+
+
+def test_a_checkout_in_the_current_directory_that_shadows_the_installed_package_is_named(
+    tmp_path,
+):
+    checkout, installed = tmp_path / "parastokes", tmp_path / "site" / "parastokes"
+    note = cli.shadowing_note(checkout, tmp_path, installed)
+    assert note is not None and f"running the parastokes of {checkout}" in note
+    assert str(installed) in note
+    assert cli.shadowing_note(checkout, tmp_path / "elsewhere", installed) is None
+    assert cli.shadowing_note(checkout, tmp_path, None) is None  # nothing installed: no note
+    assert cli.shadowing_note(installed, installed.parent, installed) is None
