@@ -241,6 +241,8 @@ def read_npz(
     except FileNotFoundError:
         raise
     except (OSError, EOFError, ValueError, KeyError, zipfile.BadZipFile) as error:
+        if isinstance(error, OSError) and is_resource_error(error):  # (the file is not at fault)
+            raise FileWriteError(path, error, "read") from None
         # numpy reports a damaged or foreign file as any of these; its advice to load it "with
         # allow_pickle" does not apply (parastokes never writes pickles)
         reason = "not a NumPy array file" if "pickle" in str(error) else str(error)

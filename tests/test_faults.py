@@ -347,3 +347,15 @@ def test_a_checkout_in_the_current_directory_that_shadows_the_installed_package_
     assert cli.shadowing_note(checkout, tmp_path / "elsewhere", installed) is None
     assert cli.shadowing_note(checkout, tmp_path, None) is None  # nothing installed: no note
     assert cli.shadowing_note(installed, installed.parent, installed) is None
+
+
+def test_too_many_open_files_while_reading_is_not_called_damage(tmp_path, monkeypatch):
+    path = tmp_path / "a.npz"
+    files.write_npz(path, {}, x=np.zeros(2))
+
+    def exhausted(*args, **kwargs):
+        raise OSError(errno.EMFILE, os.strerror(errno.EMFILE))
+
+    monkeypatch.setattr(np, "load", exhausted)
+    with pytest.raises(files.FileWriteError, match=f"cannot read {path}: Too many open files"):
+        files.read_npz(path)
