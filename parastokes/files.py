@@ -27,7 +27,7 @@ import numpy as np
 
 __all__ = [
     "CorruptFileError", "FileWriteError", "GuardedFile", "atomic_write", "describe_os_error",
-    "read_npz", "write_npz", "write_text",
+    "is_resource_error", "read_npz", "write_npz", "write_text",
 ]
 
 #: errno values of a full disk or a reached limit, and what each means.
