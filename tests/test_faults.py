@@ -45,6 +45,12 @@ def _command(*args: str, limit: int | None = None, **kwargs) -> subprocess.Compl
     )
 
 
+def _bounded_memory() -> None:
+    """A subprocess's address space limited to 2 GiB: an attack that grows without bound (in a
+    regression) ends in a MemoryError there instead of taking the test machine's memory."""
+    resource.setrlimit(resource.RLIMIT_AS, (2 << 30, resource.RLIM_INFINITY))
+
+
 @pytest.fixture(scope="module")
 def finished(tmp_path_factory) -> tuple[Path, Path]:
     """A finished TINY run (2 iterations): (its configuration, its directory)."""
@@ -176,10 +182,15 @@ def test_a_device_or_a_huge_file_is_not_read_as_a_configuration(tmp_path, capsys
     based = _config(tmp_path, 'base = "/dev/zero"\n' + TINY, "based.toml")
     huge = tmp_path / "huge.toml"
     huge.write_text("# " + "x" * (2 << 20) + "\n" + TINY)
-    for path in ("/dev/zero", based, huge):
-        assert cli.main(["check", str(path)]) == cli.ExitCode.CONFIG
-    err = capsys.readouterr().err
-    assert err.count("not a regular file") == 2 and "larger than 1 MiB" in err
+    assert cli.main(["check", str(huge)]) == cli.ExitCode.CONFIG
+    assert "larger than 1 MiB" in capsys.readouterr().err
+
+    # (were /dev/zero read whole: a MemoryError past 2 GiB, not the machine's memory)
+    done = subprocess.run([sys.executable, "-m", "parastokes", "check", "/dev/zero", str(based)],
+                          env=ENV, capture_output=True, text=True, preexec_fn=_bounded_memory,
+                          timeout=120)
+    assert done.returncode == cli.ExitCode.CONFIG, done.stderr
+    assert done.stderr.count("not a regular file") == 2
 
 
 def test_a_value_nested_5000_deep_is_a_configuration_error(tmp_path, capsys):
@@ -197,6 +208,11 @@ def test_a_problem_that_cannot_fit_in_memory_is_refused_by_check_and_run(tmp_pat
 
     path = _config(tmp_path, TINY.replace("n_points = 21", "n_points = 100000000"))
     monkeypatch.setattr(checks, "physical_memory", lambda: 16.0 * 2**30)
+
+    def allocate(*args, **kwargs):  # (were it not refused: no 10 GB state on the test machine)
+        raise AssertionError("the run was not refused before its states were allocated")
+
+    monkeypatch.setattr(runner, "execute", allocate)
     assert cli.main(["check", str(path)]) == cli.ExitCode.CONFIG
     assert _run(path, "--out", tmp_path / "out") == cli.ExitCode.CONFIG
     err = capsys.readouterr().err
@@ -322,12 +338,17 @@ def test_tune_outputs_are_three_distinct_new_files_unless_overwrite(tmp_path):
 
 
 # ---- 9: predict at any core count --------------------------------------------------------------
-def test_predict_beyond_the_simulated_size_gives_the_closed_formulas_at_once(finished, capsys):
+def test_predict_beyond_the_simulated_size_gives_the_closed_formulas_at_once(finished):
     from parastokes.parareal import predict_schedules, schedule_model
 
     path, _ = finished
-    assert cli.main(["predict", str(path), "--cores", "4", "1000000000"]) == 0  # (was: 24 GB)
-    lines = capsys.readouterr().out.splitlines()
+    # (was: 24 GB until the kernel killed it; here a MemoryError past 2 GiB)
+    done = subprocess.run(
+        [sys.executable, "-m", "parastokes", "predict", str(path), "--cores", "4", "1000000000"],
+        env=ENV, capture_output=True, text=True, preexec_fn=_bounded_memory, timeout=300,
+    )
+    assert done.returncode == 0, done.stderr
+    lines = done.stdout.splitlines()
     big = next(line for line in lines if line.split()[0] == "1000000000").split()
     assert big[6] == "-" and big[8] == "-" and float(big[7]) == pytest.approx(20.0, rel=1e-3)
     assert "not simulated for N_c = 1000000000" in lines[-1]
