@@ -22,6 +22,7 @@ checkpoint. Files in the output directory while a run is in progress:
 
 from __future__ import annotations
 
+import errno
 import itertools
 import logging
 import math
@@ -31,9 +32,14 @@ import time
 from pathlib import Path
 from typing import Any, Protocol
 
+try:
+    import resource
+except ImportError:  # (not on Windows)
+    resource = None  # type: ignore[assignment]
+
 import numpy as np
 
-from . import __version__, io, parareal, rundir, session
+from . import __version__, files, io, parareal, rundir, session
 from .config import Config, ConfigError, Resolved, Setup, build, resolved_dict
 from .config.checks import estimated_fine_seconds
 from .contracts import System
@@ -334,6 +340,38 @@ def _inner_frames(
     return np.asarray(states)
 
 
+def _frame_plan(setup: Setup) -> tuple[list[int], int]:
+    """The slice boundaries written as frames, and ``parts``: each slice's frames inside it plus
+    one (1: none inside), as ``output.every`` asks."""
+    every, steps = setup.config.output.every, setup.resolved.fine_steps
+    frames = _frame_indices(setup.config.parareal.n_slices, max(1, (every or steps) // steps))
+    return frames, steps // every if every is not None and every < steps else 1
+
+
+def _check_room(setup: Setup, writer: io.TrajectoryWriter) -> None:
+    """Refuse, before any work, a trajectory whose frames alone exceed the file-size limit
+    (``ulimit -f``) or the free space where it is written: otherwise the run would fail at its
+    end, when it writes them (a FileWriteError then)."""
+    frames, parts = _frame_plan(setup)
+    runs = 2 if setup.config.run.mode == "both" else 1
+    count = runs * (len(frames) + (parts - 1) * setup.config.parareal.n_slices)
+    columns = sum(body.rows * 3 * (1 + len(body.vectors)) for body in writer.layout)
+    # its header as written, and the frames' data: a lower bound on the file's size
+    needed = writer.path.stat().st_size + 8.0 * count * columns
+    room: list[tuple[int, str, float]] = []
+    if resource is not None:
+        limit = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
+        if limit != resource.RLIM_INFINITY:
+            room.append((errno.EFBIG, f"the file size limit is {limit / 1e6:.3g} MB", limit))
+    found = os.statvfs(writer.path.parent)
+    free = float(found.f_bavail * found.f_frsize)
+    room.append((errno.ENOSPC, f"{free / 1e6:.3g} MB are free on its file system", free))
+    for number, what, size in room:
+        if needed > size:
+            reason = f"its {count} frames need at least {needed / 1e6:.3g} MB, but {what}"
+            raise files.FileWriteError(writer.path, OSError(number, reason))
+
+
 def _append_frames(
     writer: io.TrajectoryWriter,
     run: str,
@@ -344,10 +382,8 @@ def _append_frames(
     """Write the frames of ``states`` (at the slice boundaries ``times``) as ``output.every``
     asks: every m-th boundary, or every boundary and the frames inside the slices."""
     setup = running.setup
-    every, steps = setup.config.output.every, setup.resolved.fine_steps
     n_slices = len(times) - 1
-    frames = _frame_indices(n_slices, max(1, (every or steps) // steps))
-    parts = steps // every if every is not None and every < steps else 1
+    frames, parts = _frame_plan(setup)
     inner: dict[int, np.ndarray] = {}
     if parts > 1:
         slices = range(1, n_slices + 1)
@@ -599,6 +635,8 @@ def _execute(
         times = parareal.time_points(cfg.time.t0, cfg.time.t1, cfg.parareal.n_slices)
         writer = _writer(cfg, setup, conf, staging) if cfg.output.trajectory else None
         try:
+            if writer is not None:
+                _check_room(setup, writer)
             reference = serial_time = result = record = None
             if mode in ("serial", "both"):
                 reference, serial_time = _serial(

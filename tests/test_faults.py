@@ -68,20 +68,42 @@ def _copy(source: Path, target: Path) -> Path:
 
 
 # ---- 5: a full disk while trajectory.h5 is written -------------------------------------------
-def test_a_file_size_limit_while_the_trajectory_is_written_is_exit_2_naming_it(finished, tmp_path):
+def test_a_file_size_limit_below_the_trajectory_is_exit_2_naming_it(finished, tmp_path):
     path, source = finished
     out = _copy(source, tmp_path / "out")
     checkpoint = (out / runner.CHECKPOINT).read_bytes()
     trajectory = (out / runner.TRAJECTORY).read_bytes()
     # --resume of a finished run only writes its results again: the trajectory (75 kB) exceeds
-    # the limit, the checkpoint and the summary do not
-    done = _command("run", path, "--out", out, "--resume", "-q", limit=40_000)
-    assert done.returncode == 2, done.stderr
+    # the limit, the checkpoint and the summary do not; refused before its frames are written
+    done = _command("run", path, "--out", out, "--resume", "-q", limit=30_000)
+    assert done.returncode == 2, done.stderr  # (was 139: a segmentation fault in h5py)
     assert "Segmentation" not in done.stderr and "Traceback" not in done.stderr
-    assert f"cannot write {out / rundir.STAGING / runner.TRAJECTORY}" in done.stderr
-    assert "file size limit" in done.stderr
+    assert f"cannot write {out / rundir.STAGING / runner.TRAJECTORY}: its 10 frames need at " \
+           "least" in done.stderr and "but the file size limit is 0.03 MB" in done.stderr
     assert (out / runner.CHECKPOINT).read_bytes() == checkpoint  # the checkpoint is intact
     assert (out / runner.TRAJECTORY).read_bytes() == trajectory  # the old results are kept
+    assert not (out / rundir.LOCK).exists() and not (out / rundir.STAGING).exists()
+
+
+def test_a_disk_that_fills_while_the_trajectory_is_written_is_exit_2_naming_it(
+    finished, tmp_path, monkeypatch, capsys
+):
+    path, source = finished
+    out = _copy(source, tmp_path / "out")
+    checkpoint = (out / runner.CHECKPOINT).read_bytes()
+    write = files.GuardedFile.write
+
+    def filling(self, data):  # the disk is full past 30 kB (after the check for room)
+        if self.tell() + memoryview(data).nbytes > 30_000 and self.failed is None:
+            self.failed = OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        return write(self, data)
+
+    monkeypatch.setattr(files.GuardedFile, "write", filling)
+    assert _run(path, "--out", out, "--resume") == cli.ExitCode.CONFIG
+    err = capsys.readouterr().err
+    assert f"cannot write {out / rundir.STAGING / runner.TRAJECTORY}: No space left on device " \
+           "(the file system is full" in err
+    assert (out / runner.CHECKPOINT).read_bytes() == checkpoint
     assert not (out / rundir.LOCK).exists() and not (out / rundir.STAGING).exists()
 
 
