@@ -363,9 +363,13 @@ def _check_room(setup: Setup, writer: io.TrajectoryWriter) -> None:
         limit = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
         if limit != resource.RLIM_INFINITY:
             room.append((errno.EFBIG, f"the file size limit is {limit / 1e6:.3g} MB", limit))
-    found = os.statvfs(writer.path.parent)
-    free = float(found.f_bavail * found.f_frsize)
-    room.append((errno.ENOSPC, f"{free / 1e6:.3g} MB are free on its file system", free))
+    try:
+        found = os.statvfs(writer.path.parent)
+    except (OSError, AttributeError):  # (a file system, or a system, that does not say)
+        found = None
+    if found is not None:
+        free = float(found.f_bavail * found.f_frsize)
+        room.append((errno.ENOSPC, f"{free / 1e6:.3g} MB are free on its file system", free))
     for number, what, size in room:
         if needed > size:
             reason = f"its {count} frames need at least {needed / 1e6:.3g} MB, but {what}"
