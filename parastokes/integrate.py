@@ -154,6 +154,15 @@ class BlowUpError(RuntimeError):
         return type(self), (self.t, self.step, self.monitor, self.last_state, self.reason)
 
 
+def projected(system: System, x: np.ndarray, t: float, step: int = 0) -> np.ndarray:
+    """``system.project(x)``, a state the projection rejects (a ValueError, e.g. a rod frame
+    made singular by a step far too large) being a :class:`BlowUpError` at ``t``."""
+    try:
+        return system.project(x)
+    except ValueError as error:
+        raise BlowUpError(t, step, math.nan, np.array(x), f"not a valid state ({error})") from None
+
+
 def _combine(
     system: System,
     coefs: tuple[float, ...],
@@ -285,7 +294,7 @@ def _stepping(
     """
     limit = blowup_factor * system.monitor_limit
     shape = x.shape
-    x = system.project(x)
+    x = projected(system, x, t0)
     loop = compiled_loop(system) if compiled else None
     if loop is None:
         x = contract.array(system, "project(state)", x, shape=shape, what="the state's shape")
@@ -314,7 +323,8 @@ def run_result(
         if m == math.inf:  # the monitors' sign of a point on or below the wall z = 0
             reason += " (infinite: a point reached the wall z = 0; a smaller step keeps it off)"
         raise BlowUpError(t, taken, m, x, reason)
-    return RunResult(system.project(x), worst, taken, dt, completed=outcome == DONE)
+    end = projected(system, x, t0 + taken * dt, max(taken - 1, 0))
+    return RunResult(end, worst, taken, dt, completed=outcome == DONE)
 
 
 def run(
