@@ -17,7 +17,7 @@ import pytest
 from user_body import SedimentingCloud
 
 from parastokes import integrate, models, mrs
-from parastokes.fluid import TargetBlocks
+from parastokes.spatial import TargetBlocks
 from parastokes.kinds.chain import ChainSystem
 from parastokes.parallel import make_executor
 from parastokes.scene import Scene

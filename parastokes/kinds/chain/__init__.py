@@ -37,7 +37,7 @@ from ...bodies.registry import (
     draw_over_time,
     polyline,
 )
-from ...fluid import MRS, TargetBlocks
+from ...fluid import MRS, Blocks
 from ...mrs.velocity import thread_count
 from ...stepping.loop import register_parts
 from .mechanics import bond_strain, chain_energy, chain_forces
@@ -72,7 +72,7 @@ class ChainSystem(PointsInShear):
     stretch: float = 1.0
     tilt: float = 0.0
     n_threads: int | None = None
-    target_blocks: TargetBlocks | None = None
+    target_blocks: Blocks | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.n_beads, int) or self.n_beads < 2:

@@ -22,7 +22,7 @@ import numpy as np
 from ...bodies import frames, geometry
 from ...bodies.base import FluidBody, replace_params, require_positive
 from ...bodies.geometry import crossed_wall
-from ...fluid import MRS, TargetBlocks
+from ...fluid import MRS, Blocks
 from ...mrs.velocity import thread_count
 from ...stepping import loop
 from . import mechanics as kirchhoff
@@ -64,7 +64,7 @@ class RodSystem(FluidBody):
     height: float = 10.0
     spacing: float = 5.0
     n_threads: int | None = None
-    target_blocks: TargetBlocks | None = None
+    target_blocks: Blocks | None = None
 
     def __post_init__(self) -> None:
         for name in ("n_rods", "n_points"):

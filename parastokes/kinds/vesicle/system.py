@@ -18,7 +18,7 @@ import numpy as np
 
 from ...bodies import geometry
 from ...bodies.base import PointsInShear, replace_params, require_positive
-from ...fluid import MRS, TargetBlocks
+from ...fluid import MRS, Blocks
 from ...mrs.velocity import thread_count
 from ...stepping import loop
 from .compiled import vesicle_data
@@ -69,7 +69,7 @@ class VesicleSystem(PointsInShear):
     stiffness: float
     shear_rate: float
     n_threads: int | None = None
-    target_blocks: TargetBlocks | None = None
+    target_blocks: Blocks | None = None
     center: tuple[float, float, float] = (0.0, 0.0, 0.0)
     radius: float = 1.0
 
