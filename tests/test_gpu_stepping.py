@@ -29,6 +29,7 @@ def _members(system, theta):
 
 
 def _compare(calls):
+    assert all(gpu_batch.batch_key(fn, args) is not None for fn, args in calls)  # on the GPU
     outcomes = gpu_batch.run_calls([(fn, args, {}) for fn, args in calls])
     for (fn, args), (ok, value) in zip(calls, outcomes, strict=True):
         assert ok, value
@@ -85,3 +86,36 @@ def test_other_calls_run_on_the_cpu():
 
 def test_gpu_available_in_these_tests():
     assert gpu.available()
+
+
+@pytest.mark.parametrize("wall", [False, True])
+def test_chain_batch_matches_cpu_from_its_own_device_parts(wall):
+    """The chain (kinds/chain/device.py): springs, bending, load and shear; at the wall with the
+    full kernel and the shear added there."""
+    from parastokes.kinds.chain import ChainSystem
+
+    chain = ChainSystem(n_beads=5, stiffness=20.0, bending=2.0, shear_rate=1.0, epsilon=0.3,
+                        load=(0.0, 0.0, -0.5), wall=wall, height=2.0 if wall else 0.0, tilt=0.3,
+                        stretch=1.05)
+    _compare(_members(chain, {"stiffness": 25.0, "bending": 1.5, "epsilon": 0.35,
+                              "viscosity": 1.2}))
+
+
+def test_a_users_body_runs_from_its_own_device_parts():
+    """tests/user_body.py registers tests/user_body_device.py (docs/extending.md)."""
+    from user_body import SedimentingCloud
+
+    cloud = SedimentingCloud(n_points=6, epsilon=0.3)
+    _compare(_members(cloud, {"epsilon": 0.35, "viscosity": 1.2}))
+
+
+def test_a_body_without_device_parts_is_named():
+    from parastokes.gpu import stepping
+
+    class Custom(type(small_rods())):
+        pass
+
+    custom = Custom(**{**small_rods().__dict__})
+    with pytest.raises(stepping.NoDevicePartsError, match="Custom has no device parts"):
+        stepping.solve(integrate.SCHEMES["rk2"],
+                       [stepping.Member(custom, custom.initial_state(), 0.0, 1e-2, 1)], 1.0)

@@ -8,7 +8,7 @@ from numba import cuda
 
 from ..mrs.velocity import EIGHT_PI, validated
 from . import device
-from .kernels import DENOM, EPS, RUNNING, launch_shape, velocity_kernels
+from .kernels import DENOM, EPS, RUNNING, THETA, launch_shape, velocity_kernels
 from .stepping import Launch
 
 __all__ = ["Evaluation", "velocity"]
@@ -25,7 +25,7 @@ class Evaluation:
         self.launch_shape = launch or Launch.default()
         nb, m = targets.shape[:2]
         self.fast = torques is None and not wall
-        mf = np.zeros((nb, 7))
+        mf = np.zeros((nb, THETA))
         mf[:, EPS] = epsilon
         mf[:, DENOM] = EIGHT_PI * np.asarray(mu)
         self._args = [cuda.to_device(np.ascontiguousarray(a, dtype=float))
@@ -46,7 +46,8 @@ class Evaluation:
         if self.fast:
             free_u_f[self._grid, self._block](*self._args, self._mf, self._mi, 0.0, self._out)
         else:
-            full[self._grid, self._block](*self._args, self._mf, self._mi, self._wall, self._out)
+            full[self._grid, self._block](*self._args, self._mf, self._mi, self._wall, 0.0,
+                                          self._out)
 
     def result(self) -> tuple[np.ndarray, np.ndarray | None]:
         out = self._out.copy_to_host()

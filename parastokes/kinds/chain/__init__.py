@@ -3,7 +3,8 @@
 This body is written only through the public extension path (docs/extending.md): this package and
 its one line in :data:`parastokes.bodies.registry.BUILTIN`; nothing else in the package names it.
 Its mechanics are compiled functions (:mod:`.mechanics`), its compiled parts for the loops of
-steps (alone and in scenes) are in :mod:`.stepping`, registered at the end of this module.
+steps (alone and in scenes) are in :mod:`.stepping`, its GPU device parts in :mod:`.device`, both
+registered at the end of this module.
 
 Mechanics (forces only; docs/bodies.md). Beads X_0..X_{N-1}, bonds t_i = X_{i+1} - X_i with rest
 length b, unit tangents t̂_i. The elastic energy is
@@ -40,6 +41,7 @@ from ...bodies.registry import (
 from ...fluid import MRS, Blocks
 from ...mrs.velocity import thread_count
 from ...stepping.loop import register_parts
+from ...stepping.registry import register_device
 from .mechanics import bond_strain, chain_energy, chain_forces
 from .stepping import chain_data
 
@@ -186,3 +188,4 @@ KIND = BodyKind("chain", ChainModel, layout, draw, example=example)
 
 
 register_parts(ChainSystem, chain_data, fluid=MRS, in_scenes=True)
+register_device(ChainSystem, "parastokes.kinds.chain.device:PARTS")

@@ -5,7 +5,7 @@ Rods in free space or above the no-slip wall z = 0; point forces and torques (eq
 through the regularized Stokeslet/rotlet kernels with images (docs/physics.md (1)-(8));
 Θ = (ε, μ, a). The system is a frozen dataclass of scalars (the initial shape is rebuilt on
 demand), so it pickles in a few hundred bytes. Importing this module registers its compiled loop
-(:mod:`.compiled`).
+(:mod:`.compiled`) and its GPU device parts (:mod:`.device`).
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from ...bodies.base import FluidBody, replace_params, require_positive
 from ...bodies.geometry import crossed_wall
 from ...fluid import MRS, Blocks
 from ...mrs.velocity import thread_count
-from ...stepping import loop
+from ...stepping import loop, registry
 from . import mechanics as kirchhoff
 from .compiled import rod_data
 from .transfer import RodTransfer
@@ -304,3 +304,4 @@ def rod_swimmer(
 
 
 loop.register_parts(RodSystem, rod_data, fluid=MRS, in_scenes=True)
+registry.register_device(RodSystem, "parastokes.kinds.rod.device:PARTS")

@@ -4,7 +4,8 @@ section 4), and its public factory :func:`vesicle` (defaults = the paper's).
 Free-space regularized Stokeslets (eq. 6) of the spring forces (docs/physics.md (14)) plus the shear
 flow u∞ = (γ̇ z, 0, 0) (docs/physics.md (15)); Θ = (ε, μ, κ). The system is a frozen dataclass of
 scalars (the mesh is rebuilt on demand and cached per process), so it pickles in a few hundred
-bytes. Importing this module registers its compiled loop (:mod:`.compiled`).
+bytes. Importing this module registers its compiled loop (:mod:`.compiled`) and its GPU device parts
+(:mod:`.device`).
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from ...bodies import geometry
 from ...bodies.base import PointsInShear, replace_params, require_positive
 from ...fluid import MRS, Blocks
 from ...mrs.velocity import thread_count
-from ...stepping import loop
+from ...stepping import loop, registry
 from .compiled import vesicle_data
 from .mechanics import spring_forces
 
@@ -166,3 +167,4 @@ def vesicle(
 
 
 loop.register_parts(VesicleSystem, vesicle_data, fluid=MRS, in_scenes=True)
+registry.register_device(VesicleSystem, "parastokes.kinds.vesicle.device:PARTS")
