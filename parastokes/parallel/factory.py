@@ -16,15 +16,22 @@ coarse-solver registries do), so this module imports no backend: the GPU's lives
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
-from concurrent.futures import Future
-from typing import Any, Protocol
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, TypeAlias
 
 from .. import plugins
 from ..values import is_integer
 
-__all__ = ["BUILTIN", "ENTRY_POINT_GROUP", "KINDS", "WorkerPool", "executor_maker",
-           "make_executor"]
+if TYPE_CHECKING:  # names for the type checker only: a kind's module is imported when asked for
+    from ..gpu import GPUExecutor
+    from .mpi import MPIExecutor
+    from .processes import ProcessExecutor
+    from .serial import SerialExecutor
+
+    #: The executors :func:`make_executor` makes, each with its ``workers``.
+    WorkerPool: TypeAlias = SerialExecutor | ProcessExecutor | MPIExecutor | GPUExecutor
+
+__all__ = ["BUILTIN", "ENTRY_POINT_GROUP", "KINDS", "executor_maker", "make_executor"]
 
 #: The built-in executor kinds: name -> ``"module:make"`` (imported on first use).
 BUILTIN: dict[str, str] = {
@@ -42,21 +49,6 @@ KINDS = tuple(BUILTIN)
 
 #: What to install when a built-in kind's module cannot be imported.
 _EXTRAS = {"gpu": 'pip install "parastokes[gpu]" (numba-cuda)'}
-
-
-class WorkerPool(Protocol):
-    """What :func:`make_executor` returns: the ``concurrent.futures`` shape and ``workers`` (how
-    many tasks run at once; ``None``: no limit, the GPU's)."""
-
-    @property
-    def workers(self) -> int | None: ...
-
-    def submit(self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> Future: ...
-
-    def map(self, fn: Callable[..., Any], *iterables: Any, timeout: float | None = None,
-            chunksize: int = 1) -> Iterator[Any]: ...
-
-    def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None: ...
 
 
 class UnknownExecutorError(ValueError):
