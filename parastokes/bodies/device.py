@@ -39,14 +39,21 @@ __all__ = ["DeviceFunctions", "DeviceParts", "rows"]
 
 
 class DeviceFunctions(NamedTuple):
-    """The device functions of a kind for blocks of a given number of threads (module docstring)."""
+    """The device functions of a kind for blocks of a given number of threads (module docstring).
+
+    A composite of bodies (a scene, :mod:`parastokes.gpu.scene`) gives instead of ``advance``
+    ``advance_at(p, row, comb, h, out)`` (the advance of point p, whichever body it belongs to),
+    and instead of the monitor's three parts the whole block's ``monitor(x, b, tid, body, red)``
+    (``red``: the block's shared array of ``threads`` numbers)."""
 
     loads: Callable[..., Any]
-    advance: Callable[..., Any]
-    monitor_part: Callable[..., Any]
-    monitor_join: Callable[..., Any]
-    monitor_value: Callable[..., Any]
+    advance: Callable[..., Any] | None = None
+    monitor_part: Callable[..., Any] | None = None
+    monitor_join: Callable[..., Any] | None = None
+    monitor_value: Callable[..., Any] | None = None
     bracket: Callable[..., Any] | None = None
+    advance_at: Callable[..., Any] | None = None
+    monitor: Callable[..., Any] | None = None
 
 
 @dataclass(frozen=True)
@@ -60,7 +67,9 @@ class DeviceParts:
     - ``tables(system, cuda)``: the constant device arrays of a batch's structure, a tuple (the
       ``body`` argument of the device functions);
     - ``functions(threads)``: the :class:`DeviceFunctions` for blocks of ``threads`` threads
-      (compiled for CUDA; cache them per ``threads``).
+      (compiled for CUDA; cache them per ``threads``);
+    - ``epsilon(system)`` (None: the system's ``epsilon``): the ε of every point as a source, (N,),
+      when the sources have their own (a scene's bodies).
     """
 
     columns: int
@@ -69,6 +78,7 @@ class DeviceParts:
     torques: bool
     tables: Callable[[Any, Any], tuple]
     functions: Callable[[int], DeviceFunctions]
+    epsilon: Callable[[Any], Any] | None = None
 
 
 def rows(x, b, p, cols, out):

@@ -102,6 +102,29 @@ class Member:
     n: int
 
 
+def block_monitor(threads: int, part: Any, join: Any, value: Any) -> Any:
+    """``monitor(x, b, tid, body, red)``: member b's monitor (every thread of the block gets it), a
+    fixed-order tree reduction by ``join`` of the threads' ``part``s (e.g. max of the rods' length
+    changes; sum of the vesicle's areas), then ``value`` of the result; ``red`` is the block's
+    shared array of ``threads`` numbers."""
+
+    @cuda.jit(device=True)
+    def monitor(x, b, tid, body, red):
+        red[tid] = part(x, b, tid, body)
+        cuda.syncthreads()
+        width = threads // 2
+        while width > 0:
+            if tid < width:
+                red[tid] = join(red[tid], red[tid + width])
+            cuda.syncthreads()
+            width //= 2
+        joined = red[0]
+        cuda.syncthreads()
+        return value(joined, body)
+
+    return monitor
+
+
 @functools.cache
 def _body_kernels(parts: DeviceParts, threads: int) -> tuple:
     """``(begin, stage, finish)`` kernels of the body kind of ``parts`` for blocks of ``threads``
@@ -113,10 +136,18 @@ def _body_kernels(parts: DeviceParts, threads: int) -> tuple:
     rows_ = jit(rows)
     body_functions = parts.functions(threads)
     loads = body_functions.loads
-    advance = body_functions.advance
-    monitor_part = body_functions.monitor_part
-    monitor_join = body_functions.monitor_join
-    monitor_value = body_functions.monitor_value
+    if body_functions.advance_at is not None:
+        advance_at = body_functions.advance_at
+    else:
+        advance = body_functions.advance
+
+        @jit
+        def advance_at(p, row, comb, h, out):
+            advance(row, comb, h, out)
+
+    monitor = body_functions.monitor or block_monitor(
+        threads, body_functions.monitor_part, body_functions.monitor_join,
+        body_functions.monitor_value)
     if body_functions.bracket is not None:
         bracket = body_functions.bracket
     else:
@@ -126,23 +157,6 @@ def _body_kernels(parts: DeviceParts, threads: int) -> tuple:
             pass
 
     # ---- generic parts ------------------------------------------------------------------------
-    @jit
-    def monitor(x, b, tid, body, red):
-        """The member's monitor (every thread of the block gets it): a fixed-order tree reduction
-        of the threads' parts by the kind's join (e.g. max of the rods' length changes; sum of the
-        vesicle's areas)."""
-        red[tid] = monitor_part(x, b, tid, body)
-        cuda.syncthreads()
-        width = threads // 2
-        while width > 0:
-            if tid < width:
-                red[tid] = monitor_join(red[tid], red[tid + width])
-            cuda.syncthreads()
-            width //= 2
-        value = red[0]
-        cuda.syncthreads()
-        return monitor_value(value, body)
-
     @jit
     def combine(k, coefs, b, p, comb):
         """Σ_j coefs[j] k_j at point p, zero coefficients skipped, terms added in order (as
@@ -167,7 +181,7 @@ def _body_kernels(parts: DeviceParts, threads: int) -> tuple:
             combine(k, coefs, b, p, comb)
             bracket(k, brackets, st, b, p, h, comb)
             rows_(x, b, p, cols, row)
-            advance(row, comb, h, new)
+            advance_at(p, row, comb, h, new)
             for q in range(cols):
                 out[b, p, q] = new[q]
                 if not math.isfinite(new[q]):
@@ -249,10 +263,11 @@ def _body_kernels(parts: DeviceParts, threads: int) -> tuple:
 
 
 @functools.cache
-def _load_parts(target: str) -> DeviceParts:
+def _load_parts(target: str) -> Any:
     parts = plugins.import_target(target, target, NoDevicePartsError)
-    if not isinstance(parts, DeviceParts):
-        raise NoDevicePartsError(f"{target} is not a parastokes.bodies.device.DeviceParts")
+    if not (isinstance(parts, DeviceParts) or callable(parts)):
+        raise NoDevicePartsError(f"{target} is neither a parastokes.bodies.device.DeviceParts "
+                                 "nor a function of the system that returns one")
     return parts
 
 
@@ -266,7 +281,8 @@ def device_parts(system: System) -> DeviceParts:
             "parastokes.stepping.registry.register_device (docs/extending.md, 'Running on the "
             "GPU'), or run it on a CPU executor"
         )
-    return _load_parts(target)
+    parts = _load_parts(target)
+    return parts if isinstance(parts, DeviceParts) else parts(system)
 
 
 def gpu_system(system: System) -> Any:
@@ -298,7 +314,9 @@ def solve(
     first = members[0].system
     parts = device_parts(first)
     cols, rcols, names = parts.columns, parts.rate_columns, parts.parameters
-    extra = sorted(set(first.params) - {"epsilon", "viscosity", *names})
+    own = {"epsilon"} if parts.epsilon is None else {
+        k for k in first.params if k.rpartition(".")[2] == "epsilon"}  # ε per source: a scene's
+    extra = sorted(set(first.params) - {"viscosity", *own, *names})
     if extra:
         raise ValueError(f"{type(first).__name__}: its device parts hold no member values of "
                          f"the parameter(s) {extra} (DeviceParts.parameters: {list(names)})")
@@ -311,9 +329,15 @@ def solve(
     mi = np.zeros((nb, 3), dtype=np.int64)
     for b, mb in enumerate(members):
         s = mb.system
-        mf[b, [T0, STEP, EPS, DENOM]] = (mb.t0, mb.h, s.epsilon, EIGHT_PI * s.viscosity)
-        mf[b, THETA:THETA + len(names)] = [getattr(s, name) for name in names]
+        epsilon = s.epsilon if parts.epsilon is None else 0.0  # (then one per source, below)
+        mf[b, [T0, STEP, EPS, DENOM]] = (mb.t0, mb.h, epsilon, EIGHT_PI * s.viscosity)
+        params = s.params
+        mf[b, THETA:THETA + len(names)] = [params[name] for name in names]
         mi[b] = (RUNNING, mb.n, 0)
+    if parts.epsilon is None:
+        eps = np.zeros((1, 1))  # not read
+    else:
+        eps = np.stack([np.asarray(parts.epsilon(mb.system), dtype=float) for mb in members])
     c, a, weights, stage_brackets, final_brackets = tableau_arrays(scheme)
     stages = weights.size
 
@@ -325,8 +349,8 @@ def solve(
     d_k = cuda.device_array((stages, nb, npts, max(rcols, 6) if use_full else rcols))
     k_views = [d_k[st] for st in range(stages)]
     d_f = cuda.device_array((nb, npts, 3))
-    d_tq = cuda.device_array((nb, npts, 3)) if parts.torques else cuda.to_device(
-        np.zeros((nb, npts, 3)))
+    d_tq = cuda.to_device(np.zeros((nb, npts, 3)))  # (a body without torques leaves its rows 0)
+    d_eps = cuda.to_device(eps)
     d_mf = cuda.to_device(mf)
     d_mi = cuda.to_device(mi)
     d_a, d_c, d_w = cuda.to_device(a), cuda.to_device(c), cuda.to_device(weights)
@@ -336,7 +360,7 @@ def solve(
                           np.zeros((0, 3)))
     body = parts.tables(first, cuda)
     begin, stage, finish = _body_kernels(parts, launch.threads)
-    full, free_u_f = velocity_kernels(launch.tx, launch.sy)
+    full, free_u_f = velocity_kernels(launch.tx, launch.sy, parts.epsilon is not None)
     grid, block = launch_shape(nb, npts, launch.tx, launch.sy)
 
     # launch configurations made once (each is reused for every step)
@@ -345,9 +369,9 @@ def solve(
 
     def velocity(positions, out):
         if use_full:
-            full(positions, positions, d_f, d_tq, d_mf, d_mi, wall, shear, out)
+            full(positions, positions, d_f, d_tq, d_mf, d_mi, wall, shear, d_eps, out)
         else:
-            free_u_f(positions, positions, d_f, d_mf, d_mi, shear, out)
+            free_u_f(positions, positions, d_f, d_mf, d_mi, shear, d_eps, out)
 
     begin(d_x, d_mf, d_mi, body, d_f, d_tq)
     limit = float(limit)
