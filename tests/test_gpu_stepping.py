@@ -119,3 +119,37 @@ def test_a_body_without_device_parts_is_named():
     with pytest.raises(stepping.NoDevicePartsError, match="Custom has no device parts"):
         stepping.solve(integrate.SCHEMES["rk2"],
                        [stepping.Member(custom, custom.initial_state(), 0.0, 1e-2, 1)], 1.0)
+
+
+def test_a_scene_runs_batched_from_its_bodies_device_parts():
+    """A rod and a chain above the wall in shear: one velocity kernel over both with ε per source,
+    each body's parts on its rows; Θ of both bodies varied per member."""
+    from parastokes.kinds.chain import ChainSystem
+    from parastokes.scene import Scene
+
+    rods = small_rods(n_rods=1)
+    chain = ChainSystem(n_beads=4, stiffness=20.0, bending=2.0, epsilon=0.3, viscosity=1.0,
+                        shear_rate=0.5, wall=True, height=4.0, tilt=0.2, stretch=1.05)
+    scene = Scene((rods, chain), viscosity=1.0, wall=True, shear_rate=0.5)
+    _compare(_members(scene, {"rod.bending": 1.3, "chain.epsilon": 0.35, "chain.stiffness": 25.0,
+                              "viscosity": 1.2}))
+
+
+def test_a_scene_with_a_body_without_device_parts_names_it():
+    from user_body import SedimentingCloud
+
+    from parastokes.gpu import stepping
+    from parastokes.scene import Scene
+
+    class Slow(SedimentingCloud):  # a subclass: its physics may differ, so no device parts
+        angular = False
+
+        def loads(self, t, state):
+            return np.zeros_like(state), None
+
+        def body_rates(self, u, w):
+            return u
+
+    scene = Scene((small_vesicle(viscosity=1.0, shear_rate=0.0), Slow(n_points=4)), viscosity=1.0)
+    with pytest.raises(stepping.NoDevicePartsError, match="scene body 'slow': Slow has no device"):
+        stepping.device_parts(scene)
