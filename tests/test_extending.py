@@ -55,6 +55,8 @@ def test_the_pages_python_steps_run(walk):
     assert outputs["check.py"].strip() == "contract ok"
     assert outputs["check_compiled.py"].strip() == "compiled loop ok"
     assert outputs["parareal_cloud.py"].startswith("errors")
+    assert outputs["check_device.py"].strip() == "device ok"  # the cloud's device parts (10.)
+    assert outputs["check_executor.py"].strip() == "executor ok"  # an executor kind (11.)
 
 
 def test_a_users_compiled_loop_leaves_the_packages_loops_loadable(walk):
