@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from parastokes.bodies.device import DeviceFunctions, DeviceParts
+from parastokes.bodies.device import DeviceFunctions, DeviceParts, itself, larger, move_point
 
 
 def gyration(x: np.ndarray) -> float:
@@ -35,11 +35,6 @@ def functions(threads: int) -> DeviceFunctions:
             f[b, p, 2] = -body[0][0]
 
     @jit
-    def advance(row, comb, h, out):
-        for q in range(3):
-            out[q] = row[q] + h * comb[q]
-
-    @jit
     def monitor_part(x, b, tid, body):
         """Thread 0 computes the whole monitor (a small cloud); the others give 0."""
         if tid != 0:
@@ -56,15 +51,8 @@ def functions(threads: int) -> DeviceFunctions:
             total += (x[b, p, 0] - cx) ** 2 + (x[b, p, 1] - cy) ** 2 + (x[b, p, 2] - cz) ** 2
         return abs(math.sqrt(total / n) / body[0][1] - 1.0)
 
-    @jit
-    def monitor_join(first, second):
-        return max(first, second)
-
-    @jit
-    def monitor_value(joined, body):
-        return joined
-
-    return DeviceFunctions(loads, advance, monitor_part, monitor_join, monitor_value)
+    # the point's advance X + h u, the larger part and the value itself: parts many kinds share
+    return DeviceFunctions(loads, jit(move_point), monitor_part, jit(larger), jit(itself))
 
 
 PARTS = DeviceParts(columns=3, rate_columns=3, parameters=(), torques=False, tables=tables,

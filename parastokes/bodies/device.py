@@ -35,7 +35,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
-__all__ = ["DeviceFunctions", "DeviceParts", "rows"]
+__all__ = ["DeviceFunctions", "DeviceParts", "itself", "larger", "move_point", "rows"]
 
 
 class DeviceFunctions(NamedTuple):
@@ -86,3 +86,22 @@ def rows(x, b, p, cols, out):
     once compiled by the caller)."""
     for q in range(cols):
         out[q] = x[b, p, q]
+
+
+# Parts many kinds share (plain Python: each kind compiles them with cuda.jit(device=True)).
+
+
+def move_point(row, comb, h, out):
+    """``advance`` of a point moved by the fluid: X + h u (3 columns)."""
+    for q in range(3):
+        out[q] = row[q] + h * comb[q]
+
+
+def larger(first, second):
+    """``monitor_join`` by the larger of two parts."""
+    return max(first, second)
+
+
+def itself(joined, body):
+    """``monitor_value`` when the joined parts are the monitor."""
+    return joined

@@ -27,7 +27,7 @@ from typing import Any
 
 from numba import cuda
 
-from ..bodies.device import DeviceFunctions, DeviceParts
+from ..bodies.device import DeviceFunctions, DeviceParts, itself, larger
 from .stepping import NoDevicePartsError, block_monitor, device_parts
 
 __all__ = ["scene_parts"]
@@ -176,15 +176,7 @@ def _functions(parts: tuple[DeviceParts, ...], layout: tuple, wall: bool, thread
                 return math.inf
         return 0.0
 
-    @jit
-    def larger(first, second):
-        return max(first, second)
-
-    @jit
-    def itself(joined, body):
-        return joined
-
-    crossed = block_monitor(threads, below_wall, larger, itself)
+    crossed = block_monitor(threads, below_wall, jit(larger), jit(itself))
     bodies = monitors_from(0)
 
     @jit

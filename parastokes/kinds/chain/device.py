@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 from numba import cuda
 
-from ...bodies.device import DeviceFunctions, DeviceParts
+from ...bodies.device import DeviceFunctions, DeviceParts, itself, move_point
 
 __all__ = ["PARTS"]
 
@@ -84,11 +84,6 @@ def _functions(threads: int) -> DeviceFunctions:
                 f[b, p, j] = value + c[1 + j]
 
     @jit
-    def advance(row, comb, h, out):
-        for q in range(3):
-            out[q] = row[q] + h * comb[q]
-
-    @jit
     def monitor_part(x, b, tid, body):
         """The largest |t_i|/b - 1 of this thread's bonds; infinite when one of its beads is on or
         below the wall (as ``bodies.geometry.crossed_wall``)."""
@@ -109,11 +104,7 @@ def _functions(threads: int) -> DeviceFunctions:
     def monitor_join(first, second):
         return second if second > first or second != second else first  # NaN propagates
 
-    @jit
-    def monitor_value(joined, body):
-        return joined
-
-    return DeviceFunctions(loads, advance, monitor_part, monitor_join, monitor_value)
+    return DeviceFunctions(loads, jit(move_point), monitor_part, monitor_join, jit(itself))
 
 
 #: Θ on the device: ε, μ, the spring constant k (``theta[0]``) and the bending modulus κ

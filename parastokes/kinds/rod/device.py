@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 from numba import cuda
 
-from ...bodies.device import DeviceFunctions, DeviceParts, rows
+from ...bodies.device import DeviceFunctions, DeviceParts, larger, rows
 from ...bodies.frames import advance_node
 from .mechanics import segment_loads
 
@@ -122,14 +122,10 @@ def _functions(threads: int) -> DeviceFunctions:
         return abs(total - body[1][_R_LEN])
 
     @jit
-    def monitor_join(first, second):
-        return max(first, second)
-
-    @jit
     def monitor_value(joined, body):
         return joined / body[1][_R_LEN]
 
-    return DeviceFunctions(loads, advance, monitor_part, monitor_join, monitor_value, bracket)
+    return DeviceFunctions(loads, advance, monitor_part, jit(larger), monitor_value, bracket)
 
 
 #: Θ on the device: ε, μ and the bending modulus a (``theta[0]``).

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 from numba import cuda
 
-from ...bodies.device import DeviceFunctions, DeviceParts, rows
+from ...bodies.device import DeviceFunctions, DeviceParts, move_point, rows
 from ...bodies.geometry import triangle_area2
 from .mechanics import spring_pull
 
@@ -73,11 +73,6 @@ def _functions(threads: int) -> DeviceFunctions:
             f[b, p, 2] = fz
 
     @jit
-    def advance(row, comb, h, out):
-        for q in range(3):
-            out[q] = row[q] + h * comb[q]
-
-    @jit
     def monitor_part(x, b, tid, body):
         """Twice the area of this thread's triangles; the monitor is |Σ/2 - A0| / A0."""
         triangles = body[4]
@@ -98,7 +93,7 @@ def _functions(threads: int) -> DeviceFunctions:
         area = body[5][_V_AREA]
         return abs(0.5 * joined - area) / area
 
-    return DeviceFunctions(loads, advance, monitor_part, monitor_join, monitor_value)
+    return DeviceFunctions(loads, jit(move_point), monitor_part, monitor_join, monitor_value)
 
 
 #: Θ on the device: ε, μ and the spring constant κ (``theta[0]``).
