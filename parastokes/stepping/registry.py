@@ -77,7 +77,8 @@ def compiled_data(system: object) -> Callable[[Any, int], tuple] | None:
 
 def register_device(cls: type, target: str) -> None:
     """Systems of exactly the type ``cls`` have device parts at ``target``, ``"module:NAME"`` of a
-    :class:`parastokes.bodies.device.DeviceParts` (imported on a GPU solve's first use)."""
+    :class:`parastokes.bodies.device.DeviceParts`, or of a function of the system that returns
+    one (a scene's depend on its bodies); imported on a GPU solve's first use."""
     if not isinstance(target, str) or ":" not in target:
         raise ValueError(f"target: give it as \"package.module:NAME\", got {target!r}")
     _DEVICE[cls] = target
