@@ -7,9 +7,12 @@ for bit:
 
 - :class:`MRS`: regularized Stokeslets through :func:`parastokes.mrs.velocity`, the targets in
   tiles over ``n_threads`` numba threads (the threaded spatial parallelization of Remark 1);
-- :class:`BlockedMRS`: the same sums split into contiguous blocks of targets, one task per block
-  on an executor (process pool or MPI ranks), the loads shipped with all sources to every block,
-  as a distributed-memory code broadcasts them (the process-block spatial parallelization).
+- :class:`BlockedMRS`: the same sums split into contiguous blocks of targets by its
+  :class:`Blocks` (:class:`parastokes.spatial.TargetBlocks`: one task per block on an executor,
+  process pool or MPI ranks), the loads shipped with all sources to every block, as a
+  distributed-memory code broadcasts them (the process-block spatial parallelization). The
+  executor part lives above the fluid, in :mod:`parastokes.spatial`; this module imports no
+  executor.
 
 The regularization ε belongs to the body (it is a parameter Θ that extrapolation varies) and is
 passed with each evaluation; the fluid holds μ, the wall and how the sums are computed.
@@ -19,16 +22,14 @@ Compiled loops of steps are registered per (system type, fluid type)
 
 from __future__ import annotations
 
-from concurrent.futures import Executor
 from dataclasses import dataclass
-from typing import Any, Literal, overload
+from typing import Any, Literal, Protocol, overload
 
 import numpy as np
 
 from . import mrs
-from .parallel import Task, run_tasks
 
-__all__ = ["MRS", "BlockedMRS", "TargetBlocks"]
+__all__ = ["MRS", "BlockedMRS", "Blocks", "TargetBlocks", "block_velocity"]
 
 
 @dataclass(frozen=True)
@@ -107,7 +108,7 @@ class MRS:
         )
 
 
-def _block_velocity(
+def block_velocity(
     targets: np.ndarray,
     sources: np.ndarray,
     forces: np.ndarray,
@@ -118,46 +119,32 @@ def _block_velocity(
     return mrs.velocity(targets, sources, forces, torques=torques, check=False, **options)
 
 
-class TargetBlocks:
-    """How a :class:`BlockedMRS` splits its targets: ``n_blocks`` contiguous blocks (default
-    ``executor.workers``), one labelled task each on ``executor``. It holds the executor, so it
-    lives on the manager and does not pickle."""
+class Blocks(Protocol):
+    """How a :class:`BlockedMRS` splits and runs its evaluations: ``n_blocks`` blocks of targets,
+    and ``run``, the velocities of every block (in order) of ``points`` from all of them, each
+    block's :func:`block_velocity` with ``options`` (ε, μ, wall, angular). Implemented by
+    :class:`parastokes.spatial.TargetBlocks` (one task per block on an executor)."""
 
-    def __init__(self, executor: Executor, n_blocks: int | None = None) -> None:
-        n_blocks = getattr(executor, "workers", 1) if n_blocks is None else n_blocks
-        if isinstance(n_blocks, bool) or not isinstance(n_blocks, int) or n_blocks < 1:
-            raise ValueError(f"n_blocks must be an integer >= 1, got {n_blocks!r}")
-        self.executor = executor
-        self.n_blocks = n_blocks
-
-    def __reduce__(self) -> tuple:
-        raise TypeError("TargetBlocks holds an executor (manager only): it does not pickle")
-
-    def slices(self, n_points: int) -> list[slice]:
-        """The blocks of ``n_points`` targets (at most one per target)."""
-        parts = np.array_split(np.arange(n_points), min(self.n_blocks, n_points))
-        return [slice(int(b[0]), int(b[-1]) + 1) for b in parts]
+    n_blocks: int
 
     def run(self, points: np.ndarray, forces: np.ndarray, torques: np.ndarray | None,
-            options: dict[str, Any]) -> list[Any]:
-        """The velocities of every block (in order) of ``points`` from all of them."""
-        tasks = [
-            Task(
-                _block_velocity,
-                (points[block], points, forces, torques, options),
-                f"velocity of targets {block.start}-{block.stop - 1}",
-            )
-            for block in self.slices(len(points))
-        ]
-        return run_tasks(self.executor, tasks)
+            options: dict[str, Any]) -> list[Any]: ...
+
+
+#: The annotation of a body's ``target_blocks`` field as bodies written for earlier releases
+#: import it (``from parastokes.fluid import TargetBlocks``, docs/extending.md): the protocol, so
+#: that the fluid imports nothing above it; the executor-backed implementation is
+#: :class:`parastokes.spatial.TargetBlocks`.
+TargetBlocks = Blocks
 
 
 @dataclass(frozen=True)
 class BlockedMRS(MRS):
-    """:class:`MRS` with every evaluation split into blocks of targets (:class:`TargetBlocks`);
-    each target's sum is the same sum in the same order, so the velocities are the same bits."""
+    """:class:`MRS` with every evaluation split into blocks of targets (:class:`Blocks`, e.g.
+    :class:`parastokes.spatial.TargetBlocks`); each target's sum is the same sum in the same
+    order, so the velocities are the same bits."""
 
-    blocks: TargetBlocks | None = None
+    blocks: Blocks | None = None
 
     def __post_init__(self) -> None:
         if self.blocks is None:

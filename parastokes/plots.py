@@ -35,19 +35,18 @@ From the JSON of ``benchmarks/parareal.py --json`` (:func:`draw_benchmark`):
 
 from __future__ import annotations
 
-import functools
 import json
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
 import numpy as np
 from matplotlib.figure import Figure
 
 from . import io
 from .bodies import registry
-from .files import atomic_write
+from .figure_files import save_figure as _save
 
 __all__ = [
     "RunData",
@@ -122,20 +121,6 @@ def _titled(ax, runs: Sequence[RunData]) -> None:
     title = runs[0].summary.get("title") if len(runs) == 1 else ""
     if title:
         ax.set_title(title if len(title) <= 60 else title[:57] + "...", fontsize=8)
-
-
-def _save(fig: Figure, stem: Path, formats: Sequence[str]) -> list[Path]:
-    """``fig`` as ``stem.FMT`` for every format, each written atomically (never half a file)."""
-    paths = []
-    for fmt in formats:
-        path = stem.with_suffix(f".{fmt}")
-        atomic_write(path, functools.partial(_savefig, fig, fmt))
-        paths.append(path)
-    return paths
-
-
-def _savefig(fig: Figure, fmt: str, handle: IO[bytes]) -> None:
-    fig.savefig(handle, format=fmt, dpi=150, bbox_inches="tight")
 
 
 # ---- accuracy and speedup --------------------------------------------------------------------
@@ -464,14 +449,14 @@ def draw_run(directory: str | Path, formats: Sequence[str] = FORMATS) -> list[Pa
 
 def _gantt_of(run: RunData, stem: Path, formats: Sequence[str]) -> list[Path]:
     """The Gantt chart of a run whose summary holds per-task timings (none for older runs)."""
-    from .plots_gantt import gantt
+    from .plots_gantt import gantt_figure
 
     timings = run.summary.get("timings") or {}
     if not timings.get("tasks"):
         return []
     schedule = timings.get("schedule", "standard")
     title = f"{run.label}: {schedule} schedule, {run.summary.get('workers')} workers"
-    return gantt(timings["tasks"], stem, formats, title)
+    return _save(gantt_figure(timings["tasks"], title), stem, formats)
 
 
 def draw_comparison(

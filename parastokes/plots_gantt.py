@@ -16,9 +16,10 @@ from pathlib import Path
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
+from .figure_files import save_figure
 from .parareal.timings import MANAGER
 
-__all__ = ["COLORS", "gantt"]
+__all__ = ["COLORS", "gantt", "gantt_figure"]
 
 #: Bar colour of each kind of task.
 COLORS = {"fine": "C0", "coarse": "C3", "auxiliary": "C1"}
@@ -31,8 +32,11 @@ def gantt(
     title: str = "",
 ) -> list[Path]:
     """Draw ``tasks`` as a Gantt chart into ``stem`` + each format; returns the files."""
-    from .plots import _save
+    return save_figure(gantt_figure(tasks, title), stem, formats)
 
+
+def gantt_figure(tasks: Sequence[Sequence], title: str = "") -> Figure:
+    """The Gantt chart of ``tasks`` (one row per worker, the manager on top)."""
     workers = sorted({int(task[5]) for task in tasks})
     rows = {worker: i for i, worker in enumerate(reversed(workers))}
     fig = Figure(figsize=(7.5, 1.2 + 0.28 * len(workers)))
@@ -61,4 +65,4 @@ def gantt(
     if title:
         ax.set_title(title, fontsize=8)
     ax.grid(True, axis="x", alpha=0.3)
-    return _save(fig, stem, formats)
+    return fig

@@ -240,3 +240,4 @@ class Scene:
 
 
 registry.register(Scene, scene_loop)
+registry.register_device(Scene, "parastokes.gpu.scene:scene_parts")  # (when all bodies have some)

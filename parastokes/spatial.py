@@ -9,9 +9,10 @@ parallelization (section 5.1.4, Fig. 10):
   over numba threads (``n_threads`` of :func:`parastokes.mrs.velocity`, carried by the system).
   Each target's sum runs on one thread in a fixed order, so the result is bit-identical to the
   serial F for any thread count.
-- **processes** (:class:`parastokes.fluid.BlockedMRS`, a second implementation of the fluid):
-  every velocity evaluation is split into contiguous blocks of targets, one task per block on an
-  executor (a process pool or MPI ranks), the results concatenated on the manager. The forces
+- **processes** (:class:`parastokes.fluid.BlockedMRS`, a second implementation of the fluid, with
+  :class:`TargetBlocks`): every velocity evaluation is split into contiguous blocks of targets,
+  one task per block on an executor (a process pool or MPI ranks), the results concatenated on
+  the manager. The forces
   (and torques) are computed once on the manager and shipped with all source points to every
   block, as a distributed-memory code would broadcast them; each target's sum is still the same
   sum in the same order. The system is the same system with ``target_blocks`` set; it has no
@@ -28,15 +29,52 @@ import dataclasses
 import time
 from concurrent.futures import Executor
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from . import integrate
 from .contracts import PropagatorLike
-from .fluid import TargetBlocks
+from .fluid import block_velocity
 from .models import RodSystem, VesicleSystem
+from .parallel import Task, run_tasks
 
 __all__ = ["SpatialSpeedup", "TargetBlocks", "fine_solver", "measure_speedup", "threaded"]
+
+
+class TargetBlocks:
+    """How a :class:`parastokes.fluid.BlockedMRS` splits its targets: ``n_blocks`` contiguous
+    blocks (default ``executor.workers``), one labelled task each on ``executor`` (the
+    :class:`parastokes.fluid.Blocks` of the fluid). It holds the executor, so it lives on the
+    manager and does not pickle."""
+
+    def __init__(self, executor: Executor, n_blocks: int | None = None) -> None:
+        n_blocks = getattr(executor, "workers", 1) if n_blocks is None else n_blocks
+        if isinstance(n_blocks, bool) or not isinstance(n_blocks, int) or n_blocks < 1:
+            raise ValueError(f"n_blocks must be an integer >= 1, got {n_blocks!r}")
+        self.executor = executor
+        self.n_blocks = n_blocks
+
+    def __reduce__(self) -> tuple:
+        raise TypeError("TargetBlocks holds an executor (manager only): it does not pickle")
+
+    def slices(self, n_points: int) -> list[slice]:
+        """The blocks of ``n_points`` targets (at most one per target)."""
+        parts = np.array_split(np.arange(n_points), min(self.n_blocks, n_points))
+        return [slice(int(b[0]), int(b[-1]) + 1) for b in parts]
+
+    def run(self, points: np.ndarray, forces: np.ndarray, torques: np.ndarray | None,
+            options: dict[str, Any]) -> list[Any]:
+        """The velocities of every block (in order) of ``points`` from all of them."""
+        tasks = [
+            Task(
+                block_velocity,
+                (points[block], points, forces, torques, options),
+                f"velocity of targets {block.start}-{block.stop - 1}",
+            )
+            for block in self.slices(len(points))
+        ]
+        return run_tasks(self.executor, tasks)
 
 
 def threaded(system: RodSystem | VesicleSystem, n_threads: int) -> RodSystem | VesicleSystem:

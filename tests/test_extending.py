@@ -58,6 +58,8 @@ def test_the_pages_python_steps_run(walk):
     assert outputs["check_beads.py"].strip() == "beads ok"
     assert outputs["broken_beads.py"].strip() == (
         "OneRowShort.forces(state) returned shape (7, 3); expected (8, 3): one row per point")
+    assert outputs["check_device.py"].strip() == "device ok"  # the cloud's device parts (11.)
+    assert outputs["check_executor.py"].strip() == "executor ok"  # an executor kind (12.)
 
 
 def test_the_pages_stiff_body_is_stable_at_larger_steps_at_a_larger_epsilon(walk):

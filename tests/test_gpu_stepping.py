@@ -29,6 +29,7 @@ def _members(system, theta):
 
 
 def _compare(calls):
+    assert all(gpu_batch.batch_key(fn, args) is not None for fn, args in calls)  # on the GPU
     outcomes = gpu_batch.run_calls([(fn, args, {}) for fn, args in calls])
     for (fn, args), (ok, value) in zip(calls, outcomes, strict=True):
         assert ok, value
@@ -85,3 +86,70 @@ def test_other_calls_run_on_the_cpu():
 
 def test_gpu_available_in_these_tests():
     assert gpu.available()
+
+
+@pytest.mark.parametrize("wall", [False, True])
+def test_chain_batch_matches_cpu_from_its_own_device_parts(wall):
+    """The chain (kinds/chain/device.py): springs, bending, load and shear; at the wall with the
+    full kernel and the shear added there."""
+    from parastokes.kinds.chain import ChainSystem
+
+    chain = ChainSystem(n_beads=5, stiffness=20.0, bending=2.0, shear_rate=1.0, epsilon=0.3,
+                        load=(0.0, 0.0, -0.5), wall=wall, height=2.0 if wall else 0.0, tilt=0.3,
+                        stretch=1.05)
+    _compare(_members(chain, {"stiffness": 25.0, "bending": 1.5, "epsilon": 0.35,
+                              "viscosity": 1.2}))
+
+
+def test_a_users_body_runs_from_its_own_device_parts():
+    """tests/user_body.py registers tests/user_body_device.py (docs/extending.md)."""
+    from user_body import SedimentingCloud
+
+    cloud = SedimentingCloud(n_points=6, epsilon=0.3)
+    _compare(_members(cloud, {"epsilon": 0.35, "viscosity": 1.2}))
+
+
+def test_a_body_without_device_parts_is_named():
+    from parastokes.gpu import stepping
+
+    class Custom(type(small_rods())):
+        pass
+
+    custom = Custom(**{**small_rods().__dict__})
+    with pytest.raises(stepping.NoDevicePartsError, match="Custom has no device parts"):
+        stepping.solve(integrate.SCHEMES["rk2"],
+                       [stepping.Member(custom, custom.initial_state(), 0.0, 1e-2, 1)], 1.0)
+
+
+def test_a_scene_runs_batched_from_its_bodies_device_parts():
+    """A rod and a chain above the wall in shear: one velocity kernel over both with ε per source,
+    each body's parts on its rows; Θ of both bodies varied per member."""
+    from parastokes.kinds.chain import ChainSystem
+    from parastokes.scene import Scene
+
+    rods = small_rods(n_rods=1)
+    chain = ChainSystem(n_beads=4, stiffness=20.0, bending=2.0, epsilon=0.3, viscosity=1.0,
+                        shear_rate=0.5, wall=True, height=4.0, tilt=0.2, stretch=1.05)
+    scene = Scene((rods, chain), viscosity=1.0, wall=True, shear_rate=0.5)
+    _compare(_members(scene, {"rod.bending": 1.3, "chain.epsilon": 0.35, "chain.stiffness": 25.0,
+                              "viscosity": 1.2}))
+
+
+def test_a_scene_with_a_body_without_device_parts_names_it():
+    from user_body import SedimentingCloud
+
+    from parastokes.gpu import stepping
+    from parastokes.scene import Scene
+
+    class Slow(SedimentingCloud):  # a subclass: its physics may differ, so no device parts
+        angular = False
+
+        def loads(self, t, state):
+            return np.zeros_like(state), None
+
+        def body_rates(self, u, w):
+            return u
+
+    scene = Scene((small_vesicle(viscosity=1.0, shear_rate=0.0), Slow(n_points=4)), viscosity=1.0)
+    with pytest.raises(stepping.NoDevicePartsError, match="scene body 'slow': Slow has no device"):
+        stepping.device_parts(scene)

@@ -5,7 +5,10 @@ from __future__ import annotations
 import functools
 import importlib.util
 import json
+import os
+import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -73,6 +76,39 @@ class _TwoRanks:
 def test_mpi_comm_with_too_few_ranks_is_refused_before_starting():
     with pytest.raises(ValueError, match="asked for 3 MPI workers but the communicator has 2"):
         parallel.make_executor("mpi", 3, comm=_TwoRanks())
+
+
+def test_an_executor_kind_from_outside_the_package_runs_parareal_as_the_serial_one():
+    """The registry finds a kind by "module:make" (tests/user_executor.py): Parareal on it gives
+    the serial executor's states bit for bit, and its tasks went through it."""
+    from odes import Stepper, oscillator
+
+    from parastokes import parareal
+
+    problem = oscillator()
+    fine, coarse = Stepper(problem, 0.01, 4), Stepper(problem, 0.1, 1)
+    runs = {}
+    for kind in ("serial", "user_executor:make_recording"):
+        with parallel.make_executor(kind, 1) as ex:
+            runs[kind] = parareal.run(fine, coarse, np.array([1.0, 0.0]), t0=0.0, t1=2.0,
+                                      n_slices=4, tol=0.0, max_iterations=2, executor=ex)
+    np.testing.assert_array_equal(runs["serial"].states,
+                                  runs["user_executor:make_recording"].states)
+    assert ex.ran and set(ex.ran) <= {"Stepper", "_Timed", "partial"}, ex.ran
+    with pytest.raises(ValueError, match="has 1 worker"):
+        parallel.make_executor("user_executor:make_recording", 2)
+    with pytest.raises(ImportError, match="cannot import module 'no_such_module'"):
+        parallel.make_executor("no_such_module:make")
+
+
+def test_importing_the_executors_imports_no_backend():
+    """The factory names its kinds by strings: the GPU backend (and numba.cuda) load only when
+    kind="gpu" is asked for."""
+    code = ("import sys; from parastokes import parallel; "
+            "assert 'parastokes.gpu' not in sys.modules and 'numba.cuda' not in sys.modules, "
+            "sorted(m for m in sys.modules if 'gpu' in m or 'cuda' in m)")
+    root = str(Path(__file__).resolve().parents[1])
+    subprocess.run([sys.executable, "-c", code], check=True, env=os.environ | {"PYTHONPATH": root})
 
 
 # --- serial --------------------------------------------------------------------------------------

@@ -17,10 +17,10 @@ import pytest
 from user_body import SedimentingCloud
 
 from parastokes import integrate, models, mrs
-from parastokes.fluid import TargetBlocks
 from parastokes.kinds.chain import ChainSystem
 from parastokes.parallel import make_executor
 from parastokes.scene import Scene
+from parastokes.spatial import TargetBlocks
 from parastokes.stepping import registry
 from parastokes.testing import check_system
 

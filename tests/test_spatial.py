@@ -63,8 +63,8 @@ def test_target_blocks_fine_solver_evaluates_its_blocks(case, monkeypatch):
         calls.append(len(args[0]))
         return real(*args)
 
-    real = fluid._block_velocity
-    monkeypatch.setattr(fluid, "_block_velocity", counting)
+    real = spatial.block_velocity
+    monkeypatch.setattr(spatial, "block_velocity", counting)
     fine = spatial.fine_solver(system, "rk2", dt, executor=parallel.make_executor("serial"))
     np.testing.assert_array_equal(fine(0.0, t1, x0), serial)
     evaluations = 2 * round(t1 / dt)

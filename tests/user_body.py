@@ -10,6 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from parastokes import mrs
+from parastokes.stepping import registry
 
 
 @dataclass(frozen=True)
@@ -64,3 +65,7 @@ class SedimentingCloud:
             return float(np.sqrt(((x - x.mean(axis=0)) ** 2).sum(axis=1).mean()))
 
         return abs(gyration(state) / gyration(self.initial_state()) - 1.0)
+
+
+# Its GPU device parts (docs/extending.md, "Running on the GPU"), imported on a GPU solve.
+registry.register_device(SedimentingCloud, "user_body_device:PARTS")

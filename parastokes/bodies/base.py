@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, Protocol, TypeVar
 
 import numpy as np
 
-from ..fluid import MRS, BlockedMRS, TargetBlocks
+from ..fluid import MRS, BlockedMRS, Blocks
 from ..stepping import registry
 from ..stepping.registry import RunSteps
 from . import contract
@@ -39,7 +39,7 @@ class FluidBody:
     # Provided by the class this is mixed into (annotations only: no fields, no defaults).
     viscosity: float
     n_threads: int | None
-    target_blocks: TargetBlocks | None
+    target_blocks: Blocks | None
 
     @property
     def fluid(self) -> MRS:

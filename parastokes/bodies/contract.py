@@ -65,7 +65,8 @@ POINTS_IN_SHEAR = {
     "viscosity": "viscosity: float",
     "shear_rate": "shear_rate: float",
     "n_threads": "n_threads: int | None = None",
-    "target_blocks": "target_blocks: TargetBlocks | None = field(default=None, init=False)",
+    "target_blocks": ("target_blocks: Blocks | None = field(default=None, init=False)"
+                      "  (parastokes.fluid.Blocks)"),
 }
 
 

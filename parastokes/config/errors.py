@@ -80,9 +80,7 @@ def _section_class(loc: tuple[Any, ...], data: Any) -> type[BaseModel] | None:
         except (AttributeError, coarse_registry.UnknownFamilyError):
             return None
     if loc == ("scene",):
-        from .scene import SceneSettings
-
-        return SceneSettings
+        return schema.SceneSettings
     if len(loc) == 3 and loc[:2] == ("coarse", "lagrange"):
         return schema.LagrangeNodes
     return _SECTIONS.get(loc)

@@ -21,7 +21,7 @@ import dataclasses
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, SerializeAsAny, ValidationError
+from pydantic import Field, SerializeAsAny, ValidationError
 
 from ..bodies import registry
 from ..bodies.registry import (
@@ -34,6 +34,7 @@ from ..bodies.registry import (
 )
 from ..contracts import System
 from .errors import from_validation_error
+from .schema import SceneSettings
 
 if TYPE_CHECKING:  # the scene (and the fluid's kernels) are imported on use
     from ..scene import Scene
@@ -43,20 +44,6 @@ __all__ = ["FLUID", "SceneModel", "SceneSettings", "scene_section"]
 #: The scene-wide keys: one fluid (μ, wall) and one background shear flow.
 FLUID = ("viscosity", "wall", "shear_rate")
 _DEFAULTS = {"wall": False, "shear_rate": 0.0}
-
-
-class SceneSettings(BaseModel):
-    """The fluid all `[[bodies]]` share; body tables that omit these keys get them. A key left out
-    here is taken from the bodies (the first that states it, else the first whose kind has it, with
-    that kind's default), else wall = false and shear_rate = 0."""
-
-    model_config = ConfigDict(extra="forbid", strict=True, validate_default=True)
-
-    viscosity: Positive | None = Field(None, description="Fluid viscosity μ⁰ (g μm⁻¹ s⁻¹).")
-    wall: bool | None = Field(None, description="Plane wall at z = 0 (method of images).")
-    shear_rate: float | None = Field(
-        None, allow_inf_nan=False, description="Shear rate γ̇ of u∞ = (γ̇ z, 0, 0) (1/s)."
-    )
 
 
 class SceneModel(BodySection):

@@ -32,6 +32,7 @@ __all__ = [
     "Parareal",
     "Richardson",
     "RunSection",
+    "SceneSettings",
     "Time",
     "Tune",
 ]
@@ -200,6 +201,20 @@ class Tune(_Section):
     pilot_slices: int | None = Field(None, ge=2, description="Slices of the pilot window.")
     pilot_points: int | None = Field(
         None, ge=3, description="Rods: nodes per rod of the shortened pilot rod (same σ_f)."
+    )
+
+
+class SceneSettings(BaseModel):
+    """The fluid all `[[bodies]]` share; body tables that omit these keys get them. A key left out
+    here is taken from the bodies (the first that states it, else the first whose kind has it, with
+    that kind's default), else wall = false and shear_rate = 0."""
+
+    model_config = ConfigDict(extra="forbid", strict=True, validate_default=True)
+
+    viscosity: Positive | None = Field(None, description="Fluid viscosity μ⁰ (g μm⁻¹ s⁻¹).")
+    wall: bool | None = Field(None, description="Plane wall at z = 0 (method of images).")
+    shear_rate: float | None = Field(
+        None, allow_inf_nan=False, description="Shear rate γ̇ of u∞ = (γ̇ z, 0, 0) (1/s)."
     )
 
 

@@ -3,7 +3,9 @@ batches Parareal's parallel work. Optional: ``pip install "parastokes[gpu]"``; w
 ``NUMBA_ENABLE_CUDASIM=1`` to run it on numba-cuda's simulator (tests, tiny sizes).
 
 - :mod:`.kernels`: the velocity kernels for B configurations in one launch, per-member ε and μ;
-- :mod:`.stepping`: B solves of one system kind advanced together, states on the device;
+- :mod:`.stepping`: B solves of one system kind advanced together, states on the device (the
+  generic driver: each kind's device parts come from its own folder, found by exact type);
+- :mod:`.scene`: a scene's device parts, composed of its bodies';
 - :mod:`.batch`: which submitted calls form a batch;
 - :mod:`.executor`: :class:`GPUExecutor` (``parallel.make_executor("gpu")``);
 - :func:`velocity`: the batched kernels on host arrays (for checks and benchmarks).

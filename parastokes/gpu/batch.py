@@ -2,7 +2,8 @@
 factor, Θ, start state, time span and step free per member.
 
 A call ``fn(*args)`` is batched when ``fn`` is an :class:`parastokes.integrate.Propagator` of a
-system that the GPU path reproduces (:func:`parastokes.gpu.stepping.kind_of`) called as
+system that the GPU path reproduces (its exact type has device parts,
+:func:`parastokes.gpu.stepping.device_parts`) called as
 ``fn(t_start, t_end, x)``: the fine solves of a parallel sweep, the auxiliary solvers of an
 extrapolated coarse step (on the coarse grid too). Each member follows :func:`integrate.run`
 exactly: ``n_steps`` equal steps of ``(t_end - t_start)/n``, the start state projected, the result
@@ -36,7 +37,9 @@ def batch_key(fn: Any, args: tuple) -> tuple | None:
     if system is None:
         return None
     neutral = dict.fromkeys(system.params, 1.0)
-    structure = dataclasses.replace(system.with_params(**neutral), n_threads=None)
+    structure = system.with_params(**neutral)
+    if "n_threads" in getattr(structure, "__dataclass_fields__", {}):
+        structure = dataclasses.replace(structure, n_threads=None)
     return structure, fn.scheme, fn.blowup_factor
 
 

@@ -23,7 +23,7 @@ from typing import Any
 
 from . import batch, device, stepping
 
-__all__ = ["GPUExecutor"]
+__all__ = ["GPUExecutor", "make_gpu"]
 
 
 class _HeldFuture(Future):
@@ -160,3 +160,14 @@ class GPUExecutor(Executor):
                 self._cancel_held()
             elif self._held:
                 self._run()
+
+
+def make_gpu(
+    workers: int | None, *, warmup: Callable[[], Any] | None = None, threads_per_worker: int = 1,
+    **_: Any,
+) -> GPUExecutor:
+    """The executor kind ``"gpu"`` (:func:`parastokes.parallel.make_executor`)."""
+    if threads_per_worker != 1:
+        raise ValueError("threads_per_worker does not apply to kind='gpu'")
+    device.cuda()  # ImportError naming the extra
+    return GPUExecutor(workers, warmup)

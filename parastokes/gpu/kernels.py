@@ -31,23 +31,28 @@ __all__ = ["RUNNING", "launch_shape", "velocity_kernels"]
 #: ``status`` of a member whose solve is still running (the others hold integrate.DONE, ...).
 RUNNING = -1
 
-#: Columns of the per-member float table ``mf`` (B, 7): start time, step, ε, 8πμ, the body's
-#: parameter (rods: bending a; vesicles: stiffness κ), worst monitor, monitor that ended the run.
-T0, STEP, EPS, DENOM, THETA, WORST, MEND = range(7)
+#: Columns of the per-member float table ``mf`` (B, 6 + P): start time, step, ε, 8πμ, worst
+#: monitor, monitor that ended the run, then from ``THETA`` on the P other parameters of the body
+#: kind (``DeviceParts.parameters``, e.g. a rod's bending a).
+T0, STEP, EPS, DENOM, WORST, MEND, THETA = range(7)
 #: Columns of the per-member integer table ``mi`` (B, 3): status, steps to take, steps kept.
 STATUS, NSTEPS, TAKEN = range(3)
 
 @functools.cache
-def velocity_kernels(tx: int, sy: int) -> tuple:
-    """``(full, free_u_f)`` for blocks of ``tx`` targets x ``sy`` source lanes.
+def velocity_kernels(tx: int, sy: int, per_source: bool = False) -> tuple:
+    """``(full, free_u_f)`` for blocks of ``tx`` targets x ``sy`` source lanes; with
+    ``per_source``, source j of member b has its own ε, ``eps[b, j]`` (a scene's bodies), else
+    every source has the member's ``mf[b, EPS]`` (``eps`` is not read).
 
-    - ``full[grid, block](x, y, f, n, mf, mi, wall, out)``: u and w from forces ``f`` and torques
-      ``n`` at the sources ``y`` (B, N, >= 3; the first three columns are read), at the targets
-      ``x`` (B, M, >= 3), free space ([1]-[4]) or above the wall z = 0 ([1]-[8]) when ``wall``;
-      ``out`` (B, M, >= 6) gets u in columns 0-2 and w in 3-5, divided by 8πμ; ε, 8πμ and the
-      status of member b are ``mf[b, EPS]``, ``mf[b, DENOM]``, ``mi[b, STATUS]``.
-    - ``free_u_f[grid, block](x, y, f, mf, mi, shear, out)``: u from forces in free space (eq. 6)
-      plus the shear flow (shear · z, 0, 0) (docs/physics.md (15)), into columns 0-2.
+    - ``full[grid, block](x, y, f, n, mf, mi, wall, shear, eps, out)``: u and w from forces
+      ``f`` and torques ``n`` at the sources ``y`` (B, N, >= 3; the first three columns are
+      read), at the targets ``x`` (B, M, >= 3), free space ([1]-[4]) or above the wall z = 0
+      ([1]-[8]) when ``wall``; ``out`` (B, M, >= 6) gets u in columns 0-2 and w in 3-5, divided
+      by 8πμ, plus the shear flow (shear · z, 0, 0) in u and its rotation shear/2 in w_y when
+      ``shear`` is not 0; ε, 8πμ and the status of member b are ``mf[b, EPS]``,
+      ``mf[b, DENOM]``, ``mi[b, STATUS]``.
+    - ``free_u_f[grid, block](x, y, f, mf, mi, shear, eps, out)``: u from forces in free space
+      (eq. 6) plus the shear flow (shear · z, 0, 0) (docs/physics.md (15)), into columns 0-2.
 
     Launch with :func:`launch_shape`. Compiled on first use, once per process and ``(tx, sy)``
     (not cached on disk: numba's cache does not key closures on their constants).
@@ -59,7 +64,7 @@ def velocity_kernels(tx: int, sy: int) -> tuple:
     rsqrt3 = compiled._rsqrt3
 
     @cuda.jit
-    def full(x, y, f, n, mf, mi, wall, out):
+    def full(x, y, f, n, mf, mi, wall, shear, eps, out):
         lane = cuda.threadIdx.x
         s = cuda.threadIdx.y
         b = cuda.blockIdx.y
@@ -74,6 +79,8 @@ def velocity_kernels(tx: int, sy: int) -> tuple:
             pz = x[b, i, 2]
             e2 = mf[b, EPS] * mf[b, EPS]
             for j in range(s, y.shape[1], sy):
+                if per_source:
+                    e2 = eps[b, j] * eps[b, j]
                 h = y[b, j, 2]
                 if wall:
                     v0, v1, v2, v3, v4, v5 = wall_pair(
@@ -105,10 +112,15 @@ def velocity_kernels(tx: int, sy: int) -> tuple:
                 total = part[0, c, lane]
                 for q in range(1, sy):
                     total += part[q, c, lane]
-                out[b, i, c] = total / mf[b, DENOM]
+                value = total / mf[b, DENOM]
+                if c == 0 and shear != 0.0:
+                    value += shear * x[b, i, 2]
+                if c == 4 and shear != 0.0:
+                    value += 0.5 * shear
+                out[b, i, c] = value
 
     @cuda.jit
-    def free_u_f(x, y, f, mf, mi, shear, out):
+    def free_u_f(x, y, f, mf, mi, shear, eps, out):
         lane = cuda.threadIdx.x
         s = cuda.threadIdx.y
         b = cuda.blockIdx.y
@@ -124,6 +136,9 @@ def velocity_kernels(tx: int, sy: int) -> tuple:
             e2 = mf[b, EPS] * mf[b, EPS]
             e22 = 2.0 * e2
             for j in range(s, y.shape[1], sy):
+                if per_source:
+                    e2 = eps[b, j] * eps[b, j]
+                    e22 = 2.0 * e2
                 rx = px - y[b, j, 0]
                 ry = py - y[b, j, 1]
                 rz = pz - y[b, j, 2]

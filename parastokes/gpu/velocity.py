@@ -8,7 +8,7 @@ from numba import cuda
 
 from ..mrs.velocity import EIGHT_PI, validated
 from . import device
-from .kernels import DENOM, EPS, RUNNING, launch_shape, velocity_kernels
+from .kernels import DENOM, EPS, RUNNING, THETA, launch_shape, velocity_kernels
 from .stepping import Launch
 
 __all__ = ["Evaluation", "velocity"]
@@ -25,7 +25,7 @@ class Evaluation:
         self.launch_shape = launch or Launch.default()
         nb, m = targets.shape[:2]
         self.fast = torques is None and not wall
-        mf = np.zeros((nb, 7))
+        mf = np.zeros((nb, THETA))
         mf[:, EPS] = epsilon
         mf[:, DENOM] = EIGHT_PI * np.asarray(mu)
         self._args = [cuda.to_device(np.ascontiguousarray(a, dtype=float))
@@ -34,6 +34,7 @@ class Evaluation:
             n = np.zeros_like(sources) if torques is None else torques
             self._args.append(cuda.to_device(np.ascontiguousarray(n, dtype=float)))
         self._mf = cuda.to_device(mf)
+        self._eps = cuda.to_device(np.zeros((1, 1)))  # one ε per member (in mf), not per source
         self._mi = cuda.to_device(np.full((nb, 3), RUNNING, dtype=np.int64))
         self._wall = bool(wall)
         self._out = cuda.device_array((nb, m, 3 if self.fast else 6))
@@ -44,9 +45,11 @@ class Evaluation:
     def launch(self) -> None:
         full, free_u_f = self._kernels
         if self.fast:
-            free_u_f[self._grid, self._block](*self._args, self._mf, self._mi, 0.0, self._out)
+            free_u_f[self._grid, self._block](*self._args, self._mf, self._mi, 0.0, self._eps,
+                                              self._out)
         else:
-            full[self._grid, self._block](*self._args, self._mf, self._mi, self._wall, self._out)
+            full[self._grid, self._block](*self._args, self._mf, self._mi, self._wall, 0.0,
+                                          self._eps, self._out)
 
     def result(self) -> tuple[np.ndarray, np.ndarray | None]:
         out = self._out.copy_to_host()

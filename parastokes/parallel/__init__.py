@@ -1,4 +1,6 @@
-"""Executors for Parareal's parallel sweeps: serial (reference), process pool, MPI.
+"""Executors for Parareal's parallel sweeps: serial (reference), process pool, MPI (and the GPU's,
+:mod:`parastokes.gpu`), each a kind of the registry of :mod:`.factory`, found by name by
+:func:`make_executor` and imported only when asked for.
 
 All have the ``concurrent.futures`` shape (``submit``, ``map``, ``shutdown``, context manager) and
 a ``workers`` attribute. :func:`run_tasks` / :func:`run_labelled` run a batch of labelled tasks and

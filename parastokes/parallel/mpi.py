@@ -20,7 +20,7 @@ from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import Executor, Future
 from typing import Any
 
-from .worker import configure_worker
+from .worker import configure_worker, require_picklable
 
 INSTALL_HINT = 'pip install "parastokes[mpi]"'
 
@@ -130,3 +130,14 @@ def make_mpi_executor(
             f"mpiexec -n {workers + 1} python -m mpi4py.futures script.py"
         )
     return MPIExecutor(pool, available)
+
+
+def make_mpi(
+    workers: int | None, *, warmup: Callable[[], Any] | None = None, threads_per_worker: int = 1,
+    comm: Any = None, root: int = 0, **_: Any,
+) -> MPIExecutor | None:
+    """The executor kind ``"mpi"`` (:func:`parastokes.parallel.make_executor`)."""
+    require_picklable(warmup)
+    return make_mpi_executor(
+        workers, comm=comm, root=root, threads_per_worker=threads_per_worker, warmup=warmup
+    )

@@ -21,7 +21,7 @@ from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
 from .errors import WorkerDiedError
-from .worker import available_cores, configure_worker, die_with_parent
+from .worker import available_cores, configure_worker, die_with_parent, require_picklable
 
 #: Start methods that do not fork the caller.
 START_METHODS = ("forkserver", "spawn")
@@ -249,3 +249,14 @@ class ProcessExecutor(Executor):
         for process in self._processes.values():
             process.join(_ABORT_SECONDS)
         self._pool.shutdown(wait=True, cancel_futures=True)
+
+
+def make_processes(
+    workers: int | None, *, warmup: Callable[[], Any] | None = None, threads_per_worker: int = 1,
+    start_method: str | None = None, **_: Any,
+) -> ProcessExecutor:
+    """The executor kind ``"processes"`` (:func:`parastokes.parallel.make_executor`)."""
+    require_picklable(warmup)
+    return ProcessExecutor(
+        workers, threads_per_worker=threads_per_worker, warmup=warmup, start_method=start_method
+    )

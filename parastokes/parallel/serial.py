@@ -40,3 +40,15 @@ class SerialExecutor(Executor):
     def shutdown(self, wait: bool = True, *, cancel_futures: bool = False) -> None:
         """Refuse further tasks (there is nothing to wait for or cancel)."""
         self._shut_down = True
+
+
+def make_serial(
+    workers: int | None, *, warmup: Callable[[], Any] | None = None, threads_per_worker: int = 1,
+    **_: Any,
+) -> SerialExecutor:
+    """The executor kind ``"serial"`` (:func:`parastokes.parallel.make_executor`)."""
+    if workers not in (None, 1):
+        raise ValueError(f"the serial executor has exactly 1 worker, not {workers}")
+    if threads_per_worker != 1:
+        raise ValueError("threads_per_worker does not apply to kind='serial'")
+    return SerialExecutor(warmup)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import ctypes
 import multiprocessing
 import os
+import pickle
 import signal
 import sys
 from collections.abc import Callable
@@ -87,3 +88,16 @@ def die_with_parent(parent: int) -> None:
         return
     if os.getppid() != parent:  # the parent died before prctl took effect
         os._exit(1)
+
+
+def require_picklable(warmup: Callable[[], Any] | None) -> None:
+    """ValueError unless ``warmup`` pickles (it is sent to the workers); checked before any
+    worker starts (an MPI pool would hang on it)."""
+    if warmup is not None:
+        try:
+            pickle.dumps(warmup)
+        except Exception as error:
+            raise ValueError(
+                f"warmup must pickle to reach the workers (a module-level function, not a lambda "
+                f"or closure): {error}"
+            ) from None

@@ -16,6 +16,11 @@ its compiled data, ``register_data(RodSystem, rod_data)`` (``rod_data(system, th
 :mod:`parastokes.stepping.scene` steps a scene in compiled code exactly when every one of its
 bodies has it. :func:`parastokes.stepping.loop.register_parts` registers both at once.
 
+A body type that can also be solved batched on the GPU registers where its device parts are,
+``register_device(RodSystem, "parastokes.kinds.rod.device:PARTS")`` (a
+:class:`parastokes.bodies.device.DeviceParts`, imported by :mod:`parastokes.gpu` when a GPU solve
+needs it): :func:`device_target` finds it, by exact type only.
+
 This module imports nothing, so :mod:`parastokes.integrate` can ask it without an import cycle.
 """
 
@@ -24,12 +29,14 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-__all__ = ["compiled_data", "compiled_loop", "register", "register_data", "registered"]
+__all__ = ["compiled_data", "compiled_loop", "device_target", "register", "register_data",
+           "register_device", "registered"]
 
 RunSteps = Callable[..., tuple[Any, float, int, int, float]]
 
 _LOOPS: dict[tuple[type, type], Callable[[Any], RunSteps | None]] = {}
 _DATA: dict[type, Callable[[Any, int], tuple]] = {}
+_DEVICE: dict[type, str] = {}
 
 
 def _key(system: object) -> tuple[type, type]:
@@ -66,3 +73,17 @@ def register_data(cls: type, make_data: Callable[[Any, int], tuple]) -> None:
 def compiled_data(system: object) -> Callable[[Any, int], tuple] | None:
     """The ``make_data`` registered for the exact type of ``system``, else None."""
     return _DATA.get(type(system))
+
+
+def register_device(cls: type, target: str) -> None:
+    """Systems of exactly the type ``cls`` have device parts at ``target``, ``"module:NAME"`` of a
+    :class:`parastokes.bodies.device.DeviceParts`, or of a function of the system that returns
+    one (a scene's depend on its bodies); imported on a GPU solve's first use."""
+    if not isinstance(target, str) or ":" not in target:
+        raise ValueError(f"target: give it as \"package.module:NAME\", got {target!r}")
+    _DEVICE[cls] = target
+
+
+def device_target(system: object) -> str | None:
+    """Where the device parts of the exact type of ``system`` are, else None."""
+    return _DEVICE.get(type(system))

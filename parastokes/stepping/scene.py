@@ -14,13 +14,16 @@ give the same bits:
   velocities at its rows (``body_rates_into``), zero in the columns past a body's own;
 - advance, bracket: every body's on its rows and columns, the padding columns zero;
 - monitor: the largest of the bodies' monitors over their limits (NaN if one is not finite).
+
+:mod:`parastokes.scene` imports this module (to register the loop for ``Scene``), so ``scene``
+below is annotated ``Any``: this module does not import the scene back.
 """
 
 from __future__ import annotations
 
 import functools
 import math
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import literal_unroll
@@ -32,9 +35,6 @@ from ..mrs.velocity import EIGHT_PI
 from . import loop, registry
 from .fluid import fluid_workspace, velocity_into
 from .registry import RunSteps
-
-if TYPE_CHECKING:  # parastokes.scene imports this module
-    from ..scene import Scene
 
 __all__ = ["SceneData", "scene_data", "scene_loop"]
 
@@ -61,7 +61,7 @@ def _body_data(body: Any, threads: int) -> tuple:
     return make_data(body, threads)
 
 
-def scene_data(scene: Scene, threads: int) -> SceneData:
+def scene_data(scene: Any, threads: int) -> SceneData:
     """The :class:`SceneData` of ``scene`` for kernels on ``threads`` threads."""
     bodies = tuple(
         (first, rows, cols, rate_cols, float(body.monitor_limit), _body_data(body, threads))
@@ -81,7 +81,7 @@ def scene_data(scene: Scene, threads: int) -> SceneData:
     )
 
 
-def scene_loop(scene: Scene) -> RunSteps | None:
+def scene_loop(scene: Any) -> RunSteps | None:
     """The compiled loop of ``scene`` (registered for :class:`parastokes.scene.Scene`), or None
     when a body's exact type has no compiled parts: the scene then runs the Python loop."""
     if any(registry.compiled_data(body) is None for body in scene.bodies):

@@ -28,8 +28,9 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from .. import integrate, parareal
+from .. import integrate
 from ..contracts import rounds
+from ..parareal.speedup import speedup as parareal_speedup
 from .space import Settings
 
 __all__ = ["caution", "contraction", "estimated_ratio", "gamma_ratio", "predicted_errors",
@@ -130,4 +131,4 @@ def screened_errors(defect: float, base_defect: float, base_errors: Sequence[flo
 
 def speedup(ratio: float, iterations: int, n_slices: int) -> float:
     """Eq. 14 with Υ_oh = 0."""
-    return parareal.speedup(ratio, 1.0, iterations, n_slices)
+    return parareal_speedup(ratio, 1.0, iterations, n_slices)

@@ -21,8 +21,9 @@ from typing import Any
 
 import numpy as np
 
-from .. import integrate, parareal
+from .. import integrate
 from ..contracts import System
+from ..parareal import algorithm, metrics
 from .space import TuningError
 
 __all__ = ["Pilot", "PilotRun", "Screen"]
@@ -99,7 +100,7 @@ class Pilot:
 
     @property
     def times(self) -> np.ndarray:
-        return parareal.time_points(self.t0, self.t0 + self.n_slices * self.slice_length,
+        return algorithm.time_points(self.t0, self.t0 + self.n_slices * self.slice_length,
                                     self.n_slices)
 
     @classmethod
@@ -110,7 +111,7 @@ class Pilot:
         """The reference on ``n_slices`` slices; raises TuningError if the fine solver blows up."""
         start, cpu = time.perf_counter(), time.process_time()
         system = fine.system
-        times = parareal.time_points(t0, t0 + n_slices * slice_length, n_slices)
+        times = algorithm.time_points(t0, t0 + n_slices * slice_length, n_slices)
         states = [system.project(np.array(x0, dtype=float))]
         worst = system.monitor(states[0])
         try:
@@ -135,7 +136,7 @@ class Pilot:
         double = integrate.propagate(system, reference[0], times[0], times[1], fine.scheme,
                                      2.0 * fine.dt)
         order = integrate.scheme_order(fine.scheme)
-        fine_error = parareal.relative_change(
+        fine_error = metrics.relative_change(
             double, reference[1], system.positions
         ) / (2**order - 1)
         return cls(system, fine, reference[0], t0, slice_length, n_slices, reference, gamma_f,
@@ -151,7 +152,7 @@ class Pilot:
         seconds = time.process_time() - start
         if not np.all(np.isfinite(state)):
             raise integrate.BlowUpError(times[2], 0, math.nan, start_state, "non-finite state")
-        defect = parareal.relative_change(state, self.reference[2], self.system.positions)
+        defect = metrics.relative_change(state, self.reference[2], self.system.positions)
         return Screen(float(times[1]), start_state, state, float(defect), seconds)
 
     def measure(self, coarse: Any, iterations: int, known: Screen | None = None) -> PilotRun:
@@ -161,7 +162,7 @@ class Pilot:
         times = self.times
         fine = _Reused(self.fine, times, self.reference)
         timed = _Timed(coarse, known)
-        res = parareal.run(
+        res = algorithm.run(
             fine, timed, self.x0, t0=float(times[0]), t1=float(times[-1]),
             n_slices=self.n_slices, tol=0.0, max_iterations=iterations,
             reference=self.reference, positions=self.system.positions,

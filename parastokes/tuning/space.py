@@ -20,9 +20,10 @@ from typing import Any
 
 import numpy as np
 
-from .. import integrate, parareal
+from .. import integrate
 from ..contracts import System
-from ..parareal.weights import validate_richardson
+from ..parareal.extrapolation import extrapolated
+from ..parareal.weights import lagrange_weights, richardson_weights, validate_richardson
 
 __all__ = ["DIRECTION", "REACH", "Settings", "Space", "TuningError", "reach_table"]
 
@@ -110,11 +111,11 @@ class Settings:
         if self.lagrange:
             names = [name for name, _ in self.lagrange]
             nodes = [list(values) for _, values in self.lagrange]
-            w = float(np.abs(parareal.lagrange_weights([theta0[n] for n in names], nodes)).sum())
+            w = float(np.abs(lagrange_weights([theta0[n] for n in names], nodes)).sum())
         v = 1.0
         if self.m:
             order = integrate.scheme_order(self.scheme)
-            v = float(np.abs(parareal.richardson_weights(self.m, self.ratio, order)).sum())
+            v = float(np.abs(richardson_weights(self.m, self.ratio, order)).sum())
         return w * v
 
     def corner(self) -> dict[str, float]:
@@ -143,7 +144,7 @@ class Settings:
     def build(self, system: System) -> Any:
         """The propagator of eq. 30 on ``system`` (``parareal.extrapolated``)."""
         assert self.dt is not None
-        return parareal.extrapolated(
+        return extrapolated(
             system,
             self.scheme,
             self.dt,

@@ -3,7 +3,8 @@
 This body is written only through the public extension path (docs/extending.md): this package and
 its one line in :data:`parastokes.bodies.registry.BUILTIN`; nothing else in the package names it.
 Its mechanics are compiled functions (:mod:`.mechanics`), its compiled parts for the loops of
-steps (alone and in scenes) are in :mod:`.stepping`, registered at the end of this module.
+steps (alone and in scenes) are in :mod:`.stepping`, its GPU device parts in :mod:`.device`, both
+registered at the end of this module.
 
 Mechanics (forces only; docs/bodies.md). Beads X_0..X_{N-1}, bonds t_i = X_{i+1} - X_i with rest
 length b, unit tangents t̂_i. The elastic energy is
@@ -37,9 +38,10 @@ from ...bodies.registry import (
     draw_over_time,
     polyline,
 )
-from ...fluid import MRS, TargetBlocks
+from ...fluid import MRS, Blocks
 from ...mrs.velocity import thread_count
 from ...stepping.loop import register_parts
+from ...stepping.registry import register_device
 from .mechanics import bond_strain, chain_energy, chain_forces
 from .stepping import chain_data
 
@@ -94,7 +96,7 @@ class ChainSystem(PointsInShear):
     stretch: float = 1.0
     tilt: float = 0.0
     n_threads: int | None = None
-    target_blocks: TargetBlocks | None = None
+    target_blocks: Blocks | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.n_beads, int) or self.n_beads < 2:
@@ -209,3 +211,4 @@ KIND = BodyKind("chain", ChainModel, layout, draw, example=example)
 
 
 register_parts(ChainSystem, chain_data, fluid=MRS, in_scenes=True)
+register_device(ChainSystem, "parastokes.kinds.chain.device:PARTS")

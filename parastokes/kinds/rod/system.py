@@ -5,7 +5,7 @@ Rods in free space or above the no-slip wall z = 0; point forces and torques (eq
 through the regularized Stokeslet/rotlet kernels with images (docs/physics.md (1)-(8));
 Θ = (ε, μ, a). The system is a frozen dataclass of scalars (the initial shape is rebuilt on
 demand), so it pickles in a few hundred bytes. Importing this module registers its compiled loop
-(:mod:`.compiled`).
+(:mod:`.compiled`) and its GPU device parts (:mod:`.device`).
 """
 
 from __future__ import annotations
@@ -22,9 +22,9 @@ import numpy as np
 from ...bodies import frames, geometry
 from ...bodies.base import FluidBody, replace_params, require_positive
 from ...bodies.geometry import crossed_wall
-from ...fluid import MRS, TargetBlocks
+from ...fluid import MRS, Blocks
 from ...mrs.velocity import thread_count
-from ...stepping import loop
+from ...stepping import loop, registry
 from . import mechanics as kirchhoff
 from .compiled import rod_data
 from .transfer import RodTransfer
@@ -64,7 +64,7 @@ class RodSystem(FluidBody):
     height: float = 10.0
     spacing: float = 5.0
     n_threads: int | None = None
-    target_blocks: TargetBlocks | None = None
+    target_blocks: Blocks | None = None
 
     def __post_init__(self) -> None:
         for name in ("n_rods", "n_points"):
@@ -304,3 +304,4 @@ def rod_swimmer(
 
 
 loop.register_parts(RodSystem, rod_data, fluid=MRS, in_scenes=True)
+registry.register_device(RodSystem, "parastokes.kinds.rod.device:PARTS")

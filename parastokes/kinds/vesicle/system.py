@@ -4,7 +4,8 @@ section 4), and its public factory :func:`vesicle` (defaults = the paper's).
 Free-space regularized Stokeslets (eq. 6) of the spring forces (docs/physics.md (14)) plus the shear
 flow u∞ = (γ̇ z, 0, 0) (docs/physics.md (15)); Θ = (ε, μ, κ). The system is a frozen dataclass of
 scalars (the mesh is rebuilt on demand and cached per process), so it pickles in a few hundred
-bytes. Importing this module registers its compiled loop (:mod:`.compiled`).
+bytes. Importing this module registers its compiled loop (:mod:`.compiled`) and its GPU device parts
+(:mod:`.device`).
 """
 
 from __future__ import annotations
@@ -18,9 +19,9 @@ import numpy as np
 
 from ...bodies import geometry
 from ...bodies.base import PointsInShear, replace_params, require_positive
-from ...fluid import MRS, TargetBlocks
+from ...fluid import MRS, Blocks
 from ...mrs.velocity import thread_count
-from ...stepping import loop
+from ...stepping import loop, registry
 from .compiled import vesicle_data
 from .mechanics import spring_forces
 
@@ -69,7 +70,7 @@ class VesicleSystem(PointsInShear):
     stiffness: float
     shear_rate: float
     n_threads: int | None = None
-    target_blocks: TargetBlocks | None = None
+    target_blocks: Blocks | None = None
     center: tuple[float, float, float] = (0.0, 0.0, 0.0)
     radius: float = 1.0
 
@@ -170,3 +171,4 @@ def vesicle(
 
 
 loop.register_parts(VesicleSystem, vesicle_data, fluid=MRS, in_scenes=True)
+registry.register_device(VesicleSystem, "parastokes.kinds.vesicle.device:PARTS")

@@ -1,0 +1,95 @@
+"""The import layers (docs/design.md, "Layers"): the import-linter contract of pyproject.toml holds
+(`lint-imports`, as .ci/run runs it), it fails on an import from a lower layer to a higher one, and
+no import circle joins modules of different folders."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import grimp
+
+ROOT = Path(__file__).resolve().parents[1]
+LINT = "import sys; from importlinter.cli import lint_imports_command; lint_imports_command()"
+
+
+def _lint(root: Path) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-c", LINT, "--no-cache", "--no-logo"], cwd=root,
+                          capture_output=True, text=True, timeout=300)
+
+
+def test_the_import_contract_holds():
+    done = _lint(ROOT)
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "0 broken" in done.stdout
+
+
+def test_the_contract_refuses_an_import_from_the_fluid_up_into_the_executors(tmp_path):
+    """The circle of issue #33 began with fluid.py importing parallel: the contract names it."""
+    shutil.copytree(ROOT / "parastokes", tmp_path / "parastokes",
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copy(ROOT / "pyproject.toml", tmp_path)
+    fluid = tmp_path / "parastokes" / "fluid.py"
+    fluid.write_text(fluid.read_text().replace("from . import mrs\n",
+                                               "from . import mrs, parallel  # noqa\n", 1))
+    done = _lint(tmp_path)
+    assert done.returncode != 0
+    assert "parastokes.fluid is not allowed to import parastokes.parallel" in done.stdout
+
+
+def _circles(graph: grimp.ImportGraph) -> list[set[str]]:
+    """The strongly connected components of more than one module (Tarjan, iterative)."""
+    edges = {m: sorted(graph.find_modules_directly_imported_by(m)) for m in graph.modules}
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    found = []
+    for start in sorted(edges):
+        if start in index:
+            continue
+        work = [(start, 0)]
+        while work:
+            node, i = work.pop()
+            if i == 0:
+                index[node] = low[node] = len(index)
+                stack.append(node)
+                on_stack.add(node)
+            if i < len(edges[node]):
+                work.append((node, i + 1))
+                nxt = edges[node][i]
+                if nxt not in index:
+                    work.append((nxt, 0))
+                elif nxt in on_stack:
+                    low[node] = min(low[node], index[nxt])
+                continue
+            if low[node] == index[node]:
+                component = set()
+                while True:
+                    member = stack.pop()
+                    on_stack.discard(member)
+                    component.add(member)
+                    if member == node:
+                        break
+                if len(component) > 1:
+                    found.append(component)
+            if work:
+                parent = work[-1][0]
+                low[parent] = min(low[parent], low[node])
+    return found
+
+
+def _folder(module: str, graph: grimp.ImportGraph) -> str:
+    """The folder (package) a module's file is in."""
+    return module if graph.find_children(module) else module.rpartition(".")[0]
+
+
+def test_no_import_circle_joins_modules_of_different_folders():
+    graph = grimp.build_graph("parastokes", cache_dir=None)
+    across = [sorted(c) for c in _circles(graph) if len({_folder(m, graph) for m in c}) > 1]
+    assert not across, across
+    # the check sees circles: one within a folder is allowed (e.g. a kind's system and its
+    # compiled parts)
+    assert any("parastokes.kinds.rod.system" in c for c in _circles(graph))
