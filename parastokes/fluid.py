@@ -82,7 +82,19 @@ class MRS:
         torques: np.ndarray | None = None,
         angular: bool = False,
     ) -> np.ndarray | tuple[np.ndarray, np.ndarray]:
-        """u at ``points`` from the loads at the same points (and w with ``angular``)."""
+        """u at ``points`` from the loads at the same points (and w with ``angular``).
+
+        The sums run unchecked (``check=False``), so the shapes are checked here, at the cost of
+        a comparison: a body's loads one row short (or transposed, or flat) would otherwise be
+        read past their end (ValueError naming the argument, the shape found and expected)."""
+        expected = (len(points), 3)
+        if np.shape(points) != expected:
+            raise ValueError(f"fluid.velocity: points of shape {np.shape(points)}; expected "
+                             "(N, 3), one row per point")
+        for name, value in (("forces", forces), ("torques", torques)):
+            if value is not None and np.shape(value) != expected:
+                raise ValueError(f"fluid.velocity: {name} of shape {np.shape(value)}; expected "
+                                 f"{expected}, one row per point")
         return self._evaluate(points, forces, epsilon, torques, angular)
 
     def _evaluate(

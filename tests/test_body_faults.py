@@ -74,6 +74,29 @@ def test_forces_are_checked_where_they_enter_without_the_probe():
         scene.rates(0.0, scene.initial_state())
 
 
+
+def test_a_fluid_body_calling_its_fluid_directly_is_told_the_shapes():
+    """A body on FluidBody (not PointsInShear) that calls ``self.fluid.velocity`` itself: the
+    sums run with check=False, so forces one row short were read past their end; the fluid
+    value now compares the shapes (points, forces, torques) and names them."""
+
+    class OwnRates(ub.Beads):
+        def rates(self, t, state):
+            return self.fluid.velocity(state, self.forces(state)[:-1], epsilon=self.epsilon)
+
+    body = OwnRates()
+    with pytest.raises(ValueError, match=r"fluid.velocity: forces of shape \(7, 3\); expected "
+                                         r"\(8, 3\)"):
+        body.rates(0.0, body.initial_state())
+    with pytest.raises(ValueError, match=r"torques of shape \(3, 8\)"):
+        body.fluid.velocity(body.initial_state(), body.forces(body.initial_state()),
+                            epsilon=0.3, torques=np.zeros((3, 8)))
+    x = body.initial_state()  # the right shapes: the same numbers as PointsInShear.rates
+    u = body.fluid.velocity(x, body.forces(x), epsilon=0.3)
+    u[:, 0] += body.shear_rate * x[:, 2]
+    assert np.array_equal(u, ub.Beads().rates(0.0, x))
+
+
 def test_values_the_package_can_use_pass_unchanged():
     """A float64 array is passed on as is (the same object: no copy, the same bits); other
     real numbers are converted to float64."""
