@@ -298,10 +298,26 @@ def _write_names(path: Path, names: Sequence[str]) -> None:
     write_text(path, json.dumps({"files": list(names)}))
 
 
+def check_path(out: str | os.PathLike) -> None:
+    """:class:`RunDirectoryError` when ``out`` cannot become a writable run directory (a file,
+    under a file, in a folder that is not writable), without creating or locking anything: what
+    a run checks before any work, ahead of :func:`claim`."""
+    path = Path(out)
+    if path.exists() and not path.is_dir():
+        raise RunDirectoryError(f"--out {path} is a file, not a directory; choose another --out")
+    existing = path if path.exists() else next(p for p in path.absolute().parents if p.exists())
+    if not existing.is_dir():
+        raise RunDirectoryError(
+            f"--out {path}: cannot create the directory (Not a directory: {existing}); "
+            "choose a path in a directory you can write to"
+        )
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise RunDirectoryError(f"--out {path}: {existing} is not writable; choose another --out")
+
+
 def _directory(out: Path) -> None:
     """Make ``out`` (and its parents); a path that cannot be a writable directory is an error."""
-    if out.exists() and not out.is_dir():
-        raise RunDirectoryError(f"--out {out} is a file, not a directory; choose another --out")
+    check_path(out)
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as error:

@@ -599,12 +599,14 @@ def execute(
     (name -> text, the demo's ``config.toml``) are written into it once that check has passed.
     Results go to the directory whole once complete; figures are drawn last (``output.figures``).
     Raises ``integrate.BlowUpError`` on a numerical blow-up, after saving the last good state.
-    Before all of that (:func:`parastokes.config.preflight`, as ``parastokes check``): the
+    Before all of that (:func:`parastokes.rundir.check_path`, then
+    :func:`parastokes.config.preflight`, as ``parastokes check``): the
     configuration is built and a user's body called once at its initial state; a body that breaks
     the System contract raises :class:`~parastokes.bodies.contract.BodyError` naming the method,
     before the directory is claimed or a worker started.
     """
     reporter = reporter or Reporter()
+    rundir.check_path(out)  # a bad --out before any work, and the body before the claim
     setup = preflight(cfg, resolved)
     with rundir.claim(out, resume=resume, overwrite=overwrite) as directory:
         found = directory.entries()

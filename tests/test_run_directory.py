@@ -263,7 +263,7 @@ def test_bad_out_fails_before_any_work(tmp_path, monkeypatch, capsys, case):
     def no_work(*args, **kwargs):
         raise AssertionError("work started")
 
-    monkeypatch.setattr(runner, "build", no_work)
+    monkeypatch.setattr(runner, "preflight", no_work)
     path = _config(tmp_path, TINY + "trajectory = false\n")
     blocker = tmp_path / "blocker"
     blocker.write_text("a file")
