@@ -84,8 +84,9 @@ class RigidBody:
         require_positive(epsilon=self.epsilon, viscosity=self.viscosity)
         for name, n in (("position", 3), ("force", 3), ("torque", 3), ("orientation", 4)):
             object.__setattr__(self, name, _vector(name, getattr(self, name), n))
-        object.__setattr__(self, "orientation",
-                           tuple(float(v) for v in rotation.normalized(self.orientation)))
+        q = rotation.normalized(self.orientation)
+        if abs(float(np.linalg.norm(self.orientation)) - 1.0) > 1e-15:  # keep unit input's bits
+            object.__setattr__(self, "orientation", tuple(float(v) for v in q))
         if not math.isfinite(self.shear_rate):
             raise ValueError(f"shear_rate: must be finite, got {self.shear_rate!r}")
         if self.slip is not None and not isinstance(self.slip, Squirmer | UserSlip):
