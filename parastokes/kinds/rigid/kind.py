@@ -224,11 +224,11 @@ def draw(fig: Any, bodies: Mapping[str, Mapping[str, np.ndarray]], times: np.nda
 
 
 def _example_rigid() -> tuple[RigidBody, np.ndarray, float | None]:
-    """A sphere of 120 points sedimenting under gravity and turned by a torque, with a user slip
+    """A sphere of 40 points sedimenting under gravity and turned by a torque, with a user slip
     (the squirmer's, as a function), tilted: translation, rotation and slip all act."""
-    body = RigidBody(shape=Sphere(1.0, 120), slip=UserSlip("parastokes.kinds.rigid.kind:"
-                                                           "example_slip"),
-                     epsilon=0.15, viscosity=1.0, force=(0.0, 0.0, -3.0),
+    body = RigidBody(shape=Sphere(1.0, 40), slip=UserSlip("parastokes.kinds.rigid.kind:"
+                                                          "example_slip"),
+                     epsilon=0.3, viscosity=1.0, force=(0.0, 0.0, -3.0),
                      torque=(0.0, 2.0, 1.0), orientation=(0.9, 0.1, 0.3, 0.2))
     return body, body.initial_state(), 0.5
 
@@ -239,18 +239,18 @@ def example_slip(t: float, points: np.ndarray) -> np.ndarray:
 
 
 def _example_bacterium() -> tuple[RigidBody, np.ndarray, float | None]:
-    """A small bacterium (60 head points, a 40-point flagellum) with weight: every part acts."""
-    shape = Bacterium(Sphere(0.5, 60), Helix(0.2, 1.0, 2.0, 40), 0.2, 2 * math.pi)
+    """A small bacterium (30 head points, a 24-point flagellum) with weight: every part acts."""
+    shape = Bacterium(Sphere(0.5, 30), Helix(0.2, 1.0, 1.5, 24), 0.2, 2 * math.pi)
     body = RigidBody(shape=shape, epsilon=0.15, force=(0.0, 0.0, -0.5))
     return body, body.initial_state(), 0.2
 
 
 def _example_squirmer() -> tuple[RigidBody, np.ndarray, float | None]:
-    """A bottom-heavy puller squirmer (80 points) above the wall, tilted, in shear: slip,
+    """A bottom-heavy puller squirmer (40 points) near the wall, tilted, in shear: slip,
     weight, torque, wall and background flow all act."""
-    body = RigidBody(shape=Sphere(1.0, 80), slip=Squirmer(1.0, 2.0), epsilon=0.2, wall=True,
-                     shear_rate=0.3, position=(0.0, 0.0, 3.0), force=(0.0, 0.0, -2.0),
-                     torque=(0.5, 0.0, 0.0), orientation=(0.95, 0.0, -0.3, 0.1))
+    body = RigidBody(shape=Sphere(1.0, 40), slip=Squirmer(2.0, 3.0), epsilon=0.3, wall=True,
+                     shear_rate=1.0, position=(0.0, 0.0, 1.8), force=(0.0, 0.0, -2.0),
+                     torque=(3.0, 0.0, 0.0), orientation=(0.95, 0.0, -0.3, 0.1))
     return body, body.initial_state(), 0.5
 
 

@@ -62,6 +62,8 @@ class Shape(Protocol):
 
     def moving(self, phase: float = 0.0) -> np.ndarray: ...
 
+    def contains(self, points: np.ndarray) -> np.ndarray: ...
+
 
 def _count(name: str, n: int, least: int) -> None:
     if isinstance(n, bool) or not isinstance(n, int) or n < least:
@@ -94,6 +96,10 @@ class _Rigid:
     def moving(self, phase: float = 0.0) -> np.ndarray:
         return np.zeros((len(body_points(self)), 3))
 
+    def contains(self, points: np.ndarray) -> np.ndarray:
+        """Which body-frame ``points`` lie inside the body (none for an open shape)."""
+        return np.zeros(len(points), dtype=bool)
+
     def _make(self) -> np.ndarray:
         raise NotImplementedError
 
@@ -108,6 +114,9 @@ class Sphere(_Rigid):
     def __post_init__(self) -> None:
         _positive(radius=self.radius)
         _count("n_points", self.n_points, 4)
+
+    def contains(self, points: np.ndarray) -> np.ndarray:
+        return np.linalg.norm(points, axis=1) < self.radius
 
     def _make(self) -> np.ndarray:
         return self.radius * fibonacci_sphere(self.n_points)
@@ -125,6 +134,10 @@ class Spheroid(_Rigid):
     def __post_init__(self) -> None:
         _positive(axial=self.axial, radius=self.radius)
         _count("n_points", self.n_points, 4)
+
+    def contains(self, points: np.ndarray) -> np.ndarray:
+        scaled = points / np.array([self.axial, self.radius, self.radius])
+        return np.einsum("ij,ij->i", scaled, scaled) < 1.0
 
     def _make(self) -> np.ndarray:
         return fibonacci_sphere(self.n_points) * np.array([self.axial, self.radius, self.radius])
@@ -149,6 +162,10 @@ class Rod(_Rigid):
     @property
     def n_points(self) -> int:
         return self.rings * self.around + 2
+
+    def contains(self, points: np.ndarray) -> np.ndarray:
+        return ((np.abs(points[:, 0]) < 0.5 * self.length)
+                & (points[:, 1] ** 2 + points[:, 2] ** 2 < self.radius**2))
 
     def _make(self) -> np.ndarray:
         x = np.linspace(-0.5 * self.length, 0.5 * self.length, self.rings)
@@ -280,6 +297,10 @@ class Bacterium:
         turned[:, 1] = c * tail[:, 1] - s * tail[:, 2]
         turned[:, 2] = s * tail[:, 1] + c * tail[:, 2]
         return np.concatenate([head, turned])
+
+    def contains(self, points: np.ndarray) -> np.ndarray:
+        """Points inside the head (the flagellum is a slender filament)."""
+        return self.head.contains(points)
 
     def moving(self, phase: float = 0.0) -> np.ndarray:
         """ω_m e1 × x at the flagellum's points (its axis is the x axis), zero on the head."""

@@ -127,6 +127,11 @@ class RigidBody:
         out[1:, :3] = self.surface_points(center, q, phase)
         return out
 
+    def inside(self, state: np.ndarray, points: np.ndarray) -> np.ndarray:
+        """Which lab-frame ``points`` lie inside this body at ``state``."""
+        c, q, _ = self.pose(state)
+        return self.shape.contains((points - c) @ rotation.matrix(q))
+
     def initial_state(self) -> np.ndarray:
         return self.state_of(np.array(self.position), np.array(self.orientation), 0.0)
 
