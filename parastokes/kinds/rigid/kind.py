@@ -83,10 +83,12 @@ class RigidBase(BodySection):
     torque: list[Finite] = _three(
         [0.0, 0.0, 0.0], "External torque about the centre (g μm² s⁻²), e.g. a magnetic torque.")
 
-    def shape(self) -> Any:
+    def surface_shape(self) -> Any:
+        """The body-frame surface (:mod:`.shapes`) of this section."""
         raise NotImplementedError
 
-    def slip(self) -> Squirmer | UserSlip | None:
+    def surface_slip(self) -> Squirmer | UserSlip | None:
+        """The prescribed surface slip (:mod:`.slip`) of this section, or None."""
         return None
 
     def _epsilon(self, shape: Any) -> tuple[float, float]:
@@ -94,12 +96,12 @@ class RigidBase(BodySection):
         return self.epsilon * (gap if self.epsilon_unit == "spacing" else 1.0), gap
 
     def build(self, threads: int = 1) -> RigidBody:
-        shape = self.shape()
+        shape = self.surface_shape()
         x, y, z = self.position
         fx, fy, fz = self.force
         tx, ty, tz = self.torque
         w, qx, qy, qz = self.orientation
-        return RigidBody(shape=shape, slip=self.slip(), epsilon=self._epsilon(shape)[0],
+        return RigidBody(shape=shape, slip=self.surface_slip(), epsilon=self._epsilon(shape)[0],
                          viscosity=self.viscosity, wall=self.wall, shear_rate=self.shear_rate,
                          position=(x, y, z), orientation=(w, qx, qy, qz), force=(fx, fy, fz),
                          torque=(tx, ty, tz), n_threads=threads)
@@ -116,8 +118,8 @@ class RigidModel(RigidBase):
     """A rigid body of a built-in shape or a user's point cloud, with an optional user slip."""
 
     kind: Literal["rigid"] = Field(description='"rigid" for a rigid body.')
-    shape_: Literal["sphere", "spheroid", "rod", "helix", "points"] = Field(
-        "sphere", alias="shape", description="The surface: sphere, spheroid, rod (a tube), helix "
+    shape: Literal["sphere", "spheroid", "rod", "helix", "points"] = Field(
+        "sphere", description="The surface: sphere, spheroid, rod (a tube), helix "
         "(a slender filament) or points (a user's cloud, key `points`).")
     radius: Positive = Field(1.0, description="Sphere, spheroid (equatorial), rod, helix radius.")
     axial: Positive = Field(2.0, description="Spheroid semi-axis along the body axis x (μm).")
@@ -130,30 +132,25 @@ class RigidModel(RigidBase):
     handedness: Literal[1, -1] = Field(1, description="Helix: 1 right-handed, -1 left-handed.")
     points: str = Field("", description="shape = \"points\": a .npy or text file of (N, 3) "
                         "body-frame points, or a \"module:function\" returning them.")
-    slip_function: str = Field(
-        "", alias="slip", description='A surface slip "module:function", function(t, points) -> '
+    slip: str = Field(
+        "", description='A surface slip "module:function", function(t, points) -> '
         "(N, 3) body-frame velocities relative to the body (empty: none).")
 
-    model_config = {**BodySection.model_config, "populate_by_name": True}
-
-    def shape(self) -> Any:
-        if self.shape_ == "sphere":
+    def surface_shape(self) -> Any:
+        if self.shape == "sphere":
             return Sphere(self.radius, self.n_points)
-        if self.shape_ == "spheroid":
+        if self.shape == "spheroid":
             return Spheroid(self.axial, self.radius, self.n_points)
-        if self.shape_ == "rod":
+        if self.shape == "rod":
             return Rod(self.length, self.radius, self.rings, self.around)
-        if self.shape_ == "helix":
+        if self.shape == "helix":
             return Helix(self.radius, self.pitch, self.turns, self.n_points, self.handedness)
         if not self.points:
             raise ValueError('points: shape = "points" needs a file or "module:function"')
         return PointCloud(source=self.points)
 
-    def slip(self) -> UserSlip | None:
-        return UserSlip(self.slip_function) if self.slip_function else None
-
-    def tables(self) -> dict[str, Any]:
-        return {"model": self.model_dump(mode="json", exclude_none=True, by_alias=True)}
+    def surface_slip(self) -> UserSlip | None:
+        return UserSlip(self.slip) if self.slip else None
 
 
 class SquirmerModel(RigidBase):
@@ -165,10 +162,10 @@ class SquirmerModel(RigidBase):
     b1: Finite = Field(1.0, description="First mode B1 (μm/s): free speed 2 B1 / 3.")
     b2: Finite = Field(0.0, description="Second mode B2 (μm/s): > 0 puller, < 0 pusher.")
 
-    def shape(self) -> Sphere:
+    def surface_shape(self) -> Sphere:
         return Sphere(self.radius, self.n_points)
 
-    def slip(self) -> Squirmer:
+    def surface_slip(self) -> Squirmer:
         return Squirmer(self.b1, self.b2)
 
 
@@ -190,7 +187,7 @@ class BacteriumModel(RigidBase):
     motor_rate: Finite = Field(2 * math.pi * 10, description="Flagellum's rotation rate about "
                                "the body axis x relative to the head (rad/s).")
 
-    def shape(self) -> Bacterium:
+    def surface_shape(self) -> Bacterium:
         head: Sphere | Spheroid = (
             Sphere(self.head_radius, self.head_points) if self.head == "sphere"
             else Spheroid(self.head_axial, self.head_radius, self.head_points))
