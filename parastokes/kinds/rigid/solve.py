@@ -9,13 +9,22 @@ augmented system of Khatri & Cortez,
     Σ_{i on k} f_i = F_k,   Σ_{i on k} (x_i − c_k) × f_i = T_k,
 
 with S_ε the regularized Stokeslet of docs/physics.md (1) (and the wall's images (5)).
+
+One body in free space whose surface is fixed in its frame (``Surface.key`` set: a rigid shape)
+is solved in its body frame, where the matrix does not change as it turns or moves: its LU
+factorization is computed once per (shape, ε, μ) and kept (per process, a few bodies), and each
+solve rotates the right-hand side in and the solution out (the free-space Stokeslet commutes with
+rotations). Otherwise the matrix is assembled and factorized at every solve.
 """
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+import scipy.linalg
 
 from ... import mrs
 
@@ -26,7 +35,9 @@ __all__ = ["Surface", "MobilitySolution", "mobility", "skew"]
 class Surface:
     """One body's surface at one evaluation, in the lab frame: ``points`` (M, 3), reference point
     ``center``, blob width ``epsilon``, surface ``slip`` (M, 3) relative to the rigid motion,
-    external ``force`` and ``torque`` on the body (about ``center``)."""
+    external ``force`` and ``torque`` on the body (about ``center``); when the surface is fixed
+    in the body frame: ``rotation`` R (body -> lab), the body-frame points ``body`` X (``points``
+    = center + X Rᵀ) and a hashable ``key`` that names X (the same X for every pose)."""
 
     points: np.ndarray
     center: np.ndarray
@@ -34,6 +45,9 @@ class Surface:
     slip: np.ndarray
     force: np.ndarray
     torque: np.ndarray
+    rotation: np.ndarray | None = None
+    body: np.ndarray | None = None
+    key: Any = None
 
 
 @dataclass(frozen=True)
@@ -74,36 +88,86 @@ def stokeslet_matrix(points: np.ndarray, epsilon: np.ndarray, mu: float, wall: b
     return out
 
 
-def mobility(surfaces: list[Surface], mu: float, wall: bool, background: np.ndarray | None,
-             n_threads: int | None = None) -> MobilitySolution:
-    """Solve the augmented mobility system of all ``surfaces`` at once (see the module)."""
-    points = np.concatenate([s.points for s in surfaces])
-    eps = np.concatenate([np.full(len(s.points), float(s.epsilon)) for s in surfaces])
-    n, nb = len(points), len(surfaces)
+def _augmented(points: np.ndarray, centers: list[np.ndarray], counts: list[int],
+               eps: np.ndarray, mu: float, wall: bool, n_threads: int | None) -> np.ndarray:
+    """The matrix of the augmented system (see the module) of the bodies' ``points``."""
+    n, nb = len(points), len(counts)
     size = 3 * n + 6 * nb
     a = np.zeros((size, size))
     a[: 3 * n, : 3 * n] = stokeslet_matrix(points, eps, mu, wall, n_threads)
-    rhs = np.zeros(size)
-    slip = np.concatenate([s.slip for s in surfaces])
-    if background is not None:
-        slip = slip - background
-    rhs[: 3 * n] = slip.ravel()
     first = 0
-    for k, s in enumerate(surfaces):
-        m = len(s.points)
+    for k, (center, m) in enumerate(zip(centers, counts, strict=True)):
         rows = slice(3 * first, 3 * (first + m))
         col = 3 * n + 6 * k
         rigid = np.zeros((m, 3, 6))
         rigid[:, :, :3] = np.eye(3)
-        rigid[:, :, 3:] = -skew(s.points - s.center)  # U + Ω × r
+        rigid[:, :, 3:] = -skew(points[first : first + m] - center)  # U + Ω × r
         k_block = rigid.reshape(3 * m, 6)
         a[rows, col : col + 6] = -k_block
         a[col : col + 6, rows] = k_block.T
-        rhs[col : col + 3] = s.force
-        rhs[col + 3 : col + 6] = s.torque
         first += m
+    return a
+
+
+def _rhs(slip: np.ndarray, loads: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
+    return np.concatenate([slip.ravel(), *(np.concatenate(load) for load in loads)])
+
+
+#: Factorized body-frame systems by (key, ε, μ), newest last (a few per process).
+_FACTORS: dict[tuple[Any, float, float], tuple[Any, np.ndarray]] = {}
+_KEEP = 4
+
+
+def _body_frame(s: Surface, mu: float) -> tuple[Any, np.ndarray]:
+    """The LU factors and the matrix of one free body's augmented system in its frame."""
+    name = (s.key, float(s.epsilon), float(mu))
+    found = _FACTORS.pop(name, None)
+    if found is None:
+        assert s.body is not None
+        n = len(s.body)
+        a = _augmented(np.ascontiguousarray(s.body), [np.zeros(3)], [n],
+                       np.full(n, float(s.epsilon)), mu, False, None)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", scipy.linalg.LinAlgWarning)
+            lu = scipy.linalg.lu_factor(a)
+        if not np.all(np.diag(lu[0])):
+            raise np.linalg.LinAlgError("Singular matrix")
+        found = lu, a
+        while len(_FACTORS) >= _KEEP:
+            _FACTORS.pop(next(iter(_FACTORS)))
+    _FACTORS[name] = found
+    return found
+
+
+def _solve_in_body_frame(s: Surface, mu: float, slip: np.ndarray) -> MobilitySolution:
+    r = s.rotation
+    assert r is not None
+    lu, a = _body_frame(s, mu)
+    rhs = _rhs(slip @ r, [(s.force @ r, s.torque @ r)])
+    x = scipy.linalg.lu_solve(lu, rhs)
+    residual = float(np.linalg.norm(a @ x - rhs) / max(np.linalg.norm(rhs), 1e-300))
+    n = len(s.points)
+    return MobilitySolution((x[3 * n : 3 * n + 3] @ r.T)[None], (x[3 * n + 3 :] @ r.T)[None],
+                            x[: 3 * n].reshape(n, 3) @ r.T, residual)
+
+
+def mobility(surfaces: list[Surface], mu: float, wall: bool, background: np.ndarray | None,
+             n_threads: int | None = None) -> MobilitySolution:
+    """Solve the augmented mobility system of all ``surfaces`` at once (see the module)."""
+    slip = np.concatenate([s.slip for s in surfaces])
+    if background is not None:
+        slip = slip - background
+    if len(surfaces) == 1 and not wall and surfaces[0].key is not None \
+            and surfaces[0].body is not None and surfaces[0].rotation is not None:
+        return _solve_in_body_frame(surfaces[0], mu, slip)
+    points = np.concatenate([s.points for s in surfaces])
+    eps = np.concatenate([np.full(len(s.points), float(s.epsilon)) for s in surfaces])
+    a = _augmented(points, [s.center for s in surfaces], [len(s.points) for s in surfaces],
+                   eps, mu, wall, n_threads)
+    rhs = _rhs(slip, [(s.force, s.torque) for s in surfaces])
     x = np.linalg.solve(a, rhs)
     residual = float(np.linalg.norm(a @ x - rhs) / max(np.linalg.norm(rhs), 1e-300))
+    n, nb = len(points), len(surfaces)
     motion = x[3 * n :].reshape(nb, 6)
     return MobilitySolution(motion[:, :3].copy(), motion[:, 3:].copy(),
                             x[: 3 * n].reshape(n, 3), residual)

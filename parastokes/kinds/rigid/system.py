@@ -149,8 +149,10 @@ class RigidBody:
         if self.slip is not None:
             moving = moving + self.slip.velocity(t, body)
         r = rotation.matrix(q)
+        fixed = self.shape.phase_rate == 0.0  # the surface does not move in the body frame
         return Surface(np.ascontiguousarray(state[1:, :3]), np.array(c), float(self.epsilon),
-                       moving @ r.T, np.array(self.force), np.array(self.torque))
+                       moving @ r.T, np.array(self.force), np.array(self.torque), r,
+                       body if fixed else None, self.shape if fixed else None)
 
     def background(self, points: np.ndarray) -> np.ndarray | None:
         """u∞ = (γ̇ z, 0, 0) at ``points`` (None without shear)."""
