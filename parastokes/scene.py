@@ -294,11 +294,11 @@ class Scene:
         rigid = FluidSources(rigid_points, solution.forces, np.zeros_like(rigid_points),
                              np.concatenate([np.full(len(s.points), s.epsilon)
                                              for s in surfaces]))
-        sources = FluidSources(*(np.concatenate([a, b]) for a, b in zip(
-            explicit[:2], rigid[:2], strict=True)),
-            None if explicit.torques is None else np.concatenate([explicit.torques,
-                                                                  rigid.torques]),
-            np.concatenate([explicit.epsilon, rigid.epsilon]))
+        torques = (None if explicit.torques is None or rigid.torques is None
+                   else np.concatenate([explicit.torques, rigid.torques]))
+        sources = FluidSources(np.concatenate([explicit.points, rigid.points]),
+                               np.concatenate([explicit.forces, rigid.forces]), torques,
+                               np.concatenate([explicit.epsilon, rigid.epsilon]))
         angular = any(self.bodies[i].angular for i in range(len(self.bodies))
                       if i not in self.implicit_bodies)
         u, w = self._flow(explicit.points, sources, angular)

@@ -56,7 +56,7 @@ def serial(request):
 
 
 def test_parareal_converges_to_the_serial_fine_solution(serial):
-    name, (result, reference) = serial
+    _, (result, reference) = serial
     errors = np.asarray(result.errors)
     assert errors[0] > 1e-9  # the coarse solver is not the fine one
     assert np.all(np.diff(errors) < 0) or errors[-1] < 1e-13
@@ -74,7 +74,7 @@ def test_processes_equal_serial_bit_for_bit(serial):
 
 
 def test_pipelined_schedule_converges_too(serial):
-    name, (result, reference) = serial
+    name, _ = serial
     if name != "bacterium":
         pytest.skip("one case suffices: the schedule does not depend on the body")
     with parallel.make_executor("processes", 2) as executor:

@@ -170,7 +170,8 @@ class Rod(_Rigid):
     def _make(self) -> np.ndarray:
         x = np.linspace(-0.5 * self.length, 0.5 * self.length, self.rings)
         step = 2.0 * math.pi / self.around
-        angle = step * (np.arange(self.around)[None, :] + 0.5 * (np.arange(self.rings) % 2)[:, None])
+        stagger = 0.5 * (np.arange(self.rings) % 2)[:, None]
+        angle = step * (np.arange(self.around)[None, :] + stagger)
         side = np.stack([np.broadcast_to(x[:, None], angle.shape), self.radius * np.cos(angle),
                          self.radius * np.sin(angle)], axis=-1).reshape(-1, 3)
         ends = np.array([[x[0], 0.0, 0.0], [x[-1], 0.0, 0.0]])
@@ -248,7 +249,7 @@ class PointCloud(_Rigid):
         array = np.asarray(points, dtype=float)
         if array.ndim != 2 or array.shape[1] != 3:
             raise ValueError(f"points: need an (N, 3) array, got shape {array.shape}")
-        return cls(points_=tuple(tuple(map(float, p)) for p in array))
+        return cls(points_=tuple((float(x), float(y), float(z)) for x, y, z in array))
 
     def _make(self) -> np.ndarray:
         return load_points(self.source) if self.source else np.array(self.points_, dtype=float)

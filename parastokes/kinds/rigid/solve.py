@@ -28,7 +28,7 @@ import scipy.linalg
 
 from ... import mrs
 
-__all__ = ["Surface", "MobilitySolution", "mobility", "skew"]
+__all__ = ["MobilitySolution", "Surface", "mobility", "skew"]
 
 
 @dataclass(frozen=True)
@@ -109,6 +109,12 @@ def _augmented(points: np.ndarray, centers: list[np.ndarray], counts: list[int],
     return a
 
 
+def _relative(error: np.ndarray, rhs: np.ndarray) -> float:
+    """‖error‖ / ‖rhs‖ (‖error‖ for a zero right-hand side)."""
+    scale = float(np.linalg.norm(rhs))
+    return float(np.linalg.norm(error)) / (scale if scale > 0.0 else 1.0)
+
+
 def _rhs(slip: np.ndarray, loads: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
     return np.concatenate([slip.ravel(), *(np.concatenate(load) for load in loads)])
 
@@ -145,7 +151,7 @@ def _solve_in_body_frame(s: Surface, mu: float, slip: np.ndarray) -> MobilitySol
     lu, a = _body_frame(s, mu)
     rhs = _rhs(slip @ r, [(s.force @ r, s.torque @ r)])
     x = scipy.linalg.lu_solve(lu, rhs)
-    residual = float(np.linalg.norm(a @ x - rhs) / max(np.linalg.norm(rhs), 1e-300))
+    residual = _relative(a @ x - rhs, rhs)
     n = len(s.points)
     return MobilitySolution((x[3 * n : 3 * n + 3] @ r.T)[None], (x[3 * n + 3 :] @ r.T)[None],
                             x[: 3 * n].reshape(n, 3) @ r.T, residual)
@@ -166,7 +172,7 @@ def mobility(surfaces: list[Surface], mu: float, wall: bool, background: np.ndar
                    eps, mu, wall, n_threads)
     rhs = _rhs(slip, [(s.force, s.torque) for s in surfaces])
     x = np.linalg.solve(a, rhs)
-    residual = float(np.linalg.norm(a @ x - rhs) / max(np.linalg.norm(rhs), 1e-300))
+    residual = _relative(a @ x - rhs, rhs)
     n, nb = len(points), len(surfaces)
     motion = x[3 * n :].reshape(nb, 6)
     return MobilitySolution(motion[:, :3].copy(), motion[:, 3:].copy(),

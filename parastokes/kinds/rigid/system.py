@@ -39,7 +39,7 @@ from .shapes import Sphere, spacing
 from .slip import Squirmer, UserSlip
 from .solve import MobilitySolution, Surface, mobility
 
-__all__ = ["POSE_COLUMNS", "RATE_COLUMNS", "RigidBody", "COARSE_RATIO"]
+__all__ = ["COARSE_RATIO", "POSE_COLUMNS", "RATE_COLUMNS", "RigidBody"]
 
 #: Columns of the state: c (0-2), q (3-6), φ (7).
 POSE_COLUMNS = 8
@@ -64,7 +64,7 @@ class RigidBody:
     under the external ``force`` and ``torque`` (about its reference point; e.g. gravity, a
     magnetic torque); blobs of width ``epsilon`` (absolute) at its surface points."""
 
-    shape: Any = Sphere()
+    shape: Any = Sphere()  # noqa: RUF009 (a frozen, hashable value)
     slip: Squirmer | UserSlip | None = None
     epsilon: float = 0.05
     viscosity: float = 1.0
@@ -84,7 +84,7 @@ class RigidBody:
         require_positive(epsilon=self.epsilon, viscosity=self.viscosity)
         for name, n in (("position", 3), ("force", 3), ("torque", 3), ("orientation", 4)):
             object.__setattr__(self, name, _vector(name, getattr(self, name), n))
-        q = rotation.normalized(self.orientation)
+        q = rotation.normalized(np.array(self.orientation))
         if abs(float(np.linalg.norm(self.orientation)) - 1.0) > 1e-15:  # keep unit input's bits
             object.__setattr__(self, "orientation", tuple(float(v) for v in q))
         if not math.isfinite(self.shear_rate):
