@@ -160,7 +160,11 @@ def test_the_body_frame_factorization_gives_the_lab_frame_solve():
         surface = body.surface(0.0, y)
         assert surface.key is not None
         fast = mobility([surface], MU, False, None)
+        motion = mobility([surface], MU, False, None, forces=False)
         slow = mobility([dataclasses.replace(surface, key=None)], MU, False, None)
+        assert motion.forces is None
+        np.testing.assert_allclose(motion.U, slow.U, atol=1e-12)
+        np.testing.assert_allclose(motion.Omega, slow.Omega, atol=1e-12)
         np.testing.assert_allclose(fast.U, slow.U, atol=1e-12)
         np.testing.assert_allclose(fast.Omega, slow.Omega, atol=1e-12)
         np.testing.assert_allclose(fast.forces, slow.forces, atol=1e-10)

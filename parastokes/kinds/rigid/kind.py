@@ -217,7 +217,7 @@ def draw(fig: Any, bodies: Mapping[str, Mapping[str, np.ndarray]], times: np.nda
         for name, body in bodies.items():
             if name.endswith("surface"):
                 last = body["positions"][-1]
-                ax.plot(last[:, i], last[:, j], ",", color="0.5")
+                ax.plot(last[:, i], last[:, j], ".", color="0.6", ms=1.5)
 
 
 def _example_rigid() -> tuple[RigidBody, np.ndarray, float | None]:

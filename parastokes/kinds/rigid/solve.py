@@ -14,7 +14,9 @@ One body in free space whose surface is fixed in its frame (``Surface.key`` set:
 is solved in its body frame, where the matrix does not change as it turns or moves: its LU
 factorization is computed once per (shape, ε, μ) and kept (per process, a few bodies), and each
 solve rotates the right-hand side in and the solution out (the free-space Stokeslet commutes with
-rotations). Otherwise the matrix is assembled and factorized at every solve.
+rotations). The motion alone (what ``rates`` needs) is then six kept rows of the inverse times the
+right-hand side, O(N); the forces (the flow field, a scene) one LU solve, O(N²). Otherwise the
+matrix is assembled and factorized at every solve, O(N³).
 """
 
 from __future__ import annotations
@@ -53,11 +55,12 @@ class Surface:
 @dataclass(frozen=True)
 class MobilitySolution:
     """Every body's velocity ``U`` (B, 3) and angular velocity ``Omega`` (B, 3), the surface
-    forces on the fluid ``forces`` (Σ M, 3) and the relative residual of the solve."""
+    forces on the fluid ``forces`` (Σ M, 3; None when not asked for) and the relative residual
+    of the solve."""
 
     U: np.ndarray
     Omega: np.ndarray
-    forces: np.ndarray
+    forces: Any
     residual: float
 
 
@@ -119,13 +122,17 @@ def _rhs(slip: np.ndarray, loads: list[tuple[np.ndarray, np.ndarray]]) -> np.nda
     return np.concatenate([slip.ravel(), *(np.concatenate(load) for load in loads)])
 
 
-#: Factorized body-frame systems by (key, ε, μ), newest last (a few per process).
-_FACTORS: dict[tuple[Any, float, float], tuple[Any, np.ndarray]] = {}
+#: Factorized body-frame systems by (key, ε, μ), newest last (a few per process): the LU
+#: factors and their backward error (the relative residual of a solve with a random right-hand
+#: side, measured once: a direct solve's residual does not depend on the right-hand side beyond
+#: round-off, and measuring it at every solve would cost as much again as the solve).
+_FACTORS: dict[tuple[Any, float, float], tuple[Any, np.ndarray, float]] = {}
 _KEEP = 4
 
 
-def _body_frame(s: Surface, mu: float) -> tuple[Any, np.ndarray]:
-    """The LU factors and the matrix of one free body's augmented system in its frame."""
+def _body_frame(s: Surface, mu: float) -> tuple[Any, np.ndarray, float]:
+    """The LU factors of one free body's augmented system in its frame, the last six rows of its
+    inverse (the motion (U, Ω) of any right-hand side, one product away) and their residual."""
     name = (s.key, float(s.epsilon), float(mu))
     found = _FACTORS.pop(name, None)
     if found is None:
@@ -138,34 +145,46 @@ def _body_frame(s: Surface, mu: float) -> tuple[Any, np.ndarray]:
             lu = scipy.linalg.lu_factor(a)
         if not np.all(np.diag(lu[0])):
             raise np.linalg.LinAlgError("Singular matrix")
-        found = lu, a
+        probe = np.random.default_rng(0).standard_normal(len(a))
+        residual = _relative(a @ scipy.linalg.lu_solve(lu, probe) - probe, probe)
+        last = np.zeros((len(a), 6))
+        last[-6:, :] = np.eye(6)
+        motion = np.ascontiguousarray(scipy.linalg.lu_solve(lu, last, trans=1).T)
+        found = lu, motion, residual
         while len(_FACTORS) >= _KEEP:
             _FACTORS.pop(next(iter(_FACTORS)))
     _FACTORS[name] = found
     return found
 
 
-def _solve_in_body_frame(s: Surface, mu: float, slip: np.ndarray) -> MobilitySolution:
+def _solve_in_body_frame(s: Surface, mu: float, slip: np.ndarray, forces: bool
+                         ) -> MobilitySolution:
     r = s.rotation
     assert r is not None
-    lu, a = _body_frame(s, mu)
+    lu, rows, residual = _body_frame(s, mu)
     rhs = _rhs(slip @ r, [(s.force @ r, s.torque @ r)])
-    x = scipy.linalg.lu_solve(lu, rhs)
-    residual = _relative(a @ x - rhs, rhs)
     n = len(s.points)
+    if forces:
+        x = scipy.linalg.lu_solve(lu, rhs)
+        f = x[: 3 * n].reshape(n, 3) @ r.T
+    else:  # (U, Ω) only: six rows of the inverse, O(N) instead of O(N²)
+        x = np.concatenate([np.zeros(3 * n), rows @ rhs])
+        f = None
     return MobilitySolution((x[3 * n : 3 * n + 3] @ r.T)[None], (x[3 * n + 3 :] @ r.T)[None],
-                            x[: 3 * n].reshape(n, 3) @ r.T, residual)
+                            f, residual)
 
 
 def mobility(surfaces: list[Surface], mu: float, wall: bool, background: np.ndarray | None,
-             n_threads: int | None = None) -> MobilitySolution:
-    """Solve the augmented mobility system of all ``surfaces`` at once (see the module)."""
+             n_threads: int | None = None, forces: bool = True) -> MobilitySolution:
+    """Solve the augmented mobility system of all ``surfaces`` at once (see the module);
+    ``forces=False``: the motion only (``forces`` None where that is cheaper: one free rigid
+    body, whose (U, Ω) are then six kept rows of the inverse times the right-hand side)."""
     slip = np.concatenate([s.slip for s in surfaces])
     if background is not None:
         slip = slip - background
     if len(surfaces) == 1 and not wall and surfaces[0].key is not None \
             and surfaces[0].body is not None and surfaces[0].rotation is not None:
-        return _solve_in_body_frame(surfaces[0], mu, slip)
+        return _solve_in_body_frame(surfaces[0], mu, slip, forces)
     points = np.concatenate([s.points for s in surfaces])
     eps = np.concatenate([np.full(len(s.points), float(s.epsilon)) for s in surfaces])
     a = _augmented(points, [s.center for s in surfaces], [len(s.points) for s in surfaces],

@@ -162,11 +162,12 @@ class RigidBody:
         out[:, 0] = self.shear_rate * points[:, 2]
         return out
 
-    def solve(self, t: float, state: np.ndarray) -> MobilitySolution:
-        """The mobility problem at ``(t, state)`` (:func:`.solve.mobility`)."""
+    def solve(self, t: float, state: np.ndarray, forces: bool = True) -> MobilitySolution:
+        """The mobility problem at ``(t, state)`` (:func:`.solve.mobility`; ``forces=False``:
+        the motion only where that is cheaper)."""
         surface = self.surface(t, state)
         return mobility([surface], self.viscosity, self.wall, self.background(surface.points),
-                        self.n_threads)
+                        self.n_threads, forces)
 
     def motion_rates(self, state: np.ndarray, u: np.ndarray, omega: np.ndarray,
                      prescribed: np.ndarray) -> np.ndarray:
@@ -179,7 +180,7 @@ class RigidBody:
 
     def rates(self, t: float, state: np.ndarray) -> np.ndarray:
         """(U, Ω) of the mobility solve, dφ/dt, and the surface velocities."""
-        solution = self.solve(t, state)
+        solution = self.solve(t, state, forces=False)
         return self.motion_rates(state, solution.U[0], solution.Omega[0],
                                  self.surface(t, state).slip)
 
