@@ -15,8 +15,7 @@ import numpy as np
 
 from parastokes.kinds.rigid import RigidBody, Sphere, Squirmer
 from parastokes.kinds.rigid.shapes import spacing
-
-from tests.test_rigid_validation import helix_ratio, rft_ratio  # noqa: E402
+from tests.test_rigid_validation import helix_ratio, rft_ratio
 
 
 def speed(n: int, ratio: float, **kw) -> np.ndarray:
