@@ -27,6 +27,7 @@ from ...bodies.registry import (
     draw_over_time,
     point_layout,
 )
+from ...mobility import SolveError
 from .shapes import Bacterium, Helix, PointCloud, Rod, Sphere, Spheroid, spacing
 from .slip import Squirmer, UserSlip
 from .system import RigidBody
@@ -50,7 +51,7 @@ def check_solvable(body: RigidBody, name: str = "model") -> None:
         solution = body.solve(0.0, body.initial_state())
         residual = solution.residual
         finite = bool(np.isfinite(solution.U).all() and np.isfinite(solution.Omega).all())
-    except np.linalg.LinAlgError as error:
+    except (np.linalg.LinAlgError, SolveError) as error:
         residual, finite = math.inf, False
         reason = str(error)
     else:

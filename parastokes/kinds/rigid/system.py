@@ -151,8 +151,8 @@ class RigidBody:
         r = rotation.matrix(q)
         fixed = self.shape.phase_rate == 0.0  # the surface does not move in the body frame
         return Surface(np.ascontiguousarray(state[1:, :3]), np.array(c), float(self.epsilon),
-                       moving @ r.T, np.array(self.force), np.array(self.torque), r,
-                       body if fixed else None, self.shape if fixed else None)
+                       moving @ r.T, np.array(self.force), np.array(self.torque), r, body,
+                       self.shape if fixed else None, type(self.shape).__name__.lower())
 
     def background(self, points: np.ndarray) -> np.ndarray | None:
         """u∞ = (γ̇ z, 0, 0) at ``points`` (None without shear)."""
@@ -162,12 +162,11 @@ class RigidBody:
         out[:, 0] = self.shear_rate * points[:, 2]
         return out
 
-    def solve(self, t: float, state: np.ndarray, forces: bool = True) -> MobilitySolution:
-        """The mobility problem at ``(t, state)`` (:func:`.solve.mobility`; ``forces=False``:
-        the motion only where that is cheaper)."""
+    def solve(self, t: float, state: np.ndarray) -> MobilitySolution:
+        """The mobility problem at ``(t, state)`` (:func:`.solve.mobility`)."""
         surface = self.surface(t, state)
         return mobility([surface], self.viscosity, self.wall, self.background(surface.points),
-                        self.n_threads, forces)
+                        self.n_threads)
 
     def motion_rates(self, state: np.ndarray, u: np.ndarray, omega: np.ndarray,
                      prescribed: np.ndarray) -> np.ndarray:
@@ -180,7 +179,7 @@ class RigidBody:
 
     def rates(self, t: float, state: np.ndarray) -> np.ndarray:
         """(U, Ω) of the mobility solve, dφ/dt, and the surface velocities."""
-        solution = self.solve(t, state, forces=False)
+        solution = self.solve(t, state)
         return self.motion_rates(state, solution.U[0], solution.Omega[0],
                                  self.surface(t, state).slip)
 
