@@ -9,6 +9,7 @@ import math
 
 import numpy as np
 import pytest
+from configs import SERIAL_SOLVERS
 
 from parastokes import cli, config
 from parastokes.bodies.sources import FluidSources, fluid_sources
@@ -99,18 +100,7 @@ def test_overlapping_bodies_are_named():
 
 
 def test_check_rejects_bad_rigid_bodies_before_the_run(tmp_path, capsys):
-    base = """
-[time]
-t1 = 0.1
-[fine]
-dt = 0.01
-[coarse]
-dt_ratio = 2
-[parareal]
-n_slices = 2
-[execution]
-executor = "serial"
-"""
+    base = SERIAL_SOLVERS
     cases = {
         "coarse": ('[model]\nkind = "rigid"\nn_points = 40\nepsilon = 0.01\n'
                    'epsilon_unit = "absolute"\n', "too coarse for ε = 0.01"),
