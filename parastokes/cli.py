@@ -10,6 +10,8 @@
     parastokes predict CONFIG.toml --cores N [N ...] [--workers W] [--ratio R | --measured DIR]
                        [--iterations K]
     parastokes tune CONFIG.toml --cores N --target ETA --out TUNED.toml [--budget SECONDS]
+    parastokes flow RUN_DIR [--frame I | --time T | --average T0 T1] [--plane z=5 | --box ...]
+    parastokes movie RUN_DIR [--out swim.mp4] [--flow]
 
 Exit codes (:class:`ExitCode`): 0 success; 1 unexpected error (a bug: please report the
 traceback); 2 bad configuration or usage, or an output directory or file that cannot be used
@@ -536,6 +538,10 @@ def _parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--formats", nargs="+", choices=["png", "pdf"], default=["png", "pdf"])
     p.set_defaults(func=cmd_plot)
+
+    from .flow.command import add_commands as add_flow_commands
+
+    add_flow_commands(sub, [common])  # flow, movie
     return parser
 
 

@@ -537,6 +537,11 @@ def _execute(
     io.write_summary(staging / SUMMARY, summary)
     if writer is not None:
         io.write_xdmf(staging / TRAJECTORY)
+        if cfg.output.flow_every is not None:
+            from .flow.command import write_run_flow
+
+            write_run_flow(staging, cfg.output.flow_every, cfg.output.flow_plane,
+                           cfg.output.flow_resolution)
     if cfg.output.figures:
         written = plots.draw_run(staging, formats=cfg.output.formats)
         reporter.note(f"figures: {', '.join(sorted({p.stem for p in written}))}")

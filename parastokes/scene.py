@@ -45,7 +45,7 @@ import numpy as np
 
 from . import mrs
 from .bodies.geometry import crossed_wall
-from .bodies.sources import FluidSources
+from .bodies.sources import FluidSources, fluid_sources
 from .stepping import registry
 from .stepping.scene import scene_loop
 
@@ -188,6 +188,30 @@ class Scene:
         return np.repeat([float(body.epsilon) for body in self.bodies],
                          [rows for _, rows, _ in self.shapes])
 
+    def fluid_sources(self, t: float, state: np.ndarray) -> FluidSources:
+        """Every body's point loads on the fluid (:func:`~parastokes.bodies.sources.fluid_sources`),
+        stacked in the order of the bodies, each source with its body's ε; torques None when no
+        body has any. With implicit bodies: the explicit bodies' loads, then the implicit
+        bodies' solved surface forces (:meth:`coupled`)."""
+        if self.implicit_bodies:
+            return self.coupled(t, state).sources
+        return self._sources(t, state, range(len(self.bodies)))
+
+    def _sources(self, t: float, state: np.ndarray, which: Any) -> FluidSources:
+        """The loads of the bodies ``which`` (indices), stacked (empty when there are none)."""
+        blocks = self.blocks(state)
+        parts = [fluid_sources(self.bodies[i], t, blocks[i]) for i in which]
+        if not parts:
+            empty = np.zeros((0, 3))
+            return FluidSources(empty, empty, None, np.zeros(0))
+        torques = None
+        if any(p.torques is not None for p in parts):
+            torques = np.concatenate([np.zeros_like(p.forces) if p.torques is None else p.torques
+                                      for p in parts])
+        return FluidSources(np.concatenate([p.points for p in parts]),
+                            np.concatenate([p.forces for p in parts]), torques,
+                            np.concatenate([p.epsilon for p in parts]))
+
     def rates(self, t: float, state: np.ndarray) -> np.ndarray:
         """Each body's rates from u∞ + the velocities that all bodies' loads induce at its points:
         one evaluation of the fluid over all points, each source with its body's ε (with
@@ -196,16 +220,11 @@ class Scene:
             return self._coupled_rates(t, state)
         points = np.ascontiguousarray(state[:, :3])
         angular = any(body.angular for body in self.bodies)
-        forces = np.zeros_like(points)
-        torques = np.zeros_like(points) if angular else None
-        for body, x, (f, n, _) in zip(self.bodies, self.blocks(state), self.shapes, strict=True):
-            body_forces, body_torques = body.loads(t, x)
-            forces[f : f + n] = body_forces
-            if body_torques is not None:
-                if torques is None:  # torques from a body whose rates have no w
-                    torques = np.zeros_like(points)
-                torques[f : f + n] = body_torques
-        value = mrs.velocity(points, points, forces, epsilon=self.source_epsilon(),
+        sources = self.fluid_sources(t, state)
+        torques = sources.torques
+        if angular and torques is None:
+            torques = np.zeros_like(points)
+        value = mrs.velocity(points, sources.points, sources.forces, epsilon=sources.epsilon,
                              mu=self.viscosity, torques=torques, wall=self.wall, angular=angular,
                              n_threads=self.n_threads, check=False)
         u, w = value if angular else (value, np.zeros_like(points))
@@ -249,23 +268,6 @@ class Scene:
         """The indices of the implicit bodies (:func:`implicit`)."""
         return tuple(i for i, body in enumerate(self.bodies) if implicit(body))
 
-    def _explicit_loads(self, t: float, state: np.ndarray) -> FluidSources:
-        """The loads of the explicit bodies at their rows (empty when there are none)."""
-        points, forces, torques, eps = [], [], [], []
-        for i, (body, x) in enumerate(zip(self.bodies, self.blocks(state), strict=True)):
-            if i in self.implicit_bodies:
-                continue
-            body_forces, body_torques = body.loads(t, x)
-            points.append(x[:, :3])
-            forces.append(body_forces)
-            torques.append(np.zeros_like(body_forces) if body_torques is None else body_torques)
-            eps.append(np.full(len(x), float(body.epsilon)))
-        if not points:
-            empty = np.zeros((0, 3))
-            return FluidSources(empty, empty, None, np.zeros(0))
-        return FluidSources(np.concatenate(points), np.concatenate(forces),
-                            np.concatenate(torques), np.concatenate(eps))
-
     def _flow(self, targets: np.ndarray, sources: FluidSources, angular: bool
               ) -> tuple[np.ndarray, np.ndarray]:
         """u∞ + the velocity (and w∞ + w) of ``sources`` at ``targets``."""
@@ -285,7 +287,8 @@ class Scene:
         all implicit bodies in their background, the velocities at the explicit bodies."""
         from .kinds.rigid.solve import mobility
 
-        explicit = self._explicit_loads(t, state)
+        explicit = self._sources(t, state, [i for i in range(len(self.bodies))
+                                            if i not in self.implicit_bodies])
         blocks = self.blocks(state)
         surfaces = [self.bodies[i].surface(t, blocks[i]) for i in self.implicit_bodies]
         rigid_points = np.concatenate([s.points for s in surfaces])
@@ -317,13 +320,6 @@ class Scene:
                 parts.append(body.body_rates(value.u[row : row + n], value.w[row : row + n]))
                 row += n
         return self._stack(parts)
-
-    def fluid_sources(self, t: float, state: np.ndarray) -> FluidSources:
-        """Every body's loads on the fluid where they sit (implicit bodies: their solved
-        surface forces), each with its body's ε."""
-        if self.implicit_bodies:
-            return self.coupled(t, state).sources
-        return self._explicit_loads(t, state)
 
     # ---- parameters and monitor ----------------------------------------------------------
     @property

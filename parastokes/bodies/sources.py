@@ -1,8 +1,15 @@
-"""Where a system's bodies load the fluid: the sources of the flow field around them.
+"""What a system puts into the fluid: its point loads, where they sit and their blob widths.
 
-:func:`fluid_sources` asks ``system.fluid_sources(t, state)`` when the system has it (rigid and
-prescribed-motion bodies, whose surface forces come from a mobility solve, and scenes) and
-otherwise builds the sources from ``positions``, ``loads`` and ``epsilon`` (explicit bodies).
+:class:`FluidSources` is the one low-level description of a system's regularized Stokeslets and
+rotlets (eq. 6; docs/physics.md (1)-(8)), so that the fluid's velocity can be evaluated anywhere
+(:mod:`parastokes.flow`), not only at the bodies' own points:
+
+- a system with ``fluid_sources(t, state)`` gives them itself (a scene composes its bodies'; a
+  body whose loads sit elsewhere than its state rows, e.g. on a rigid body's surface, must);
+- otherwise the points are the state's positions (columns 0-2), the loads ``system.loads(t,
+  state)`` (forces, torques or None) and every source has the system's ``epsilon``.
+
+The forces and torques are what the bodies exert on the fluid (docs/contracts.md, "System").
 """
 
 from __future__ import annotations
@@ -15,19 +22,35 @@ __all__ = ["FluidSources", "fluid_sources"]
 
 
 class FluidSources(NamedTuple):
-    points: np.ndarray          # (N, 3) where the loads sit
-    forces: np.ndarray          # (N, 3) what the bodies exert on the fluid
+    """A system's point loads on the fluid at one instant."""
+
+    points: np.ndarray  # (N, 3) where the loads sit
+    forces: np.ndarray  # (N, 3) what the bodies exert on the fluid
     torques: np.ndarray | None  # (N, 3) or None
-    epsilon: np.ndarray         # (N,) blob width per source
+    epsilon: np.ndarray  # (N,) blob width per source
 
 
 def fluid_sources(system: Any, t: float, state: np.ndarray) -> FluidSources:
-    """The loads ``system`` exerts on the fluid at ``(t, state)`` (see the module)."""
-    own = getattr(system, "fluid_sources", None)
-    if own is not None:
-        return own(t, state)
-    points = np.asarray(system.positions(state), dtype=float)
+    """The point loads of ``system`` in ``state`` at time ``t`` (see the module's text).
+
+    ValueError naming what to add for a system that offers neither ``fluid_sources`` nor
+    ``loads`` and ``epsilon`` (e.g. a user's body whose ``rates`` call the fluid directly).
+    """
+    if hasattr(system, "fluid_sources"):
+        sources = system.fluid_sources(t, state)
+        return FluidSources(*sources)
+    missing = [name for name in ("loads", "epsilon") if not hasattr(system, name)]
+    if missing:
+        raise ValueError(
+            f"a {type(system).__name__} does not say what it exerts on the fluid: give it "
+            f"{' and '.join(missing)} (loads(t, state) -> (forces, torques or None), epsilon: its "
+            "blob width) or fluid_sources(t, state) (docs/contracts.md, 'System')"
+        )
+    state = np.asarray(state, dtype=np.float64)
+    points = np.ascontiguousarray(state[:, :3])
     forces, torques = system.loads(t, state)
-    epsilon = np.broadcast_to(np.asarray(system.epsilon, dtype=float), (len(points),)).copy()
-    return FluidSources(points, np.asarray(forces, dtype=float),
-                        None if torques is None else np.asarray(torques, dtype=float), epsilon)
+    forces = np.ascontiguousarray(forces, dtype=np.float64)
+    if torques is not None:
+        torques = np.ascontiguousarray(torques, dtype=np.float64)
+    epsilon = np.full(len(points), float(system.epsilon))
+    return FluidSources(points, forces, torques, epsilon)

@@ -205,6 +205,9 @@ def resolve(cfg: Config, source: str = "") -> Resolved:
         )
     issues += [("output.tracked_points", issue)
                for issue in model.tracked_issues(cfg.output.tracked_points, n_points)]
+    if cfg.output.flow_every is not None and not cfg.output.trajectory:
+        issues.append(("output.flow_every", "the flow is computed from the saved frames: set "
+                                            "output.trajectory = true or remove flow_every"))
 
     workers = _workers(cfg, coarse.n_auxiliary, issues, warnings)
     if issues:

@@ -141,6 +141,22 @@ class Output(_Section):
     formats: list[Literal["png", "pdf"]] = Field(
         ["png", "pdf"], min_length=1, description="Figure file formats."
     )
+    flow_every: int | None = Field(
+        None,
+        ge=1,
+        description="Also write the flow (flow.h5 + flow.xdmf, a time series ParaView opens, and "
+        "flow.png) at every this many saved frames, on flow_plane (parastokes flow; "
+        "docs/tutorial.md). Default: none.",
+    )
+    flow_plane: str | None = Field(
+        None,
+        pattern=r"^\s*[xyzXYZ]\s*=\s*\S+\s*$",
+        description='The plane of flow_every, e.g. "z=5" or "y=0". Default: the x-z plane '
+        "through the bodies.",
+    )
+    flow_resolution: int = Field(
+        64, ge=2, description="Nodes of flow_every's plane along its longest side (square cells)."
+    )
     tracked_points: list[Index] | dict[str, list[Index]] | None = Field(
         None,
         description="Vesicle points marked in the output and highlighted in the pictures "
