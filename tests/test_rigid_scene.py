@@ -128,3 +128,24 @@ def test_check_rejects_bad_rigid_bodies_before_the_run(tmp_path, capsys):
 def collinear():
     """Points on one line: they cannot resist a turn about it (a singular mobility system)."""
     return np.stack([np.linspace(0.0, 3.0, 20), np.zeros(20), np.zeros(20)], axis=1)
+
+
+def test_the_flow_at_a_rigid_surface_is_its_prescribed_motion():
+    """The flow field of the solved surface forces (parastokes.flow, from ``fluid_sources``)
+    meets the no-slip condition: at every surface point it is U + Ω × r + the slip, for a
+    squirmer above the wall in shear and for a sphere beside a chain in a scene; far away it
+    decays."""
+    from parastokes import flow
+
+    body = sphere((0.0, 0.0, 2.0), slip=Squirmer(1.0, 2.0), wall=True, shear_rate=0.5,
+                  force=(0.0, 0.0, -1.0), viscosity=1.0)
+    x = body.initial_state()
+    rates = body.rates(0.0, x)
+    u = flow.velocity(body, x, x[1:, :3])
+    np.testing.assert_allclose(u, rates[1:, :3], atol=1e-8)
+    chain = ChainSystem(n_beads=6, height=3.0, load=(0.0, 0.0, -0.5))
+    scene = Scene((chain, sphere((0.0, 0.0, 0.0), force=(0.0, 0.0, -1.0))), viscosity=1.0)
+    y = scene.initial_state()
+    r = scene.rates(0.0, y)
+    np.testing.assert_allclose(flow.velocity(scene, y, y[7:, :3]), r[7:, :3], atol=1e-8)
+    np.testing.assert_allclose(flow.velocity(scene, y, y[:6, :3]), r[:6, :3], atol=1e-12)
