@@ -165,3 +165,16 @@ def test_the_kept_body_frame_factorization_gives_a_fresh_solve():
         np.testing.assert_allclose(kept.Omega, fresh.Omega, atol=1e-12)
         np.testing.assert_allclose(kept.forces, fresh.forces, atol=1e-10)
         assert kept.residual < 1e-10
+
+
+def test_resistance_inverts_mobility():
+    """The resistance problem at the (U, Ω) the mobility problem found gives back the external
+    force and torque (with the same slip): the two are inverses."""
+    body = sphere_body(150, slip=Squirmer(1.0, 1.0), force=(0.2, 0.0, -1.0),
+                       torque=(0.0, 0.3, 0.1), orientation=(0.9, 0.2, 0.1, -0.3))
+    x = body.initial_state()
+    solution = body.solve(0.0, x)
+    back = body.resistance(0.0, x, solution.U[0], solution.Omega[0])
+    np.testing.assert_allclose(back.force[0], body.force, atol=1e-9)
+    np.testing.assert_allclose(back.torque[0], body.torque, atol=1e-9)
+    np.testing.assert_allclose(back.forces, solution.forces, atol=1e-9)

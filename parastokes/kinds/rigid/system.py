@@ -37,7 +37,8 @@ from ...mrs.velocity import thread_count
 from . import rotation
 from .shapes import Sphere, spacing
 from .slip import Squirmer, UserSlip
-from .solve import MobilitySolution, Surface, mobility
+from ...mobility import ResistanceResult, solve_resistance
+from .solve import MobilitySolution, Surface, mobility, placed
 
 __all__ = ["COARSE_RATIO", "POSE_COLUMNS", "RATE_COLUMNS", "RigidBody"]
 
@@ -167,6 +168,15 @@ class RigidBody:
         surface = self.surface(t, state)
         return mobility([surface], self.viscosity, self.wall, self.background(surface.points),
                         self.n_threads)
+
+    def resistance(self, t: float, state: np.ndarray, u: Any, omega: Any) -> ResistanceResult:
+        """The resistance problem at ``(t, state)``: the surface forces (and their total force
+        and torque) that make the body move at (``u``, ``omega``) with its slip, in its
+        background (:func:`parastokes.mobility.solve_resistance`)."""
+        surface = self.surface(t, state)
+        return solve_resistance(placed(surface), u, omega, mu=self.viscosity, wall=self.wall,
+                                slip=surface.slip, background=self.background(surface.points),
+                                n_threads=self.n_threads)
 
     def motion_rates(self, state: np.ndarray, u: np.ndarray, omega: np.ndarray,
                      prescribed: np.ndarray) -> np.ndarray:
