@@ -33,11 +33,11 @@ import numpy as np
 from ...bodies.base import replace_params, require_positive
 from ...bodies.geometry import crossed_wall
 from ...bodies.sources import FluidSources
+from ...mobility import ResistanceResult, solve_resistance
 from ...mrs.velocity import thread_count
 from . import rotation
 from .shapes import Sphere, spacing
 from .slip import Squirmer, UserSlip
-from ...mobility import ResistanceResult, solve_resistance
 from .solve import MobilitySolution, Surface, mobility, placed
 
 __all__ = ["COARSE_RATIO", "POSE_COLUMNS", "RATE_COLUMNS", "RigidBody"]
