@@ -24,6 +24,7 @@ from ...bodies.registry import (
     BodyResolution,
     BodySection,
     Positive,
+    axis_stretch,
     draw_over_time,
     point_layout,
 )
@@ -209,16 +210,21 @@ def system_kind(section: Any) -> str:
 
 def draw(fig: Any, bodies: Mapping[str, Mapping[str, np.ndarray]], times: np.ndarray,
          run: str) -> None:
-    """The path of every centre in the x-y and x-z planes, by time; the surface at the end."""
-    fig.set_size_inches(7, 5.5)
+    """The path of every centre in the x-y and x-z planes, by time, and the surface at the last
+    frame in grey, at true scale."""
+    fig.set_size_inches(7, 6.5)
     centers = {k: v for k, v in bodies.items() if k.endswith("center")}
-    draw_over_time(fig, centers or bodies, times, ((0, 1, "y (μm)"), (0, 2, "z (μm)")), run,
-                   marker=".", lw=0, ms=3)
-    for ax, (i, j) in zip(fig.axes, ((0, 1), (0, 2)), strict=False):
+    planes = ((0, 1, "y (μm)"), (0, 2, "z (μm)"))
+    draw_over_time(fig, centers or bodies, times, planes, run, marker=".", lw=0, ms=3)
+    for ax, (i, j, _) in zip(fig.axes, planes, strict=False):
         for name, body in bodies.items():
             if name.endswith("surface"):
                 last = body["positions"][-1]
                 ax.plot(last[:, i], last[:, j], ".", color="0.6", ms=1.5)
+        ax.relim()
+        ax.autoscale_view()
+        ax.set_aspect("equal", adjustable="box")
+        ax.set_title(f"{'xyz'[i]}-{'xyz'[j]} plane ({run}), {axis_stretch(fig, ax)}", fontsize=8)
 
 
 def _example_rigid() -> tuple[RigidBody, np.ndarray, float | None]:
