@@ -230,3 +230,17 @@ def test_bad_input_is_refused_before_solving():
         solve_resistance(s.place(), U=(1, 0, 0), mu=1.0, method="lu")
     with pytest.raises(ValueError, match="external_force"):
         solve_mobility([s.place()], mu=1.0, external_force=np.ones((2, 3)))
+
+
+def test_auto_choice():
+    """ "auto": the reused factorization for one body in free space, a fresh LU for small sets,
+    GMRES beyond DENSE_MAX_POINTS (docs/benchmarks.md); the override is obeyed."""
+    from parastokes.mobility.choice import DENSE_MAX_POINTS, chosen_method
+    from parastokes.mobility.system import SurfaceSet
+
+    big, small = sphere(400), sphere(100)
+    assert chosen_method(SurfaceSet([big.place()], MU, False), "auto") == "dense"
+    assert chosen_method(SurfaceSet([big.place((0, 0, 2))], MU, True), "auto") == "gmres"
+    pair = SurfaceSet([small.place((0, 0, 2)), small.place((3, 0, 2))], MU, True)
+    assert pair.n_points <= DENSE_MAX_POINTS and chosen_method(pair, "auto") == "dense"
+    assert chosen_method(pair, "gmres") == "gmres"
