@@ -17,7 +17,8 @@ kernels are compared on the same core)::
 (b) GMRES to relative residual 1e-10 with the block-diagonal preconditioner: one sphere of
     ``--sphere`` points at gaps δ above the wall (preconditioner "free": the reused free-space
     self block; "wall": the self block with the wall images, refactorized per solve); a row of B
-    such spheres at gap δ from each other and from the wall; the same row in free space. Also
+    such spheres at gap δ from each other and from the wall (both preconditioners); the same row
+    in free space. Also
     the time of the dense and the GMRES solve for the row, where the auto choice's crossover
     (DENSE_MAX_POINTS) comes from.
 """
@@ -110,13 +111,23 @@ def body_rows(n: int) -> list[dict]:
         for gap in ROW_GAPS:
             bodies = [s.place((i * (2 + gap), 0.0, 1 + gap)) for i in range(count)]
             row: dict = {"bodies": count, "gap": gap}
-            for wall in (True, False):
+            for key, wall, pc in (
+                ("wall", True, "free"),
+                ("wall_pc", True, "wall"),
+                ("free", False, "free"),
+            ):
                 t = time.perf_counter()
                 m = solve_mobility(
-                    bodies, mu=MU, wall=wall, method="gmres", tol=TOL, external_force=(0, 0, -1)
+                    bodies,
+                    mu=MU,
+                    wall=wall,
+                    method="gmres",
+                    tol=TOL,
+                    precondition=pc,
+                    external_force=(0, 0, -1),
                 )
-                row["wall" if wall else "free"] = (m.info.iterations, time.perf_counter() - t)
-            if count * n <= 3200 and gap == ROW_GAPS[1]:
+                row[key] = (m.info.iterations, time.perf_counter() - t)
+            if count * n <= 1600 and gap == ROW_GAPS[1]:
                 t = time.perf_counter()
                 solve_mobility(bodies, mu=MU, wall=True, method="dense", external_force=(0, 0, -1))
                 row["dense_wall_s"] = time.perf_counter() - t
@@ -156,11 +167,15 @@ def main() -> None:
         print(f"    {r['gap']:5.2f} | {cell(r['free'])} | {cell(r['wall'])}")
     out["rows"] = body_rows(args.sphere)
     print(f"    B spheres of {args.sphere} points in a row, gap δ between them and to the wall")
-    print("    B | gap/a | wall: its (s) | free space: its (s) | dense with wall (s)")
+    print(
+        "    B | gap/a | wall: its (s) | wall, precondition 'wall': its (s) | free space: its (s)"
+        " | dense with wall (s)"
+    )
     for r in out["rows"]:
         dense = f"{r['dense_wall_s']:.2f}" if "dense_wall_s" in r else "-"
         print(
-            f"    {r['bodies']:2d} | {r['gap']:4.1f} | {cell(r['wall'])} | {cell(r['free'])} "
+            f"    {r['bodies']:2d} | {r['gap']:4.1f} | {cell(r['wall'])} | {cell(r['wall_pc'])} "
+            f"| {cell(r['free'])} "
             f"| {dense}"
         )
     if args.json:

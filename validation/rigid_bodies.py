@@ -33,6 +33,8 @@ from parastokes.mobility.wall_series import (
 MU = 1.0
 #: heights h/a = cosh α for α = 0.3, 0.5, 1, 1.5, 2 (Brenner's table), plus gap 0.05 a
 HEIGHTS = (1.05, 1.0453, 1.1276, 1.5431, 2.3524, 3.7622)
+#: the near-wall asymptotes of Goldman, Cox & Brenner are shown for gaps up to this (in a)
+NEAR_GAP = 0.15
 
 
 def sphere(n: int) -> RigidSurface:
@@ -70,7 +72,7 @@ def free_table(sizes: Sequence[int]) -> None:
 def wall_table(sizes: Sequence[int]) -> None:
     print(
         "| h/a | N | normal: ours / Brenner | rot. normal: ours / Jeffery "
-        "| parallel: ours / Faxén / GCB | rot. parallel: ours / GCB | normal, unnormalized |"
+        "| parallel: ours / Faxén (/ GCB) | rot. parallel: ours (/ GCB) | normal, unnormalized |"
     )
     print("|---|---|---|---|---|---|---|")
     for n in sizes:
@@ -82,11 +84,14 @@ def wall_table(sizes: Sequence[int]) -> None:
                 continue  # the gap is not resolved by this surface
             wall = np.diag(resistance_matrix(s, (0.0, 0.0, h), mu=MU, wall=True))
             r = wall / free
+            near = gap <= NEAR_GAP
+            gcb_t = f" / {gcb_parallel_translation(gap):.4f}" if near else ""
+            gcb_r = f" / {gcb_parallel_rotation(gap):.4f}" if near else ""
             print(
                 f"| {h:.4f} | {n} | {r[2]:.4f} / {brenner_perpendicular(h):.4f} "
                 f"| {r[5]:.4f} / {jeffery_rotation_normal(h):.4f} "
-                f"| {r[0]:.4f} / {faxen_parallel(h):.4f} / {gcb_parallel_translation(gap):.4f} "
-                f"| {r[3]:.4f} / {gcb_parallel_rotation(gap):.4f} "
+                f"| {r[0]:.4f} / {faxen_parallel(h):.4f}{gcb_t} "
+                f"| {r[3]:.4f}{gcb_r} "
                 f"| {wall[2] / (6 * np.pi * MU):.4f} |"
             )
     print()
