@@ -11,8 +11,10 @@ from .krylov import gmres_solve
 from .system import SurfaceSet
 
 #: Most surface points (all bodies) solved by a fresh dense factorization under "auto"; a single
-#: body in free space always uses its reused body-frame factorization.
-DENSE_MAX_POINTS = 1000
+#: body in free space always uses its reused body-frame factorization. Measured (benchmarks/
+#: mobility.py): with the wall, GMRES with the reused free-space blocks beats a fresh assembly and
+#: LU from 400 points on (0.1-0.5 s against 0.8 s), and two bodies of 400 (0.4 s against 2.2 s).
+DENSE_MAX_POINTS = 200
 
 METHODS = ("auto", "dense", "gmres")
 

@@ -37,10 +37,9 @@ def direct_solve(
         f, yflat = saddle_solve(factor, motion, g, ft.ravel())
         y = yflat.reshape(-1, 6)
         r_ft, ft_ref = sset.reduce(f) - ft, ft
-    if reused:
+    if isinstance(factor, RotatedFactor):
         residual = factor.base.residual
     else:
-        assert isinstance(factor, LabFactor)
         r_v = factor.matrix @ f - g - (0.0 if y is None else sset.apply_motion(y))
         residual = relative_residual(r_v, r_ft, g, ft_ref, Scaling(sset.mu, sset.length))
     return f, y, SolveInfo("dense", 0, residual, reused)

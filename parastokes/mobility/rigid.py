@@ -76,9 +76,7 @@ class RigidSurface:
     def __len__(self) -> int:
         return len(self.points)
 
-    def place(
-        self, center: np.ndarray = (0.0, 0.0, 0.0), rotation: np.ndarray | None = None
-    ) -> PlacedSurface:
+    def place(self, center=(0.0, 0.0, 0.0), rotation: np.ndarray | None = None) -> PlacedSurface:
         """This surface at ``center`` turned by ``rotation`` (3x3 proper orthogonal)."""
         return PlacedSurface(
             self,

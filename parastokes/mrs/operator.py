@@ -21,53 +21,61 @@ from .velocity import velocity as _velocity
 #: are assembled a tile of targets at a time so that its temporaries stay near 16 MB.
 _TILE_ENTRIES = 2_000_000
 
-_DELTA = np.array([1.0, 1.0, -1.0])
-_E3 = np.array([0.0, 0.0, 1.0])
 
+def _blocks(targets: np.ndarray, sources: np.ndarray, eps: np.ndarray, wall: bool) -> np.ndarray:
+    """8π × the force -> velocity matrices of all (target, source) pairs, (M, 3, N, 3).
 
-def _outer(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Pairwise outer products a bᵀ of (..., 3) vectors: (..., 3, 3)."""
-    return a[..., :, None] * b[..., None, :]
+    Free space, (1) of docs/physics.md: (r² + 2ε²)/r_ε³ δ_ab + r_a r_b / r_ε³. The wall image (5),
+    term by term linear in f (f* = Δ f, R·f* = (Δ R)·f, Δ = diag(s), s = (1, 1, -1), and
+    R3 - h = z the target's height), is entry by entry
 
+        [A + B s_b] δ_ab + (-1/R_ε³ + C s_b) R_a R_b + δ_a3 (D s_b + F) R_b + δ_b3 E R_a,
 
-def free_block(r: np.ndarray, eps: np.ndarray) -> np.ndarray:
-    """8π × the free-space regularized Stokeslet (1) as matrices: (H1 I + H2 r rᵀ) 8π for pair
-    differences ``r`` (..., 3) and ε broadcast against ``r[..., 0]``; (..., 3, 3)."""
-    r2 = np.einsum("...k,...k->...", r, r)
+    A = -(R² + 2ε²)/R_ε³ + 6hε² R3/R_ε⁵,  B = 2h² (1/R_ε³ - 3ε²/R_ε⁵) - 2h R3/R_ε³,
+    C = 6 h z / R_ε⁵,  D = 2h (R² + 4ε²)/R_ε⁵,  E = 2h/R_ε³,  F = -6hε²/R_ε⁵.
+    Each entry is formed from (M, N) arrays, so no (M, N, 3, 3) temporaries.
+    """
     e2 = eps**2
+    r = targets[:, None, :] - sources[None, :, :]
+    r2 = np.einsum("mnk,mnk->mn", r, r)
     i3 = (r2 + e2) ** -1.5
-    out = _outer(r, r) * i3[..., None, None]
+    out = np.empty((len(targets), 3, len(sources), 3))
     diag = (r2 + 2 * e2) * i3
     for a in range(3):
-        out[..., a, a] += diag
-    return out
-
-
-def image_block(targets: np.ndarray, sources: np.ndarray, eps: np.ndarray) -> np.ndarray:
-    """8π × the wall image of the Stokeslet, (5) of docs/physics.md, as (M, N, 3, 3) matrices.
-
-    Each term of (5) linear in f is written as a matrix: f* = Δ f, R·f* = (Δ R)·f, f3 = e3·f.
-    """
+        ra = r[..., a] * i3
+        for b in range(a, 3):
+            out[:, a, :, b] = ra * r[..., b]
+        out[:, a, :, a] += diag
+        for b in range(a):
+            out[:, a, :, b] = out[:, b, :, a]
+    if not wall:
+        return out
     h = sources[None, :, 2]
-    big_r = targets[:, None, :] - sources[None, :, :] * _DELTA
-    r3 = big_r[..., 2]
-    r2 = np.einsum("...k,...k->...", big_r, big_r)
-    e2 = eps**2
-    i3 = (r2 + e2) ** -1.5
-    i5 = (r2 + e2) ** -2.5
-    dr = big_r * _DELTA  # R·f* = (ΔR)·f
-    x = lambda a: a[..., None, None]  # noqa: E731
-    eye = np.eye(3)
-    delta = np.diag(_DELTA)
-    out = -(x((r2 + 2 * e2) * i3) * eye + x(i3) * _outer(big_r, big_r))
-    out += x(2 * h**2) * (x(i3 - 3 * e2 * i5) * delta - x(3 * i5) * _outer(big_r, dr))
-    out += x(2 * h) * (
-        x((r2 + 4 * e2) * i5) * _outer(np.broadcast_to(_E3, big_r.shape), dr)
-        - x(r3 * i3) * delta
-        + x(i3) * _outer(big_r, np.broadcast_to(_E3, big_r.shape))
-        + x(3 * r3 * i5) * _outer(big_r, dr)
-    )
-    out -= x(6 * h * e2 * i5) * (_outer(np.broadcast_to(_E3, big_r.shape), big_r) - x(r3) * eye)
+    z = targets[:, None, 2]
+    big = r.copy()
+    big[..., 2] += 2 * h  # R = x - y*, y* = (y1, y2, -h)
+    rr2 = np.einsum("mnk,mnk->mn", big, big)
+    j3 = (rr2 + e2) ** -1.5
+    j5 = j3 / (rr2 + e2)
+    r3 = big[..., 2]
+    coef_a = -(rr2 + 2 * e2) * j3 + 6 * h * e2 * r3 * j5
+    coef_b = 2 * h**2 * (j3 - 3 * e2 * j5) - 2 * h * r3 * j3
+    coef_c = 6 * h * z * j5
+    coef_d = 2 * h * (rr2 + 4 * e2) * j5
+    coef_e = 2 * h * j3
+    coef_f = -6 * h * e2 * j5
+    sign = (1.0, 1.0, -1.0)
+    for a in range(3):
+        for b in range(3):
+            rab = big[..., a] * big[..., b]
+            entry = (-j3 + sign[b] * coef_c) * rab
+            if a == b:
+                entry += coef_a + sign[b] * coef_b
+            if a == 2:
+                entry += (sign[b] * coef_d + coef_f) * big[..., b]
+            if b == 2:
+                entry += coef_e * big[..., a]
+            out[:, a, :, b] += entry
     return out
 
 
@@ -111,6 +119,8 @@ class StokesletOperator:
         with kernel_threads(n_threads):
             pass  # validates n_threads before any work
         self.targets = np.ascontiguousarray(t)
+        #: targets are the sources: A is square and symmetric
+        self.square = targets is None
         self.sources = np.ascontiguousarray(s)
         per_source = np.ndim(epsilon) == 1
         self.epsilon: float | np.ndarray = eps[0] if per_source else float(eps[0])
@@ -121,11 +131,12 @@ class StokesletOperator:
 
     def matvec(self, f_flat: np.ndarray) -> np.ndarray:
         """A f for flattened forces ``f_flat`` (3N,) -> velocities (3M,), compiled kernels."""
-        forces = np.ascontiguousarray(np.asarray(f_flat, dtype=np.float64).reshape(-1, 3))
-        if forces.shape[0] != len(self.sources):
+        flat = np.asarray(f_flat, dtype=np.float64)
+        if flat.size != self.shape[1]:
             raise ValueError(
-                f"f_flat: expected {self.shape[1]} entries (3 per source), got {np.size(f_flat)}"
+                f"f_flat: expected {self.shape[1]} entries (3 per source), got {flat.size}"
             )
+        forces = np.ascontiguousarray(flat.reshape(-1, 3))
         u = _velocity(
             self.targets,
             self.sources,
@@ -141,16 +152,12 @@ class StokesletOperator:
     def dense(self) -> np.ndarray:
         """A assembled as a (3M, 3N) array in numpy, a tile of targets at a time."""
         m, n = len(self.targets), len(self.sources)
-        eps = np.broadcast_to(np.asarray(self.epsilon, dtype=np.float64), (n,))
+        eps = np.broadcast_to(np.asarray(self.epsilon, dtype=np.float64), (n,))[None, :]
         out = np.empty((m, 3, n, 3))
         tile = max(1, _TILE_ENTRIES // (9 * n))
         for start in range(0, m, tile):
             t = self.targets[start : start + tile]
-            r = t[:, None, :] - self.sources[None, :, :]
-            block = free_block(r, eps[None, :])
-            if self.wall:
-                block += image_block(t, self.sources, eps[None, :])
-            out[start : start + tile] = block.transpose(0, 2, 1, 3)
+            out[start : start + tile] = _blocks(t, self.sources, eps, self.wall)
         out /= 8 * math.pi * self.mu
         return out.reshape(3 * m, 3 * n)
 
@@ -158,4 +165,9 @@ class StokesletOperator:
         """A as a :class:`scipy.sparse.linalg.LinearOperator` applying :meth:`matvec`."""
         from scipy.sparse.linalg import LinearOperator
 
-        return LinearOperator(self.shape, matvec=self.matvec, dtype=np.float64)
+        return LinearOperator(
+            self.shape,
+            matvec=self.matvec,
+            rmatvec=self.matvec if self.square else None,
+            dtype=np.float64,
+        )
