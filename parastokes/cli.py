@@ -124,6 +124,40 @@ def _check_launch(argv: Sequence[str]) -> None:
         )
 
 
+def shadowing_note(package: Path, cwd: Path, installed: Path | None) -> str | None:
+    """A note when the package directory ``package`` that runs lies in the current directory
+    ``cwd`` (``python -m`` puts it first on the path: a checkout's parent folder, or a checkout's
+    root) while another copy is installed in ``installed`` (None: none)."""
+    if installed is None or package.parent != cwd or installed == package:
+        return None
+    return (
+        f"note: running the parastokes of {package} (python -m looks in the current directory "
+        f"first), not the installed one in {installed}; run from another directory to use the "
+        "installed package"
+    )
+
+
+def _installed_package() -> Path | None:
+    """The directory of the installed (non-editable) parastokes, if there is one."""
+    from importlib import metadata
+
+    try:
+        located = Path(str(metadata.distribution("parastokes").locate_file("parastokes")))
+    except metadata.PackageNotFoundError:
+        return None
+    return located.resolve() if (located / "__init__.py").is_file() else None
+
+
+def _check_shadowing() -> None:
+    """Print :func:`shadowing_note` if the package runs from the current directory."""
+    here = Path(__file__).resolve().parent
+    if here.parent != Path.cwd().resolve():
+        return
+    note = shadowing_note(here, Path.cwd().resolve(), _installed_package())
+    if note and is_manager():
+        print(note, file=sys.stderr)
+
+
 def _causes(error: BaseException):
     """The error, what it wraps (``TaskError.original``) and its chained causes."""
     seen: set[int] = set()
@@ -137,9 +171,18 @@ def _causes(error: BaseException):
         stack += [getattr(item, "original", None), item.__cause__, item.__context__]
 
 
+def _body_error(error: BaseException) -> BaseException | None:
+    """The :class:`~parastokes.bodies.contract.BodyError` that ``error`` is or wraps (a worker's
+    task), if any: a user's body that broke the System contract."""
+    from .bodies.contract import BodyError
+
+    return next((e for e in _causes(error) if isinstance(e, BodyError)), None)
+
+
 def exit_code(error: BaseException) -> ExitCode:
     """The exit status for an error that ended a command."""
     from .config import ConfigError
+    from .files import is_resource_error
     from .integrate import BlowUpError
     from .parallel import TaskError
 
@@ -151,8 +194,10 @@ def exit_code(error: BaseException) -> ExitCode:
         return ExitCode.INTERRUPTED
     if any(isinstance(e, BlowUpError) for e in causes):
         return ExitCode.BLOWUP
-    if isinstance(error, ConfigError):
+    if isinstance(error, ConfigError) or _body_error(error) is not None:
         return ExitCode.CONFIG
+    if any(isinstance(e, MemoryError) or is_resource_error(e) for e in causes):
+        return ExitCode.CONFIG  # out of memory, a full disk, too many open files: the machine's
     if any(isinstance(e, TaskError | BrokenProcessPool) for e in causes):
         return ExitCode.PARALLEL
     if isinstance(error, ValueError | OSError | ImportError):
@@ -319,14 +364,20 @@ def cmd_demo(args: argparse.Namespace, console: Console) -> ExitCode:
 
 
 def cmd_check(args: argparse.Namespace, console: Console) -> ExitCode:
-    from .config import ConfigError
+    from .bodies.contract import BodyError
+    from .config import ConfigError, preflight
 
     status = ExitCode.OK
     for path in args.config:
         try:
             cfg, r = _load(path, args.set)
+            preflight(cfg, r, path)  # as a run does before its workers start
         except ConfigError as error:
             print(error, file=sys.stderr)
+            status = ExitCode.CONFIG
+            continue
+        except BodyError as error:
+            print(f"{path}: {error}", file=sys.stderr)
             status = ExitCode.CONFIG
             continue
         console.print(
@@ -400,14 +451,22 @@ def cmd_predict(args: argparse.Namespace, console: Console) -> ExitCode:
         f"{'N_c':>6} {'N_it':>5} {'γ_G/γ_F':>9} {'speedup (eq. 14)':>17} {'bound (eq. 15)':>15}"
         f" {'std':>7} {'std sim':>8} {'pipe':>7} {'pipe sim':>9}"
     )
+    skipped = []
     for n in args.cores:
         (row,) = parareal.predict_schedules(auxiliary, iterations, [n], n_aux, args.workers)
         ((_, theory, bound),) = parareal.predict(row["alpha"], iterations, [n])
+        if not row["simulated"]:
+            skipped.append(n)
         print(
             f"{n:>6} {row['iterations']:>5} {row['alpha']:>9.4f} {theory:>17.3f} {bound:>15.3f}"
             f" {row['standard_formula']:>7.3f} {row['standard']:>8.3f}"
-            f" {row['pipelined_formula']:>7.3f} {row['pipelined']:>9.3f}"
+            f" {row['pipelined_formula']:>7.3f} {row['pipelined']:>9.3f}".replace("nan", "  -")
         )
+    if skipped:
+        from .parareal.schedule_model import MAX_SIMULATED_TASKS
+
+        print(f"sim -: not simulated for N_c = {', '.join(map(str, skipped))} (more than "
+              f"{MAX_SIMULATED_TASKS} tasks); the closed formulas std and pipe hold there")
     return ExitCode.OK
 
 
@@ -553,6 +612,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         format="%(levelname)s %(name)s: %(message)s",
     )
     console = Console(args.quiet)
+    _check_shadowing()
     handlers = _catch_termination()
     try:
         _check_launch(sys.argv[1:] if argv is None else argv)
@@ -560,7 +620,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BaseException as error:  # map every failure to a documented exit status
         if isinstance(error, SystemExit):
             raise
-        return int(_report(error, console))
+        return int(_report(error, console, args.command in ("run", "demo")))
     finally:
         for signum, handler in handlers.items():
             signal.signal(signum, handler)
@@ -570,11 +630,32 @@ def _catch_termination() -> dict[int, _Handler]:
     """Handle SIGTERM and SIGHUP like Ctrl-C (main thread only); returns the previous handlers."""
     if threading.current_thread() is not threading.main_thread():
         return {}
-    return {signum: signal.signal(signum, _terminate) for signum in _TERMINATING}
+    handlers: dict[int, _Handler] = {
+        signum: signal.signal(signum, _terminate) for signum in _TERMINATING
+    }
+    if hasattr(signal, "SIGXFSZ"):  # past a file-size limit a write fails (EFBIG), not the process
+        handlers[signal.SIGXFSZ] = signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+    return handlers
 
 
-def _report(error: BaseException, console: Console) -> ExitCode:
-    """Print what ended the command (with the notes that say what was saved); its exit status."""
+def _machine_limit(error: BaseException) -> str | None:
+    """A line naming the machine's limit (memory, disk, open files) behind ``error`` when its
+    own message does not."""
+    from .files import describe_os_error, is_resource_error
+
+    for cause in _causes(error):
+        if isinstance(cause, MemoryError):
+            return ("cause: out of memory (MemoryError): use fewer points, slices or workers, or "
+                    "a machine with more memory")
+        if is_resource_error(cause) and isinstance(cause, OSError):
+            text = describe_os_error(cause)
+            return None if text in str(error) else f"cause: {text}"
+    return None
+
+
+def _report(error: BaseException, console: Console, resumable: bool = True) -> ExitCode:
+    """Print what ended the command (with the notes that say what was saved); its exit status.
+    ``resumable``: the command is a run (``run``, ``demo``), which ``--resume`` continues."""
     code = exit_code(error)
     console.finish()
     if not is_manager() and mpi_processes() > 1 and code is ExitCode.CONFIG:
@@ -582,14 +663,18 @@ def _report(error: BaseException, console: Console) -> ExitCode:
     notes = [f"  {note}" for note in getattr(error, "__notes__", ())]
     if code in (ExitCode.INTERRUPTED, ExitCode.TERMINATED, ExitCode.HANGUP):
         what = {130: "interrupted", 143: "terminated (SIGTERM)", 129: "hung up (SIGHUP)"}[code]
-        lines = [f"{what}: the workers are stopped and the checkpoint is consistent; rerun with "
-                 "--resume to continue"]
+        if resumable:
+            lines = [f"{what}: the workers are stopped and the checkpoint is consistent; rerun "
+                     "with --resume to continue"]
+        else:
+            lines = [f"{what}; no run was in progress, so there is nothing to resume"]
     elif code is ExitCode.UNEXPECTED:
         logger.exception("unexpected error")
         return code
     else:
-        lines = [f"error: {error}", *notes]
-        if code is ExitCode.PARALLEL:
+        limit = _machine_limit(error)
+        lines = [f"error: {_body_error(error) or error}", *notes, *([limit] if limit else [])]
+        if code is ExitCode.PARALLEL and resumable:
             lines.append("rerun with --resume to continue from the last iteration")
     print("\n".join(lines), file=sys.stderr)
     return code

@@ -5,10 +5,17 @@ it (``os.replace``, atomic on POSIX), so a reader, or a run that is killed mid-w
 the old complete file or the new complete one. A file that cannot be read back (truncated, not
 written by parastokes, another format) raises :class:`CorruptFileError`, a ``ValueError`` whose
 message names the file and what to do (the command line exits with status 2).
+
+A write that fails (a full disk, a file-size limit, too many open files) raises
+:class:`FileWriteError`, an ``OSError`` whose message names the file and the cause. HDF5 files are
+written through :class:`GuardedFile`, so that such a failure never reaches HDF5 itself: h5py
+crashes the interpreter (a segmentation fault) when it closes a file after a failed write.
 """
 
 from __future__ import annotations
 
+import errno
+import io
 import json
 import os
 import zipfile
@@ -18,7 +25,21 @@ from typing import IO, Any
 
 import numpy as np
 
-__all__ = ["CorruptFileError", "atomic_write", "read_npz", "write_npz", "write_text"]
+__all__ = [
+    "CorruptFileError", "FileWriteError", "GuardedFile", "atomic_write", "describe_os_error",
+    "is_resource_error", "read_npz", "write_npz", "write_text",
+]
+
+#: errno values of a full disk or a reached limit, and what each means.
+_CAUSES = {
+    errno.ENOSPC: "the file system is full: free space there or choose another directory",
+    errno.EDQUOT: "the disk quota is exceeded: free space or choose another directory",
+    errno.EFBIG: "the file size limit is reached (`ulimit -f`, or the file system's largest "
+                 "file): raise the limit or choose another directory",
+    errno.EMFILE: "this process has too many open files (`ulimit -n`): raise the limit",
+    errno.ENFILE: "the system's table of open files is full: retry when other programs close "
+                  "files",
+}
 
 
 class CorruptFileError(ValueError):
@@ -30,8 +51,43 @@ class CorruptFileError(ValueError):
         super().__init__(f"{self.path}: {problem}; {remedy}")
 
 
+def describe_os_error(error: OSError) -> str:
+    """``error``'s cause in words, with what to do for a full disk or a reached limit."""
+    reason = error.strerror or str(error)
+    cause = _CAUSES.get(error.errno) if error.errno is not None else None
+    return f"{reason} ({cause})" if cause else reason
+
+
+def is_resource_error(error: BaseException) -> bool:
+    """Whether ``error`` is a full disk, a reached file-size limit or too many open files."""
+    return isinstance(error, OSError) and error.errno in _CAUSES
+
+
+class FileWriteError(OSError):
+    """Writing ``path`` failed; the message names the file and the cause (a full disk, a
+    file-size limit, too many open files, ...)."""
+
+    def __init__(self, path: str | os.PathLike, error: OSError, action: str = "write") -> None:
+        super().__init__(error.errno, error.strerror, os.fspath(path))
+        self.path = Path(path)
+        self.message = f"cannot {action} {self.path}: {describe_os_error(error)}"
+
+    def __str__(self) -> str:
+        return self.message
+
+    def __reduce__(self):
+        return _rebuilt_write_error, (self.path, self.errno, self.strerror, self.message)
+
+
+def _rebuilt_write_error(path: Path, number: int, reason: str, message: str) -> FileWriteError:
+    error = FileWriteError(path, OSError(number, reason))
+    error.message = message
+    return error
+
+
 def atomic_write(path: str | os.PathLike, write: Callable[[IO[bytes]], Any]) -> None:
-    """Call ``write(handle)`` on a temporary file beside ``path``, then rename it to ``path``."""
+    """Call ``write(handle)`` on a temporary file beside ``path``, then rename it to ``path``;
+    an ``OSError`` on the way is a :class:`FileWriteError` naming ``path``."""
     path = Path(path)
     tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
     try:
@@ -40,9 +96,113 @@ def atomic_write(path: str | os.PathLike, write: Callable[[IO[bytes]], Any]) -> 
             handle.flush()
             os.fsync(handle.fileno())
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as error:
         tmp.unlink(missing_ok=True)
+        if isinstance(error, OSError) and not isinstance(error, FileWriteError):
+            raise FileWriteError(path, error) from None
         raise
+
+
+class GuardedFile(io.RawIOBase):
+    """A new binary file for h5py (``h5py.File(GuardedFile(path), "w")``) that stops writing at
+    its first failed write and remembers the error (``failed``) instead of passing it on.
+
+    From then on writes are discarded and reads return zeros, so HDF5 sees every operation
+    succeed and can close its file cleanly; the writer checks :attr:`failed` after every
+    operation (:meth:`check`) and raises :class:`FileWriteError`. (h5py crashes the interpreter
+    when it flushes or closes a file whose write failed.)
+    """
+
+    def __init__(self, path: str | os.PathLike) -> None:
+        super().__init__()
+        self.path = Path(path)
+        try:
+            self._raw = open(self.path, "w+b", buffering=0)
+        except OSError as error:
+            raise FileWriteError(self.path, error, "create") from None
+        self.failed: OSError | None = None
+        self._position = 0
+
+    def readable(self) -> bool:
+        return True
+
+    def writable(self) -> bool:
+        return True
+
+    def seekable(self) -> bool:
+        return True
+
+    def _fail(self, error: OSError) -> None:
+        if self.failed is None:
+            self.failed = error
+
+    def seek(self, offset: int, whence: int = 0) -> int:
+        if self.failed is None:
+            try:
+                self._position = self._raw.seek(offset, whence)
+                return self._position
+            except OSError as error:
+                self._fail(error)
+        self._position = offset if whence == 0 else self._position + offset
+        return self._position
+
+    def tell(self) -> int:
+        return self._position
+
+    def readinto(self, buffer: Any) -> int:
+        size = memoryview(buffer).nbytes
+        if self.failed is None:
+            try:
+                count = self._raw.readinto(buffer) or 0
+                self._position += count
+                return count
+            except OSError as error:
+                self._fail(error)
+        memoryview(buffer).cast("B")[:] = bytes(size)
+        self._position += size
+        return size
+
+    def write(self, data: Any) -> int:
+        size = memoryview(data).nbytes
+        if self.failed is None:
+            try:
+                view, done = memoryview(data).cast("B"), 0
+                while done < size:  # a short write is retried: the next one gives the cause
+                    written = self._raw.write(view[done:])
+                    if not written:
+                        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+                    done += written
+                self._position += size
+                return size
+            except OSError as error:
+                self._fail(error)
+        self._position += size
+        return size
+
+    def truncate(self, size: int | None = None) -> int:
+        if self.failed is None:
+            try:
+                return self._raw.truncate(size)
+            except OSError as error:
+                self._fail(error)
+        return self._position if size is None else size
+
+    def flush(self) -> None:
+        if self.failed is None and not self._raw.closed:
+            try:
+                self._raw.flush()
+            except OSError as error:
+                self._fail(error)
+
+    def check(self) -> None:
+        """Raise :class:`FileWriteError` if a write has failed."""
+        if self.failed is not None:
+            raise FileWriteError(self.path, self.failed)
+
+    def close(self) -> None:
+        if not self._raw.closed:
+            self._raw.close()
+        super().close()
 
 
 def write_npz(path: str | os.PathLike, meta: Mapping[str, Any], **arrays: np.ndarray) -> None:
@@ -81,6 +241,8 @@ def read_npz(
     except FileNotFoundError:
         raise
     except (OSError, EOFError, ValueError, KeyError, zipfile.BadZipFile) as error:
+        if isinstance(error, OSError) and is_resource_error(error):  # (the file is not at fault)
+            raise FileWriteError(path, error, "read") from None
         # numpy reports a damaged or foreign file as any of these; its advice to load it "with
         # allow_pickle" does not apply (parastokes never writes pickles)
         reason = "not a NumPy array file" if "pickle" in str(error) else str(error)

@@ -47,6 +47,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .bodies import contract
 from .contracts import System
 from .stepping.registry import compiled_loop
 
@@ -153,6 +154,15 @@ class BlowUpError(RuntimeError):
         return type(self), (self.t, self.step, self.monitor, self.last_state, self.reason)
 
 
+def projected(system: System, x: np.ndarray, t: float, step: int = 0) -> np.ndarray:
+    """``system.project(x)``, a state the projection rejects (a ValueError, e.g. a rod frame
+    made singular by a step far too large) being a :class:`BlowUpError` at ``t``."""
+    try:
+        return system.project(x)
+    except ValueError as error:
+        raise BlowUpError(t, step, math.nan, np.array(x), f"not a valid state ({error})") from None
+
+
 def _combine(
     system: System,
     coefs: tuple[float, ...],
@@ -177,14 +187,27 @@ def _combine(
     return r
 
 
+def _rates(system: System, t: float, x: np.ndarray) -> np.ndarray:
+    """``system.rates(t, x)``, checked where it enters (real numbers, a row per state row)."""
+    return contract.array(system, "rates(t, state)", system.rates(t, x), rows=len(x),
+                          ndim=x.ndim, what="one row per state row")
+
+
+def _advance(system: System, x: np.ndarray, r: np.ndarray, dt: float) -> np.ndarray:
+    """``system.advance(x, r, dt)``, checked where it enters (real numbers, the state's shape)."""
+    return contract.array(system, "advance(state, rates, dt)", system.advance(x, r, dt),
+                          shape=x.shape, what="the state's shape")
+
+
 def step(system: System, scheme: str | Scheme, t: float, x: np.ndarray, dt: float) -> np.ndarray:
-    """One step of ``scheme`` from ``(t, x)`` to ``t + dt`` (no projection, no checks)."""
+    """One step of ``scheme`` from ``(t, x)`` to ``t + dt`` (no projection; what ``rates`` and
+    ``advance`` return is checked, :mod:`parastokes.bodies.contract`, not its finiteness)."""
     s = _scheme(scheme)
-    k: list[np.ndarray] = [system.rates(t, x)]
+    k: list[np.ndarray] = [_rates(system, t, x)]
     for i in range(1, s.stages):
-        xi = system.advance(x, _combine(system, s.a[i], k, s.stage_brackets[i], dt), dt)
-        k.append(system.rates(t + s.c[i] * dt, xi))
-    return system.advance(x, _combine(system, s.b, k, s.final_brackets, dt), dt)
+        xi = _advance(system, x, _combine(system, s.a[i], k, s.stage_brackets[i], dt), dt)
+        k.append(_rates(system, t + s.c[i] * dt, xi))
+    return _advance(system, x, _combine(system, s.b, k, s.final_brackets, dt), dt)
 
 
 def n_steps(t_start: float, t_end: float, dt: float) -> int:
@@ -216,6 +239,12 @@ class RunResult:
 DONE, ABOVE, NON_FINITE, BEYOND = 0, 1, 2, 3
 
 
+def _monitor(system: System, x: np.ndarray) -> float:
+    """``system.monitor(x)``, checked where it enters (a real number; infinite is the sign of a
+    point on the wall, NaN of a non-finite state)."""
+    return contract.number(system, "monitor(state)", system.monitor(x))
+
+
 def _python_steps(
     system: System,
     scheme: Scheme,
@@ -231,12 +260,12 @@ def _python_steps(
     Returns ``(last state kept, worst monitor, steps kept, outcome, monitor that ended the run)``;
     ``system.run_steps`` (optional, compiled) has the same signature and result.
     """
-    worst = system.monitor(x)
+    worst = _monitor(system, x)
     for i in range(n):
         x_new = step(system, scheme, t0 + i * dt, x, dt)
         if not np.isfinite(x_new).all():
             return x, worst, i, NON_FINITE, math.nan
-        m = system.monitor(x_new)
+        m = _monitor(system, x_new)
         if not m <= limit:
             return x, worst, i, BEYOND, m
         worst = max(worst, m)
@@ -264,9 +293,11 @@ def _stepping(
     :func:`_python_steps`; both return the same.
     """
     limit = blowup_factor * system.monitor_limit
-    x = system.project(x)
+    shape = x.shape
+    x = projected(system, x, t0)
     loop = compiled_loop(system) if compiled else None
     if loop is None:
+        x = contract.array(system, "project(state)", x, shape=shape, what="the state's shape")
         loop = functools.partial(_python_steps, system)
     steps = loop(scheme, x, t0, dt, n, limit, math.inf if stop_above is None else stop_above)
     return run_result(system, t0, dt, steps, blowup_factor)
@@ -285,13 +316,15 @@ def run_result(
     x, worst, taken, outcome, m = steps
     t = t0 + (taken + 1) * dt
     if outcome == NON_FINITE:
-        raise BlowUpError(t, taken, math.nan, x, "non-finite state")
+        reason = "non-finite state" + contract.culprit(system, t - dt, x)
+        raise BlowUpError(t, taken, math.nan, x, reason)
     if outcome == BEYOND:
         reason = f"monitor beyond {blowup_factor:g} x its limit {system.monitor_limit:g}"
         if m == math.inf:  # the monitors' sign of a point on or below the wall z = 0
             reason += " (infinite: a point reached the wall z = 0; a smaller step keeps it off)"
         raise BlowUpError(t, taken, m, x, reason)
-    return RunResult(system.project(x), worst, taken, dt, completed=outcome == DONE)
+    end = projected(system, x, t0 + taken * dt, max(taken - 1, 0))
+    return RunResult(end, worst, taken, dt, completed=outcome == DONE)
 
 
 def run(

@@ -43,7 +43,7 @@ import h5py
 import numpy as np
 
 from .bodies.registry import RESERVED_NAMES, BodyLayout
-from .files import CorruptFileError, read_npz, write_npz, write_text
+from .files import CorruptFileError, FileWriteError, GuardedFile, read_npz, write_npz, write_text
 
 __all__ = [
     "HistoryRecord",
@@ -185,10 +185,20 @@ class TrajectoryWriter:
             )
         self.path = Path(path)
         self.layout = list(layout)
-        kinds = sorted({body.kind for body in self.layout})
         # the run directory's lock (parastokes.rundir) keeps other runs out: HDF5's own file
         # locking, which many cluster file systems do not support, is not needed
-        self.file = h5py.File(self.path, "w", locking=False)
+        # written through a GuardedFile: a full disk or a file-size limit raises FileWriteError
+        # naming the file, where h5py's own driver would crash the interpreter on close
+        self._sink = GuardedFile(self.path)
+        self.file = h5py.File(self._sink, "w", locking=False)
+        try:
+            self._header(config)
+        except BaseException:
+            self.close()
+            raise
+
+    def _header(self, config: Mapping[str, Any]) -> None:
+        kinds = sorted({body.kind for body in self.layout})
         attrs = self.file.attrs
         attrs["format"] = FORMAT
         attrs["version"] = VERSION
@@ -206,6 +216,13 @@ class TrajectoryWriter:
             group.create_dataset("connectivity", data=np.asarray(body.cells, dtype=np.int64))
             for name, mark in body.marks.items():
                 group.create_dataset(name, data=np.asarray(mark))
+        self._flush()
+
+    def _flush(self) -> None:
+        """Flush the file; :class:`~parastokes.files.FileWriteError` if a write failed."""
+        self._sink.check()
+        self.file.flush()
+        self._sink.check()
 
     def __enter__(self) -> TrajectoryWriter:
         return self
@@ -214,8 +231,15 @@ class TrajectoryWriter:
         self.close()
 
     def close(self) -> None:
+        """Close the file; after a failed write, remove it and raise
+        :class:`~parastokes.files.FileWriteError` (once)."""
         if self.file.id.valid:
             self.file.close()
+        self._sink.close()
+        if self._sink.failed is not None:
+            self.path.unlink(missing_ok=True)
+            failed, self._sink.failed = self._sink.failed, None
+            raise FileWriteError(self.path, failed)
 
     def _extend(self, group: h5py.Group, name: str, frame: np.ndarray) -> None:
         if name not in group:
@@ -243,7 +267,7 @@ class TrajectoryWriter:
             self._extend(body, "positions", np.ascontiguousarray(part[:, :3]))
             for label, columns in layout.vectors.items():
                 self._extend(body, label, np.ascontiguousarray(part[:, columns]))
-        self.file.flush()
+        self._flush()
 
     def write_history(self, history: HistoryRecord) -> None:
         """Store the Parareal history in ``/parareal_history`` (replacing an earlier one)."""
@@ -264,7 +288,7 @@ class TrajectoryWriter:
         for key in ("serial_sweeps", "parallel_sweeps"):
             group.create_dataset(key, data=np.asarray(history.timings.get(key, []), dtype=float))
         group.attrs["timings"] = json.dumps(_plain(history.timings))
-        self.file.flush()
+        self._flush()
 
 
 @dataclass

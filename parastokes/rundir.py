@@ -229,8 +229,12 @@ class RunDirectory:
             )
 
     def discard_state(self) -> None:
-        """Remove the resume state (``--overwrite``): nothing of the old run is resumed."""
+        """Remove the resume state (``--overwrite``): nothing of the old run is resumed. The
+        record of its blow-up (``blowup.npz``) stays until the new run completes, so that a
+        blow-up of the new run can be compared with it (same time with another step?)."""
         for name in STATE_FILES:
+            if name == "blowup.npz":
+                continue
             path = self.path / name
             if path.is_dir():  # checkpoint.solves: the solves of the iteration in progress
                 shutil.rmtree(path)
@@ -279,6 +283,16 @@ class RunDirectory:
         shutil.rmtree(self.staging, ignore_errors=True)
 
 
+def _remove_orphans(path: Path) -> None:
+    """Remove the temporary files (``NAME.<pid>.tmp``, :func:`parastokes.files.atomic_write`)
+    that a process killed while writing left in ``path``: with the lock held, no other process
+    writes there."""
+    for entry in path.glob("*.tmp"):
+        pid = entry.name[: -len(".tmp")].rpartition(".")[2]
+        if pid.isdigit() and int(pid) != os.getpid() and entry.is_file():
+            entry.unlink(missing_ok=True)
+
+
 def _write_names(path: Path, names: Sequence[str]) -> None:
     """The record ``{"files": names}`` (the manifest, a commit's record), written atomically."""
     write_text(path, json.dumps({"files": list(names)}))
@@ -303,7 +317,8 @@ def _directory(out: Path) -> None:
 @contextmanager
 def locked(out: str | os.PathLike) -> Iterator[RunDirectory]:
     """Hold the lock of the existing run directory ``out`` without running in it (to add
-    figures to its results); :class:`DirectoryInUse` while a run holds it."""
+    figures to its results); :class:`DirectoryInUse` while a run holds it. A commit that was cut
+    short is completed first, so what is read there is one run's results, never a mixture."""
     path = Path(out)
     if not path.is_dir():
         raise RunDirectoryError(f"{path} is not a directory: give a run's output directory")
@@ -314,7 +329,10 @@ def locked(out: str | os.PathLike) -> Iterator[RunDirectory]:
             f"{path}: cannot write there ({error.strerror or error})"
         ) from None
     try:
-        yield RunDirectory(path)
+        directory = RunDirectory(path)
+        _remove_orphans(path)
+        directory.recover()  # a commit cut short: its results whole, never a mixture
+        yield directory
     finally:
         if _owner(path / LOCK) == record:
             (path / LOCK).unlink(missing_ok=True)
@@ -340,6 +358,7 @@ def claim(out: str | os.PathLike, *, resume: bool, overwrite: bool) -> Iterator[
         ) from None
     try:
         directory = RunDirectory(path)
+        _remove_orphans(path)
         directory.recover()
         directory.check(resume=resume, overwrite=overwrite)
         if overwrite:

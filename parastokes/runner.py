@@ -22,18 +22,25 @@ checkpoint. Files in the output directory while a run is in progress:
 
 from __future__ import annotations
 
+import errno
 import itertools
 import logging
+import math
 import os
 import platform
 import time
 from pathlib import Path
 from typing import Any, Protocol
 
+try:
+    import resource
+except ImportError:  # (not on Windows)
+    resource = None  # type: ignore[assignment]
+
 import numpy as np
 
-from . import __version__, io, parareal, rundir, session
-from .config import Config, ConfigError, Resolved, Setup, build, resolved_dict
+from . import __version__, files, io, parareal, rundir, session
+from .config import Config, ConfigError, Resolved, Setup, preflight, resolved_dict
 from .config.checks import estimated_fine_seconds
 from .contracts import System
 from .files import CorruptFileError, write_text
@@ -165,20 +172,127 @@ def _check_resumable(out: Path, cfg: Config) -> None:
                       (CHECKPOINT, identity(cfg))):
         path = out / name
         if path.exists():
-            _same_run(path, io.load_arrays(path)[0].get("key"), key)
+            meta = io.load_arrays(path)[0]
+            _same_run(path, meta.get("key"), key)
+            if name == CHECKPOINT:
+                _stops_before(path, meta, cfg)
 
 
-def _blow_up_note(out: Path, error: BlowUpError, where: str, fix: str) -> str:
-    """Save the last good state of a blow-up to ``out/BLOWUP``; the note that says so."""
+def _stops_before(path: Path, meta: dict[str, Any], cfg: Config) -> None:
+    """Refuse to resume from the checkpoint ``path`` (its ``meta``) when the stopping rule of
+    ``cfg`` would have stopped before the iteration it holds: a lower ``max_iterations`` or a
+    looser ``tol`` met at an earlier iteration. Only the last iterate is kept, so the run cannot
+    go back to that iteration (finished or interrupted alike); a ConfigError says what to do."""
+    try:
+        done = int(meta["iteration"])
+        increments = [float(value) for value in meta["increments"]]
+    except (KeyError, TypeError, ValueError):
+        return  # (read again, and named if damaged, when Parareal loads it)
+    p = cfg.parareal
+    met = next((k for k, value in enumerate(increments, 1) if value < p.tol), None)
+    issues = []
+    if p.max_iterations is not None and done > p.max_iterations:
+        issues.append(("parareal.max_iterations",
+                       f"{p.max_iterations} now, but the run to resume has done {done} iterations"))
+    if met is not None and met < done:
+        issues.append(("parareal.tol", f"{p.tol:g} now: met after iteration {met} (η̃ = "
+                                       f"{increments[met - 1]:.3g}), but the run to resume has "
+                                       f"done {done} iterations"))
+    if issues:
+        issues.append(("--resume", f"{path} keeps only the iterate of iteration {done}, so the run "
+                                   f"cannot stop earlier: keep parareal.max_iterations >= {done} "
+                                   "and a tol not met before it (that run's result is then "
+                                   "reported as it is), or pass --overwrite to run it again with "
+                                   "the new rule"))
+        raise ConfigError(issues, f"{path} (the run to resume)")
+
+
+def _blow_up_note(out: Path, error: BlowUpError, where: str, fix: str, step: float) -> str:
+    """Save the last good state of a blow-up to ``out/BLOWUP`` (with the step of the solver that
+    failed, ``step``, for :func:`_same_time`); the note that says so."""
     io.save_arrays(
         out / BLOWUP,
-        {"where": where, "t": error.t, "step": error.step, "monitor": error.monitor},
+        {"where": where, "t": error.t, "step": error.step, "monitor": error.monitor, "dt": step},
         last_state=error.last_state,
     )
+    taken = "" if where.startswith("the correction") else f" (step {error.step} of that solve)"
     return (
-        f"{where} blew up at t = {error.t:.10g} (step {error.step} of that solve); the last good "
-        f"state is in {out / BLOWUP}; {fix}"
+        f"{where} blew up at t = {error.t:.10g}{taken}; the last good state is in "
+        f"{out / BLOWUP}; {fix}"
     )
+
+
+def _previous_blow_up(out: Path) -> dict[str, Any] | None:
+    """The record of the blow-up of an earlier run in ``out`` (kept through ``--overwrite``
+    until a run completes), or None."""
+    try:
+        meta, _ = io.load_arrays(out / BLOWUP)
+    except (OSError, ValueError):
+        return None
+    return meta
+
+
+def _solver_step(cfg: Config, resolved: Resolved, label: str) -> float:
+    """The step of the solver a blow-up of the solve ``label`` happened in."""
+    fine = "fine solve" in label or label == "serial"
+    return float(resolved.fine_dt if fine else resolved.coarse_dt)
+
+
+def _near_wall(setup: Setup, state: np.ndarray) -> str | None:
+    """Why a blow-up at ``state`` is the body reaching the wall z = 0 (its lowest point closer to
+    the wall than the blob size ε, where the regularised kernels stop resolving the gap), else
+    None."""
+    r = setup.resolved
+    scale = r.epsilon if math.isfinite(r.epsilon) else r.grid_spacing
+    if not getattr(setup.system, "wall", False) or not math.isfinite(scale):
+        return None
+    try:
+        lowest = float(np.min(np.asarray(setup.system.positions(state))[:, 2]))
+    except (ValueError, IndexError):
+        return None
+    if not lowest < scale:
+        return None
+    return (
+        f"a body is at the wall: its lowest point is {lowest:.3g} above z = 0, closer than the "
+        f"blob size ε = {scale:.3g}, where the regularised flow no longer keeps it off; it gets "
+        "there at this time whatever the step, so a smaller step does not help: start it "
+        "farther from the wall (model.height), end the run before (time.t1), or change the "
+        "forces that drive it there"
+    )
+
+
+def _same_time(previous: dict[str, Any] | None, error: BlowUpError, where: str, step: float,
+               span: float) -> str | None:
+    """A note when the earlier run in the directory blew up in the same solver at (about) the
+    same time with another step: the time does not move with the step, so the step is not the
+    cause."""
+    if not previous or previous.get("where") != where:
+        return None
+    try:
+        t_before, step_before = float(previous["t"]), float(previous["dt"])
+    except (KeyError, TypeError, ValueError):
+        return None
+    changed = max(step, step_before) / min(step, step_before) >= 1.2
+    if not (changed and abs(error.t - t_before) <= 0.05 * span):
+        return None
+    return (
+        f"the run before blew up there too, at t = {t_before:.6g} with a step of "
+        f"{step_before:.3g} (now t = {error.t:.6g} with {step:.3g}): the time does not move with "
+        "the step, so the step is not the cause; look at the model (a body reaching the wall, "
+        "forces too strong for it)"
+    )
+
+
+def _advice(setup: Setup, label: str, error: BlowUpError, where: str,
+            previous: dict[str, Any] | None) -> str:
+    """What to change after a blow-up of the solve ``label`` (:func:`_fix`), or why the step is
+    not the cause (:func:`_near_wall`, :func:`_same_time`)."""
+    cfg = setup.config
+    span = cfg.time.t1 - cfg.time.t0
+    step = _solver_step(cfg, setup.resolved, label)
+    found = [note for note in (_near_wall(setup, error.last_state),
+                               _same_time(previous, error, where, step, span)) if note]
+    return "; ".join(found) if found else _fix(cfg, label)
 
 
 def _fix(cfg: Config, label: str) -> str:
@@ -226,6 +340,42 @@ def _inner_frames(
     return np.asarray(states)
 
 
+def _frame_plan(setup: Setup) -> tuple[list[int], int]:
+    """The slice boundaries written as frames, and ``parts``: each slice's frames inside it plus
+    one (1: none inside), as ``output.every`` asks."""
+    every, steps = setup.config.output.every, setup.resolved.fine_steps
+    frames = _frame_indices(setup.config.parareal.n_slices, max(1, (every or steps) // steps))
+    return frames, steps // every if every is not None and every < steps else 1
+
+
+def _check_room(setup: Setup, writer: io.TrajectoryWriter) -> None:
+    """Refuse, before any work, a trajectory whose frames alone exceed the file-size limit
+    (``ulimit -f``) or the free space where it is written: otherwise the run would fail at its
+    end, when it writes them (a FileWriteError then)."""
+    frames, parts = _frame_plan(setup)
+    runs = 2 if setup.config.run.mode == "both" else 1
+    count = runs * (len(frames) + (parts - 1) * setup.config.parareal.n_slices)
+    columns = sum(body.rows * 3 * (1 + len(body.vectors)) for body in writer.layout)
+    # its header as written, and the frames' data: a lower bound on the file's size
+    needed = writer.path.stat().st_size + 8.0 * count * columns
+    room: list[tuple[int, str, float]] = []
+    if resource is not None:
+        limit = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
+        if limit != resource.RLIM_INFINITY:
+            room.append((errno.EFBIG, f"the file size limit is {limit / 1e6:.3g} MB", limit))
+    try:
+        found = os.statvfs(writer.path.parent)
+    except (OSError, AttributeError):  # (a file system, or a system, that does not say)
+        found = None
+    if found is not None:
+        free = float(found.f_bavail * found.f_frsize)
+        room.append((errno.ENOSPC, f"{free / 1e6:.3g} MB are free on its file system", free))
+    for number, what, size in room:
+        if needed > size:
+            reason = f"its {count} frames need at least {needed / 1e6:.3g} MB, but {what}"
+            raise files.FileWriteError(writer.path, OSError(number, reason))
+
+
 def _append_frames(
     writer: io.TrajectoryWriter,
     run: str,
@@ -236,10 +386,8 @@ def _append_frames(
     """Write the frames of ``states`` (at the slice boundaries ``times``) as ``output.every``
     asks: every m-th boundary, or every boundary and the frames inside the slices."""
     setup = running.setup
-    every, steps = setup.config.output.every, setup.resolved.fine_steps
     n_slices = len(times) - 1
-    frames = _frame_indices(n_slices, max(1, (every or steps) // steps))
-    parts = steps // every if every is not None and every < steps else 1
+    frames, parts = _frame_plan(setup)
     inner: dict[int, np.ndarray] = {}
     if parts > 1:
         slices = range(1, n_slices + 1)
@@ -267,7 +415,8 @@ def _slice_seconds(setup: Setup) -> float:
 
 # ---- the serial fine run ---------------------------------------------------------------------
 def _serial(
-    setup: Setup, x0: np.ndarray, times: np.ndarray, out: Path, key: dict, reporter: ReporterLike
+    setup: Setup, x0: np.ndarray, times: np.ndarray, out: Path, key: dict, reporter: ReporterLike,
+    previous: dict[str, Any] | None = None,
 ) -> tuple[np.ndarray, float]:
     """The serial fine solution F(T_n, T_0, x0) at every T_n (as ``parareal.serial_solution``) and
     its wall time. Saved to ``out/REFERENCE`` after every slice, and continued from there when
@@ -298,7 +447,8 @@ def _serial(
         except BlowUpError as error:
             cfg = setup.config
             where = f"the fine solver F ({cfg.fine.scheme}) in slice {n} of the serial fine run"
-            error.add_note(_blow_up_note(out, error, where, _fix(cfg, "serial")))
+            fix = _advice(setup, "serial", error, where, previous)
+            error.add_note(_blow_up_note(out, error, where, fix, cfg.fine.dt))
             raise
         wall += time.perf_counter() - start
         io.save_arrays(path, {"key": key, "done": n, "wall_time": wall}, states=states)
@@ -316,6 +466,7 @@ def _parareal(
     out: Path,
     key: dict,
     reporter: ReporterLike,
+    previous: dict[str, Any] | None = None,
 ) -> tuple[parareal.PararealResult, io.HistoryRecord]:
     """Parareal with the history of an interrupted run in ``out`` (if any) carried on.
 
@@ -378,7 +529,9 @@ def _parareal(
         if found is not None:
             blow, label = found
             where = f"the {label or 'solve'} (Parareal)"
-            error.add_note(_blow_up_note(out, blow, where, _fix(cfg, label)))
+            fix = _advice(setup, label, blow, where, previous)
+            step = _solver_step(cfg, setup.resolved, label)
+            error.add_note(_blow_up_note(out, blow, where, fix, step))
         raise
     reporter.finish()
     if len(elapsed) >= result.iterations > 0:  # the last one as the report's total (same speedup)
@@ -446,13 +599,18 @@ def execute(
     (name -> text, the demo's ``config.toml``) are written into it once that check has passed.
     Results go to the directory whole once complete; figures are drawn last (``output.figures``).
     Raises ``integrate.BlowUpError`` on a numerical blow-up, after saving the last good state.
+    Before all of that (:func:`parastokes.config.preflight`, as ``parastokes check``): the
+    configuration is built and a user's body called once at its initial state; a body that breaks
+    the System contract raises :class:`~parastokes.bodies.contract.BodyError` naming the method,
+    before the directory is claimed or a worker started.
     """
     reporter = reporter or Reporter()
+    setup = preflight(cfg, resolved)
     with rundir.claim(out, resume=resume, overwrite=overwrite) as directory:
         found = directory.entries()
         if resume and not found["state"] and not found["results"]:
             reporter.note(f"--resume: {out} holds no run to continue; starting afresh")
-        return _execute(cfg, resolved, directory, reporter, files or {})
+        return _execute(setup, directory, reporter, files or {})
 
 
 def _kernels_cached() -> bool:
@@ -463,37 +621,41 @@ def _kernels_cached() -> bool:
 
 
 def _execute(
-    cfg: Config, resolved: Resolved, directory: rundir.RunDirectory, reporter: ReporterLike,
-    files: dict[str, str],
+    setup: Setup, directory: rundir.RunDirectory, reporter: ReporterLike, files: dict[str, str],
 ) -> dict[str, Any]:
     from . import plots
 
+    cfg, resolved = setup.config, setup.resolved
     out, staging = directory.path, directory.staging
     conf = resolved_dict(cfg, resolved)
     key = identity(cfg)
     _check_resumable(out, cfg)
+    previous = _previous_blow_up(out)  # (an earlier run's, to compare a new blow-up with)
     for name, text in files.items():
         write_text(out / name, text)
     mode = cfg.run.mode
     start = time.perf_counter()
     if not _kernels_cached():
         reporter.note("compiling the numerical kernels (first run only; up to a minute) ...")
-    with session.start(build(cfg, resolved)) as running:
-        setup = running.setup
+    with session.start(setup) as running:
         system = setup.system
         x0 = system.initial_state()
         times = parareal.time_points(cfg.time.t0, cfg.time.t1, cfg.parareal.n_slices)
         writer = _writer(cfg, setup, conf, staging) if cfg.output.trajectory else None
         try:
+            if writer is not None:
+                _check_room(setup, writer)
             reference = serial_time = result = record = None
             if mode in ("serial", "both"):
                 reference, serial_time = _serial(
-                    setup, x0, times, out, fine_identity(cfg), reporter
+                    setup, x0, times, out, fine_identity(cfg), reporter, previous
                 )
                 if writer is not None:
                     _append_frames(writer, "serial", running, times, reference)
             if mode in ("parareal", "both"):
-                result, record = _parareal(running, x0, times, reference, out, key, reporter)
+                result, record = _parareal(
+                    running, x0, times, reference, out, key, reporter, previous
+                )
                 if writer is not None:
                     _append_frames(writer, "parareal", running, times, result.states)
                     writer.write_history(record)

@@ -44,6 +44,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from . import mrs
+from .bodies import contract
 from .bodies.geometry import crossed_wall
 from .bodies.sources import FluidSources, fluid_sources
 from .stepping import registry
@@ -230,7 +231,9 @@ class Scene:
         u, w = value if angular else (value, np.zeros_like(points))
         u[:, 0] += self.shear_rate * points[:, 2]
         w[:, 1] += 0.5 * self.shear_rate
-        parts = [body.body_rates(u[f : f + n], w[f : f + n])
+        parts = [contract.array(body, "body_rates(u, w)", body.body_rates(u[f : f + n],
+                                                                          w[f : f + n]),
+                                rows=n, ndim=2, what="one row per point")
                  for body, (f, n, _) in zip(self.bodies, self.shapes, strict=True)]
         return self._stack(parts)
 
@@ -242,7 +245,8 @@ class Scene:
 
     def advance(self, state: np.ndarray, rates: np.ndarray, dt: float) -> np.ndarray:
         parts = [
-            body.advance(x, r, dt)
+            contract.array(body, "advance(state, rates, dt)", body.advance(x, r, dt),
+                           shape=x.shape, what="the state's shape")
             for body, x, r in zip(self.bodies, self.blocks(state),
                                   self.blocks(rates, self.rate_columns), strict=True)
         ]
@@ -259,8 +263,11 @@ class Scene:
         return self._stack(parts)
 
     def project(self, state: np.ndarray) -> np.ndarray:
-        return self._stack([body.project(x) for body, x in zip(self.bodies, self.blocks(state),
-                                                                 strict=True)])
+        return self._stack([
+            contract.array(body, "project(state)", body.project(x), shape=x.shape,
+                           what="the state's shape")
+            for body, x in zip(self.bodies, self.blocks(state), strict=True)
+        ])
 
     # ---- implicit bodies: one coupled solve per evaluation -------------------------------
     @cached_property

@@ -6,6 +6,9 @@
 :func:`check_system` raises ``AssertionError`` naming the part of the contract that is broken:
 
 - ``members``: every member of :class:`parastokes.contracts.System` is there;
+- ``calls`` (and the part of each method below): every method can be called as the package calls
+  it, and returns, at the initial state, real finite values of the shapes the package expects
+  (:func:`parastokes.bodies.contract.probe`, as ``parastokes check`` and every run do);
 - ``state``: ``initial_state()`` is a finite float64 array, ``positions`` gives (N, 3);
 - ``rates``: ``rates(t, x)`` is finite with a row per state row; ``advance(x, r, dt)`` returns a
   new array of the state's shape, leaves its inputs alone, and ``advance(x, r, 0)`` is ``x``;
@@ -38,6 +41,7 @@ from typing import Any
 import numpy as np
 
 from . import integrate
+from .bodies import contract
 from .contracts import System
 from .stepping.registry import compiled_loop
 
@@ -54,6 +58,12 @@ class _Part:
         if not condition:
             raise AssertionError(f"{self.where}: {message}")
 
+
+#: The part of the contract a method's :class:`~parastokes.bodies.contract.BodyError` is named
+#: under (others: ``calls``, the signatures).
+_PARTS = {"initial_state": "state", "positions": "state", "forces": "rates", "loads": "rates",
+          "rates": "rates", "advance": "rates", "project": "project", "monitor": "monitor",
+          "monitor_limit": "monitor", "params": "with_params", "with_params": "with_params"}
 
 #: Errors below this fraction of the state's size are round-off, not truncation: left out of fits.
 ROUND_OFF = 1e-11
@@ -249,6 +259,11 @@ def check_system(
     """
     missing = sorted(n for n in vars(System) if not n.startswith("_") and not hasattr(system, n))
     _Part(system, "members")(not missing, f"missing {', '.join(missing)} (contracts.System)")
+    try:
+        contract.probe(system, t)
+    except contract.BodyError as error:
+        _Part(system, _PARTS.get(error.method.split(".", 1)[1].split("(")[0], "calls"))(
+            False, str(error))
     x0 = system.initial_state()
     _check_state(system, x0)
     x = x0 if state is None else np.ascontiguousarray(state, dtype=float)

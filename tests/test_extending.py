@@ -55,6 +55,18 @@ def test_the_pages_python_steps_run(walk):
     assert outputs["check.py"].strip() == "contract ok"
     assert outputs["check_compiled.py"].strip() == "compiled loop ok"
     assert outputs["parareal_cloud.py"].startswith("errors")
+    assert outputs["check_beads.py"].strip() == "beads ok"
+    assert outputs["broken_beads.py"].strip() == (
+        "OneRowShort.forces(state) returned shape (7, 3); expected (8, 3): one row per point")
+
+
+def test_the_pages_stiff_body_is_stable_at_larger_steps_at_a_larger_epsilon(walk):
+    """Section 10: the stable Euler step of the stiff beads grows with ε (the extrapolated G's
+    nodes are where the body is softer); the page says 0.0191 and 0.0229."""
+    _, outputs = walk
+    numbers = re.findall(r"up to (\S+) at ε⁰ = 0\.3, (\S+) at ε = 0\.45", outputs["stiff_step.py"])
+    ((at_theta0, wider),) = numbers
+    assert 0.015 < float(at_theta0) < 0.025 and float(wider) > 1.15 * float(at_theta0)
 
 
 def test_a_users_compiled_loop_leaves_the_packages_loops_loadable(walk):

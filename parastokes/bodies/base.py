@@ -20,6 +20,7 @@ import numpy as np
 from ..fluid import MRS, BlockedMRS, TargetBlocks
 from ..stepping import registry
 from ..stepping.registry import RunSteps
+from . import contract
 
 __all__ = ["FluidBody", "PointsInShear", "replace_params", "require_positive"]
 
@@ -75,9 +76,16 @@ class PointsInShear(FluidBody):
             """The point forces the points exert on the fluid, (N, 3)."""
             ...
 
+    def checked_forces(self, state: np.ndarray) -> np.ndarray:
+        """``forces(state)`` as float64 (N, 3), checked where it enters the package: its shape
+        and dtype (:func:`parastokes.bodies.contract.array`; the fluid's sums do not check), a
+        :class:`~parastokes.bodies.contract.BodyError` naming ``Type.forces`` otherwise."""
+        return contract.array(self, "forces(state)", self.forces(state),
+                              shape=(len(state), 3), what="one row per point")
+
     def loads(self, t: float, state: np.ndarray) -> tuple[np.ndarray, None]:
         """The point forces on the fluid, no torques."""
-        return self.forces(state), None
+        return self.checked_forces(state), None
 
     @staticmethod
     def body_rates(u: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -86,7 +94,7 @@ class PointsInShear(FluidBody):
 
     def rates(self, t: float, state: np.ndarray) -> np.ndarray:
         """u∞(X) + Stokeslet velocities (eq. 6) of the forces."""
-        u = self.fluid.velocity(state, self.forces(state), epsilon=self.epsilon)
+        u = self.fluid.velocity(state, self.checked_forces(state), epsilon=self.epsilon)
         u[:, 0] += self.shear_rate * state[:, 2]
         return u
 

@@ -18,6 +18,8 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from . import contract
+
 __all__ = ["FluidSources", "fluid_sources"]
 
 
@@ -34,7 +36,9 @@ def fluid_sources(system: Any, t: float, state: np.ndarray) -> FluidSources:
     """The point loads of ``system`` in ``state`` at time ``t`` (see the module's text).
 
     ValueError naming what to add for a system that offers neither ``fluid_sources`` nor
-    ``loads`` and ``epsilon`` (e.g. a user's body whose ``rates`` call the fluid directly).
+    ``loads`` and ``epsilon`` (e.g. a user's body whose ``rates`` call the fluid directly); a
+    :class:`~parastokes.bodies.contract.BodyError` naming ``Type.loads`` for loads that are not
+    real (N, 3) arrays.
     """
     if hasattr(system, "fluid_sources"):
         sources = system.fluid_sources(t, state)
@@ -49,8 +53,11 @@ def fluid_sources(system: Any, t: float, state: np.ndarray) -> FluidSources:
     state = np.asarray(state, dtype=np.float64)
     points = np.ascontiguousarray(state[:, :3])
     forces, torques = system.loads(t, state)
-    forces = np.ascontiguousarray(forces, dtype=np.float64)
+    rows = (len(points), 3)  # checked where they enter (the fluid's sums do not check)
+    forces = np.ascontiguousarray(contract.array(system, "loads(t, state)[0]", forces,
+                                                 shape=rows, what="forces, one row per point"))
     if torques is not None:
-        torques = np.ascontiguousarray(torques, dtype=np.float64)
+        torques = np.ascontiguousarray(contract.array(
+            system, "loads(t, state)[1]", torques, shape=rows, what="torques, one row per point"))
     epsilon = np.full(len(points), float(system.epsilon))
     return FluidSources(points, forces, torques, epsilon)

@@ -7,14 +7,16 @@
 :func:`load` reads TOML with :mod:`tomllib`, applies ``--set key=value`` overrides, validates the
 schema (:mod:`.schema`, unknown keys are errors) and the rules across keys (:mod:`.checks`), and
 raises :class:`ConfigError` whose lines each name a key path. :func:`build` makes the system, the
-fine propagator and the coarse propagator of eq. 30. This package is pure data: nothing here starts
-a process or an executor (the run layer does, :mod:`parastokes.session`). :data:`DEMO` is the
-built-in configuration of ``parastokes demo``.
+fine propagator and the coarse propagator of eq. 30; :func:`preflight` builds them and calls a
+user's body once (what ``parastokes check`` and every run do before any worker starts). This
+package is pure data: nothing here starts a process or an executor (the run layer does,
+:mod:`parastokes.session`). :data:`DEMO` is the built-in configuration of ``parastokes demo``.
 """
 
 from __future__ import annotations
 
 import os
+import stat
 import tomllib
 from collections.abc import Iterable
 from pathlib import Path
@@ -24,9 +26,11 @@ from pydantic import ValidationError
 
 from ..bodies import registry
 from ..coarse import registry as coarse_registry
+from ..files import describe_os_error
 from .build import Setup, build, build_system
 from .checks import Resolved, resolve, resolved_dict
 from .errors import ConfigError, from_validation_error
+from .preflight import preflight
 from .scene import scene_section
 from .schema import Config
 
@@ -43,6 +47,7 @@ __all__ = [
     "loads",
     "merge",
     "parse",
+    "preflight",
     "resolve",
     "resolved_dict",
 ]
@@ -90,10 +95,42 @@ mode = "both"          # also the serial fine run: true errors and measured spee
 """
 
 
-def _value(text: str) -> Any:
+#: Largest configuration file read (bytes): a configuration is a few kilobytes; a larger file
+#: (or a device such as /dev/zero) is refused before it is read whole.
+MAX_CONFIG_BYTES = 1 << 20
+#: Deepest nesting of arrays and tables accepted in a file or a ``--set`` value.
+MAX_DEPTH = 32
+
+
+def _depth(text: str) -> int:
+    """The deepest nesting of brackets and braces in TOML ``text`` (outside strings, roughly:
+    an upper bound is all that is needed to refuse what the parser's recursion cannot read)."""
+    deepest = depth = 0
+    for char in text:
+        if char in "[{":
+            depth += 1
+            deepest = max(deepest, depth)
+        elif char in "]}":
+            depth = max(depth - 1, 0)
+    return deepest
+
+
+def _toml(text: str, path: str, source: str = "") -> dict[str, Any]:
+    """``tomllib.loads(text)`` with nesting beyond :data:`MAX_DEPTH` refused (a ConfigError on
+    ``path``) instead of ending in a RecursionError."""
+    if _depth(text) > MAX_DEPTH:
+        raise ConfigError([(path, f"arrays or tables nested more than {MAX_DEPTH} deep: no "
+                                  "configuration needs that; check the value")], source)
+    try:
+        return tomllib.loads(text.removeprefix("\ufeff"))  # (a BOM, as some editors write)
+    except RecursionError:
+        raise ConfigError([(path, "nested too deep to be read")], source) from None
+
+
+def _value(text: str, path: str = "--set") -> Any:
     """The TOML value ``text`` (``4``, ``1e-6``, ``[1, 2]``, ``true``, ``"rk4"``), else a string."""
     try:
-        return tomllib.loads(f"v = {text}")["v"]
+        return _toml(f"v = {text}", path)["v"]
     except tomllib.TOMLDecodeError:
         return text
 
@@ -101,7 +138,7 @@ def _value(text: str) -> Any:
 def _key_path(path: str, item: str) -> list[str]:
     """The keys of a TOML dotted key (``coarse.lagrange."rod.epsilon"``, ``bodies.0.name``)."""
     try:
-        node: Any = tomllib.loads(f"{path} = 0")
+        node: Any = _toml(f"{path} = 0", path)
     except tomllib.TOMLDecodeError:
         raise ConfigError([(path, f"--set expects KEY=VALUE with KEY a TOML dotted key (quote a "
                                   f"key that holds a dot: a.\"b.c\"), got {item!r}")]) from None
@@ -156,7 +193,7 @@ def apply_overrides(data: dict[str, Any], overrides: Iterable[str]) -> dict[str,
         path = path.strip()
         if not sep or not path:
             raise ConfigError([(path, f"--set expects KEY=VALUE, got {item!r}")])
-        out = _assign(out, _key_path(path, item), _value(text.strip()), path)
+        out = _assign(out, _key_path(path, item), _value(text.strip(), path), path)
     return out
 
 
@@ -171,15 +208,30 @@ def merge(base: dict[str, Any], update: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+def _text(path: Path) -> bytes:
+    """The bytes of the configuration file ``path``: a regular file of at most
+    :data:`MAX_CONFIG_BYTES` (a device, a pipe or a huge file is refused before it is read)."""
+    with open(path, "rb") as handle:
+        if not stat.S_ISREG(os.fstat(handle.fileno()).st_mode):
+            raise ConfigError([("", "not a regular file (a device, a pipe or a directory): give a "
+                                    "TOML file")], str(path))
+        data = handle.read(MAX_CONFIG_BYTES + 1)
+    if len(data) > MAX_CONFIG_BYTES:
+        raise ConfigError([("", f"larger than {MAX_CONFIG_BYTES >> 20} MiB: not a configuration "
+                                "file (they are a few kilobytes)")], str(path))
+    return data
+
+
 def _read(path: Path, chain: tuple[Path, ...] = ()) -> dict[str, Any]:
     """The TOML table of ``path``, merged onto its ``base`` file (a path relative to it), if any."""
     source = str(path)
     if path.resolve() in chain:
         raise ConfigError([("base", f"circular reference to {path}")], source)
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
+        data = _toml(_text(path).decode("utf-8"), "", source)
     except OSError as error:
-        raise ConfigError([("", f"cannot read the file: {error.strerror}")], source) from None
+        reason = describe_os_error(error)
+        raise ConfigError([("", f"cannot read the file: {reason}")], source) from None
     except UnicodeDecodeError as error:
         raise ConfigError([("", f"not UTF-8 text, as TOML must be ({error})")], source) from None
     except tomllib.TOMLDecodeError as error:
@@ -270,7 +322,7 @@ def loads(
 ) -> tuple[Config, Resolved]:
     """Parse and fully validate TOML text; returns the configuration and its derived values."""
     try:
-        data = tomllib.loads(text)
+        data = _toml(text, "", source)
     except tomllib.TOMLDecodeError as error:
         raise ConfigError([("", f"TOML syntax error: {error}")], source) from None
     cfg = parse(apply_overrides(data, overrides), source)

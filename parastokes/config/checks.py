@@ -14,12 +14,15 @@ And what cannot work or will not end in reasonable time:
 
 - a serial fine solution of more than 10¹² steps is refused, and one estimated (from the points
   and steps, :func:`estimated_fine_seconds`) to take more than a day on one core gets a note;
-- more workers x threads than the cores of this machine gets a note naming what to pass instead.
+- more workers x threads than the cores of this machine gets a note naming what to pass instead;
+- a problem whose states cannot fit in this machine's memory (:func:`estimated_bytes`, a lower
+  bound) is refused before anything is allocated.
 """
 
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -29,7 +32,10 @@ from ..parallel import available_cores
 from .errors import ConfigError
 from .schema import Config
 
-__all__ = ["Resolved", "estimated_fine_seconds", "resolve", "resolved_dict", "steps_on_slice"]
+__all__ = [
+    "Resolved", "estimated_bytes", "estimated_fine_seconds", "physical_memory", "resolve",
+    "resolved_dict", "steps_on_slice",
+]
 
 #: Most fine steps (all slices) a configuration may ask for: beyond, the run cannot end.
 MAX_FINE_STEPS = 10**12
@@ -99,6 +105,32 @@ def estimated_fine_seconds(scheme: str, steps: float, points: int) -> float:
     return steps * stages * (_EVAL_SECONDS + _PAIR_SECONDS * points**2)
 
 
+def estimated_bytes(cfg: Config, n_points: int) -> float:
+    """A lower bound on the memory of a run: its states counted at 3 doubles per point (the
+    positions; rods hold 12), the Parareal iterates, coarse and fine values at every slice
+    boundary (3 (N_c + 1)), the serial solution (N_c + 1) and the stages of one step."""
+    slices = cfg.parareal.n_slices + 1
+    states = 3 * slices + slices + integrate.SCHEMES[cfg.fine.scheme].stages + 2
+    return 24.0 * n_points * states
+
+
+def physical_memory() -> float:
+    """This machine's memory in bytes (inf where the system does not say)."""
+    try:
+        return float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+    except (ValueError, OSError, AttributeError):
+        return math.inf
+
+
+def _memory(cfg: Config, n_points: int, issues: list[tuple[str, str]]) -> None:
+    """An issue when the run's states cannot fit in memory (:func:`estimated_bytes`)."""
+    needed, memory = estimated_bytes(cfg, n_points), physical_memory()
+    if needed > memory:
+        issues.append(("model.n_points", f"{n_points} points: the run's states alone need more "
+                                         f"than {needed / 2**30:.3g} GiB, and this machine has "
+                                         f"{memory / 2**30:.3g} GiB; use fewer points or slices"))
+
+
 def _cores(cfg: Config, workers: int, warnings: list[str]) -> None:
     """A note when the workers' threads outnumber this machine's cores (processes, serial)."""
     ex = cfg.execution
@@ -162,6 +194,9 @@ def resolve(cfg: Config, source: str = "") -> Resolved:
         where = "bodies" if model.kind == "scene" else "model"
         raise ConfigError([(where, str(error))], source) from None
     theta0, n_points = body.theta0, body.n_points
+    _memory(cfg, n_points, issues)
+    if issues:
+        raise ConfigError(issues, source)
 
     t0, t1 = cfg.time.t0, cfg.time.t1
     if not t1 > t0:

@@ -12,6 +12,7 @@ import functools
 import itertools
 import multiprocessing
 import os
+import sys
 import time
 import warnings
 from collections.abc import Callable
@@ -116,6 +117,20 @@ def _context(start_method: str | None) -> multiprocessing.context.BaseContext:
     return multiprocessing.get_context(start_method)
 
 
+def _guard_hint(exc: BaseException) -> str:
+    """The likely cause of workers that broke while starting, in one line: a script (the main
+    module, which every new worker imports again) that starts them without the
+    ``if __name__ == "__main__":`` guard."""
+    main = sys.modules.get("__main__")
+    script = getattr(main, "__file__", None) if main is not None else None
+    if not isinstance(exc, BrokenProcessPool) or script is None or getattr(main, "__spec__", None):
+        return ""
+    return (
+        f". If {script} starts the run, put its code under `if __name__ == \"__main__\":` "
+        "(each worker imports that script again; without the guard it starts the run again)"
+    )
+
+
 class ProcessExecutor(Executor):
     """A :class:`~concurrent.futures.ProcessPoolExecutor` whose workers are ready when it returns.
 
@@ -185,7 +200,9 @@ class ProcessExecutor(Executor):
                     process.kill()
             self._pool.shutdown(wait=True, cancel_futures=True)
             if isinstance(exc, Exception):
-                raise RuntimeError(f"starting the worker processes failed: {exc!r}") from exc
+                raise RuntimeError(
+                    f"starting the worker processes failed: {exc!r}{_guard_hint(exc)}"
+                ) from exc
             raise
 
     def _explain(self, task_id: int, exc: BaseException) -> BaseException:

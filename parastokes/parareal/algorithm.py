@@ -28,6 +28,7 @@ import numpy as np
 
 from ..contracts import PropagatorLike, check_workers
 from ..contracts import with_executor as _with_executor
+from ..integrate import BlowUpError
 from ..parallel import SerialExecutor, TaskError, run_labelled
 from ..values import is_real
 from . import checkpoint as ckpt
@@ -180,18 +181,42 @@ def fine_label(n: int, k: int) -> str:
     return f"fine solve of slice {n} in iteration {k}"
 
 
+def correction_label(n: int, k: int) -> str:
+    """The label of the correction (eq. 11) forming X_n^k in errors."""
+    return f"correction (eq. 11) of slice {n} in iteration {k}"
+
+
 def correct(
     fine_value: np.ndarray,
     coarse_value: np.ndarray,
     previous_coarse: np.ndarray,
     project: Callable[[np.ndarray], np.ndarray] | None,
+    where: tuple[int, int, float] | None = None,
 ) -> np.ndarray:
     """Eq. 11: X_n^k = F(X_{n-1}^{k-1}) + (G(X_{n-1}^k) - G(X_{n-1}^{k-1})), then ``project``.
 
-    Both schedules correct through this one function, so their iterates agree bit for bit.
+    Both schedules correct through this one function, so their iterates agree bit for bit. With
+    ``where = (n, k, T_n)``, a corrected state that ``project`` rejects (a ValueError: e.g. a
+    rod's frame made singular by a correction far larger than the state) is a numerical blow-up:
+    a :class:`TaskError` labelled by :func:`correction_label` around a
+    :class:`~parastokes.integrate.BlowUpError` whose last good state is F(X_{n-1}^{k-1}).
     """
     corrected = fine_value + (coarse_value - previous_coarse)
-    return corrected if project is None else project(corrected)
+    if project is None:
+        return corrected
+    try:
+        return project(corrected)
+    except ValueError as error:
+        if where is None:
+            raise
+        n, k, t = where
+        size = float(np.max(np.abs(coarse_value - previous_coarse)))
+        blow = BlowUpError(
+            t, 0, math.nan, np.array(fine_value),
+            f"the corrected state is not a valid state ({error}); the correction "
+            f"G(X^k) - G(X^(k-1)) reaches {size:.3g}",
+        )
+        raise TaskError(correction_label(n, k), blow) from error
 
 
 class _Clocked:
@@ -351,7 +376,9 @@ def _iterate(
             coarse, times, n, states[n - 1], k, memo, record, origin
         )
         coarse_times.append(seconds)
-        states[n] = correct(fine_values[n - k], value, coarse_values[n - 1], project)
+        states[n] = correct(
+            fine_values[n - k], value, coarse_values[n - 1], project, (n, k, float(times[n]))
+        )
         coarse_values[n - 1] = value
     serial_time = time.perf_counter() - start
 

@@ -163,7 +163,14 @@ class Extrapolated:
         """Eq. 30 from the auxiliary solvers' ``values``: the weighted sum, checked, projected."""
         combined = sum(c * g for c, g in zip(coefficients, values, strict=True))
         self._check_combination(t_start, t_end, x, combined, coefficients)
-        return self.system.project(combined)
+        try:
+            return self.system.project(combined)
+        except ValueError as error:
+            raise integrate.BlowUpError(
+                t_end, 0, math.nan, np.array(x),
+                f"the extrapolated combination of {len(coefficients)} auxiliary solvers is not a "
+                f"valid state ({error})",
+            ) from None
 
     def split(
         self, t_start: float, t_end: float, x: np.ndarray

@@ -264,6 +264,7 @@ class _Pipeline:
                 self.coarse_values[n, k],
                 self.coarse_values[n, k - 1],
                 self.project,
+                (n, k, float(self.times[n])),
             )
             self.set_state(n, k, value)
 

@@ -27,7 +27,10 @@ from ..contracts import rounds
 from ..values import is_integer, is_real
 from .pipelined import AUXILIARY, FINE, priority
 
-__all__ = ["Simulation", "handover_latency", "predict_schedules", "simulate"]
+__all__ = [
+    "MAX_SIMULATED_TASKS", "Simulation", "handover_latency", "predict_schedules", "simulate",
+    "simulated_tasks",
+]
 
 
 @dataclass(frozen=True)
@@ -202,6 +205,18 @@ def simulate(
     return Simulation(schedule, finish[state(big_n, big_k)], big_n * fine_cost, tasks)
 
 
+#: Most tasks a prediction simulates per schedule (about a second); beyond, only the closed
+#: formulas are given (the simulation's time and memory grow with N_c K N_G).
+MAX_SIMULATED_TASKS = 200_000
+
+
+def simulated_tasks(n_slices: int, iterations: int, n_auxiliary: int = 1) -> int:
+    """The tasks of :func:`simulate` for these sizes: K fine sweeps and K + 1 coarse sweeps of
+    N_G auxiliary solves (an upper bound: later iterations have fewer slices)."""
+    k = min(iterations, n_slices)
+    return n_slices * (k + (k + 1) * n_auxiliary)
+
+
 def predict_schedules(
     coarse_cost: float,
     iterations: int,
@@ -216,7 +231,8 @@ def predict_schedules(
     ``n_auxiliary`` is 1). Each row holds ``cores``, ``workers``, ``iterations`` (capped at P),
     ``alpha`` (gamma_G / gamma_F of a coarse step with its auxiliary solves in ceil(N_G / W)
     rounds), the closed formulas ``standard_formula`` and ``pipelined_formula`` and the simulated
-    ``standard`` and ``pipelined`` speedups (:func:`simulate`).
+    ``standard`` and ``pipelined`` speedups (:func:`simulate`; NaN, with ``simulated`` False,
+    beyond :data:`MAX_SIMULATED_TASKS` tasks, so that any core count is answered at once).
     """
     from .speedup import speedup_pipelined, speedup_standard
 
@@ -231,7 +247,11 @@ def predict_schedules(
         row = {"cores": n_cores, "workers": w, "iterations": k, "alpha": alpha}
         row["standard_formula"] = speedup_standard(alpha, k, n_cores)
         row["pipelined_formula"] = speedup_pipelined(alpha, k, n_cores)
+        row["simulated"] = simulated_tasks(n_cores, k, n_auxiliary) <= MAX_SIMULATED_TASKS
         for schedule in ("standard", "pipelined"):
+            if not row["simulated"]:
+                row[schedule] = math.nan
+                continue
             sim = simulate(schedule, n_cores, k, w, coarse_cost, 1.0, n_auxiliary, overhead)
             row[schedule] = sim.speedup
         rows.append(row)

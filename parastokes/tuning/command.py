@@ -11,12 +11,13 @@ and writes TUNED.toml, TUNED.json and TUNED.png (predicted speedup against the t
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-__all__ = ["add_arguments", "main"]
+__all__ = ["add_arguments", "main", "outputs"]
 
 #: Nodes per rod of the pilot rod when the run's rod is longer (the quick variants' 61).
 PILOT_POINTS = 61
@@ -28,6 +29,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--cores", type=int, required=True, help="cores N_c (= slices of the run)")
     p.add_argument("--target", type=float, required=True, help="target relative error η* (eq. 34)")
     p.add_argument("--out", required=True, help="TUNED.toml to write (TUNED.json, .png beside it)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace TUNED.toml, .json and .png if they exist (else refused)")
     p.add_argument("--budget", type=float, help="wall-time limit of the search in seconds")
     p.add_argument("--schemes", nargs="+", help="schemes of the auxiliary solvers")
     p.add_argument("--parameters", nargs="*", help="parameters to extrapolate in (none: [])")
@@ -107,11 +110,43 @@ def _space(cfg: Any, args: argparse.Namespace, compare: tuple) -> Any:
     return replace(parse_space(flags, parse_space(options)), extra=compare)
 
 
+def outputs(out: str | Path, overwrite: bool) -> tuple[Path, Path, Path]:
+    """The three files ``tune`` writes (TUNED.toml, its .json record and its .png figure),
+    checked before the search: distinct (``--out`` must not end in .json or .png), not a
+    directory, in a directory that can be written, and none of them an existing file unless
+    ``overwrite``; a TuningError (exit 2) says what to change."""
+    from .space import TuningError
+
+    toml = Path(out)
+    record, figure = toml.with_suffix(".json"), toml.with_suffix(".png")
+    if toml.suffix.lower() in (".json", ".png"):
+        raise TuningError(f"--out {toml}: tune writes the configuration there and its record and "
+                          f"figure beside it ({record.name}, {figure.name}), so it must not end "
+                          f"in {toml.suffix}: give a name such as {toml.with_suffix('.toml')}")
+    if toml.is_dir():
+        raise TuningError(f"--out {toml} is a directory: give a file name, e.g. "
+                          f"{toml / 'tuned.toml'}")
+    existing = [str(path) for path in (toml, record, figure) if path.exists()]
+    if existing and not overwrite:
+        raise TuningError(f"--out {toml}: {', '.join(existing)} already exist(s); pass "
+                          "--overwrite to replace them, or choose another --out")
+    directory = toml.parent
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise TuningError(f"--out {toml}: cannot create {directory} "
+                          f"({error.strerror or error})") from None
+    if not os.access(directory, os.W_OK | os.X_OK):
+        raise TuningError(f"--out {toml}: {directory} is not writable; choose another --out")
+    return toml, record, figure
+
+
 def main(args: argparse.Namespace, console: Any) -> int:
     """Run the command; returns 0, or 130, 143, 129 when Ctrl-C, SIGTERM or SIGHUP stopped the
     search (what was measured is written)."""
     from .. import config as configuration
     from .. import integrate, io
+    from ..files import write_text
     from .report import config_text, draw_curves, table
     from .search import tune
     from .space import TuningError, settings_from_config
@@ -119,6 +154,7 @@ def main(args: argparse.Namespace, console: Any) -> int:
     if args.cores < 2:
         raise TuningError(f"--cores must be at least 2 (one slice per core; Parareal needs two "
                           f"slices), got {args.cores}")
+    out, record, figure = outputs(args.out, getattr(args, "overwrite", False))
     cfg, resolved = configuration.load(args.config, args.set)
     pilot_slices = _given(args.pilot_slices, cfg.tune.pilot_slices)
     points = _given(args.pilot_points, cfg.tune.pilot_points, PILOT_POINTS)
@@ -154,12 +190,10 @@ def main(args: argparse.Namespace, console: Any) -> int:
         print("interrupted before the search began (pilot reference or baseline): nothing was "
               "written", file=sys.stderr)
         return 130
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
     report = result.report
     report["config"] = str(args.config)
-    io.write_summary(out.with_suffix(".json"), report)
-    draw_curves(result, out.with_suffix(".png"), args.cores)
+    io.write_summary(record, report)
+    draw_curves(result, figure, args.cores)
     console.print(table(report))
     search = report["search"]
     if search["stopped"]:
@@ -174,9 +208,9 @@ def main(args: argparse.Namespace, console: Any) -> int:
         console.print(report["caution"])
     if result.chosen is None:
         raise TuningError(f"no candidate is stable and reaches η* = {args.target:g}; see "
-                          f"{out.with_suffix('.json')} (raise --target or widen the search)")
+                          f"{record} (raise --target or widen the search)")
     dumped = {k: v for k, v in cfg.model_dump(mode="json", exclude_none=True).items()
               if k != "model"} | cfg.model.tables()
-    out.write_text(config_text(dumped, result, args.cores, args.config), encoding="utf-8")
-    console.print(f"wrote {out}, {out.with_suffix('.json')}, {out.with_suffix('.png')}")
+    write_text(out, config_text(dumped, result, args.cores, args.config))
+    console.print(f"wrote {out}, {record}, {figure}")
     return {"interrupted": 130, "terminated": 143, "hung up": 129}.get(search["stopped"], 0)

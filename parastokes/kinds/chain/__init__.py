@@ -46,6 +46,28 @@ from .stepping import chain_data
 __all__ = ["KIND", "ChainModel", "ChainSystem", "chain_energy", "chain_forces"]
 
 
+def straight_chain(n_beads: int, bond: float, stretch: float, tilt: float,
+                   height: float) -> np.ndarray:
+    """``n_beads`` beads ``stretch`` · ``bond`` apart along (cos tilt, 0, sin tilt), centred at
+    (0, 0, ``height``): the chain's initial state (N, 3)."""
+    s = (np.arange(n_beads) - (n_beads - 1) / 2) * bond * stretch
+    direction = np.array([math.cos(tilt), 0.0, math.sin(tilt)])
+    return s[:, None] * direction + np.array([0.0, 0.0, height])
+
+
+def require_above_wall(beads: np.ndarray, wall: bool) -> None:
+    """ValueError naming ``height`` when ``wall`` and a bead of the start ``beads`` is on or
+    below the wall z = 0: the one rule of the config (:meth:`ChainModel.resolve`, so that
+    ``parastokes check`` refuses what a run refuses) and of :class:`ChainSystem`."""
+    low = float(beads[:, 2].min())
+    if wall and low <= 0:
+        height = float(beads[:, 2].mean())
+        raise ValueError(
+            f"height: the chain must start above the wall z = 0 (wall = true), but its lowest "
+            f"bead is at z = {low:.6g}; raise height above {height - low:.6g} (now {height:.6g})"
+        )
+
+
 def _positive(**values: float) -> None:
     for name, value in values.items():
         if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
@@ -83,14 +105,11 @@ class ChainSystem(PointsInShear):
             raise ValueError(f"bending: must be a finite number >= 0, got {self.bending!r}")
         if len(self.load) != 3:
             raise ValueError(f"load: need three components, got {self.load!r}")
-        if self.wall and self.initial_state()[:, 2].min() <= 0:
-            raise ValueError("height: the chain must start above the wall z = 0")
+        require_above_wall(self.initial_state(), self.wall)
         thread_count(self.n_threads)  # ValueError now, not at the first step
 
     def initial_state(self) -> np.ndarray:
-        s = (np.arange(self.n_beads) - (self.n_beads - 1) / 2) * self.bond * self.stretch
-        direction = np.array([math.cos(self.tilt), 0.0, math.sin(self.tilt)])
-        return s[:, None] * direction + np.array([0.0, 0.0, self.height])
+        return straight_chain(self.n_beads, self.bond, self.stretch, self.tilt, self.height)
 
     def forces(self, state: np.ndarray) -> np.ndarray:
         """Elastic forces plus the external load, on the fluid (N, 3)."""
@@ -146,6 +165,10 @@ class ChainModel(BodySection):
                         "(radians).")
 
     def resolve(self) -> BodyResolution:
+        require_above_wall(
+            straight_chain(self.n_beads, self.bond, self.stretch, self.tilt, self.height),
+            self.wall,
+        )
         epsilon = self.epsilon * (self.bond if self.epsilon_unit == "bond" else 1.0)
         theta0 = {"epsilon": epsilon, "viscosity": self.viscosity, "stiffness": self.stiffness,
                   "bending": self.bending}

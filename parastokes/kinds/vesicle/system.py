@@ -146,14 +146,17 @@ def vesicle(
     shear_rate: float = 0.1,
     *,
     radius: float = 1.0,
+    center: tuple[float, float, float] = (0.0, 0.0, 0.0),
     n_threads: int | None = None,
 ) -> VesicleSystem:
-    """The elastic sphere of section 5.2 (radius 1 by default): icosphere (642 points at level 3),
-    Hookean edge springs of stiffness κ = ``stiffness``, free-space Stokeslets with
-    ε = ``epsilon_factor`` · l_max (l_max the longest edge, ≈ 0.165 ``radius``), shear flow
-    u∞ = (γ̇ z, 0, 0)."""
+    """The elastic sphere of section 5.2 (radius 1 by default, centred at ``center``): icosphere
+    (642 points at level 3), Hookean edge springs of stiffness κ = ``stiffness``, free-space
+    Stokeslets with ε = ``epsilon_factor`` · l_max (l_max the longest edge, ≈ 0.165 ``radius``),
+    shear flow u∞ = (γ̇ z, 0, 0)."""
     if not (isinstance(epsilon_factor, int | float) and epsilon_factor > 0):
         raise ValueError(f"epsilon_factor: must be > 0, got {epsilon_factor!r}")
+    if len(center) != 3:
+        raise ValueError(f"center: need three coordinates (x, y, z), got {center!r}")
     return VesicleSystem(
         subdivisions=subdivisions,
         epsilon=epsilon_factor * longest_edge(subdivisions, radius),
@@ -161,6 +164,7 @@ def vesicle(
         stiffness=stiffness,
         shear_rate=shear_rate,
         n_threads=n_threads,
+        center=(float(center[0]), float(center[1]), float(center[2])),
         radius=radius,
     )
 
