@@ -178,3 +178,14 @@ def test_resistance_inverts_mobility():
     np.testing.assert_allclose(back.force[0], body.force, atol=1e-9)
     np.testing.assert_allclose(back.torque[0], body.torque, atol=1e-9)
     np.testing.assert_allclose(back.forces, solution.forces, atol=1e-9)
+
+
+@pytest.mark.parametrize("name", ["rigid", "squirmer", "bacterium"])
+def test_the_rigid_kinds_keep_the_contract_ci(name):
+    """check_system on each kind's example with fewer steps than tests/test_system_contract.py
+    (there marked slow): every part of the contract, orders fitted over 8-32 steps."""
+    from parastokes.bodies import registry
+    from parastokes.testing import check_system
+
+    system, state, horizon = registry.get(name).example()
+    check_system(system, state, horizon=horizon, counts=(8, 16, 32))
