@@ -13,7 +13,6 @@ from parastokes import integrate
 from parastokes.bodies import registry
 from parastokes.testing import check_system
 
-
 #: Kinds whose every evaluation is a linear solve: their full check is slow (tests/test_rigid.py
 #: runs it with fewer steps in the default run).
 SOLVED_KINDS = {"rigid", "squirmer", "bacterium"}
