@@ -12,6 +12,15 @@ u∞ = (γ̇ z, 0, 0) with its rotation w∞ = (0, γ̇/2, 0) for bodies with fr
   (``"rod.epsilon"``, ``"vesicle.stiffness"``): Lagrangian extrapolation varies any of them.
 - **Monitor**: the largest of the bodies' monitors over their limits (``monitor_limit`` = 1).
 
+Rigid and prescribed-motion bodies (:mod:`parastokes.kinds.rigid`: their surface forces are
+unknown) join a scene too: a body with ``surface(t, state)`` and ``motion_rates`` is *implicit*.
+A scene with one is evaluated by one coupled solve per stage (:meth:`Scene.coupled`): the
+explicit bodies' loads are known; their velocity (and u∞) at the implicit surfaces is the
+background of one mobility solve of all implicit bodies together (wall included); the explicit
+bodies then move with the velocity of their own loads plus the implicit surface forces. Its
+rows: an implicit body's centre row and surface rows (docs/contracts.md); its rates take the
+body's ``rate_columns``. Such a scene runs the Python loop (no compiled parts).
+
 The fluid is evaluated once per stage over all points (:func:`parastokes.mrs.velocity` with ε
 per source: each point's blob has its body's width). A scene whose bodies' exact types all have
 compiled parts (the rod, the vesicle, the chain) is stepped by a compiled loop composed of them
@@ -30,7 +39,7 @@ import dataclasses
 import math
 from dataclasses import dataclass
 from functools import cached_property
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -46,6 +55,25 @@ __all__ = ["Scene"]
 
 #: What a body offers a scene beside the System contract (docs/contracts.md).
 SCENE_MEMBERS = ("loads", "angular", "body_rates", "epsilon")
+#: What an implicit body (its surface forces come from a mobility solve) offers instead.
+IMPLICIT_MEMBERS = ("surface", "motion_rates", "inside", "epsilon")
+
+
+def implicit(body: Any) -> bool:
+    """Whether ``body``'s loads come from a mobility solve (a rigid or prescribed-motion body)."""
+    return callable(getattr(body, "motion_rates", None))
+
+
+class Coupled(NamedTuple):
+    """One coupled evaluation of a scene with implicit bodies (:meth:`Scene.coupled`): the
+    velocities ``u``, ``w`` at every row of the explicit bodies (zero elsewhere), the mobility
+    solution of the implicit bodies, their surfaces, and the fluid's sources."""
+
+    u: np.ndarray
+    w: np.ndarray
+    solution: Any
+    surfaces: list[Any]
+    sources: FluidSources
 
 
 def _name(body: Any) -> str:
@@ -79,7 +107,8 @@ class Scene:
             raise ValueError(f"names: need non-empty strings without '.' (Θ's keys are "
                              f"\"name.param\"), got {self.names!r}")
         for name, body in zip(self.names, self.bodies, strict=True):
-            missing = [m for m in SCENE_MEMBERS if not hasattr(body, m)]
+            members = IMPLICIT_MEMBERS if implicit(body) else SCENE_MEMBERS
+            missing = [m for m in members if not hasattr(body, m)]
             if missing:
                 raise ValueError(
                     f"{name}: a {type(body).__name__} cannot join a scene: it lacks "
@@ -100,6 +129,30 @@ class Scene:
                         f"{name}.{key}: {getattr(body, key)!r} differs from the scene's "
                         f"{getattr(self, key)!r} (one fluid, one background flow)"
                     )
+        if any(implicit(body) for body in self.bodies):
+            self._check_overlaps()
+
+    def _check_overlaps(self) -> None:
+        """ValueError naming two bodies, one of them implicit, whose initial points come closer
+        than the larger of their ε, or one of whose points lies inside the other."""
+        states = [np.asarray(body.initial_state()) for body in self.bodies]
+        for i, (a, xa) in enumerate(zip(self.bodies, states, strict=True)):
+            for j in range(i + 1, len(self.bodies)):
+                b, xb = self.bodies[j], states[j]
+                if not (implicit(a) or implicit(b)):
+                    continue
+                pa, pb = (x[1:, :3] if implicit(body) else x[:, :3]
+                          for body, x in ((a, xa), (b, xb)))
+                gap = float(np.min(np.linalg.norm(pa[:, None, :] - pb[None, :, :], axis=-1)))
+                inside = (implicit(a) and a.inside(xa, pb).any()) or (
+                    implicit(b) and b.inside(xb, pa).any())
+                reach = max(float(a.epsilon), float(b.epsilon))
+                if inside or gap < reach:
+                    where = "one lies inside the other" if inside else (
+                        f"their points come {gap:.3g} apart, closer than ε = {reach:.3g}")
+                    raise ValueError(
+                        f"{self.names[i]} and {self.names[j]} overlap: {where}; move them "
+                        "apart (their position / height)")
 
     # ---- layout of the state -------------------------------------------------------------
     @cached_property
@@ -139,9 +192,19 @@ class Scene:
     def fluid_sources(self, t: float, state: np.ndarray) -> FluidSources:
         """Every body's point loads on the fluid (:func:`~parastokes.bodies.sources.fluid_sources`),
         stacked in the order of the bodies, each source with its body's ε; torques None when no
-        body has any."""
-        parts = [fluid_sources(body, t, x) for body, x in zip(self.bodies, self.blocks(state),
-                                                               strict=True)]
+        body has any. With implicit bodies: the explicit bodies' loads, then the implicit
+        bodies' solved surface forces (:meth:`coupled`)."""
+        if self.implicit_bodies:
+            return self.coupled(t, state).sources
+        return self._sources(t, state, range(len(self.bodies)))
+
+    def _sources(self, t: float, state: np.ndarray, which: Any) -> FluidSources:
+        """The loads of the bodies ``which`` (indices), stacked (empty when there are none)."""
+        blocks = self.blocks(state)
+        parts = [fluid_sources(self.bodies[i], t, blocks[i]) for i in which]
+        if not parts:
+            empty = np.zeros((0, 3))
+            return FluidSources(empty, empty, None, np.zeros(0))
         torques = None
         if any(p.torques is not None for p in parts):
             torques = np.concatenate([np.zeros_like(p.forces) if p.torques is None else p.torques
@@ -152,7 +215,10 @@ class Scene:
 
     def rates(self, t: float, state: np.ndarray) -> np.ndarray:
         """Each body's rates from u∞ + the velocities that all bodies' loads induce at its points:
-        one evaluation of the fluid over all points, each source with its body's ε."""
+        one evaluation of the fluid over all points, each source with its body's ε (with
+        implicit bodies: :meth:`coupled`)."""
+        if self.implicit_bodies:
+            return self._coupled_rates(t, state)
         points = np.ascontiguousarray(state[:, :3])
         angular = any(body.angular for body in self.bodies)
         sources = self.fluid_sources(t, state)
@@ -173,8 +239,9 @@ class Scene:
 
     @property
     def rate_columns(self) -> list[int]:
-        """The columns of every body's rates: 6 (u, w) for bodies with angular rates, else 3."""
-        return [6 if body.angular else 3 for body in self.bodies]
+        """The columns of every body's rates: its ``rate_columns`` if it has them (rigid bodies:
+        7), else 6 (u, w) for bodies with angular rates, else 3."""
+        return [getattr(body, "rate_columns", 6 if body.angular else 3) for body in self.bodies]
 
     def advance(self, state: np.ndarray, rates: np.ndarray, dt: float) -> np.ndarray:
         parts = [
@@ -201,6 +268,65 @@ class Scene:
                            what="the state's shape")
             for body, x in zip(self.bodies, self.blocks(state), strict=True)
         ])
+
+    # ---- implicit bodies: one coupled solve per evaluation -------------------------------
+    @cached_property
+    def implicit_bodies(self) -> tuple[int, ...]:
+        """The indices of the implicit bodies (:func:`implicit`)."""
+        return tuple(i for i, body in enumerate(self.bodies) if implicit(body))
+
+    def _flow(self, targets: np.ndarray, sources: FluidSources, angular: bool
+              ) -> tuple[np.ndarray, np.ndarray]:
+        """u∞ + the velocity (and w∞ + w) of ``sources`` at ``targets``."""
+        u, w = np.zeros_like(targets), np.zeros_like(targets)
+        if len(sources.points) and len(targets):
+            value = mrs.velocity(targets, sources.points, sources.forces,
+                                 epsilon=sources.epsilon, mu=self.viscosity,
+                                 torques=sources.torques, wall=self.wall, angular=angular,
+                                 n_threads=self.n_threads, check=False)
+            u, w = value if angular else (value, w)
+        u[:, 0] += self.shear_rate * targets[:, 2]
+        w[:, 1] += 0.5 * self.shear_rate
+        return u, w
+
+    def coupled(self, t: float, state: np.ndarray) -> Coupled:
+        """One coupled evaluation (see the module): the explicit loads, the mobility solve of
+        all implicit bodies in their background, the velocities at the explicit bodies."""
+        from .kinds.rigid.solve import mobility
+
+        explicit = self._sources(t, state, [i for i in range(len(self.bodies))
+                                            if i not in self.implicit_bodies])
+        blocks = self.blocks(state)
+        surfaces = [self.bodies[i].surface(t, blocks[i]) for i in self.implicit_bodies]
+        rigid_points = np.concatenate([s.points for s in surfaces])
+        background, _ = self._flow(rigid_points, explicit, False)
+        solution = mobility(surfaces, self.viscosity, self.wall, background, self.n_threads)
+        rigid = FluidSources(rigid_points, solution.forces, np.zeros_like(rigid_points),
+                             np.concatenate([np.full(len(s.points), s.epsilon)
+                                             for s in surfaces]))
+        torques = (None if explicit.torques is None or rigid.torques is None
+                   else np.concatenate([explicit.torques, rigid.torques]))
+        sources = FluidSources(np.concatenate([explicit.points, rigid.points]),
+                               np.concatenate([explicit.forces, rigid.forces]), torques,
+                               np.concatenate([explicit.epsilon, rigid.epsilon]))
+        angular = any(self.bodies[i].angular for i in range(len(self.bodies))
+                      if i not in self.implicit_bodies)
+        u, w = self._flow(explicit.points, sources, angular)
+        return Coupled(u, w, solution, surfaces, sources)
+
+    def _coupled_rates(self, t: float, state: np.ndarray) -> np.ndarray:
+        value = self.coupled(t, state)
+        parts, row, k = [], 0, 0
+        for i, (body, x) in enumerate(zip(self.bodies, self.blocks(state), strict=True)):
+            if i in self.implicit_bodies:
+                parts.append(body.motion_rates(x, value.solution.U[k], value.solution.Omega[k],
+                                               value.surfaces[k].slip))
+                k += 1
+            else:
+                n = len(x)
+                parts.append(body.body_rates(value.u[row : row + n], value.w[row : row + n]))
+                row += n
+        return self._stack(parts)
 
     # ---- parameters and monitor ----------------------------------------------------------
     @property

@@ -22,3 +22,18 @@ richardson = {{ m = 1, r = 0.83 }}
 n_slices = 4
 {parareal}
 {rest}"""
+
+
+#: The solver tables of a tiny serial run, to follow a ``[model]`` or ``[[bodies]]`` text.
+SERIAL_SOLVERS = """
+[time]
+t1 = 0.1
+[fine]
+dt = 0.01
+[coarse]
+dt_ratio = 2
+[parareal]
+n_slices = 2
+[execution]
+executor = "serial"
+"""

@@ -13,8 +13,15 @@ from parastokes import integrate
 from parastokes.bodies import registry
 from parastokes.testing import check_system
 
+#: Kinds whose every evaluation is a linear solve: their full check is slow (tests/test_rigid.py
+#: runs it with fewer steps in the default run).
+SOLVED_KINDS = {"rigid", "squirmer", "bacterium"}
 
-@pytest.mark.parametrize("name", sorted(registry.BUILTIN))
+
+@pytest.mark.parametrize("name", [
+    pytest.param(name, marks=pytest.mark.slow) if name in SOLVED_KINDS else name
+    for name in sorted(registry.BUILTIN)
+])
 def test_every_registered_kind_keeps_the_contract(name):
     system, state, horizon = registry.get(name).example()
     check_system(system, state, horizon=horizon)

@@ -52,6 +52,9 @@ BUILTIN: dict[str, str] = {
     "rod": "parastokes.kinds.rod.kind:KIND",
     "vesicle": "parastokes.kinds.vesicle.kind:KIND",
     "chain": "parastokes.kinds.chain:KIND",
+    "rigid": "parastokes.kinds.rigid.kind:RIGID",
+    "squirmer": "parastokes.kinds.rigid.kind:SQUIRMER",
+    "bacterium": "parastokes.kinds.rigid.kind:BACTERIUM",
 }
 
 #: The entry point group of installed body packages: ``name = "package.module:Name"``.

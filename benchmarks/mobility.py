@@ -1,0 +1,187 @@
+"""Cost of the rigid-body solves (parastokes.mobility) against velocity evaluations, and GMRES
+iterations of the block preconditioner against gap and body count.
+
+Run from the repository root (one BLAS thread, one kernel thread, so that the LU solves and the
+kernels are compared on the same core)::
+
+    OPENBLAS_NUM_THREADS=1 NUMBA_NUM_THREADS=1 PYTHONPATH=. python benchmarks/mobility.py \
+        [--points 2000] [--sphere 400] [--rounds 5] [--json PATH]
+
+(a) One rigid sphere of ``--points`` surface points in free space: the one-time body-frame
+    factorization; one mobility solve with the reused factorization (a rigid body under an
+    external load: no triangular solve; and with a surface slip or background velocity: one
+    pair of triangular solves); one velocity evaluation of its points from its point forces
+    (``mrs.velocity``, compiled, ε per source). Minimum over ``--rounds`` (the machine is
+    shared). The issue's target, one RK2 step <= 3x two velocity evaluations, is completed by the
+    bodies' stepping (two solves per step plus what else a step evaluates).
+(b) GMRES to relative residual 1e-10 with the block-diagonal preconditioner: one sphere of
+    ``--sphere`` points at gaps δ above the wall (preconditioner "free": the reused free-space
+    self block; "wall": the self block with the wall images, refactorized per solve); a row of B
+    such spheres at gap δ from each other and from the wall (both preconditioners); the same row
+    in free space. Also
+    the time of the dense and the GMRES solve for the row, where the auto choice's crossover
+    (DENSE_MAX_POINTS) comes from.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import numpy as np
+
+from parastokes import mrs
+from parastokes.mobility import RigidSurface, solve_mobility
+from parastokes.mobility.sphere import fibonacci_sphere, sphere_spacing
+
+MU = 1.0
+TOL = 1e-10
+GAPS = (0.05, 0.1, 0.25, 0.5, 1.0, 2.0)
+COUNTS = (2, 4, 8, 16)
+ROW_GAPS = (0.1, 0.5, 2.0)
+
+
+def best(fn, rounds: int) -> float:
+    """Least wall time of ``rounds`` calls of ``fn``."""
+    times = []
+    for _ in range(rounds):
+        t = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t)
+    return min(times)
+
+
+def sphere(n: int) -> RigidSurface:
+    return RigidSurface(fibonacci_sphere(n), 0.5 * sphere_spacing(n), name=f"sphere{n}")
+
+
+def single_body(n: int, rounds: int) -> dict:
+    s = sphere(n)
+    t = time.perf_counter()
+    s.self_factor(MU)
+    factor = time.perf_counter() - t
+    rot = np.linalg.qr(np.random.default_rng(0).normal(size=(3, 3)))[0]
+    rot *= np.sign(np.linalg.det(rot))
+    placed = s.place((0.1, 0.2, 0.3), rot)
+    slip = np.random.default_rng(1).normal(size=(n, 3))
+    rigid = best(lambda: solve_mobility(placed, mu=MU, external_force=(0, 0, 1)), rounds)
+    slipped = best(lambda: solve_mobility(placed, mu=MU, slip=slip), rounds)
+    forces = solve_mobility(placed, mu=MU, slip=slip).forces
+    pts, eps = placed.points, np.array(placed.epsilon)
+    mrs.velocity(pts, pts, forces, epsilon=eps, mu=MU)  # compile
+    velocity = best(lambda: mrs.velocity(pts, pts, forces, epsilon=eps, mu=MU), rounds)
+    return {
+        "points": n,
+        "factor_s": factor,
+        "solve_rigid_s": rigid,
+        "solve_slip_s": slipped,
+        "velocity_s": velocity,
+        "rigid_over_velocity": rigid / velocity,
+        "slip_over_velocity": slipped / velocity,
+    }
+
+
+def wall_gaps(n: int) -> list[dict]:
+    s = sphere(n)
+    rows = []
+    for gap in GAPS:
+        row: dict = {"gap": gap}
+        for pc in ("free", "wall"):
+            t = time.perf_counter()
+            m = solve_mobility(
+                s.place((0, 0, 1 + gap)),
+                mu=MU,
+                wall=True,
+                method="gmres",
+                tol=TOL,
+                precondition=pc,
+                external_force=(1, 0, -1),
+                external_torque=(0, 1, 0),
+            )
+            row[pc] = (m.info.iterations, time.perf_counter() - t)
+        rows.append(row)
+    return rows
+
+
+def body_rows(n: int) -> list[dict]:
+    s = sphere(n)
+    rows = []
+    for count in COUNTS:
+        for gap in ROW_GAPS:
+            bodies = [s.place((i * (2 + gap), 0.0, 1 + gap)) for i in range(count)]
+            row: dict = {"bodies": count, "gap": gap}
+            for key, wall, pc in (
+                ("wall", True, "free"),
+                ("wall_pc", True, "wall"),
+                ("free", False, "free"),
+            ):
+                t = time.perf_counter()
+                m = solve_mobility(
+                    bodies,
+                    mu=MU,
+                    wall=wall,
+                    method="gmres",
+                    tol=TOL,
+                    precondition=pc,
+                    external_force=(0, 0, -1),
+                )
+                row[key] = (m.info.iterations, time.perf_counter() - t)
+            if count * n <= 1600 and gap == ROW_GAPS[1]:
+                t = time.perf_counter()
+                solve_mobility(bodies, mu=MU, wall=True, method="dense", external_force=(0, 0, -1))
+                row["dense_wall_s"] = time.perf_counter() - t
+            rows.append(row)
+    return rows
+
+
+def cell(result: tuple[int, float]) -> str:
+    """GMRES iterations and seconds as "its (s)"."""
+    return f"{result[0]:3d} ({result[1]:.2f})"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--points", type=int, default=2000)
+    parser.add_argument("--sphere", type=int, default=400)
+    parser.add_argument("--rounds", type=int, default=5)
+    parser.add_argument("--json", type=str, default=None)
+    args = parser.parse_args()
+    out = {"single": single_body(args.points, args.rounds)}
+    a = out["single"]
+    print(f"(a) one sphere, {a['points']} points, free space")
+    print(f"    body-frame factorization (once): {a['factor_s']:.3f} s")
+    print(f"    one velocity evaluation of its points: {1e3 * a['velocity_s']:.2f} ms")
+    print(
+        f"    solve, rigid under a load: {1e3 * a['solve_rigid_s']:.2f} ms "
+        f"= {a['rigid_over_velocity']:.2f} x one velocity evaluation"
+    )
+    print(
+        f"    solve, with a slip:        {1e3 * a['solve_slip_s']:.2f} ms "
+        f"= {a['slip_over_velocity']:.2f} x one velocity evaluation"
+    )
+    out["wall_gap"] = wall_gaps(args.sphere)
+    print(f"(b) GMRES iterations to {TOL:g}, one sphere of {args.sphere} points above the wall")
+    print("    gap/a | precondition free: its (s) | wall: its (s)")
+    for r in out["wall_gap"]:
+        print(f"    {r['gap']:5.2f} | {cell(r['free'])} | {cell(r['wall'])}")
+    out["rows"] = body_rows(args.sphere)
+    print(f"    B spheres of {args.sphere} points in a row, gap δ between them and to the wall")
+    print(
+        "    B | gap/a | wall: its (s) | wall, precondition 'wall': its (s) | free space: its (s)"
+        " | dense with wall (s)"
+    )
+    for r in out["rows"]:
+        dense = f"{r['dense_wall_s']:.2f}" if "dense_wall_s" in r else "-"
+        print(
+            f"    {r['bodies']:2d} | {r['gap']:4.1f} | {cell(r['wall'])} | {cell(r['wall_pc'])} "
+            f"| {cell(r['free'])} "
+            f"| {dense}"
+        )
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump(out, fh, indent=1)
+
+
+if __name__ == "__main__":
+    main()

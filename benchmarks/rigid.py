@@ -1,0 +1,146 @@
+"""Rigid-body benchmarks (docs/benchmarks.md, "Rigid and prescribed-motion bodies").
+
+Run from the repository root (one BLAS thread per process: see docs/bodies.md, "Cost")::
+
+    OPENBLAS_NUM_THREADS=1 PYTHONPATH=. python benchmarks/rigid.py [--quick] [--out PATH]
+
+- ``step``: one RK2 step of a free rigid sphere of N ~ 2000 surface points (two mobility solves
+  with the body-frame factorization kept, plus ``advance``) against two velocity evaluations of
+  the regularized Stokeslets at its N points (what a body with explicit forces pays per RK2 step);
+  the issue's target is a ratio <= 3. The factorization itself (once per shape, ε, μ) is timed
+  apart, and so is a solve with the matrix assembled and factorized every time (as a body near
+  the wall or with a moving part pays).
+- ``parareal``: a bacterium near the wall (80 head points, a 40-point flagellum): the serial fine
+  run, a Parareal run on 2 worker processes (Lagrange in ε, forward Euler at 5 τ_f), the measured
+  γ_G / γ_F of one slice and the speedups eq. 14 predicts with them at 2 and 40 cores
+  (:func:`parastokes.parareal.speedup.predict`).
+
+Times are medians of repeats on this machine, which is shared and noisy: ratios measured in one
+run are what to read, not absolute times.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+from parastokes import integrate, mrs, parallel, parareal
+from parastokes.kinds.rigid import Bacterium, Helix, RigidBody, Sphere, Spheroid
+from parastokes.kinds.rigid.shapes import spacing
+from parastokes.kinds.rigid.solve import mobility
+from parastokes.parareal.speedup import predict
+
+
+def median_time(fn: Callable[[], object], repeats: int) -> float:
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - start)
+    return float(np.median(times))
+
+
+def step_section(n: int, repeats: int) -> list[str]:
+    shape = Sphere(1.0, n)
+    body = RigidBody(shape=shape, epsilon=0.5 * spacing(shape), viscosity=1.0,
+                     force=(0.0, 0.0, -1.0), torque=(0.2, 0.0, 0.0))
+    x = body.initial_state()
+    start = time.perf_counter()
+    body.rates(0.0, x)  # the factorization, once
+    factorize = time.perf_counter() - start
+    step = median_time(lambda: integrate.propagate(body, x, 0.0, 0.01, "rk2", 0.01), repeats)
+    points = np.ascontiguousarray(x[1:, :3])
+    forces = np.ones_like(points)
+    mrs.velocity(points, points, forces, epsilon=body.epsilon, mu=1.0)
+    two = median_time(lambda: [mrs.velocity(points, points, forces, epsilon=body.epsilon,
+                                            mu=1.0, check=False) for _ in range(2)], repeats)
+    surface = body.surface(0.0, x)
+    import dataclasses
+
+    assembled = median_time(lambda: mobility([dataclasses.replace(surface, key=None)], 1.0,
+                                             False, None), max(1, repeats // 3))
+    return [
+        f"### RK2 step of a free rigid sphere, N = {n} surface points",
+        "",
+        "| what | time (s) | / two velocity evaluations |",
+        "|---|---|---|",
+        f"| two velocity evaluations at the N points | {two:.4g} | 1 |",
+        f"| one RK2 step (two solves, factorization kept) | {step:.4g} | {step / two:.3g} |",
+        f"| the body-frame factorization (once) | {factorize:.4g} | {factorize / two:.3g} |",
+        f"| one solve assembled and factorized anew | {assembled:.4g} | {assembled / two:.3g} |",
+        "",
+    ]
+
+
+def bacterium() -> RigidBody:
+    shape = Bacterium(Spheroid(1.0, 0.5, 80), Helix(0.25, 2.0, 3.0, 40), 0.25, 2 * math.pi * 100)
+    return RigidBody(shape=shape, epsilon=0.5 * spacing(shape), viscosity=1e-6, wall=True,
+                     position=(0.0, 0.0, 1.5))
+
+
+def parareal_section(t1: float, n_slices: int) -> list[str]:
+    system = bacterium()
+    x0 = system.initial_state()
+    dt = 2e-4
+    fine = integrate.Propagator(system, "rk2", dt)
+    nodes = {"epsilon": [1.2 * system.epsilon, 1.3 * system.epsilon]}
+    coarse = parareal.extrapolated(system, "euler", 5 * dt, lagrange=nodes)
+    slice_length = t1 / n_slices
+    gamma_f = median_time(lambda: fine(0.0, slice_length, x0), 2)
+    gamma_g = median_time(lambda: coarse(0.0, slice_length, x0), 2)
+    start = time.perf_counter()
+    reference = parareal.serial_solution(fine, x0, 0.0, t1, n_slices)
+    serial = time.perf_counter() - start
+    with parallel.make_executor("processes", 2) as executor:
+        start = time.perf_counter()
+        result = parareal.run(fine, coarse, x0, 0.0, t1, n_slices, tol=1e-8,
+                              max_iterations=n_slices, reference=reference,
+                              positions=system.positions, project=system.project,
+                              executor=executor)
+        wall = time.perf_counter() - start
+    k = result.iterations
+    ratio = gamma_g / gamma_f
+    rows = predict(ratio, k, [2, n_slices, 40])
+    lines = [
+        f"### Parareal on a bacterium near the wall ({len(x0) - 1} surface points, T = {t1:g}, "
+        f"{n_slices} slices, 2 worker processes)",
+        "",
+        "| what | value |",
+        "|---|---|",
+        f"| serial fine run (s) | {serial:.3g} |",
+        f"| Parareal run (s), {k} iterations to η̃ < 1e-8, final error η = "
+        f"{result.errors[-1]:.2e} | {wall:.3g} |",
+        f"| measured speedup (serial / Parareal) | {serial / wall:.3g} |",
+        f"| γ_F, γ_G of one slice (s); γ_G / γ_F | {gamma_f:.3g}, {gamma_g:.3g}; {ratio:.3g} |",
+    ]
+    lines += [f"| eq. 14 at N_c = {n} (K = {min(k, n)}); bound eq. 15 | {s:.3g}; {b:.3g} |"
+              for n, s, b in rows]
+    return [*lines, ""]
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--quick", action="store_true", help="small sizes (a smoke run)")
+    parser.add_argument("--sections", nargs="*", default=["step", "parareal"])
+    parser.add_argument("--out", help="write the tables as Markdown here")
+    args = parser.parse_args(argv)
+    lines = [f"load average before: {os.getloadavg()[0]:.2f}", ""]
+    if "step" in args.sections:
+        lines += step_section(300 if args.quick else 2000, 3 if args.quick else 5)
+    if "parareal" in args.sections:
+        lines += parareal_section(0.004 if args.quick else 0.02, 4)
+    lines.append(f"load average after: {os.getloadavg()[0]:.2f}")
+    text = "\n".join(lines)
+    print(text)
+    if args.out:
+        with open(args.out, "w") as f:
+            f.write(text + "\n")
+
+
+if __name__ == "__main__":
+    main()

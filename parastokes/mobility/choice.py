@@ -1,0 +1,47 @@
+"""Which solver a call uses: ``method="auto"`` picks the direct solver where it is cheap or
+reusable and GMRES otherwise (the crossover measured in docs/benchmarks.md, "Rigid bodies")."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .direct import direct_solve
+from .errors import SolveInfo
+from .krylov import gmres_solve
+from .system import SurfaceSet
+
+#: Most surface points (all bodies) solved by a fresh dense factorization under "auto"; a single
+#: body in free space always uses its reused body-frame factorization. Measured (benchmarks/
+#: mobility.py): with the wall, GMRES with the reused free-space blocks beats a fresh assembly and
+#: LU from 400 points on (0.1-0.5 s against 0.8 s), and two bodies of 400 (0.4 s against 2.2 s).
+DENSE_MAX_POINTS = 200
+
+METHODS = ("auto", "dense", "gmres")
+
+
+def chosen_method(sset: SurfaceSet, method: str) -> str:
+    """``"dense"`` or ``"gmres"`` for ``method`` (one of :data:`METHODS`)."""
+    if method not in METHODS:
+        raise ValueError(f"method: must be one of {METHODS}, got {method!r}")
+    if method != "auto":
+        return method
+    if sset.n_bodies == 1 and not sset.wall:
+        return "dense"
+    return "dense" if sset.n_points <= DENSE_MAX_POINTS else "gmres"
+
+
+def solve(
+    sset: SurfaceSet,
+    g: np.ndarray,
+    ft: np.ndarray | None,
+    method: str,
+    tol: float,
+    precondition: str,
+) -> tuple[np.ndarray, np.ndarray | None, SolveInfo]:
+    """Dispatch to the direct or the GMRES solver (arguments of
+    :func:`parastokes.mobility.direct.direct_solve`)."""
+    if not (np.isfinite(tol) and 0 < tol < 1):
+        raise ValueError(f"tol: must lie in (0, 1), got {tol!r}")
+    if chosen_method(sset, method) == "dense":
+        return direct_solve(sset, g, ft)
+    return gmres_solve(sset, g, ft, tol, precondition)
