@@ -5,7 +5,7 @@ Run from the repository root (one BLAS thread, one kernel thread, so that the LU
 kernels are compared on the same core)::
 
     OPENBLAS_NUM_THREADS=1 NUMBA_NUM_THREADS=1 PYTHONPATH=. python benchmarks/mobility.py \
-        [--points 2000] [--sphere 400] [--rounds 5] [--json PATH]
+        [--points 2000] [--sphere 400] [--rounds 5] [--parts a b] [--json PATH]
 
 (a) One rigid sphere of ``--points`` surface points in free space: the one-time body-frame
     factorization; one mobility solve with the reused factorization (a rigid body under an
@@ -146,38 +146,41 @@ def main() -> None:
     parser.add_argument("--sphere", type=int, default=400)
     parser.add_argument("--rounds", type=int, default=5)
     parser.add_argument("--json", type=str, default=None)
+    parser.add_argument("--parts", nargs="+", choices=("a", "b"), default=["a", "b"])
     args = parser.parse_args()
-    out = {"single": single_body(args.points, args.rounds)}
-    a = out["single"]
-    print(f"(a) one sphere, {a['points']} points, free space")
-    print(f"    body-frame factorization (once): {a['factor_s']:.3f} s")
-    print(f"    one velocity evaluation of its points: {1e3 * a['velocity_s']:.2f} ms")
-    print(
-        f"    solve, rigid under a load: {1e3 * a['solve_rigid_s']:.2f} ms "
-        f"= {a['rigid_over_velocity']:.2f} x one velocity evaluation"
-    )
-    print(
-        f"    solve, with a slip:        {1e3 * a['solve_slip_s']:.2f} ms "
-        f"= {a['slip_over_velocity']:.2f} x one velocity evaluation"
-    )
-    out["wall_gap"] = wall_gaps(args.sphere)
-    print(f"(b) GMRES iterations to {TOL:g}, one sphere of {args.sphere} points above the wall")
-    print("    gap/a | precondition free: its (s) | wall: its (s)")
-    for r in out["wall_gap"]:
-        print(f"    {r['gap']:5.2f} | {cell(r['free'])} | {cell(r['wall'])}")
-    out["rows"] = body_rows(args.sphere)
-    print(f"    B spheres of {args.sphere} points in a row, gap δ between them and to the wall")
-    print(
-        "    B | gap/a | wall: its (s) | wall, precondition 'wall': its (s) | free space: its (s)"
-        " | dense with wall (s)"
-    )
-    for r in out["rows"]:
-        dense = f"{r['dense_wall_s']:.2f}" if "dense_wall_s" in r else "-"
+    out: dict = {}
+    if "a" in args.parts:
+        out["single"] = single_body(args.points, args.rounds)
+        a = out["single"]
+        print(f"(a) one sphere, {a['points']} points, free space")
+        print(f"    body-frame factorization (once): {a['factor_s']:.3f} s")
+        print(f"    one velocity evaluation of its points: {1e3 * a['velocity_s']:.2f} ms")
         print(
-            f"    {r['bodies']:2d} | {r['gap']:4.1f} | {cell(r['wall'])} | {cell(r['wall_pc'])} "
-            f"| {cell(r['free'])} "
-            f"| {dense}"
+            f"    solve, rigid under a load: {1e3 * a['solve_rigid_s']:.2f} ms "
+            f"= {a['rigid_over_velocity']:.2f} x one velocity evaluation"
         )
+        print(
+            f"    solve, with a slip:        {1e3 * a['solve_slip_s']:.2f} ms "
+            f"= {a['slip_over_velocity']:.2f} x one velocity evaluation"
+        )
+    if "b" in args.parts:
+        out["wall_gap"] = wall_gaps(args.sphere)
+        print(f"(b) GMRES iterations to {TOL:g}, one sphere of {args.sphere} points above the wall")
+        print("    gap/a | precondition free: its (s) | wall: its (s)")
+        for r in out["wall_gap"]:
+            print(f"    {r['gap']:5.2f} | {cell(r['free'])} | {cell(r['wall'])}")
+        out["rows"] = body_rows(args.sphere)
+        print(f"    B spheres of {args.sphere} points in a row, gap δ between them and to the wall")
+        print(
+            "    B | gap/a | wall: its (s) | wall, precondition 'wall': its (s) "
+            "| free space: its (s) | dense with wall (s)"
+        )
+        for r in out["rows"]:
+            dense = f"{r['dense_wall_s']:.2f}" if "dense_wall_s" in r else "-"
+            print(
+                f"    {r['bodies']:2d} | {r['gap']:4.1f} | {cell(r['wall'])} "
+                f"| {cell(r['wall_pc'])} | {cell(r['free'])} | {dense}"
+            )
     if args.json:
         with open(args.json, "w") as fh:
             json.dump(out, fh, indent=1)

@@ -244,3 +244,17 @@ def test_auto_choice():
     pair = SurfaceSet([small.place((0, 0, 2)), small.place((3, 0, 2))], MU, True)
     assert pair.n_points <= DENSE_MAX_POINTS and chosen_method(pair, "auto") == "dense"
     assert chosen_method(pair, "gmres") == "gmres"
+
+
+def test_factorization_kept_per_viscosity_and_not_pickled():
+    """One body-frame factorization per viscosity, shared by every placement; a pickled surface
+    leaves it behind (a worker makes its own) and solves the same."""
+    import pickle
+
+    s = RigidSurface(fibonacci_sphere(150), 0.5 * sphere_spacing(150))
+    first = solve_resistance(s.place((1, 2, 3), Q), U=(1, 0, 0), mu=MU)
+    assert s.self_factor(MU) is s.self_factor(MU) is not s.self_factor(2 * MU)
+    copy = pickle.loads(pickle.dumps(s))
+    assert copy._factors == {} and len(pickle.dumps(s)) < 20_000
+    again = solve_resistance(copy.place((1, 2, 3), Q), U=(1, 0, 0), mu=MU)
+    np.testing.assert_allclose(again.forces, first.forces, rtol=1e-12)

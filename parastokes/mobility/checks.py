@@ -57,6 +57,8 @@ def check_placements(
                     f"{name}: lies on or below the wall z = 0 (lowest point at z = {low:.4g}): "
                     f"raise its center by at least {-low + 0.5 * spacings[0]:.4g}"
                 )
+    if len(points) < 2:
+        return
     trees = [cKDTree(p) for p in points]
     for a in range(len(points)):
         for b in range(a + 1, len(points)):

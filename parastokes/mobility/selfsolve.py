@@ -68,6 +68,9 @@ class LabFactor:
     def solve(self, b: np.ndarray) -> np.ndarray:
         return sla.lu_solve(self._lu, b, check_finite=False)
 
+    def apply_minv_k(self, y: np.ndarray) -> np.ndarray:
+        return self.minv_k @ y
+
 
 class BodyFrameFactor:
     """A rigid surface's free-space M in its own frame, factorized once (viscosity ``mu``).
@@ -82,22 +85,31 @@ class BodyFrameFactor:
         self.residual = float(
             np.linalg.norm(self.lab.matrix @ self.lab.minv_k - k0) / np.linalg.norm(k0)
         )
+        self.lab.matrix = np.empty((0, 0))  # only the LU is kept: half the memory
 
 
 class RotatedFactor:
     """A :class:`BodyFrameFactor` applied at a placement (free space): the same interface as
-    :class:`LabFactor` in the lab frame, nothing refactorized."""
+    :class:`LabFactor` in the lab frame, nothing refactorized and nothing of size N x N formed.
+    As K = blockdiag(R) K0 diag(Rᵀ, Rᵀ), M⁻¹K in the lab is blockdiag(R) (M0⁻¹ K0) diag(Rᵀ, Rᵀ),
+    applied to a vector in :meth:`apply_minv_k`."""
 
     def __init__(self, placed: PlacedSurface, mu: float) -> None:
         self.base = placed.surface.self_factor(mu)
         r = placed.rotation
         self.rotation = r
-        r6 = np.zeros((6, 6))
-        r6[:3, :3] = r6[3:, 3:] = r
+        self.r6 = np.zeros((6, 6))
+        self.r6[:3, :3] = self.r6[3:, 3:] = r
         self.motion = placed.motion()
-        # M⁻¹K in the lab = blockdiag(R) (M0⁻¹ K0) diag(Rᵀ, Rᵀ), as K = blockdiag(R) K0 diag(Rᵀ, Rᵀ)
-        self.minv_k = block_rotate(r, self.base.lab.minv_k) @ r6.T
-        self.resistance = r6 @ self.base.lab.resistance @ r6.T
+        self.resistance = self.r6 @ self.base.lab.resistance @ self.r6.T
+
+    @property
+    def minv_k(self) -> np.ndarray:
+        """M⁻¹K (3N, 6B) in the lab."""
+        return block_rotate(self.rotation, self.base.lab.minv_k) @ self.r6.T
+
+    def apply_minv_k(self, y: np.ndarray) -> np.ndarray:
+        return block_rotate(self.rotation, self.base.lab.minv_k @ (self.r6.T @ y))
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         r = self.rotation
@@ -111,4 +123,4 @@ def saddle_solve(
     6B rigid unknowns): Y = (Kᵀ M⁻¹ K)⁻¹ (ft - Kᵀ M⁻¹ g), f = M⁻¹ K Y + M⁻¹ g."""
     minv_g = factor.solve(g) if np.any(g) else np.zeros_like(g)
     y = np.linalg.solve(factor.resistance, ft - motion.T @ minv_g)
-    return factor.minv_k @ y + minv_g, y
+    return factor.apply_minv_k(y) + minv_g, y

@@ -8,7 +8,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..mrs.operator import StokesletOperator
-from .checks import check_placements, nearest_spacing
+from .checks import check_placements
 from .rigid import PlacedSurface
 
 
@@ -61,22 +61,14 @@ class SurfaceSet:
         self.points = np.concatenate([p.points for p in self.placed])
         self.epsilon = np.concatenate([p.epsilon for p in self.placed])
         self.motions = [p.motion() for p in self.placed]
-        spacings = [float(np.median(nearest_spacing(p.surface.points))) for p in self.placed]
+        spacings = [p.surface.spacing for p in self.placed]
         self.spacings = spacings
         check_placements(
             [p.points for p in self.placed], spacings, [p.name for p in self.placed], self.wall
         )
         #: a length scale of the bodies (rms distance of the points from their centers), used to
         #: make the augmented system dimensionless
-        self.length = float(
-            np.sqrt(
-                np.mean(
-                    np.concatenate(
-                        [np.sum((p.points - p.center) ** 2, axis=1) for p in self.placed]
-                    )
-                )
-            )
-        )
+        self.length = float(np.sqrt(np.mean([p.surface.size**2 for p in self.placed])))
 
     @property
     def n_bodies(self) -> int:
