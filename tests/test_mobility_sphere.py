@@ -258,3 +258,30 @@ def test_factorization_kept_per_viscosity_and_not_pickled():
     assert copy._factors == {} and len(pickle.dumps(s)) < 20_000
     again = solve_resistance(copy.place((1, 2, 3), Q), U=(1, 0, 0), mu=MU)
     np.testing.assert_allclose(again.forces, first.forces, rtol=1e-12)
+
+
+@pytest.mark.parametrize("method", ["dense", "gmres"])
+def test_slip_in_the_body_frame(method):
+    """A slip given in the body frame equals the same slip turned to the lab (both solvers); the
+    reused factorization solves a body-frame slip once and then reuses it (same bits, at
+    another placement as well)."""
+    s = ellipsoid(150)
+    rng = np.random.default_rng(5)
+    slip_body = rng.normal(size=(len(s), 3))
+    placed = s.place((0.0, 0.0, 3.0), Q)
+    lab = solve_mobility(placed, mu=MU, slip=slip_body @ Q.T, method=method)
+    body = solve_mobility(placed, mu=MU, slip=slip_body, slip_frame="body", method=method)
+    for name in ("U", "Omega", "forces"):
+        ref = getattr(lab, name)
+        np.testing.assert_allclose(getattr(body, name), ref, atol=1e-9 * np.abs(ref).max())
+    res = solve_resistance(placed, U=(1, 0, 0), slip=slip_body, slip_frame="body", mu=MU)
+    res_lab = solve_resistance(placed, U=(1, 0, 0), slip=slip_body @ Q.T, mu=MU)
+    np.testing.assert_allclose(res.forces, res_lab.forces, atol=1e-9 * np.abs(res.forces).max())
+    if method == "dense":
+        factor = s.self_factor(MU)
+        assert any(np.array_equal(v[0], slip_body.ravel()) for v in factor._recent.values())
+        q2 = rotation((0.0, 1.0, 1.0), 2.0)
+        again = solve_mobility(
+            s.place((5.0, 1.0, 0.0), q2), mu=MU, slip=slip_body, slip_frame="body"
+        )
+        np.testing.assert_allclose(q2.T @ again.U[0], Q.T @ body.U[0], rtol=1e-10)

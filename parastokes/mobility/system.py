@@ -105,6 +105,22 @@ class SurfaceSet:
         """A per-point (N, 3) input (None: zeros) flattened to (3N,)."""
         return _vectors(name, value, (self.n_points, 3)).ravel()
 
+    def slip_vectors(self, value, frame: str) -> tuple[np.ndarray, np.ndarray | None]:
+        """The slip (N, 3) (None: zeros) flattened in the lab, and as given when ``frame`` is
+        ``"body"`` (each body's rows in its own frame, turned by its rotation to the lab)."""
+        if frame not in ("lab", "body"):
+            raise ValueError(f"slip_frame: must be 'lab' or 'body', got {frame!r}")
+        slip = _vectors("slip", value, (self.n_points, 3))
+        if frame == "lab":
+            return slip.ravel(), None
+        lab = np.concatenate(
+            [
+                slip[self.offsets[b] : self.offsets[b + 1]] @ p.rotation.T
+                for b, p in enumerate(self.placed)
+            ]
+        )
+        return lab.ravel(), slip.ravel()
+
     def body_vectors(self, name: str, value) -> np.ndarray:
         """A per-body (B, 3) input (None: zeros; one (3,) vector: the same for every body)."""
         return _vectors(name, value, (self.n_bodies, 3))
