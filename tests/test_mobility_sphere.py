@@ -244,3 +244,63 @@ def test_auto_choice():
     pair = SurfaceSet([small.place((0, 0, 2)), small.place((3, 0, 2))], MU, True)
     assert pair.n_points <= DENSE_MAX_POINTS and chosen_method(pair, "auto") == "dense"
     assert chosen_method(pair, "gmres") == "gmres"
+
+
+def test_factorization_kept_per_viscosity_and_not_pickled():
+    """One body-frame factorization per viscosity, shared by every placement; a pickled surface
+    leaves it behind (a worker makes its own) and solves the same."""
+    import pickle
+
+    s = RigidSurface(fibonacci_sphere(150), 0.5 * sphere_spacing(150))
+    first = solve_resistance(s.place((1, 2, 3), Q), U=(1, 0, 0), mu=MU)
+    assert s.self_factor(MU) is s.self_factor(MU) is not s.self_factor(2 * MU)
+    copy = pickle.loads(pickle.dumps(s))
+    assert copy._factors == {} and len(pickle.dumps(s)) < 20_000
+    again = solve_resistance(copy.place((1, 2, 3), Q), U=(1, 0, 0), mu=MU)
+    np.testing.assert_allclose(again.forces, first.forces, rtol=1e-12)
+
+
+@pytest.mark.parametrize("method", ["dense", "gmres"])
+def test_slip_in_the_body_frame(method):
+    """A slip given in the body frame equals the same slip turned to the lab (both solvers); the
+    reused factorization solves a body-frame slip once and then reuses it (same bits, at
+    another placement as well)."""
+    s = ellipsoid(150)
+    rng = np.random.default_rng(5)
+    slip_body = rng.normal(size=(len(s), 3))
+    placed = s.place((0.0, 0.0, 3.0), Q)
+    lab = solve_mobility(placed, mu=MU, slip=slip_body @ Q.T, method=method)
+    body = solve_mobility(placed, mu=MU, slip=slip_body, slip_frame="body", method=method)
+    for name in ("U", "Omega", "forces"):
+        ref = getattr(lab, name)
+        np.testing.assert_allclose(getattr(body, name), ref, atol=1e-9 * np.abs(ref).max())
+    res = solve_resistance(placed, U=(1, 0, 0), slip=slip_body, slip_frame="body", mu=MU)
+    res_lab = solve_resistance(placed, U=(1, 0, 0), slip=slip_body @ Q.T, mu=MU)
+    np.testing.assert_allclose(res.forces, res_lab.forces, atol=1e-9 * np.abs(res.forces).max())
+    if method == "dense":
+        factor = s.self_factor(MU)
+        assert any(np.array_equal(v[0], slip_body.ravel()) for v in factor._recent.values())
+        q2 = rotation((0.0, 1.0, 1.0), 2.0)
+        again = solve_mobility(
+            s.place((5.0, 1.0, 0.0), q2), mu=MU, slip=slip_body, slip_frame="body"
+        )
+        np.testing.assert_allclose(q2.T @ again.U[0], Q.T @ body.U[0], rtol=1e-10)
+
+
+def test_two_spheres_settling_stimson_jeffery():
+    """Two spheres (200 points each) settling along their line of centers under equal forces
+    move faster than one by 1/λ of Stimson & Jeffery (1926), within 1% at center distances
+    2.26a-7.5a (GMRES, several bodies); the series tends to 0.645 at contact and to
+    1/(1 + 3a/(4d)) far apart."""
+    from parastokes.mobility.two_spheres import stimson_jeffery
+
+    assert stimson_jeffery(1.0001) == pytest.approx(0.645, abs=5e-4)
+    assert stimson_jeffery(100.0) == pytest.approx(1 / (1 + 3 / 400), rel=1e-5)
+    s = sphere(200, 1.0)
+    single = solve_mobility(s.place(), mu=MU, external_force=(0, 0, -1)).U[0, 2]
+    for d in (1.1276, 1.5431, 3.7622):
+        pair = solve_mobility(
+            [s.place((0, 0, d)), s.place((0, 0, -d))], mu=MU, external_force=(0, 0, -1)
+        )
+        assert pair.info.method == "gmres"
+        np.testing.assert_allclose(pair.U[:, 2] / single, 1 / stimson_jeffery(d), rtol=0.01)

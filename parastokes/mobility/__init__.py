@@ -8,8 +8,8 @@
   preconditioner), :mod:`.choice` (which one), :mod:`.selfsolve` (the factorizations),
   :mod:`.scaling` (the dimensionless system), :mod:`.system` (several bodies in one fluid);
 - :mod:`.checks`: the input checks; :mod:`.errors`: :class:`SolveInfo`, :class:`SolveError`;
-- :mod:`.sphere`, :mod:`.wall_series`: sphere points and the exact wall corrections used by the
-  validation.
+- :mod:`.sphere`, :mod:`.wall_series`, :mod:`.two_spheres`: sphere points, the exact wall
+  corrections and the two-sphere series used by the validation.
 """
 
 from .checks import check_surface

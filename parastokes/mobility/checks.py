@@ -50,13 +50,15 @@ def check_placements(
     than half the smaller median spacing of the two (overlapping or touching: the discrete
     surfaces can no longer tell them apart)."""
     if wall:
-        for pts, name in zip(points, names, strict=True):
+        for pts, spacing, name in zip(points, spacings, names, strict=True):
             low = float(np.min(pts[:, 2]))
             if low <= 0.0:
                 raise ValueError(
                     f"{name}: lies on or below the wall z = 0 (lowest point at z = {low:.4g}): "
-                    f"raise its center by at least {-low + 0.5 * spacings[0]:.4g}"
+                    f"raise its center by at least {-low + 0.5 * spacing:.4g}"
                 )
+    if len(points) < 2:
+        return
     trees = [cKDTree(p) for p in points]
     for a in range(len(points)):
         for b in range(a + 1, len(points)):

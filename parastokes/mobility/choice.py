@@ -37,11 +37,19 @@ def solve(
     method: str,
     tol: float,
     precondition: str,
-) -> tuple[np.ndarray, np.ndarray | None, SolveInfo]:
+    y_known: np.ndarray | None = None,
+    g_body: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, SolveInfo]:
     """Dispatch to the direct or the GMRES solver (arguments of
     :func:`parastokes.mobility.direct.direct_solve`)."""
     if not (np.isfinite(tol) and 0 < tol < 1):
         raise ValueError(f"tol: must lie in (0, 1), got {tol!r}")
     if chosen_method(sset, method) == "dense":
-        return direct_solve(sset, g, ft)
-    return gmres_solve(sset, g, ft, tol, precondition)
+        return direct_solve(sset, g, ft, y_known, g_body)
+    if ft is None:
+        assert y_known is not None
+        f, _, info = gmres_solve(sset, g + sset.apply_motion(y_known), None, tol, precondition)
+        return f, y_known, info
+    f, y, info = gmres_solve(sset, g, ft, tol, precondition)
+    assert y is not None
+    return f, y, info

@@ -46,6 +46,7 @@ def solve_mobility(
     external_torque=None,
     slip=None,
     background=None,
+    slip_frame: str = "lab",
     method: str = "auto",
     tol: float = 1e-10,
     precondition: str = "free",
@@ -54,7 +55,7 @@ def solve_mobility(
     """Each body's rigid motion and the surface forces under external loads (see the module).
 
     ``external_force``, ``external_torque``: (B, 3) or (3,) (all bodies), default 0, on the
-    body, torque about its center; ``slip``, ``background``: (N, 3) as in
+    body, torque about its center; ``slip``, ``background``, ``slip_frame``: (N, 3) as in
     :func:`parastokes.mobility.solve_resistance`; ``method``, ``tol``, ``precondition``,
     ``n_threads``: the solver as there.
 
@@ -69,7 +70,8 @@ def solve_mobility(
         ],
         axis=1,
     )
-    g = sset.point_vectors("slip", slip) - sset.point_vectors("background", background)
-    f, y, info = solve(sset, g, ft, method, tol, precondition)
-    assert y is not None
+    slip_lab, slip_body = sset.slip_vectors(slip, slip_frame)
+    bg = sset.point_vectors("background", background)
+    g_body = slip_body if not np.any(bg) else None
+    f, y, info = solve(sset, slip_lab - bg, ft, method, tol, precondition, g_body=g_body)
     return MobilityResult(y[:, :3].copy(), y[:, 3:].copy(), f.reshape(-1, 3), info)

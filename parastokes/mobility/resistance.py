@@ -40,6 +40,7 @@ def solve_resistance(
     wall: bool = False,
     slip=None,
     background=None,
+    slip_frame: str = "lab",
     method: str = "auto",
     tol: float = 1e-10,
     precondition: str = "free",
@@ -57,6 +58,10 @@ def solve_resistance(
         Surface velocity relative to the rigid motion (a swimmer's surface motion).
     background : (N, 3) array, optional
         Velocity at the surface points induced by other forces (explicit bodies, a shear flow).
+    slip_frame : "lab" or "body"
+        The frame ``slip`` is given in: ``"body"``, each body's rows in its own frame (turned by
+        its rotation). A single body in free space then solves a slip fixed in its frame (a
+        squirmer's) once and reuses the result (no background) at every placement.
     method : "auto", "dense" or "gmres"
         Solver (:mod:`parastokes.mobility.choice`); ``tol``: GMRES relative residual.
     precondition : "free" or "wall"
@@ -68,12 +73,10 @@ def solve_resistance(
     """
     sset = SurfaceSet(surfaces, mu, wall, n_threads)
     y = np.concatenate([sset.body_vectors("U", U), sset.body_vectors("Omega", Omega)], axis=1)
-    g = (
-        sset.apply_motion(y)
-        + sset.point_vectors("slip", slip)
-        - sset.point_vectors("background", background)
-    )
-    f, _, info = solve(sset, g, None, method, tol, precondition)
+    slip_lab, slip_body = sset.slip_vectors(slip, slip_frame)
+    bg = sset.point_vectors("background", background)
+    g_body = slip_body if not np.any(bg) else None
+    f, _, info = solve(sset, slip_lab - bg, None, method, tol, precondition, y, g_body)
     totals = sset.reduce(f)
     return ResistanceResult(f.reshape(-1, 3), totals[:, :3], totals[:, 3:], info)
 

@@ -68,10 +68,32 @@ class RigidSurface:
         self.epsilon = _epsilon_array(epsilon, len(pts))
         self.epsilon.setflags(write=False)
         self._factors: dict[float, Any] = {}
+        self._spacing: float | None = None
         if check:
             from .checks import check_surface
 
             check_surface(pts, self.epsilon, name=name)
+
+    def __getstate__(self) -> dict:
+        """Pickled without the cached factorizations (hundreds of MB for a few thousand points):
+        a worker process makes its own on first use."""
+        state = self.__dict__.copy()
+        state["_factors"] = {}
+        return state
+
+    @property
+    def size(self) -> float:
+        """The rms distance of the points from the reference point (a length scale)."""
+        return float(np.sqrt(np.mean(np.sum(self.points**2, axis=1))))
+
+    @property
+    def spacing(self) -> float:
+        """The median distance from a point to its nearest neighbour (computed once)."""
+        if self._spacing is None:
+            from .checks import nearest_spacing
+
+            self._spacing = float(np.median(nearest_spacing(self.points)))
+        return self._spacing
 
     def __len__(self) -> int:
         return len(self.points)

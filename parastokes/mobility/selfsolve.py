@@ -21,6 +21,8 @@ from .rigid import PlacedSurface, RigidSurface, rigid_motion
 
 #: Smallest reciprocal condition number (1-norm estimate, LAPACK gecon) accepted for M.
 MIN_RCOND = 1e-12
+#: Right-hand sides remembered by :meth:`BodyFrameFactor.solve_cached`.
+CACHED_SOLVES = 4
 
 
 def lu_checked(matrix: np.ndarray, what: str) -> tuple:
@@ -68,6 +70,9 @@ class LabFactor:
     def solve(self, b: np.ndarray) -> np.ndarray:
         return sla.lu_solve(self._lu, b, check_finite=False)
 
+    def apply_minv_k(self, y: np.ndarray) -> np.ndarray:
+        return self.minv_k @ y
+
 
 class BodyFrameFactor:
     """A rigid surface's free-space M in its own frame, factorized once (viscosity ``mu``).
@@ -82,22 +87,50 @@ class BodyFrameFactor:
         self.residual = float(
             np.linalg.norm(self.lab.matrix @ self.lab.minv_k - k0) / np.linalg.norm(k0)
         )
+        self.lab.matrix = np.empty((0, 0))  # only the LU is kept: half the memory
+        self._recent: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+
+    def solve_cached(self, b_body: np.ndarray) -> np.ndarray:
+        """M0⁻¹ b_body, remembered for the last :data:`CACHED_SOLVES` right-hand sides (a slip
+        fixed in the body frame, as a squirmer's, is solved once; hits are checked bit for bit)."""
+        key = hash(b_body.tobytes())
+        hit = self._recent.get(key)
+        if hit is not None and np.array_equal(hit[0], b_body):
+            return hit[1]
+        x = self.lab.solve(b_body)
+        if len(self._recent) >= CACHED_SOLVES:
+            self._recent.pop(next(iter(self._recent)))
+        self._recent[key] = (b_body.copy(), x)
+        return x
 
 
 class RotatedFactor:
     """A :class:`BodyFrameFactor` applied at a placement (free space): the same interface as
-    :class:`LabFactor` in the lab frame, nothing refactorized."""
+    :class:`LabFactor` in the lab frame, nothing refactorized and nothing of size N x N formed.
+    As K = blockdiag(R) K0 diag(Rᵀ, Rᵀ), M⁻¹K in the lab is blockdiag(R) (M0⁻¹ K0) diag(Rᵀ, Rᵀ),
+    applied to a vector in :meth:`apply_minv_k`."""
 
     def __init__(self, placed: PlacedSurface, mu: float) -> None:
         self.base = placed.surface.self_factor(mu)
         r = placed.rotation
         self.rotation = r
-        r6 = np.zeros((6, 6))
-        r6[:3, :3] = r6[3:, 3:] = r
+        self.r6 = np.zeros((6, 6))
+        self.r6[:3, :3] = self.r6[3:, 3:] = r
         self.motion = placed.motion()
-        # M⁻¹K in the lab = blockdiag(R) (M0⁻¹ K0) diag(Rᵀ, Rᵀ), as K = blockdiag(R) K0 diag(Rᵀ, Rᵀ)
-        self.minv_k = block_rotate(r, self.base.lab.minv_k) @ r6.T
-        self.resistance = r6 @ self.base.lab.resistance @ r6.T
+        self.resistance = self.r6 @ self.base.lab.resistance @ self.r6.T
+
+    @property
+    def minv_k(self) -> np.ndarray:
+        """M⁻¹K (3N, 6B) in the lab."""
+        return block_rotate(self.rotation, self.base.lab.minv_k) @ self.r6.T
+
+    def apply_minv_k(self, y: np.ndarray) -> np.ndarray:
+        return block_rotate(self.rotation, self.base.lab.minv_k @ (self.r6.T @ y))
+
+    def solve_body(self, b_body: np.ndarray) -> np.ndarray:
+        """M⁻¹ b in the lab for b given in the body frame (b = blockdiag(R) b_body), through
+        the body frame factorization's cache of recent right-hand sides."""
+        return block_rotate(self.rotation, self.base.solve_cached(b_body))
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         r = self.rotation
@@ -105,10 +138,12 @@ class RotatedFactor:
 
 
 def saddle_solve(
-    factor, motion: np.ndarray, g: np.ndarray, ft: np.ndarray
+    factor, motion: np.ndarray, g: np.ndarray, ft: np.ndarray, minv_g: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
     """Solve M f = K Y + g, Kᵀ f = ft for (f, Y) with a factorized M (Schur complement on the
-    6B rigid unknowns): Y = (Kᵀ M⁻¹ K)⁻¹ (ft - Kᵀ M⁻¹ g), f = M⁻¹ K Y + M⁻¹ g."""
-    minv_g = factor.solve(g) if np.any(g) else np.zeros_like(g)
+    6B rigid unknowns): Y = (Kᵀ M⁻¹ K)⁻¹ (ft - Kᵀ M⁻¹ g), f = M⁻¹ K Y + M⁻¹ g. ``minv_g``:
+    M⁻¹ g when the caller has it."""
+    if minv_g is None:
+        minv_g = factor.solve(g) if np.any(g) else np.zeros_like(g)
     y = np.linalg.solve(factor.resistance, ft - motion.T @ minv_g)
-    return factor.minv_k @ y + minv_g, y
+    return factor.apply_minv_k(y) + minv_g, y

@@ -8,7 +8,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..mrs.operator import StokesletOperator
-from .checks import check_placements, nearest_spacing
+from .checks import check_placements
 from .rigid import PlacedSurface
 
 
@@ -61,22 +61,14 @@ class SurfaceSet:
         self.points = np.concatenate([p.points for p in self.placed])
         self.epsilon = np.concatenate([p.epsilon for p in self.placed])
         self.motions = [p.motion() for p in self.placed]
-        spacings = [float(np.median(nearest_spacing(p.surface.points))) for p in self.placed]
+        spacings = [p.surface.spacing for p in self.placed]
         self.spacings = spacings
         check_placements(
             [p.points for p in self.placed], spacings, [p.name for p in self.placed], self.wall
         )
         #: a length scale of the bodies (rms distance of the points from their centers), used to
         #: make the augmented system dimensionless
-        self.length = float(
-            np.sqrt(
-                np.mean(
-                    np.concatenate(
-                        [np.sum((p.points - p.center) ** 2, axis=1) for p in self.placed]
-                    )
-                )
-            )
-        )
+        self.length = float(np.sqrt(np.mean([p.surface.size**2 for p in self.placed])))
 
     @property
     def n_bodies(self) -> int:
@@ -112,6 +104,22 @@ class SurfaceSet:
     def point_vectors(self, name: str, value) -> np.ndarray:
         """A per-point (N, 3) input (None: zeros) flattened to (3N,)."""
         return _vectors(name, value, (self.n_points, 3)).ravel()
+
+    def slip_vectors(self, value, frame: str) -> tuple[np.ndarray, np.ndarray | None]:
+        """The slip (N, 3) (None: zeros) flattened in the lab, and as given when ``frame`` is
+        ``"body"`` (each body's rows in its own frame, turned by its rotation to the lab)."""
+        if frame not in ("lab", "body"):
+            raise ValueError(f"slip_frame: must be 'lab' or 'body', got {frame!r}")
+        slip = _vectors("slip", value, (self.n_points, 3))
+        if frame == "lab":
+            return slip.ravel(), None
+        lab = np.concatenate(
+            [
+                slip[self.offsets[b] : self.offsets[b + 1]] @ p.rotation.T
+                for b, p in enumerate(self.placed)
+            ]
+        )
+        return lab.ravel(), slip.ravel()
 
     def body_vectors(self, name: str, value) -> np.ndarray:
         """A per-body (B, 3) input (None: zeros; one (3,) vector: the same for every body)."""

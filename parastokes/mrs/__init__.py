@@ -4,9 +4,12 @@
   linear and angular velocity; batched systems).
 - :mod:`parastokes.mrs.compiled`: the numba kernels behind it.
 - :mod:`parastokes.mrs.reference`: the plain-numpy oracle the tests compare against.
+- :class:`StokesletOperator` (:mod:`parastokes.mrs.operator`): the force -> velocity map as a
+  linear operator, matrix-free or assembled (the rigid-body solves of :mod:`parastokes.mobility`).
 """
 
 from . import reference
+from .operator import StokesletOperator
 from .velocity import velocity
 
-__all__ = ["reference", "velocity"]
+__all__ = ["StokesletOperator", "reference", "velocity"]

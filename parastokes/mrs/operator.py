@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from .velocity import kernel_threads, validated
+from .velocity import thread_count, validated
 from .velocity import velocity as _velocity
 
 #: Entries of the (tile, N, 3, 3) temporaries of :meth:`StokesletOperator.dense` per tile: rows
@@ -116,8 +116,7 @@ class StokesletOperator:
         t, s, _, _, eps, visc = validated(tgt, sources_arr, zero, None, epsilon, mu, wall)
         if t.ndim != 2:
             raise ValueError(f"targets: expected shape (M, 3), got {t.shape}")
-        with kernel_threads(n_threads):
-            pass  # validates n_threads before any work
+        thread_count(n_threads)  # validates n_threads before any work
         self.targets = np.ascontiguousarray(t)
         #: targets are the sources: A is square and symmetric
         self.square = targets is None
