@@ -13,8 +13,8 @@ vesicle nodes, the scalar model and ||DG|| over the paper's slices.
 from __future__ import annotations
 
 import pytest
-
 from documented import check, values
+
 from validation import coarse_slices as script
 
 NAMES = list(script.CASES)

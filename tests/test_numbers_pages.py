@@ -12,7 +12,6 @@ import math
 import re
 
 import pytest
-
 from documented import PAGES, RESERVED, ROOT, bindings, page_mismatches, printed_as, registry
 
 

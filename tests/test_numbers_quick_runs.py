@@ -14,8 +14,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-
 from documented import check, values
+
 from validation import quick_errors
 
 QUICK = sorted(p.stem for p in (Path(__file__).parents[1] / "experiments" / "quick").glob("*.toml"))

@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from documented import check, values
+
 from validation import rod_extrapolation as script
 
 SETUP = script.FULL
