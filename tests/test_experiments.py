@@ -139,15 +139,7 @@ def test_quick_run(name, tmp_path):
 # steps) it amplifies them at most 1.2 fold, as do the other quick variants over their slices
 # (Table 7 G^3: 2 fold). Numbers: docs/validation.md, "Where our runs of the paper's coarse
 # solvers differ" (python -m validation.coarse_slices).
-PAPER_SLICES = {
-    "table5_g1",
-    "table5_g2",
-    "table7_g1",
-    "table7_g2",
-    "table8_g1",
-    "table8_g2",
-    "table8_g3",
-}
+from validation.quick_errors import PAPER_SLICES  # noqa: E402  (the seven, shared)
 
 
 @pytest.mark.parametrize("name", sorted(PAPER_SLICES))

@@ -11,9 +11,8 @@ monitor value (rod length / vesicle area change) of the serial solution instead.
 The recorded values live in ``docs/numbers.toml`` (``[quick_eta1]``, ``[quick_eta1_twins]``;
 see docs/validation.md); ``tests/test_numbers_quick_runs.py`` recomputes them. Usage (from the
 repository root): ``python -m validation.quick_errors [--twins] [--sensitivity] [NAME ...]``
-prints each configuration's
-``[eta1, increment1, monitor]`` as the registry's TOML lines (every quick variant, or with
-``--twins`` every CI-sized twin, when no name is given).
+prints each configuration's ``[eta1, increment1, monitor]`` as the registry's TOML lines (every
+quick variant, or with ``--twins`` every CI-sized twin, when no name is given).
 """
 
 from __future__ import annotations
@@ -31,19 +30,14 @@ from parastokes.config.build import build
 ROOT = Path(__file__).resolve().parents[1]
 QUICK = ROOT / "experiments" / "quick"
 
-#: Quick variants too long for the default test run (tens of seconds each: the seven that keep the
-#: paper's slice length, see docs/validation.md section 2, and the scene): they are recomputed in
-#: full by a slow test, and in the default run by their CI-sized twins below.
-EXPENSIVE = (
-    "scene_rod_passes_vesicle",
-    "table5_g1",
-    "table5_g2",
-    "table7_g1",
-    "table7_g2",
-    "table8_g1",
-    "table8_g2",
-    "table8_g3",
+#: The quick variants that keep the paper's slice length T/N_c (docs/validation.md section 2).
+PAPER_SLICES = frozenset(
+    {"table5_g1", "table5_g2", "table7_g1", "table7_g2", "table8_g1", "table8_g2", "table8_g3"}
 )
+#: Quick variants too long for the default test run (tens of seconds each: those seven and the
+#: scene): they are recomputed in full by a slow test, and in the default run by their CI-sized
+#: twins below.
+EXPENSIVE = ("scene_rod_passes_vesicle", *sorted(PAPER_SLICES))
 #: The CI-sized twin of each expensive variant: the same configuration over two short slices (for
 #: the seven, the former quick slices over which their coarse solver is not yet stable, so their
 #: eta^1 is large; it is a fingerprint of the whole configuration, not an accuracy claim).
