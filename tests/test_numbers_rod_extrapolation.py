@@ -66,6 +66,8 @@ def test_fig3_steps_and_first_iterates(reference):
         if i:
             check("rod_fig3", "plain_within_limit", row["plain_within_limit"], i)
     check("rod_fig3", "tau_c_growth", rows[4]["tau_c_over_tau_f"] / rows[1]["tau_c_over_tau_f"])
+    monitor = max(SETUP.rod().monitor(x) for x in reference)
+    check("rod_fig3", "reference_monitor_percent", 100 * monitor)
 
 
 def test_fig5_first_iterates(reference):

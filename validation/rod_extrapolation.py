@@ -362,6 +362,8 @@ def documented_numbers(results: dict) -> dict[str, dict[str, Any]]:
             "edge_tau_c": [e["edge"]["tau_c_over_tau_f"] for e in entries],
             "edge_eta1": [e["edge"]["eta1"] for e in entries],
             "tau_c_growth": rows3[-1]["tau_c_over_tau_f"] / rows3[0]["tau_c_over_tau_f"],
+            # the fine solution's largest relative length change, in percent
+            "reference_monitor_percent": 100 * results["setup"]["reference_max_monitor"],
         },
         "rod_fig5": {
             "plain_eta1": f5["plain"]["eta1"],
