@@ -11,6 +11,8 @@ every registered number.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from documented import check, values
@@ -87,6 +89,21 @@ def test_fig5_first_iterates(reference):
         steps, weights = g4.plan(0.0, SETUP.slice_length)
         check("rod_fig5", "richardson_steps", list(steps / SETUP.tau_f))
         check("rod_fig5", "richardson_weights", list(weights))
+
+
+def test_step_limit_over_a_shorter_span():
+    """The limit shrinks with the span: 12.9 tau_f over [0, 1e-3] against 12.2 over [0, 1e-2]."""
+    short = dataclasses.replace(SETUP, t_end=1e-3)
+    limit = script._largest_stable_step(short, short.rod().epsilon) / SETUP.tau_f
+    check("rod_step_limits", "tau_max_span_1e3", limit)
+
+
+@pytest.mark.slow
+def test_step_limits_of_the_paper_rod():
+    """M = 301 (L = 60) has the same limits as M = 61: the rod length does not set them."""
+    paper = dataclasses.replace(SETUP, n_points=301, length=60.0)
+    limits = [script._largest_stable_step(paper, f * paper.sigma_f) / SETUP.tau_f for f in (5, 5.6)]
+    check("rod_step_limits", "tau_max_m301", limits)
 
 
 @pytest.mark.slow
