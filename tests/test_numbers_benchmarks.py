@@ -1,8 +1,9 @@
 """The quick-scale physics/algorithm numbers of docs/benchmarks.md (not its timings), recomputed
 and compared with ``docs/numbers.toml`` (``[bench_parareal]``): eta~^1 and eta^1 of the Parareal
 benchmark's cases (``benchmarks/parareal.py``, section "Speedup against eq. 14", N_c = 2 slices,
-one iteration; the same rod run is the N_c = 2, N_it = 1 row of the strong-scaling table). The
-rod runs by default (M = 301, 2 x 500 RK2 steps); the vesicle (2 x 1000 steps) is slow.
+one iteration; the same rod run is the N_c = 2, N_it = 1 row of the strong-scaling table), and
+the Parareal column of the Fig. 10 analogue (five rods). The rod cases run by default (M = 301,
+2 x 500 RK2 steps; five rods, 40 steps); the vesicle (2 x 1000 steps) is slow.
 """
 
 from __future__ import annotations
@@ -34,3 +35,12 @@ def test_vesicle_speedup_case_first_iterate():
     increment, error = _first_iteration("vesicle")
     check("bench_parareal", "vesicle_increment1", increment)
     check("bench_parareal", "vesicle_eta1", error)
+
+
+def test_fig10_parareal_iterations():
+    """Fig. 10's five rods on N_c = 2 slices of 20 fine steps, stopping at eta~ < 1e-5 (at most
+    N_c iterations): the N_it and eta~ of the table in docs/benchmarks.md."""
+    with benchmark_module("parareal") as bench:
+        res = bench.run_parareal(bench.rod_case(5, 0.0), 2, 40e-6, None, 2, tol=1e-5)
+    check("bench_parareal", "fig10_iterations", res.iterations)
+    check("bench_parareal", "fig10_increment", res.increments[-1])
