@@ -5,7 +5,6 @@ from __future__ import annotations
 import functools
 import importlib.util
 import json
-import os
 import sys
 
 import numpy as np
@@ -241,6 +240,7 @@ def test_ctrl_c_during_start_up_does_not_wait_for_the_warm_ups():
 def test_spawned_workers_outlive_the_thread_that_started_them():
     """With spawn, a worker's parent is the thread that started it; the kernel's parent-death
     signal would kill the workers when that thread ends (regression: the pool broke)."""
+    import os
     import threading
 
     made = {}
