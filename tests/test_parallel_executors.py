@@ -276,6 +276,7 @@ def test_ctrl_c_during_start_up_does_not_wait_for_the_warm_ups():
 def test_spawned_workers_outlive_the_thread_that_started_them():
     """With spawn, a worker's parent is the thread that started it; the kernel's parent-death
     signal would kill the workers when that thread ends (regression: the pool broke)."""
+    import os
     import threading
 
     made = {}
@@ -284,5 +285,11 @@ def test_spawned_workers_outlive_the_thread_that_started_them():
     thread.start()
     thread.join()
     with made["ex"] as ex:
-        assert sorted(ex.map(tasks.pid_after, [0.05] * 2)) and len(ex.worker_pids) == 2
+        workers = set(ex.worker_pids)
+        assert len(workers) == 2 and os.getpid() not in workers
+        ran_on = set(ex.map(tasks.pid_after, [0.05] * 4))
+        assert ran_on and ran_on <= workers  # the tasks ran on the pool's own workers
         assert list(ex.map(abs, [-1, -2])) == [1, 2]
+        for pid in workers:  # both still alive after the starting thread ended and the tasks ran
+            os.kill(pid, 0)
+        assert set(ex.worker_pids) == workers  # none replaced

@@ -6,6 +6,7 @@ import pickle
 
 import numpy as np
 import pytest
+from documented import check
 from rods import helix_rod
 from scipy.spatial.transform import Rotation
 
@@ -211,6 +212,8 @@ def test_free_rod_relaxes_to_helix():
     k, t = curvature_torsion(x, rod.ds)
     np.testing.assert_allclose(k, kappa, rtol=0.01)  # O(Δs²) discretization
     np.testing.assert_allclose(t, tau, rtol=0.01)
+    check("physics_core", "helix_curvature", float(k.mean()))  # docs/validation.md section 3
+    check("physics_core", "helix_torsion", float(t.mean()))
 
 
 def test_swimmer_swims_against_its_wave():
@@ -228,7 +231,7 @@ def test_swimmer_swims_against_its_wave():
         assert np.ptp(res.state[:, 1]) == pytest.approx(2 * rod.amplitude, rel=0.1)
         assert res.max_monitor < rod.monitor_limit
     plus, minus = drifts
-    assert 0.05 < plus[0] < 0.3  # about 2 μm/s at this resolution
+    check("physics_core", "swimmer_drift_x", plus[0])  # ~0.11 per beat, docs/validation.md
     assert abs(plus[2]) < 0.05 * plus[0]
     np.testing.assert_allclose(minus, plus * [-1, -1, 1], rtol=0, atol=1e-9)
 

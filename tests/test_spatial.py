@@ -91,9 +91,35 @@ def test_measure_speedup_eq35(case):
     result = spatial.measure_speedup(
         serial, spatial.fine_solver(system, "rk2", dt, n_threads=2), 0.0, t1, x0, repeats=2
     )
-    assert result.difference == 0.0 and result.repeats == 2
-    assert result.serial_time > 0 and result.parallel_time > 0
-    assert result.speedup == result.serial_time / result.parallel_time
+    assert result.difference == 0.0 and result.repeats == 2  # the threaded F is the serial F
+
+
+def test_measure_speedup_is_eq35_on_a_known_clock(monkeypatch):
+    """Eq. 35, Upsilon_F / Upsilon_sp, with each the total runtime of one whole solve over
+    [t0, t1] from x0: on a clock that the two propagators advance by known amounts, the result is
+    the best serial time over the best parallel time, the solves alternate, every one starts from
+    the same x0 over the same interval, and ``difference`` is max |x_sp - x_F| / max |x_F|."""
+    clock = [0.0]
+    monkeypatch.setattr(spatial.time, "perf_counter", lambda: clock[0])
+    calls = []
+    x0 = np.array([[1.0, -4.0, 2.0]])
+
+    def propagator(label, durations, offset):
+        def run(t0, t1, x):
+            calls.append((label, t0, t1, x.copy()))
+            clock[0] += durations[sum(c[0] == label for c in calls) - 1]
+            return x + offset
+
+        return run
+
+    serial = propagator("F", [5.0, 3.0, 4.0], 0.0)
+    parallel = propagator("sp", [2.0, 2.5, 1.5], 1e-3)
+    result = spatial.measure_speedup(serial, parallel, 0.25, 0.75, x0, repeats=3)
+    assert (result.serial_time, result.parallel_time) == (3.0, 1.5)
+    assert result.speedup == 2.0
+    assert [c[0] for c in calls] == ["F", "sp"] * 3
+    assert all(c[1:3] == (0.25, 0.75) and np.array_equal(c[3], x0) for c in calls)
+    assert result.difference == pytest.approx(1e-3 / 4.0)
 
 
 def test_threaded_fine_solver_in_parareal_on_processes(pool):

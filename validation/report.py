@@ -16,3 +16,20 @@ def print_claims(results: dict) -> None:
     """One line per claim of ``results["claims"]``: ``holds`` or ``FAILS``."""
     for name, holds in results["claims"].items():
         print(f"{'holds' if holds else 'FAILS'}: {name}")
+
+
+def toml_values(numbers: dict) -> str:
+    """``numbers`` (name -> number, boolean or list of them) as the value lines of a group of
+    docs/numbers.toml, at full precision (``nan`` for NaN), for pasting into the registry."""
+
+    def one(value) -> str:
+        if isinstance(value, bool):
+            return "true" if value else "false"
+        return repr(float(value))
+
+    return "\n".join(
+        f"{name} = [{', '.join(one(v) for v in value)}]"
+        if isinstance(value, list)
+        else f"{name} = {one(value)}"
+        for name, value in numbers.items()
+    )

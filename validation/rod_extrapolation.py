@@ -43,13 +43,14 @@ import numpy as np
 
 from parastokes import integrate, models, parareal
 from parastokes.kinds.rod.system import RodSystem
-from validation.report import print_claims, write_results
+from validation.report import print_claims, toml_values, write_results
 
 __all__ = [
     "FULL",
     "QUICK",
     "Setup",
     "claims",
+    "documented_numbers",
     "epsilon_nodes",
     "fig3",
     "fig5",
@@ -341,6 +342,40 @@ def claims(results: dict) -> dict[str, bool]:
     }
 
 
+def documented_numbers(results: dict) -> dict[str, dict[str, Any]]:
+    """The numbers docs/validation.md prints from ``results``, as the groups ``rod_fig3`` and
+    ``rod_fig5`` of docs/numbers.toml (rows: the plain G_{eps^0, tau}, then each epsilon^1; each
+    N_epsilon)."""
+    f3, f5 = results["fig3"], results["fig5"]
+    rows3, rows5 = f3["rows"], f5["rows"]
+    entries = [f3["plain"], *rows3]
+    g3 = [row["lagrange"]["eta1"] for row in rows5]
+    g4 = [row["richardson"]["eta1"] for row in rows5]
+    return {
+        "rod_fig3": {
+            "sum_abs_weights": [1.0] + [row["sum_abs_weights"] for row in rows3],
+            "tau_max": [e["tau_max_over_tau_f"] for e in entries],
+            "tau_c": [e["tau_c_over_tau_f"] for e in entries],
+            "eta1": [e["eta1"] for e in entries],
+            # the plain solver keeps the limit at its own tau_c by construction
+            "plain_within_limit": [True] + [row["plain_within_limit_at_tau_c"] for row in rows3],
+            "edge_tau_c": [e["edge"]["tau_c_over_tau_f"] for e in entries],
+            "edge_eta1": [e["edge"]["eta1"] for e in entries],
+            "tau_c_growth": rows3[-1]["tau_c_over_tau_f"] / rows3[0]["tau_c_over_tau_f"],
+            # the fine solution's largest relative length change, in percent
+            "reference_monitor_percent": 100 * results["setup"]["reference_max_monitor"],
+        },
+        "rod_fig5": {
+            "plain_eta1": f5["plain"]["eta1"],
+            "g3_eta1": g3,
+            "g4_eta1": g4,
+            "g3_over_g4": [a / b for a, b in zip(g3, g4, strict=True)],
+            "richardson_steps": rows5[0]["richardson_steps_over_tau_f"],
+            "richardson_weights": rows5[0]["richardson_weights"],
+        },
+    }
+
+
 def run_all(setup: Setup, log=print) -> dict:
     """The reference solution, Fig. 3 and Fig. 5 data, and the claims, as one JSON-ready dict."""
     start = time.perf_counter()
@@ -509,6 +544,8 @@ def main(argv: Sequence[str] | None = None) -> dict:
     plot_fig5(results, args.out / f"rod_fig5{suffix}.png")
     print(markdown_tables(results))
     print_claims(results)
+    for group, numbers in documented_numbers(results).items():  # docs/numbers.toml
+        print(f"[{group}] values:\n{toml_values(numbers)}")
     print(f"total {results['runtime_s']:.1f}s; written to {args.out}")
     return results
 

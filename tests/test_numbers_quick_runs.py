@@ -1,0 +1,50 @@
+"""Every quick variant of the paper's experiments, end to end, against its recorded first iterate.
+
+For each ``experiments/quick/NAME.toml``: the configuration built as ``parastokes run`` builds it,
+its serial fine solution and one Parareal iteration (``validation/quick_errors.py``), with eta^1
+(eq. 34), eta~^1 and the largest monitor value compared with ``docs/numbers.toml``
+(``[quick_eta1]``). The variants that take tens of seconds run in full under ``-m slow``; in the
+default run, their CI-sized twins (two short slices, ``[quick_eta1_twins]``) do. A change to a
+kernel, a model, a propagator, the coarse-solver construction, the weights or the Parareal update
+moves these numbers far beyond the tolerance (measured: bit-identical on 1 and 2 threads).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from documented import check, values
+
+from validation import quick_errors
+
+QUICK = sorted(p.stem for p in (Path(__file__).parents[1] / "experiments" / "quick").glob("*.toml"))
+CHEAP = [name for name in QUICK if name not in quick_errors.EXPENSIVE]
+FIELDS = ("eta1", "increment1", "monitor")
+
+
+def _compare(group: str, name: str, overrides=()) -> None:
+    computed = quick_errors.first_iterate(name, overrides)
+    check(group, name, [computed[k] for k in FIELDS])
+
+
+def test_every_quick_variant_is_recorded():
+    assert sorted(values("quick_eta1")) == QUICK
+    assert sorted(values("quick_eta1_twins")) == sorted(quick_errors.EXPENSIVE)
+    assert sorted(quick_errors.CI_TWINS) == sorted(quick_errors.EXPENSIVE)
+
+
+@pytest.mark.parametrize("name", CHEAP)
+def test_quick_variant_first_iterate(name):
+    _compare("quick_eta1", name)
+
+
+@pytest.mark.parametrize("name", sorted(quick_errors.CI_TWINS))
+def test_ci_twin_first_iterate(name):
+    _compare("quick_eta1_twins", name, quick_errors.CI_TWINS[name])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", quick_errors.EXPENSIVE)
+def test_expensive_quick_variant_first_iterate(name):
+    _compare("quick_eta1", name)
