@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from ..contracts import PropagatorLike, check_workers
+from ..contracts import PropagatorLike, TracingCoarse, check_workers
 from ..contracts import with_executor as _with_executor
 from ..parallel import SerialExecutor, TaskError, run_labelled
 from ..values import is_real
@@ -185,13 +185,51 @@ def correct(
     coarse_value: np.ndarray,
     previous_coarse: np.ndarray,
     project: Callable[[np.ndarray], np.ndarray] | None,
+    difference: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
 ) -> np.ndarray:
     """Eq. 11: X_n^k = F(X_{n-1}^{k-1}) + (G(X_{n-1}^k) - G(X_{n-1}^{k-1})), then ``project``.
 
-    Both schedules correct through this one function, so their iterates agree bit for bit.
+    ``difference(new, old)`` replaces G(new) - G(old) for a tracing coarse solver
+    (:class:`~parastokes.contracts.TracingCoarse`, :func:`correction_of`). Both schedules correct
+    through this one function, so their iterates agree bit for bit.
     """
-    corrected = fine_value + (coarse_value - previous_coarse)
+    if difference is None:
+        corrected = fine_value + (coarse_value - previous_coarse)
+    else:
+        corrected = fine_value + difference(coarse_value, previous_coarse)
     return corrected if project is None else project(corrected)
+
+
+def is_tracing(coarse: PropagatorLike) -> bool:
+    """Whether ``coarse`` keeps traces and corrects by its own rule (:class:`TracingCoarse`)."""
+    return isinstance(coarse, TracingCoarse)
+
+
+def step_of(coarse: PropagatorLike, k: int) -> PropagatorLike:
+    """The coarse step G_n^k as a propagator ``(t_start, t_end, x) -> value``: ``coarse`` itself,
+    or, for a tracing coarse solver, its ``trace`` of iteration k (picklable with ``coarse``)."""
+    if is_tracing(coarse):
+        return functools.partial(coarse.trace, k=k)  # type: ignore[attr-defined]
+    return coarse
+
+
+def correction_of(
+    coarse: PropagatorLike, t_start: float, t_end: float, k: int
+) -> Callable[[np.ndarray, np.ndarray], np.ndarray] | None:
+    """The ``difference`` of :func:`correct` on slice (t_start, t_end) in iteration k: None
+    (eq. 11) unless ``coarse`` is tracing."""
+    if is_tracing(coarse):
+        return functools.partial(coarse.correction, t_start, t_end, k=k)  # type: ignore[attr-defined]
+    return None
+
+
+def initial_state(coarse: PropagatorLike, t_start: float, t_end: float,
+                  value: np.ndarray) -> np.ndarray:
+    """X_n^0 from the coarse step G_n^0 of the initial sweep (eq. 9): the value itself, or the
+    end state of a tracing coarse solver's trace."""
+    if is_tracing(coarse):
+        return coarse.end_state(t_start, t_end, value)  # type: ignore[attr-defined]
+    return value
 
 
 class _Clocked:
@@ -271,14 +309,18 @@ def _initial_sweep(
     states[0] = x0
     timings = Timings(coarse=[[]])
     sweep_start = time.perf_counter()
+    traces = []
     for n in range(1, n_slices + 1):
-        states[n], seconds = _kept_coarse_step(
-            coarse, times, n, states[n - 1], 0, memo, timings, origin
+        value, seconds = _kept_coarse_step(
+            step_of(coarse, 0), times, n, states[n - 1], 0, memo, timings, origin
         )
+        states[n] = initial_state(coarse, times[n - 1], times[n], value)
+        traces.append(value)
         timings.coarse[0].append(seconds)
     timings.serial_sweeps.append(time.perf_counter() - sweep_start)
+    coarse_values = np.array(traces) if is_tracing(coarse) else states[1:].copy()
     return ckpt.Progress(
-        0, states, states[1:].copy(), errors=[] if with_errors else None, timings=timings
+        0, states, coarse_values, errors=[] if with_errors else None, timings=timings
     )
 
 
@@ -348,10 +390,11 @@ def _iterate(
     start = time.perf_counter()
     for n in range(k + 1, len(times)):
         value, seconds = _kept_coarse_step(
-            coarse, times, n, states[n - 1], k, memo, record, origin
+            step_of(coarse, k), times, n, states[n - 1], k, memo, record, origin
         )
         coarse_times.append(seconds)
-        states[n] = correct(fine_values[n - k], value, coarse_values[n - 1], project)
+        states[n] = correct(fine_values[n - k], value, coarse_values[n - 1], project,
+                            correction_of(coarse, times[n - 1], times[n], k))
         coarse_values[n - 1] = value
     serial_time = time.perf_counter() - start
 

@@ -9,7 +9,8 @@ Berry et al. 2012; Ruprecht 2017; docs/parareal.md):
 - the coarse step G_n^k = G(T_{n-1}, T_n, X_{n-1}^k) for n = k+1..N (k = 0: the initial sweep,
   eq. 9) starts once X_{n-1}^k exists; a coarse solver with ``split`` (an extrapolated one, eq. 30)
   runs each of its N_G auxiliary solves as a task of its own and is combined on the manager;
-- X_k^k = F_k^k, and X_n^k = project(F_n^k + (G_n^k - G_n^{k-1})) (eq. 11) is formed on the
+- X_k^k = F_k^k, and X_n^k = project(F_n^k + (G_n^k - G_n^{k-1})) (eq. 11; a tracing coarse
+  solver's own correction of its traces G_n^k, G_n^{k-1} instead) is formed on the
   manager as soon as its three inputs exist, by :func:`~parastokes.parareal.algorithm.correct`,
   the function Algorithm 1 uses: the iterates are Algorithm 1's, bit for bit.
 
@@ -48,7 +49,11 @@ from .algorithm import (
     PropagatorLike,
     coarse_error,
     correct,
+    correction_of,
     fine_label,
+    initial_state,
+    is_tracing,
+    step_of,
     stop_reason,
 )
 from .timings import Timings
@@ -233,14 +238,15 @@ class _Pipeline:
         if kept is not None:
             self.replay.append((COARSE, n, k, *kept))
             return
-        split = getattr(self.coarse, "split", None)
+        split = None if is_tracing(self.coarse) else getattr(self.coarse, "split", None)
         try:
             parts = None if split is None else split(t_start, t_end, x)
         except Exception as exc:
             self.fail(k, coarse_error(exc, n, k))
             return
         if parts is None:
-            self.workers.add(_Job(COARSE, n, k, self.coarse, (t_start, t_end, x), "coarse step"))
+            step = step_of(self.coarse, k)
+            self.workers.add(_Job(COARSE, n, k, step, (t_start, t_end, x), "coarse step"))
             return
         tasks, combine = parts
         self.groups[n, k] = _Group(combine, [None] * len(tasks), len(tasks), (t_start, t_end, x))
@@ -264,6 +270,7 @@ class _Pipeline:
                 self.coarse_values[n, k],
                 self.coarse_values[n, k - 1],
                 self.project,
+                correction_of(self.coarse, self.times[n - 1], self.times[n], k),
             )
             self.set_state(n, k, value)
 
@@ -274,7 +281,8 @@ class _Pipeline:
         self.coarse_times[n, k] = duration
         self.coarse_values[n, k] = value
         if k == 0:
-            self.set_state(n, 0, value)
+            self.set_state(n, 0, initial_state(self.coarse, self.times[n - 1], self.times[n],
+                                               value))
         else:
             self.try_correct(n, k)
         if n > k + 1:
@@ -399,9 +407,11 @@ class _Pipeline:
                 states[n] = self.x[n, 0]
             timings = Timings(coarse=[coarse], serial_sweeps=[coarse_span], tasks=tasks)
             errors: list[float] | None = [] if self.book.reference is not None else None
-            self.progress = ckpt.Progress(
-                0, states, states[1:].copy(), errors=errors, timings=timings
-            )
+            if is_tracing(self.coarse):
+                traces = np.array([self.coarse_values[n, 0] for n in range(1, n_slices + 1)])
+            else:
+                traces = states[1:].copy()
+            self.progress = ckpt.Progress(0, states, traces, errors=errors, timings=timings)
             self.book.initial_sweep_done(self.progress)
             return None
         progress = self.progress
