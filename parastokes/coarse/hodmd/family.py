@@ -28,12 +28,23 @@ from ..extrapolated import Extrapolated
 from ..registry import CoarseResolution, CoarseSection
 from .solver import HodmdCoarse, as_windows, traced_window
 
-__all__ = ["Hodmd", "PAIR_FLOPS"]
+__all__ = ["PAIR_FLOPS", "Hodmd", "hodmd_flops"]
 
 #: Floating-point operations of one Stokeslet pair in a rate evaluation (the MRS kernels with
 #: wall images do about this many), used to put HODMD's SVDs on the scale of γ_F; an estimate:
 #: the slice-cost probe measures the real ratio.
 PAIR_FLOPS = 200.0
+
+
+def hodmd_flops(rows: int, snapshots: int, d: int) -> float:
+    """Flops of one HODMD of ``rows`` × ``snapshots`` data (upper bounds of the ranks): the two
+    thin SVDs (4mn² + 22n³ each: J × K, then dN × (K − d + 1) with N <= K) and the amplitudes'
+    least squares ((K N) × M with M <= K − d + 1: 2(KN)M²)."""
+    k, n_rank = snapshots, min(rows, snapshots)
+    width = max(1, k - d + 1)
+    first = 4 * rows * k**2 + 22 * k**3
+    second = 4 * d * n_rank * width**2 + 22 * width**3
+    return float(first + second + 2 * k * n_rank * width**2)
 
 
 class Hodmd(CoarseSection):
@@ -134,9 +145,8 @@ class Hodmd(CoarseSection):
         """γ_G/γ_F of one coarse step (a trace and its correction), from operation counts:
 
         G1 over the mean trace window (iterations 1..K), G2 over the slice, each as rate
-        evaluations times (points)² in ceil(N_G / cores) rounds, plus HODMD's SVDs (two per column
-        group, 4JK² + 22K³ flops each, and the amplitudes' least squares) at
-        :data:`PAIR_FLOPS` flops per Stokeslet pair."""
+        evaluations times (points)² in ceil(N_G / cores) rounds, plus one HODMD per column group
+        (:func:`hodmd_flops`) at :data:`PAIR_FLOPS` flops per Stokeslet pair."""
         g1, g2 = self._resolve_nested(cfg, resolved)
         iterations = cfg.parareal.max_iterations or 3
         traced = statistics.mean(traced_window(self.windows(), k)
@@ -151,9 +161,6 @@ class Hodmd(CoarseSection):
         solves = cost(self.g1, g1, traced) + cost(self.g2, g2, self.snapshots)
         rows = resolved.n_points * 3  # one column group of three (rods: X, D1, D2, D3)
         groups = 4 if cfg.model.kind == "rod" else 1
-        k_cols = self.windows()[-1] + 1
-        svd = 4 * rows * k_cols**2 + 22 * k_cols**3
-        modes = min(rows, k_cols) * self.d
-        lstsq = 2 * k_cols * rows * modes**2 / max(1, self.d)
-        return (solves + groups * (2 * svd + lstsq) / PAIR_FLOPS) / fine
+        svd = hodmd_flops(rows, self.windows()[-1] + 1, self.d)
+        return (solves + groups * svd / PAIR_FLOPS) / fine
 

@@ -29,7 +29,7 @@ serve as x_old in the next correction.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -48,6 +48,10 @@ def _groups(shape: tuple[int, ...]) -> list[slice]:
     if len(shape) == 2 and shape[1] % 3 == 0 and shape[1] > 3:
         return [slice(c, c + 3) for c in range(0, shape[1], 3)]
     return [slice(None)]
+
+
+def _same(x: np.ndarray) -> np.ndarray:
+    return x
 
 
 @dataclass(frozen=True)
@@ -90,15 +94,20 @@ class HodmdCoarse:
     def _g2_snapshots(self, t_start: float, h: float, x: np.ndarray, last: int) -> list:
         """G2's values at the snapshots 0..``last`` and at S (the end), on the fine grid."""
         g2 = self.g2
-        grid = isinstance(g2, OnCoarseGrid)
-        step = g2.propagator if grid else g2
-        y = g2.transfer.restrict(x) if grid else x
+        step: PropagatorLike
+        restrict: Callable[[np.ndarray], np.ndarray]
+        prolong: Callable[[np.ndarray], np.ndarray]
+        if isinstance(g2, OnCoarseGrid):
+            step, restrict, prolong = g2.propagator, g2.transfer.restrict, g2.transfer.prolong
+        else:
+            step, restrict, prolong = g2, _same, _same
+        y = restrict(x)
         out = []
         for j in range(self.snapshots + 1):
             if j:
                 y = step(t_start + (j - 1) * h, t_start + j * h, y)
             if j <= last or j == self.snapshots:
-                out.append(g2.transfer.prolong(y) if grid else y)
+                out.append(prolong(y))
         return out
 
     def trace(self, t_start: float, t_end: float, x: np.ndarray, k: int) -> np.ndarray:
@@ -176,4 +185,4 @@ def traced_window(windows: Sequence[int], k: int) -> int:
 
 def as_windows(fractions: Sequence[float], snapshots: int) -> tuple[int, ...]:
     """W = round(r_s S) for each window fraction r_s."""
-    return tuple(int(round(r * snapshots)) for r in fractions)
+    return tuple(round(r * snapshots) for r in fractions)
