@@ -30,62 +30,25 @@ executor = "serial"
 figures = false
 """
 
+def problem(model: dict, t1: float, dt: float) -> str:
+    """A run of 4 slices and at most 4 iterations of the body ``model`` (its [model] keys)."""
+    lines = "\n".join(f"{key} = {value!r}".replace("'", '"') for key, value in model.items())
+    return (f"[model]\n{lines}\n[time]\nt1 = {t1}\n[fine]\ndt = {dt}\n"
+            "[parareal]\nn_slices = 4\nmax_iterations = 4\n")
+
+
+#: body -> (problem, HODMD settings, τ_G1 / τ_f)
 BODIES = {
     # a 21-node rod over 4 slices of 500 fine steps; G1: Euler 5 τ_f, G2: Euler 10 τ_f
-    "rod": ("""
-[model]
-kind = "rod"
-n_points = 21
-length = 4.0
-[time]
-t1 = 0.002
-[fine]
-dt = 1e-6
-[parareal]
-n_slices = 4
-max_iterations = 4
-""", dict(snapshots=25, window=0.5, d=4, g1="", g2_ratio=10, g2=""), 5),
-    "vesicle": ("""
-[model]
-kind = "vesicle"
-subdivisions = 1
-[time]
-t1 = 0.4
-[fine]
-dt = 0.001
-[parareal]
-n_slices = 4
-max_iterations = 4
-""", dict(snapshots=20, window=0.6, d=3, g1="", g2_ratio=5, g2=""), 1),
-    "chain": ("""
-[model]
-kind = "chain"
-n_beads = 10
-stiffness = 20.0
-bending = 2.0
-shear_rate = 1.0
-stretch = 1.2
-tilt = 0.4
-[time]
-t1 = 0.4
-[fine]
-dt = 0.002
-[parareal]
-n_slices = 4
-max_iterations = 4
-""", dict(snapshots=10, window=0.6, d=3, g1="", g2_ratio=5, g2=""), 1),
-    "user": ("""
-[model]
-kind = "user_body:SedimentingCloud"
-n_points = 12
-[time]
-t1 = 0.4
-[fine]
-dt = 0.002
-[parareal]
-n_slices = 4
-max_iterations = 4
-""", dict(snapshots=10, window=0.6, d=3, g1="", g2_ratio=5, g2=""), 1),
+    "rod": (problem(dict(kind="rod", n_points=21, length=4.0), 0.002, 1e-6),
+            dict(snapshots=25, window=0.5, d=4, g1="", g2_ratio=10, g2=""), 5),
+    "vesicle": (problem(dict(kind="vesicle", subdivisions=1), 0.4, 0.001),
+                dict(snapshots=20, window=0.6, d=3, g1="", g2_ratio=5, g2=""), 1),
+    "chain": (problem(dict(kind="chain", n_beads=10, stiffness=20.0, bending=2.0,
+                           shear_rate=1.0, stretch=1.2, tilt=0.4), 0.4, 0.002),
+              dict(snapshots=10, window=0.6, d=3, g1="", g2_ratio=5, g2=""), 1),
+    "user": (problem(dict(kind="user_body:SedimentingCloud", n_points=12), 0.4, 0.002),
+             dict(snapshots=10, window=0.6, d=3, g1="", g2_ratio=5, g2=""), 1),
 }
 
 
