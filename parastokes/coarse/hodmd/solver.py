@@ -29,13 +29,14 @@ serve as x_old in the next correction.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
 from ...contracts import PropagatorLike, System
+from ...parareal.extrapolation import Extrapolated
 from ...parareal.transfer import OnCoarseGrid
 from .dmd import hodmd
 
@@ -48,10 +49,6 @@ def _groups(shape: tuple[int, ...]) -> list[slice]:
     if len(shape) == 2 and shape[1] % 3 == 0 and shape[1] > 3:
         return [slice(c, c + 3) for c in range(0, shape[1], 3)]
     return [slice(None)]
-
-
-def _same(x: np.ndarray) -> np.ndarray:
-    return x
 
 
 @dataclass(frozen=True)
@@ -91,37 +88,16 @@ class HodmdCoarse:
         """Rows of a trace: G2's end value, then D_0..D_{max W}."""
         return max(self.windows) + 2
 
-    def _g2_snapshots(self, t_start: float, h: float, x: np.ndarray, last: int) -> list:
-        """G2's values at the snapshots 0..``last`` and at S (the end), on the fine grid."""
-        g2 = self.g2
-        step: PropagatorLike
-        restrict: Callable[[np.ndarray], np.ndarray]
-        prolong: Callable[[np.ndarray], np.ndarray]
-        if isinstance(g2, OnCoarseGrid):
-            step, restrict, prolong = g2.propagator, g2.transfer.restrict, g2.transfer.prolong
-        else:
-            step, restrict, prolong = g2, _same, _same
-        y = restrict(x)
-        out = []
-        for j in range(self.snapshots + 1):
-            if j:
-                y = step(t_start + (j - 1) * h, t_start + j * h, y)
-            if j <= last or j == self.snapshots:
-                out.append(prolong(y))
-        return out
-
     def trace(self, t_start: float, t_end: float, x: np.ndarray, k: int) -> np.ndarray:
         """The trace of the coarse step of iteration k from ``x`` (module docstring)."""
         h = (t_end - t_start) / self.snapshots
         last = traced_window(self.windows, k)
-        g2 = self._g2_snapshots(t_start, h, x, last)
+        g2 = trajectory(self.g2, t_start, h, self.snapshots, x)
+        g1 = trajectory(self.g1, t_start, h, last, x)
         out = np.zeros((self.width, *np.shape(x)))
         out[0] = g2[-1]
-        y = np.asarray(x, dtype=float)
-        out[1] = y - g2[0]
-        for j in range(1, last + 1):
-            y = self.g1(t_start + (j - 1) * h, t_start + j * h, y)
-            out[j + 1] = y - g2[j]
+        for j in range(last + 1):
+            out[j + 1] = g1[j] - g2[j]
         return out
 
     # ---- the extrapolation -------------------------------------------------------------------
@@ -171,6 +147,37 @@ class HodmdCoarse:
             return p if method is None else method(executor)
 
         return replace(self, g1=bind(self.g1), g2=bind(self.g2))
+
+
+def trajectory(propagator: PropagatorLike, t_start: float, h: float, count: int,
+               x: np.ndarray) -> list[np.ndarray]:
+    """The states of ``propagator`` from ``x`` at t_start + j h, j = 0..``count``, in one run:
+
+    - on a coarser grid (:class:`OnCoarseGrid`) the run stays there, each snapshot prolonged;
+    - an extrapolated solver (eq. 30) runs each auxiliary solver on through the snapshots and
+      combines them at each one (weights of the steps taken per interval h), so its snapshot j is
+      the combination of j h-long solves, as stable as the solver over a slice (a restart of the
+      combination every h, with few steps per restart, is not: docs/validation.md);
+    - any other propagator is called interval by interval.
+    """
+    x = np.asarray(x, dtype=float)
+    if isinstance(propagator, OnCoarseGrid):
+        coarse = trajectory(propagator.propagator, t_start, h, count,
+                            propagator.transfer.restrict(x))
+        return [propagator.transfer.prolong(y) for y in coarse]
+    out = [x]
+    if isinstance(propagator, Extrapolated):
+        weights = propagator.coefficients(t_start, t_start + h)
+        solvers = [p for row in propagator.auxiliary for p in row]
+        states = [x] * len(solvers)
+        for j in range(1, count + 1):
+            t0, t1 = t_start + (j - 1) * h, t_start + j * h
+            states = [p(t0, t1, y) for p, y in zip(solvers, states, strict=True)]
+            out.append(propagator.combine(t_start, t1, x, weights, states))
+        return out
+    for j in range(1, count + 1):
+        out.append(propagator(t_start + (j - 1) * h, t_start + j * h, out[-1]))
+    return out
 
 
 def window_of(windows: Sequence[int], k: int) -> int:
