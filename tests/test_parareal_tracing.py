@@ -126,3 +126,21 @@ def test_a_plain_coarse_solver_keeps_eq_11():
 def test_windows_too_short_for_d_are_refused():
     with pytest.raises(ValueError, match="at least d \\+ 1 = 6 snapshots"):
         coarse(d=5, windows=(4,))
+
+
+@pytest.mark.parametrize("grid", [None, 2])
+def test_an_extrapolated_solvers_snapshots_are_the_solver_over_each_span(grid):
+    """trajectory() runs the auxiliary solvers on through the snapshots and combines them at each:
+    snapshot j equals the extrapolated G over [t0, t0 + j h] (the same steps), on its grid too."""
+    from odes import ToySystem
+
+    from parastokes.coarse.hodmd.solver import trajectory
+
+    system = ToySystem(n_points=5, decay=0.7, a=0.3, b=0.2, c=0.1)
+    g = parareal.extrapolated(system, "euler", 0.01, lagrange={"a": [0.4, 0.5, 0.6]},
+                              richardson={"m": 1, "r": 0.5}, grid=grid)
+    x = system.initial_state()
+    snaps = trajectory(g, 0.0, 0.1, 4, x)
+    np.testing.assert_array_equal(snaps[0], x if grid is None else g(0.0, 0.0, x))
+    for j in (1, 4):
+        np.testing.assert_allclose(snaps[j], g(0.0, 0.1 * j, x), rtol=1e-13, atol=1e-13)
