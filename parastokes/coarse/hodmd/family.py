@@ -48,7 +48,10 @@ def hodmd_flops(rows: int, snapshots: int, d: int) -> float:
 
 
 class Hodmd(CoarseSection):
-    """G2 over the whole slice, G1 over r_s of it, HODMD of their difference (module docstring)."""
+    """HODMD-Parareal (docs/hodmd.md): G2 over the whole slice, G1 over r_s of it, HODMD of their
+    difference. ``[coarse.g1]`` (the accurate solver) and ``[coarse.g2]`` (the cheap one), both
+    required, are sections of the extrapolated family (the keys of ``coarse (kind =
+    "extrapolated")``), resolved on the snapshot interval h = slice / ``snapshots``."""
 
     kind: Literal["hodmd"] = Field("hodmd", description="The HODMD-Parareal coarse-solver family.")
     g1: Extrapolated = Field(description="The accurate coarse solver G1 (an extrapolated section).")
