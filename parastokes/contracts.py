@@ -114,6 +114,10 @@ class TracingCoarse(Protocol):
       X_n^k = project(F(X_{n-1}^{k-1}) + correction) from the traces from X_{n-1}^k (``new``)
       and X_{n-1}^{k-1} (``old``), on the manager.
 
+    Optional: ``initial_guess(times, x0)``: X^0 at every T_n at once (an initial guess that is
+    not a sweep of coarse steps), or None for the sweep; the traces of iteration 0 are then
+    computed from it, slice by slice (at once under the pipelined schedule).
+
     Both schedules and every executor run it; a coarse solver without these members is corrected
     by eq. 11, bit for bit as before.
     """

@@ -93,6 +93,22 @@ def test_hodmd_recovers_what_a_coarse_grid_g2_loses_and_composes_with_extrapolat
     assert np.all(np.diff(errors[:3]) < 0) and errors[-1] == 0.0  # measured 2.5e-6, 1.6e-7, 1.3e-8
 
 
+def test_the_authors_global_initial_guess_from_a_config(tmp_path):
+    """initial = "global": G1 over the first 60% of the slices (2 of 4), one HODMD of G1 − G2
+    to the rest; X^0 at T_1, T_2 is G1's chain, and Parareal converges as with the sweep."""
+    text = body_config("rod") .replace('kind = "hodmd"\n', 'kind = "hodmd"\ninitial = "global"\n'
+                                       "initial_snapshots = 5\ninitial_d = 4\n")
+    cfg, resolved = config.loads(text)
+    setup = config.build(cfg, resolved)
+    assert setup.coarse.initial == (0.6, 5, 4)
+    x0 = setup.system.initial_state()
+    guess = setup.coarse.initial_guess(np.linspace(0, 0.002, 5), x0)
+    g1 = setup.coarse.g1
+    np.testing.assert_allclose(guess[1], g1(0.0, 0.0005, x0), rtol=1e-12, atol=1e-12)
+    errors = runner.execute(cfg, resolved, tmp_path)["errors"]
+    assert np.all(np.diff(errors[:3]) < 0) and errors[-1] == 0.0 and errors[0] < 1e-8
+
+
 @pytest.mark.parametrize("override, key, words", [
     ("coarse.window=[0.1]", "coarse.window", "HODMD with coarse.d = 4 needs W >= d"),
     ("coarse.window=[0.5, 1.2]", "coarse.window", "every r_s must lie in (0, 1]"),
@@ -101,12 +117,15 @@ def test_hodmd_recovers_what_a_coarse_grid_g2_loses_and_composes_with_extrapolat
     ("coarse.g1.dt_ratio=3", "coarse.g1.dt_ratio", "does not divide the snapshot interval"),
     ("coarse.g1.dt_ratoi=3", "coarse.g1.dt_ratoi", "did you mean 'dt_ratio'"),
     ("coarse.g2.lagrange={epsilon=[4.5, 5.5]}", "coarse.g2.lagrange.epsilon", "outside"),
+    ('coarse.initial="global";coarse.initial_snapshots=2', "coarse.initial_snapshots",
+     "fewer than coarse.initial_d = 10"),
 ])
 def test_check_explains_bad_settings_in_one_line_naming_the_key(override, key, words, tmp_path,
                                                                  capsys):
     path = tmp_path / "hodmd.toml"
     path.write_text(body_config("rod"))
-    assert cli.main(["check", str(path), "--set", override]) == 2
+    sets = [arg for item in override.split(";") for arg in ("--set", item)]
+    assert cli.main(["check", str(path), *sets]) == 2
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 2 and lines[1].strip().startswith(f"{key}: ") and words in lines[1]
 

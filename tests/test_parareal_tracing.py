@@ -144,3 +144,46 @@ def test_an_extrapolated_solvers_snapshots_are_the_solver_over_each_span(grid):
     np.testing.assert_array_equal(snaps[0], x if grid is None else g(0.0, 0.0, x))
     for j in (1, 4):
         np.testing.assert_allclose(snaps[j], g(0.0, 0.1 * j, x), rtol=1e-13, atol=1e-13)
+
+
+GLOBAL = dict(initial=(0.5, 10, 4))  # G1 over 4 of the 8 slices, 10 snapshots each, d0 = 4
+
+
+def run_global(schedule="standard", executor=None, checkpoint=None, iterations=ITERATIONS):
+    return parareal.run(FINE, coarse(**GLOBAL), X0, T0, T1, N_SLICES, tol=0.0,
+                        max_iterations=iterations, reference=REFERENCE, schedule=schedule,
+                        executor=executor, checkpoint=checkpoint)
+
+
+def test_the_global_initial_guess_is_the_authors():
+    """X^0: G1's chain over the first half of the slices, then G2's chain plus the HODMD
+    extrapolation of G1 − G2 (recomputed by hand); every schedule and executor agrees."""
+    from parastokes.coarse.hodmd.solver import trajectory
+
+    g = coarse(**GLOBAL)
+    times = parareal.time_points(T0, T1, N_SLICES)
+    guess = g.initial_guess(times, X0)
+    g1 = trajectory(g.g1, T0, 0.05, 40, X0)
+    g2 = trajectory(g.g2, T0, 0.05, 80, X0)
+    np.testing.assert_array_equal(guess[4], g1[40])
+    extra = g.extrapolate(np.array(g1) - np.array(g2[:41]), 40, 4, at=70)
+    np.testing.assert_array_equal(guess[7], g2[70] + extra)
+    # its extrapolation is worth something: closer to the fine solution than G2's chain
+    assert np.abs(guess[8] - REFERENCE[8]).max() < np.abs(g2[80] - REFERENCE[8]).max()
+    result = run_global(iterations=1)
+    np.testing.assert_array_equal(result.states[:2], np.array([X0, FINE(T0, 0.5, X0)]))
+
+
+def test_the_global_initial_guess_in_both_schedules_on_every_executor_and_resumed(processes,
+                                                                                  tmp_path):
+    clean = run_global()
+    assert np.all(np.diff(clean.errors) < 0)
+    for schedule, executor in (("pipelined", None), ("pipelined", processes)):
+        other = run_global(schedule, executor)
+        np.testing.assert_array_equal(other.states, clean.states)
+        assert other.errors == clean.errors
+    for schedule in ("standard", "pipelined"):
+        path = tmp_path / f"{schedule}.npz"
+        run_global(schedule, checkpoint=path, iterations=1)
+        resumed = run_global(schedule, checkpoint=path)
+        np.testing.assert_array_equal(resumed.states, clean.states)

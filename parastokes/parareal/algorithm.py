@@ -223,6 +223,13 @@ def correction_of(
     return None
 
 
+def initial_guess(coarse: PropagatorLike, times: np.ndarray, x0: np.ndarray) -> np.ndarray | None:
+    """X^0 at every T_n from a tracing coarse solver's ``initial_guess`` (the traces of iteration
+    0 then start from it), or None: the sweep of eq. 9."""
+    guess = getattr(coarse, "initial_guess", None) if is_tracing(coarse) else None
+    return None if guess is None else guess(times, x0)
+
+
 def initial_state(coarse: PropagatorLike, t_start: float, t_end: float,
                   value: np.ndarray) -> np.ndarray:
     """X_n^0 from the coarse step G_n^0 of the initial sweep (eq. 9): the value itself, or the
@@ -303,18 +310,23 @@ def _initial_sweep(
     memo: SolveMemo | None = None,
 ) -> ckpt.Progress:
     """Eq. 9: X_n^0 = G(T_n, T_{n-1}, X_{n-1}^0), keeping the G values for the first correction
-    (steps kept in ``memo`` by a stopped session are taken from there)."""
+    (steps kept in ``memo`` by a stopped session are taken from there); a tracing coarse solver's
+    ``initial_guess`` gives X^0 at once, and its traces of iteration 0 start from it."""
     n_slices = len(times) - 1
     states = np.empty((n_slices + 1, *x0.shape))
     states[0] = x0
     timings = Timings(coarse=[[]])
     sweep_start = time.perf_counter()
     traces = []
+    guess = initial_guess(coarse, times, x0)
+    if guess is not None:  # X^0 given at once: the coarse steps of iteration 0 start from it
+        states[:] = guess
     for n in range(1, n_slices + 1):
         value, seconds = _kept_coarse_step(
             step_of(coarse, 0), times, n, states[n - 1], 0, memo, timings, origin
         )
-        states[n] = initial_state(coarse, times[n - 1], times[n], value)
+        if guess is None:
+            states[n] = initial_state(coarse, times[n - 1], times[n], value)
         traces.append(value)
         timings.coarse[0].append(seconds)
     timings.serial_sweeps.append(time.perf_counter() - sweep_start)

@@ -51,6 +51,7 @@ from .algorithm import (
     correct,
     correction_of,
     fine_label,
+    initial_guess,
     initial_state,
     is_tracing,
     step_of,
@@ -185,6 +186,7 @@ class _Pipeline:
     # queue, not from add_fine/add_coarse, keeps the stack flat when a resumed run replays
     # hundreds of kept steps (each applied value enables the next slice's tasks).
     replay: deque = field(default_factory=deque)
+    guessed: bool = False  # X^0 came from the coarse solver's initial_guess
 
     @property
     def n_slices(self) -> int:
@@ -280,7 +282,10 @@ class _Pipeline:
         self.runs[COARSE, n, k] = (begin, end)
         self.coarse_times[n, k] = duration
         self.coarse_values[n, k] = value
-        if k == 0:
+        if k == 0 and self.guessed:
+            if all((m, 0) in self.coarse_values for m in range(1, self.n_slices + 1)):
+                self.finished.add(0)
+        elif k == 0:
             self.set_state(n, 0, initial_state(self.coarse, self.times[n - 1], self.times[n],
                                                value))
         else:
@@ -438,7 +443,18 @@ class _Pipeline:
     # ---- the run -------------------------------------------------------------------------
     def start(self, progress: ckpt.Progress | None, x0: np.ndarray) -> None:
         if progress is None:
-            self.set_state(0, 0, x0)
+            guess = initial_guess(self.coarse, self.times, x0)
+            if guess is None:
+                self.set_state(0, 0, x0)
+                return
+            # X^0 given at once: every coarse step of iteration 0 and every fine solve of
+            # iteration 1 can start now; iteration 0 closes when all its traces exist
+            self.guessed = True
+            for n in range(self.n_slices + 1):
+                self.x[n, 0] = guess[n]
+            for n in range(1, self.n_slices + 1):
+                self.add_coarse(n, 0)
+                self.add_fine(n, 1)
             return
         k0 = progress.iteration
         self.progress, self.completed = progress, k0

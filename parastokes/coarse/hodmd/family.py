@@ -65,6 +65,17 @@ class Hodmd(CoarseSection):
     d: int = Field(12, ge=1, description="HODMD's delayed copies (authors: 12).")
     svd_tolerance: float = Field(1e-8, description="ε1: HODMD's relative SVD tolerance.")
     amplitude_tolerance: float = Field(1e-8, description="ε: HODMD's relative mode tolerance.")
+    initial: Literal["sweep", "global"] = Field(
+        "sweep",
+        description="The initial guess X^0: sweep (HODMD coarse steps, slice by slice) or global "
+        "(the authors': G1 over the first initial_fraction of the slices, G2 over all, one HODMD "
+        "of G1 - G2 extrapolated to the later slice ends).",
+    )
+    initial_fraction: float = Field(0.6, gt=0, le=1, description="global: the share of the "
+                                    "slices G1 runs over (authors: 0.6).")
+    initial_snapshots: int = Field(10, ge=1, description="global: snapshots per slice (authors: "
+                                   "10).")
+    initial_d: int = Field(10, ge=1, description="global: HODMD's delayed copies (authors: 10).")
 
     @field_validator("window", mode="before")
     @classmethod
@@ -91,6 +102,28 @@ class Hodmd(CoarseSection):
                     "h / n or another number of snapshots",
                 ))
         return result
+
+    def _check_global(self, cfg: Any, slice_length: float, solvers: tuple[Any, Any],
+                      issues: list[tuple[str, str]]) -> None:
+        """The global initial guess: enough snapshots for initial_d, steps dividing its h."""
+        ran = min(cfg.parareal.n_slices, max(1, round(self.initial_fraction
+                                                       * cfg.parareal.n_slices)))
+        if ran * self.initial_snapshots < self.initial_d:
+            issues.append((
+                "coarse.initial_snapshots",
+                f"G1 runs over {ran} slices of {self.initial_snapshots} snapshot intervals, fewer "
+                f"than coarse.initial_d = {self.initial_d}: raise initial_snapshots or "
+                "initial_fraction, or lower initial_d",
+            ))
+        h = slice_length / self.initial_snapshots
+        for name, res in zip(("g1", "g2"), solvers, strict=True):
+            steps = h / res.coarse_dt
+            if getattr(self, name).richardson.m == 0 and abs(steps - round(steps)) > 1e-9 * steps:
+                issues.append((
+                    "coarse.initial_snapshots",
+                    f"coarse.{name}'s step {res.coarse_dt:.6g} does not divide the interval "
+                    f"h = {h:.6g} of the global initial guess (slice / initial_snapshots)",
+                ))
 
     def windows(self) -> tuple[int, ...]:
         """W per iteration (snapshot intervals)."""
@@ -119,6 +152,8 @@ class Hodmd(CoarseSection):
         h = slice_length / self.snapshots
         g1 = self._nested("g1", cfg, body, h, issues, warnings)
         g2 = self._nested("g2", cfg, body, h, issues, warnings)
+        if self.initial == "global":
+            self._check_global(cfg, slice_length, (g1, g2), issues)
         widest = max(self.windows()) if not bad else self.snapshots
         return CoarseResolution(
             g1.coarse_dt, g1.coarse_base_dt,
@@ -142,6 +177,8 @@ class Hodmd(CoarseSection):
             self.g2.build(cfg, g2_res, system),
             self.snapshots, self.windows(), self.d,
             self.svd_tolerance, self.amplitude_tolerance,
+            None if self.initial == "sweep" else
+            (self.initial_fraction, self.initial_snapshots, self.initial_d),
         )
 
     def gamma_ratio(self, cfg: Any, resolved: Any, cores: int) -> float:

@@ -59,7 +59,9 @@ class HodmdCoarse:
     :class:`~parastokes.parareal.OnCoarseGrid` G2 stays on its grid across snapshots);
     ``snapshots``: S; ``windows``: W per iteration (k >= 1 uses ``windows[min(k, len) - 1]``, the
     initial sweep ``windows[0]``); ``d``, ``svd_tolerance`` (ε1), ``amplitude_tolerance`` (ε): of
-    :func:`.dmd.hodmd`; ``system``: for ``project``.
+    :func:`.dmd.hodmd`; ``system``: for ``project``; ``initial``: None (the initial sweep of
+    HODMD coarse steps) or (fraction, snapshots per slice, d) of the authors' global initial guess
+    (:meth:`initial_guess`).
     """
 
     system: System
@@ -70,6 +72,7 @@ class HodmdCoarse:
     d: int
     svd_tolerance: float = 1e-8
     amplitude_tolerance: float = 1e-8
+    initial: tuple[float, int, int] | None = None
 
     def __post_init__(self) -> None:
         if not self.windows or min(self.windows) < self.d or max(self.windows) > self.snapshots:
@@ -101,19 +104,49 @@ class HodmdCoarse:
         return out
 
     # ---- the extrapolation -------------------------------------------------------------------
-    def extrapolate(self, differences: np.ndarray, window: int) -> np.ndarray:
-        """H[·](T_n): the HODMD extrapolation of the snapshots 0..``window`` of ``differences``
-        (rows 1.. of a trace, or a difference of two) to the end of the slice, group by group."""
+    def extrapolate(self, differences: np.ndarray, window: int, d: int | None = None,
+                    at: float | None = None) -> np.ndarray:
+        """H[·](T_n): the HODMD extrapolation (``d`` delayed copies, default ``self.d``) of the
+        snapshots 0..``window`` of ``differences`` (rows 1.. of a trace, or a difference of two)
+        to snapshot time ``at`` (default S, the end of the slice), group by group."""
         snaps = differences[: window + 1]
         out = np.zeros(snaps.shape[1:])
+        target = float(self.snapshots if at is None else at)
         for group in _groups(snaps.shape[1:]):
             index = (slice(None), slice(None), group) if snaps.ndim == 3 else (slice(None),)
             block = snaps[index]
-            fit = hodmd(block.reshape(window + 1, -1).T, self.d,
+            fit = hodmd(block.reshape(window + 1, -1).T, self.d if d is None else d,
                         svd_tolerance=self.svd_tolerance,
                         amplitude_tolerance=self.amplitude_tolerance)
-            out[index[1:]] = fit.reconstruct(float(self.snapshots)).reshape(block.shape[1:])
+            out[index[1:]] = fit.reconstruct(target).reshape(block.shape[1:])
         return out
+
+    def initial_guess(self, times: np.ndarray, x0: np.ndarray) -> np.ndarray | None:
+        """X^0 at every T_n at once, the authors' initial guess, when ``initial`` is given (else
+        None: the engine's sweep of HODMD coarse steps). G1 runs from x0 over the first
+        ``fraction`` of the slices and G2 over all of them, each in one run with
+        ``per_slice`` snapshots per slice; HODMD (``d``) of G1 − G2 over G1's span extrapolates
+        to the later slice ends: X_n^0 = project(G2_n + H(T_n)), and X_n^0 = G1_n where G1 ran.
+        """
+        if self.initial is None:
+            return None
+        fraction, per_slice, d = self.initial
+        n_slices = len(times) - 1
+        ran = min(n_slices, max(1, round(fraction * n_slices)))
+        h = (times[1] - times[0]) / per_slice
+        g1 = trajectory(self.g1, times[0], h, ran * per_slice, x0)
+        g2 = trajectory(self.g2, times[0], h, n_slices * per_slice, x0)
+        span = ran * per_slice
+        difference = np.array(g1) - np.array(g2[: span + 1])
+        states = np.empty((n_slices + 1, *np.shape(x0)))
+        states[0] = x0
+        for n in range(1, n_slices + 1):
+            if n <= ran:
+                states[n] = g1[n * per_slice]
+            else:
+                extra = self.extrapolate(difference, span, d, at=n * per_slice)
+                states[n] = self.system.project(g2[n * per_slice] + extra)
+        return states
 
     def end_state(self, t_start: float, t_end: float, trace: np.ndarray) -> np.ndarray:
         """X_n^0 = project(G2(x)_S + H[D](T_n)) (initial sweep)."""
