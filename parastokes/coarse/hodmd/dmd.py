@@ -132,7 +132,14 @@ def hodmd(snapshots: np.ndarray, d: int, dt: float = 1.0, t0: float = 0.0,
     modes = modes / np.linalg.norm(modes, axis=0)
     powers = eigenvalues[None, :] ** np.arange(k_cols)[:, None]  # K × M
     system = (powers[:, None, :] * modes[None, :, :]).reshape(k_cols * n_rank, -1)
-    amplitudes, *_ = np.linalg.lstsq(system, reduced.T.reshape(-1).astype(complex), rcond=None)
+    # columns equilibrated first (the same least-squares solution in exact arithmetic): a mode
+    # with |λ| > 1 has a column K orders larger than a decaying one, which would otherwise
+    # swamp the solve in round-off
+    scale = np.linalg.norm(system, axis=0)
+    scale[scale == 0] = 1.0
+    scaled_amplitudes, *_ = np.linalg.lstsq(system / scale, reduced.T.reshape(-1).astype(complex),
+                                            rcond=None)
+    amplitudes = scaled_amplitudes / scale
     scaled = modes * amplitudes[None, :]
     size = np.linalg.norm(basis @ scaled, axis=0) / np.sqrt(j_rows)
     # step 6: sort by amplitude, drop the small ones
