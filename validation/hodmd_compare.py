@@ -137,7 +137,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--out", default="docs/figures")
     args = parser.parse_args(argv)
     path = Path(args.out) / "hodmd_compare.json"
-    results = json.loads(path.read_text()) if path.exists() else {}
+    results: dict[str, Any] = {}
     for problem, cases in CASES.items():
         if args.only not in (None, problem):
             continue
@@ -151,7 +151,8 @@ def main(argv: list[str] | None = None) -> None:
         results[problem] = {"cases": measured, "by_error": best_by_error(measured, targets)}
         report(problem, results[problem])
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(results, indent=1, ensure_ascii=False))
+    saved = json.loads(path.read_text()) if path.exists() else {}  # other problems' runs
+    path.write_text(json.dumps({**saved, **results}, indent=1, ensure_ascii=False))
     print(f"wrote {path}")
 
 
