@@ -88,7 +88,7 @@ def test_hodmd_recovers_what_a_coarse_grid_g2_loses_and_composes_with_extrapolat
     assert hodmd < alone / 1000  # measured 1.0e-8 against 9.1e-5
     combined = body_config("rod", g1="lagrange = { epsilon = [5.6, 5.65] }", g2="grid_factor = 2")
     cfg, resolved = config.loads(combined)
-    assert resolved.n_auxiliary == 2 and cfg.coarse.g2.grid_factor == 2
+    assert resolved.n_auxiliary == 1 and cfg.coarse.g2.grid_factor == 2  # one task per trace
     errors = runner.execute(cfg, resolved, tmp_path / "combined")["errors"]
     assert np.all(np.diff(errors[:3]) < 0) and errors[-1] == 0.0  # measured 2.5e-6, 1.6e-7, 1.3e-8
 
@@ -152,6 +152,12 @@ def test_the_cost_estimate_counts_g1_over_the_window_g2_over_the_slice_and_the_s
     solves = (4 * traced + 2 * 25) * 21**2
     svd = 4 * hodmd_flops(63, 25, 4) / PAIR_FLOPS
     assert cli.estimated_gamma_ratio(cfg, resolved, 4) == pytest.approx((solves + svd) / fine)
+    # an extrapolated G1 of two Lagrange nodes: its two auxiliary solves run one after the other
+    # in the trace, whatever the cores
+    cfg, resolved = config.loads(body_config("rod", window="[0.48, 0.52, 0.96]",
+                                             g1="lagrange = { epsilon = [5.6, 5.65] }"))
+    solves = (2 * 4 * traced + 2 * 25) * 21**2
+    assert cli.estimated_gamma_ratio(cfg, resolved, 40) == pytest.approx((solves + svd) / fine)
 
 
 def test_the_slice_cost_probe_times_a_trace_and_its_extrapolation():

@@ -23,7 +23,7 @@ from typing import Any, Literal
 from pydantic import Field, field_validator
 
 from ... import integrate
-from ...contracts import System, rounds
+from ...contracts import System
 from ..extrapolated import Extrapolated
 from ..registry import CoarseResolution, CoarseSection
 from .solver import HodmdCoarse, as_windows, traced_window
@@ -133,7 +133,8 @@ class Hodmd(CoarseSection):
                 issues: list[tuple[str, str]], warnings: list[str]) -> CoarseResolution:
         """G1's and G2's resolutions on h, and the rules of the module docstring. Reported as
         τ_c = G1's step; ``coarse_steps`` = [G1 steps over the largest window, G2 steps over the
-        slice]; N_G and Σ|w| the larger of the two solvers'."""
+        slice]; N_G = 1 (a trace is one task: the auxiliary solvers of an extrapolated G1 or G2
+        run one after the other in it), Σ|w| the larger of the two solvers'."""
         for name in ("svd_tolerance", "amplitude_tolerance"):
             value = getattr(self, name)
             if not 0.0 < value < 1.0:
@@ -159,7 +160,7 @@ class Hodmd(CoarseSection):
             g1.coarse_dt, g1.coarse_base_dt,
             [max(g1.coarse_steps) * widest, max(g2.coarse_steps) * self.snapshots],
             g1.coarse_points, {**g2.lagrange, **g1.lagrange},
-            max(g1.n_auxiliary, g2.n_auxiliary), max(g1.weight_sum, g2.weight_sum),
+            1, max(g1.weight_sum, g2.weight_sum),
         )
 
     def _resolve_nested(self, cfg: Any, resolved: Any) -> tuple[Any, Any]:
@@ -196,7 +197,7 @@ class Hodmd(CoarseSection):
 
         def cost(section: Extrapolated, res: Any, intervals: float) -> float:
             steps = max(res.coarse_steps) * intervals * stages[section.scheme].stages
-            return rounds(res.n_auxiliary, cores) * steps * res.coarse_points**2
+            return res.n_auxiliary * steps * res.coarse_points**2
 
         solves = cost(self.g1, g1, traced) + cost(self.g2, g2, self.snapshots)
         rows = resolved.n_points * 3  # one column group of three (rods: X, D1, D2, D3)

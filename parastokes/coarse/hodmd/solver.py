@@ -30,8 +30,7 @@ serve as x_old in the next correction.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
-from typing import Any
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -161,36 +160,17 @@ class HodmdCoarse:
         """The HODMD coarse propagator on its own: the initial sweep's step from ``x``."""
         return self.end_state(t_start, t_end, self.trace(t_start, t_end, x, 0))
 
-    # ---- auxiliary solvers of extrapolated G1 / G2 -------------------------------------------
-    @property
-    def n_auxiliary(self) -> int:
-        """N_G: the most auxiliary solvers G1 or G2 runs at once (1 for plain ones)."""
-        from ...contracts import auxiliary_count
-
-        return max(1, auxiliary_count(self.g1), auxiliary_count(self.g2))
-
-    @property
-    def executor(self) -> Any:
-        return getattr(self.g1, "executor", None) or getattr(self.g2, "executor", None)
-
-    def with_executor(self, executor: Any) -> HodmdCoarse:
-        """A copy whose extrapolated G1 and G2 run their auxiliary solvers on ``executor``."""
-        def bind(p: PropagatorLike) -> PropagatorLike:
-            method = getattr(p, "with_executor", None)
-            return p if method is None else method(executor)
-
-        return replace(self, g1=bind(self.g1), g2=bind(self.g2))
-
 
 def trajectory(propagator: PropagatorLike, t_start: float, h: float, count: int,
                x: np.ndarray) -> list[np.ndarray]:
     """The states of ``propagator`` from ``x`` at t_start + j h, j = 0..``count``, in one run:
 
     - on a coarser grid (:class:`OnCoarseGrid`) the run stays there, each snapshot prolonged;
-    - an extrapolated solver (eq. 30) runs each auxiliary solver on through the snapshots and
-      combines them at each one (weights of the steps taken per interval h), so its snapshot j is
-      the combination of j h-long solves, as stable as the solver over a slice (a restart of the
-      combination every h, with few steps per restart, is not: docs/validation.md);
+    - an extrapolated solver (eq. 30) runs each auxiliary solver on through the snapshots, one
+      after the other in the same task, and combines them at each one (weights of the steps
+      taken per interval h), so its snapshot j is the combination of j h-long solves, as stable
+      as the solver over a slice (a restart of the combination every h, with few steps per
+      restart, is not: docs/validation.md);
     - any other propagator is called interval by interval.
     """
     x = np.asarray(x, dtype=float)
