@@ -7,7 +7,9 @@ Protocols (structural: any class with these members qualifies, nothing to inheri
 - :class:`Propagator`: ``P(t_start, t_end, x) -> x``, the fine and coarse solvers of Parareal;
 - :class:`CoarseSolver`: a propagator made of ``n_auxiliary`` auxiliary solvers that can run
   concurrently on an executor (``with_executor``), as the extrapolated G of eq. 30;
-- :class:`SizedExecutor`: a ``concurrent.futures.Executor`` that says how many tasks run at once.
+- :class:`SizedExecutor`: a ``concurrent.futures.Executor`` that says how many tasks run at once;
+- :class:`TracingCoarse`: a coarse solver whose coarse step is a *trace* (a record kept between
+  iterations) and whose correction replaces eq. 11's G(new) − G(old), as HODMD-Parareal's does.
 
 The rule of Algorithm 1 that ties them, N_G <= N_c (all auxiliary coarse solvers of a coarse step
 run at once, one per worker), lives here only: :func:`oversubscription` words it,
@@ -30,6 +32,7 @@ __all__ = [
     "PropagatorLike",
     "SizedExecutor",
     "System",
+    "TracingCoarse",
     "auxiliary_count",
     "check_workers",
     "oversubscription",
@@ -95,6 +98,36 @@ class SizedExecutor(Protocol):
     workers: int
 
     def submit(self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> Any: ...
+
+
+@runtime_checkable
+class TracingCoarse(Protocol):
+    """A coarse solver whose correction is its own, not eq. 11's G(X^k) − G(X^{k-1})
+    (docs/contracts.md, "Tracing coarse solvers"; HODMD-Parareal, :mod:`parastokes.coarse.hodmd`).
+
+    - ``trace(t_start, t_end, x, k)``: the coarse step G_n^k of iteration k (k = 0: the initial
+      sweep) from ``x`` at ``t_start``, as a *trace*: a float array of one shape for all n and k
+      (the family's memory between iterations). The engine keeps it as it keeps G_n^k under eq. 11
+      (checkpoint, solve memo, pipelined tasks), so it must be picklable and deterministic;
+    - ``end_state(t_start, t_end, trace)``: X_n^0 of the initial sweep from the trace of slice n;
+    - ``correction(t_start, t_end, new, old, k)``: the term that replaces G(new) − G(old) in
+      X_n^k = project(F(X_{n-1}^{k-1}) + correction) from the traces from X_{n-1}^k (``new``)
+      and X_{n-1}^{k-1} (``old``), on the manager.
+
+    Optional: ``initial_guess(times, x0)``: X^0 at every T_n at once (an initial guess that is
+    not a sweep of coarse steps), or None for the sweep; the traces of iteration 0 are then
+    computed from it, slice by slice (at once under the pipelined schedule).
+
+    Both schedules and every executor run it; a coarse solver without these members is corrected
+    by eq. 11, bit for bit as before.
+    """
+
+    def trace(self, t_start: float, t_end: float, x: np.ndarray, k: int) -> np.ndarray: ...
+
+    def end_state(self, t_start: float, t_end: float, trace: np.ndarray) -> np.ndarray: ...
+
+    def correction(self, t_start: float, t_end: float, new: np.ndarray, old: np.ndarray,
+                   k: int) -> np.ndarray: ...
 
 
 def rounds(n_auxiliary: int, workers: int) -> int:

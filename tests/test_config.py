@@ -299,5 +299,5 @@ def test_the_coarse_solver_family_is_a_key_with_the_extrapolated_default():
     cfg, _ = config.loads(BASE)
     assert cfg.coarse.kind == "extrapolated"
     assert cfg.model_dump()["coarse"]["kind"] == "extrapolated"
-    issues = issues_of(BASE, 'coarse.kind="hodmd"')
+    issues = issues_of(BASE, 'coarse.kind="spectral"')
     assert "coarse.kind" in issues and "extrapolated" in issues["coarse.kind"]

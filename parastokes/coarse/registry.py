@@ -8,9 +8,9 @@ format), builds the propagator G (:meth:`CoarseSection.build`) and estimates γ_
 registry and never name a family.
 
 A family is found by its ``kind`` string as a body is (:mod:`parastokes.plugins`): a built-in
-name (:data:`BUILTIN`: ``"extrapolated"``, the default), ``"package.module:Name"`` (the section
-class) or an entry point of the group ``parastokes.coarse``; none is imported before it is asked
-for.
+name (:data:`BUILTIN`: ``"extrapolated"``, the default; ``"hodmd"``, HODMD-Parareal),
+``"package.module:Name"`` (the section class) or an entry point of the group
+``parastokes.coarse``; none is imported before it is asked for.
 """
 
 from __future__ import annotations
@@ -38,6 +38,7 @@ __all__ = [
 #: The package's own families: name -> ``"module:attribute"`` of their section class.
 BUILTIN: dict[str, str] = {
     "extrapolated": "parastokes.coarse.extrapolated:Extrapolated",
+    "hodmd": "parastokes.coarse.hodmd.family:Hodmd",
 }
 
 #: The family of a ``[coarse]`` section without ``kind``.

@@ -79,6 +79,12 @@ def _section_class(loc: tuple[Any, ...], data: Any) -> type[BaseModel] | None:
             return coarse_registry.get(table.get("kind", coarse_registry.DEFAULT))
         except (AttributeError, coarse_registry.UnknownFamilyError):
             return None
+    if len(loc) == 2 and loc[0] == "coarse":  # a nested section of the family ([coarse.g1])
+        family = _section_class(("coarse",), data)
+        field = None if family is None else family.model_fields.get(str(loc[1]))
+        nested = None if field is None else field.annotation
+        if isinstance(nested, type) and issubclass(nested, BaseModel):
+            return nested
     if loc == ("scene",):
         return schema.SceneSettings
     if len(loc) == 3 and loc[:2] == ("coarse", "lagrange"):

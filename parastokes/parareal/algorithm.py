@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from ..contracts import PropagatorLike, check_workers
+from ..contracts import PropagatorLike, TracingCoarse, check_workers
 from ..contracts import with_executor as _with_executor
 from ..integrate import BlowUpError
 from ..parallel import SerialExecutor, TaskError, run_labelled
@@ -192,16 +192,23 @@ def correct(
     previous_coarse: np.ndarray,
     project: Callable[[np.ndarray], np.ndarray] | None,
     where: tuple[int, int, float] | None = None,
+    difference: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
 ) -> np.ndarray:
     """Eq. 11: X_n^k = F(X_{n-1}^{k-1}) + (G(X_{n-1}^k) - G(X_{n-1}^{k-1})), then ``project``.
 
-    Both schedules correct through this one function, so their iterates agree bit for bit. With
-    ``where = (n, k, T_n)``, a corrected state that ``project`` rejects (a ValueError: e.g. a
-    rod's frame made singular by a correction far larger than the state) is a numerical blow-up:
-    a :class:`TaskError` labelled by :func:`correction_label` around a
-    :class:`~parastokes.integrate.BlowUpError` whose last good state is F(X_{n-1}^{k-1}).
+    ``difference(new, old)`` replaces G(new) - G(old) for a tracing coarse solver
+    (:class:`~parastokes.contracts.TracingCoarse`, :func:`correction_of`). Both schedules correct
+    through this one function, so their iterates agree bit for bit. With ``where = (n, k, T_n)``,
+    a corrected state that ``project`` rejects (a ValueError: e.g. a rod's frame made singular by
+    a correction far larger than the state) is a numerical blow-up: a :class:`TaskError`
+    labelled by :func:`correction_label` around a :class:`~parastokes.integrate.BlowUpError`
+    whose last good state is F(X_{n-1}^{k-1}).
     """
-    corrected = fine_value + (coarse_value - previous_coarse)
+    if difference is None:
+        change = coarse_value - previous_coarse
+    else:
+        change = difference(coarse_value, previous_coarse)
+    corrected = fine_value + change
     if project is None:
         return corrected
     try:
@@ -210,13 +217,52 @@ def correct(
         if where is None:
             raise
         n, k, t = where
-        size = float(np.max(np.abs(coarse_value - previous_coarse)))
+        size = float(np.max(np.abs(change)))
         blow = BlowUpError(
             t, 0, math.nan, np.array(fine_value),
             f"the corrected state is not a valid state ({error}); the correction "
             f"G(X^k) - G(X^(k-1)) reaches {size:.3g}",
         )
         raise TaskError(correction_label(n, k), blow) from error
+
+
+def is_tracing(coarse: PropagatorLike) -> bool:
+    """Whether ``coarse`` keeps traces and corrects by its own rule (:class:`TracingCoarse`)."""
+    return isinstance(coarse, TracingCoarse)
+
+
+def step_of(coarse: PropagatorLike, k: int) -> PropagatorLike:
+    """The coarse step G_n^k as a propagator ``(t_start, t_end, x) -> value``: ``coarse`` itself,
+    or, for a tracing coarse solver, its ``trace`` of iteration k (picklable with ``coarse``)."""
+    if is_tracing(coarse):
+        return functools.partial(coarse.trace, k=k)  # type: ignore[attr-defined]
+    return coarse
+
+
+def correction_of(
+    coarse: PropagatorLike, t_start: float, t_end: float, k: int
+) -> Callable[[np.ndarray, np.ndarray], np.ndarray] | None:
+    """The ``difference`` of :func:`correct` on slice (t_start, t_end) in iteration k: None
+    (eq. 11) unless ``coarse`` is tracing."""
+    if is_tracing(coarse):
+        return functools.partial(coarse.correction, t_start, t_end, k=k)  # type: ignore[attr-defined]
+    return None
+
+
+def initial_guess(coarse: PropagatorLike, times: np.ndarray, x0: np.ndarray) -> np.ndarray | None:
+    """X^0 at every T_n from a tracing coarse solver's ``initial_guess`` (the traces of iteration
+    0 then start from it), or None: the sweep of eq. 9."""
+    guess = getattr(coarse, "initial_guess", None) if is_tracing(coarse) else None
+    return None if guess is None else guess(times, x0)
+
+
+def initial_state(coarse: PropagatorLike, t_start: float, t_end: float,
+                  value: np.ndarray) -> np.ndarray:
+    """X_n^0 from the coarse step G_n^0 of the initial sweep (eq. 9): the value itself, or the
+    end state of a tracing coarse solver's trace."""
+    if is_tracing(coarse):
+        return coarse.end_state(t_start, t_end, value)  # type: ignore[attr-defined]
+    return value
 
 
 class _Clocked:
@@ -290,20 +336,29 @@ def _initial_sweep(
     memo: SolveMemo | None = None,
 ) -> ckpt.Progress:
     """Eq. 9: X_n^0 = G(T_n, T_{n-1}, X_{n-1}^0), keeping the G values for the first correction
-    (steps kept in ``memo`` by a stopped session are taken from there)."""
+    (steps kept in ``memo`` by a stopped session are taken from there); a tracing coarse solver's
+    ``initial_guess`` gives X^0 at once, and its traces of iteration 0 start from it."""
     n_slices = len(times) - 1
     states = np.empty((n_slices + 1, *x0.shape))
     states[0] = x0
     timings = Timings(coarse=[[]])
     sweep_start = time.perf_counter()
+    traces = []
+    guess = initial_guess(coarse, times, x0)
+    if guess is not None:  # X^0 given at once: the coarse steps of iteration 0 start from it
+        states[:] = guess
     for n in range(1, n_slices + 1):
-        states[n], seconds = _kept_coarse_step(
-            coarse, times, n, states[n - 1], 0, memo, timings, origin
+        value, seconds = _kept_coarse_step(
+            step_of(coarse, 0), times, n, states[n - 1], 0, memo, timings, origin
         )
+        if guess is None:
+            states[n] = initial_state(coarse, times[n - 1], times[n], value)
+        traces.append(value)
         timings.coarse[0].append(seconds)
     timings.serial_sweeps.append(time.perf_counter() - sweep_start)
+    coarse_values = np.array(traces) if is_tracing(coarse) else states[1:].copy()
     return ckpt.Progress(
-        0, states, states[1:].copy(), errors=[] if with_errors else None, timings=timings
+        0, states, coarse_values, errors=[] if with_errors else None, timings=timings
     )
 
 
@@ -373,11 +428,12 @@ def _iterate(
     start = time.perf_counter()
     for n in range(k + 1, len(times)):
         value, seconds = _kept_coarse_step(
-            coarse, times, n, states[n - 1], k, memo, record, origin
+            step_of(coarse, k), times, n, states[n - 1], k, memo, record, origin
         )
         coarse_times.append(seconds)
         states[n] = correct(
-            fine_values[n - k], value, coarse_values[n - 1], project, (n, k, float(times[n]))
+            fine_values[n - k], value, coarse_values[n - 1], project, (n, k, float(times[n])),
+            correction_of(coarse, times[n - 1], times[n], k),
         )
         coarse_values[n - 1] = value
     serial_time = time.perf_counter() - start

@@ -9,7 +9,8 @@ Berry et al. 2012; Ruprecht 2017; docs/parareal.md):
 - the coarse step G_n^k = G(T_{n-1}, T_n, X_{n-1}^k) for n = k+1..N (k = 0: the initial sweep,
   eq. 9) starts once X_{n-1}^k exists; a coarse solver with ``split`` (an extrapolated one, eq. 30)
   runs each of its N_G auxiliary solves as a task of its own and is combined on the manager;
-- X_k^k = F_k^k, and X_n^k = project(F_n^k + (G_n^k - G_n^{k-1})) (eq. 11) is formed on the
+- X_k^k = F_k^k, and X_n^k = project(F_n^k + (G_n^k - G_n^{k-1})) (eq. 11; a tracing coarse
+  solver's own correction of its traces G_n^k, G_n^{k-1} instead) is formed on the
   manager as soon as its three inputs exist, by :func:`~parastokes.parareal.algorithm.correct`,
   the function Algorithm 1 uses: the iterates are Algorithm 1's, bit for bit.
 
@@ -48,7 +49,12 @@ from .algorithm import (
     PropagatorLike,
     coarse_error,
     correct,
+    correction_of,
     fine_label,
+    initial_guess,
+    initial_state,
+    is_tracing,
+    step_of,
     stop_reason,
 )
 from .timings import Timings
@@ -180,6 +186,7 @@ class _Pipeline:
     # queue, not from add_fine/add_coarse, keeps the stack flat when a resumed run replays
     # hundreds of kept steps (each applied value enables the next slice's tasks).
     replay: deque = field(default_factory=deque)
+    guessed: bool = False  # X^0 came from the coarse solver's initial_guess
 
     @property
     def n_slices(self) -> int:
@@ -233,14 +240,15 @@ class _Pipeline:
         if kept is not None:
             self.replay.append((COARSE, n, k, *kept))
             return
-        split = getattr(self.coarse, "split", None)
+        split = None if is_tracing(self.coarse) else getattr(self.coarse, "split", None)
         try:
             parts = None if split is None else split(t_start, t_end, x)
         except Exception as exc:
             self.fail(k, coarse_error(exc, n, k))
             return
         if parts is None:
-            self.workers.add(_Job(COARSE, n, k, self.coarse, (t_start, t_end, x), "coarse step"))
+            step = step_of(self.coarse, k)
+            self.workers.add(_Job(COARSE, n, k, step, (t_start, t_end, x), "coarse step"))
             return
         tasks, combine = parts
         self.groups[n, k] = _Group(combine, [None] * len(tasks), len(tasks), (t_start, t_end, x))
@@ -265,6 +273,7 @@ class _Pipeline:
                 self.coarse_values[n, k - 1],
                 self.project,
                 (n, k, float(self.times[n])),
+                correction_of(self.coarse, self.times[n - 1], self.times[n], k),
             )
             self.set_state(n, k, value)
 
@@ -274,8 +283,12 @@ class _Pipeline:
         self.runs[COARSE, n, k] = (begin, end)
         self.coarse_times[n, k] = duration
         self.coarse_values[n, k] = value
-        if k == 0:
-            self.set_state(n, 0, value)
+        if k == 0 and self.guessed:
+            if all((m, 0) in self.coarse_values for m in range(1, self.n_slices + 1)):
+                self.finished.add(0)
+        elif k == 0:
+            self.set_state(n, 0, initial_state(self.coarse, self.times[n - 1], self.times[n],
+                                               value))
         else:
             self.try_correct(n, k)
         if n > k + 1:
@@ -400,9 +413,11 @@ class _Pipeline:
                 states[n] = self.x[n, 0]
             timings = Timings(coarse=[coarse], serial_sweeps=[coarse_span], tasks=tasks)
             errors: list[float] | None = [] if self.book.reference is not None else None
-            self.progress = ckpt.Progress(
-                0, states, states[1:].copy(), errors=errors, timings=timings
-            )
+            if is_tracing(self.coarse):
+                traces = np.array([self.coarse_values[n, 0] for n in range(1, n_slices + 1)])
+            else:
+                traces = states[1:].copy()
+            self.progress = ckpt.Progress(0, states, traces, errors=errors, timings=timings)
             self.book.initial_sweep_done(self.progress)
             return None
         progress = self.progress
@@ -429,7 +444,18 @@ class _Pipeline:
     # ---- the run -------------------------------------------------------------------------
     def start(self, progress: ckpt.Progress | None, x0: np.ndarray) -> None:
         if progress is None:
-            self.set_state(0, 0, x0)
+            guess = initial_guess(self.coarse, self.times, x0)
+            if guess is None:
+                self.set_state(0, 0, x0)
+                return
+            # X^0 given at once: every coarse step of iteration 0 and every fine solve of
+            # iteration 1 can start now; iteration 0 closes when all its traces exist
+            self.guessed = True
+            for n in range(self.n_slices + 1):
+                self.x[n, 0] = guess[n]
+            for n in range(1, self.n_slices + 1):
+                self.add_coarse(n, 0)
+                self.add_fine(n, 1)
             return
         k0 = progress.iteration
         self.progress, self.completed = progress, k0

@@ -8,7 +8,9 @@ weighted sum of eq. 30, projection, grid transfer of eqs. 32-33) back to back, s
 A fixed-step solve costs the same per step along a slice (same state size, same operations per
 step), so a long slice can be timed over a few hundred steps and scaled by the step count; the
 fine solver is timed over n and 2n steps, and ``linearity`` (t(2n) / 2 t(n), 1 when the per-call
-cost is negligible) checks it in every repeat.
+cost is negligible) checks it in every repeat. A tracing coarse solver (HODMD-Parareal) is timed
+as one task: its trace of iteration 1 over the whole slice (G1 over the window, G2 over the slice),
+with one extrapolation (its HODMDs) as the overhead.
 """
 
 from __future__ import annotations
@@ -20,6 +22,8 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+
+from ..contracts import TracingCoarse
 
 __all__ = ["SliceCosts", "auxiliary_solvers", "coarse_step_time", "measure_slice_costs"]
 
@@ -134,30 +138,55 @@ def measure_slice_costs(
     if repeats < 1:
         raise ValueError(f"repeats must be >= 1, got {repeats!r}")
     length = t_end - t_start
-    solvers, transfer = auxiliary_solvers(coarse)
-    xc = x0 if transfer is None else transfer.restrict(x0)
-    for solver, x in [(fine, x0), *((p, xc) for p in solvers)]:
-        solver(t_start, t_start + _span(solver, 1, length), x)  # warm-up: compile, caches
-    fine_span = _span(fine, fine_steps, length)
-    double_span = min(length, 2 * fine_span)
-    n_fine = (_steps(fine, t_start, t_start + fine_span), _steps(fine, t_start, t_end))
-    n_double = _steps(fine, t_start, t_start + double_span)
-    widest = max(solvers, key=lambda p: getattr(p, "dt", 0.0))
-    coarse_end = t_start + _span(widest, coarse_steps, length)
-    aux_steps = [(_steps(p, t_start, coarse_end), _steps(p, t_start, t_end)) for p in solvers]
 
     def timed(fn: Callable[..., Any], *args: Any) -> tuple[Any, float]:
         start = clock()
         value = fn(*args)
         return value, clock() - start
 
-    split = getattr(coarse, "split", None)
+    if isinstance(coarse, TracingCoarse):
+        coarse_once, aux_steps = _tracing_timer(coarse, t_start, t_end, x0, timed)
+    else:
+        coarse_once, aux_steps = _auxiliary_timer(coarse, t_start, t_end, x0, coarse_steps,
+                                                  timed)
+    fine(t_start, t_start + _span(fine, 1, length), x0)  # warm-up: compile, caches
+    fine_span = _span(fine, fine_steps, length)
+    double_span = min(length, 2 * fine_span)
+    n_fine = (_steps(fine, t_start, t_start + fine_span), _steps(fine, t_start, t_end))
+    n_double = _steps(fine, t_start, t_start + double_span)
     fines, auxes, overheads, linear = [], [], [], []
     for _ in range(repeats):
         short = timed(fine, t_start, t_start + fine_span, x0)[1]
+        aux, over = coarse_once()
+        double = timed(fine, t_start, t_start + double_span, x0)[1]
+        fines.append((short + double) / (n_fine[0] + n_double) * n_fine[1])
+        auxes.append([t * total / done for t, (done, total) in zip(aux, aux_steps, strict=True)])
+        overheads.append(over)
+        linear.append(double / short * n_fine[0] / n_double)
+    return SliceCosts(fines, auxes, overheads, linear, n_fine, aux_steps)
+
+
+Timer = Callable[..., tuple[Any, float]]
+
+
+def _auxiliary_timer(coarse: Any, t_start: float, t_end: float, x0: np.ndarray,
+                     coarse_steps: int | None, timed: Timer) -> tuple[Callable, list]:
+    """Times every auxiliary solve of ``coarse`` over ``coarse_steps`` steps and its combination
+    (see :func:`measure_slice_costs`): the timer and the step counts (timed, per slice)."""
+    length = t_end - t_start
+    solvers, transfer = auxiliary_solvers(coarse)
+    xc = x0 if transfer is None else transfer.restrict(x0)
+    for solver in solvers:
+        solver(t_start, t_start + _span(solver, 1, length), xc)  # warm-up: compile, caches
+    widest = max(solvers, key=lambda p: getattr(p, "dt", 0.0))
+    coarse_end = t_start + _span(widest, coarse_steps, length)
+    aux_steps = [(_steps(p, t_start, coarse_end), _steps(p, t_start, t_end)) for p in solvers]
+    split = getattr(coarse, "split", None)
+
+    def once() -> tuple[list[float], float]:
         # split on the whole slice: the coefficients a run uses (steps rounded to whole counts
         # on a short span can coincide where the slice's do not); its tasks then run on the
-        # short span, each scaled to the slice below
+        # short span, each scaled to the slice
         parts, t_split = timed(split, t_start, t_end, x0) if split else (None, 0.0)
         if parts is None:
             x_aux, over = (xc, 0.0) if transfer is None else timed(transfer.restrict, x0)
@@ -169,9 +198,19 @@ def measure_slice_costs(
             values, aux = zip(*(timed(task.fn, task.args[0], coarse_end, *task.args[2:])
                                 for task in tasks), strict=True)
             over = t_split + timed(combine, list(values))[1]
-        double = timed(fine, t_start, t_start + double_span, x0)[1]
-        fines.append((short + double) / (n_fine[0] + n_double) * n_fine[1])
-        auxes.append([t * total / done for t, (done, total) in zip(aux, aux_steps, strict=True)])
-        overheads.append(over)
-        linear.append(double / short * n_fine[0] / n_double)
-    return SliceCosts(fines, auxes, overheads, linear, n_fine, aux_steps)
+        return list(aux), over
+
+    return once, aux_steps
+
+
+def _tracing_timer(coarse: Any, t_start: float, t_end: float, x0: np.ndarray,
+                   timed: Timer) -> tuple[Callable, list]:
+    """Times a tracing coarse solver as one task: its trace of iteration 1 over the slice, and its
+    ``end_state`` (one HODMD per column group, as a correction runs) as the overhead."""
+    coarse.trace(t_start, t_end, x0, 1)  # warm-up: compile, caches
+
+    def once() -> tuple[list[float], float]:
+        trace, traced = timed(coarse.trace, t_start, t_end, x0, 1)
+        return [traced], timed(coarse.end_state, t_start, t_end, trace)[1]
+
+    return once, [(1, 1)]

@@ -172,6 +172,10 @@ def main(args: argparse.Namespace, console: Any) -> int:
     pilot = _pilot_system(cfg, resolved, points)
     fine = integrate.Propagator(system, cfg.fine.scheme, cfg.fine.dt)
     console.print(f"tuning {cfg.title or args.config}: {args.cores} cores, η* = {args.target:g}")
+    if cfg.coarse.kind != "extrapolated":
+        console.print(f"note: tune searches extrapolated coarse solvers only; this configuration's "
+                      f"[coarse] family {cfg.coarse.kind!r} is not searched, only compared with "
+                      "what is found through `parastokes predict` (docs/tuning.md)")
     if pilot is not None:
         from ..kinds.rod.kind import RodModel
 
