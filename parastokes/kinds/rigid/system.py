@@ -133,6 +133,14 @@ class RigidBody:
         c, q, _ = self.pose(state)
         return self.shape.contains((points - c) @ rotation.matrix(q))
 
+    def state_entries(self) -> np.ndarray:
+        """Which entries of the state carry data (the pose row, the surface points' columns
+        0-2); the others are zero by construction (``parastokes flow`` rebuilds a state from
+        the saved data entries, :mod:`parastokes.flow.run`)."""
+        out = np.zeros((1 + self.n_surface, POSE_COLUMNS), dtype=bool)
+        out[0], out[1:, :3] = True, True
+        return out
+
     def initial_state(self) -> np.ndarray:
         return self.state_of(np.array(self.position), np.array(self.orientation), 0.0)
 
