@@ -1,8 +1,9 @@
 """Rigid-body benchmarks (docs/benchmarks.md, "Rigid and prescribed-motion bodies").
 
-Run from the repository root (one BLAS thread per process: see docs/bodies.md, "Cost")::
+Run from the repository root (the solves limit BLAS to the fluid's threads themselves,
+:mod:`parastokes.mobility.threads`: no ``OPENBLAS_NUM_THREADS`` needed)::
 
-    OPENBLAS_NUM_THREADS=1 PYTHONPATH=. python benchmarks/rigid.py [--quick] [--out PATH]
+    PYTHONPATH=. python benchmarks/rigid.py [--quick] [--sections ...] [--out PATH]
 
 - ``step``: one RK2 step of a free rigid sphere of N ~ 2000 surface points (two mobility solves
   with the body-frame factorization kept, plus ``advance``) against two velocity evaluations of
@@ -10,6 +11,10 @@ Run from the repository root (one BLAS thread per process: see docs/bodies.md, "
   the issue's target is a ratio <= 3. The factorization itself (once per shape, ε, μ) is timed
   apart, and so is a solve with the matrix assembled and factorized every time (as a body near
   the wall or with a moving part pays).
+- ``blas``: one mobility solve of the bacterium near the wall (assembled and factorized at every
+  evaluation) with BLAS limited to the fluid's one thread (the package's default) against the
+  same solve with BLAS on the library's default thread count (what it was before the limit),
+  alternating, in one run.
 - ``parareal``: a bacterium near the wall (80 head points, a 40-point flagellum): the serial fine
   run, a Parareal run on 2 worker processes (Lagrange in ε, forward Euler at 5 τ_f), the measured
   γ_G / γ_F of one slice and the speedups eq. 14 predicts with them at 2 and 40 cores
@@ -83,6 +88,39 @@ def bacterium() -> RigidBody:
                      position=(0.0, 0.0, 1.5))
 
 
+def blas_section(repeats: int) -> list[str]:
+    import contextlib
+    from unittest import mock
+
+    import threadpoolctl
+
+    from parastokes.mobility import choice
+
+    system = bacterium()
+    x0 = system.initial_state()
+    system.rates(0.0, x0)
+    default = max(lib["num_threads"] for lib in threadpoolctl.threadpool_info()
+                  if lib["user_api"] == "blas")
+    limited, unlimited = [], []
+    for _ in range(repeats):
+        limited.append(median_time(lambda: system.rates(0.0, x0), 1))
+        with mock.patch.object(choice, "blas_threads",
+                               lambda n: contextlib.nullcontext(n)):
+            unlimited.append(median_time(lambda: system.rates(0.0, x0), 1))
+    one, free = float(np.median(limited)), float(np.median(unlimited))
+    n = 3 * (len(x0) - 1) + 6
+    return [
+        f"### One mobility solve of the bacterium near the wall ({n}² system, assembled and "
+        f"factorized), median of {repeats}",
+        "",
+        "| BLAS threads in the solve | time (s) | / limited |",
+        "|---|---|---|",
+        f"| 1 (the fluid's n_threads, the package's limit) | {one:.4g} | 1 |",
+        f"| {default} (the library's default, no limit) | {free:.4g} | {free / one:.3g} |",
+        "",
+    ]
+
+
 def parareal_section(t1: float, n_slices: int) -> list[str]:
     system = bacterium()
     x0 = system.initial_state()
@@ -126,12 +164,14 @@ def parareal_section(t1: float, n_slices: int) -> list[str]:
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--quick", action="store_true", help="small sizes (a smoke run)")
-    parser.add_argument("--sections", nargs="*", default=["step", "parareal"])
+    parser.add_argument("--sections", nargs="*", default=["step", "blas", "parareal"])
     parser.add_argument("--out", help="write the tables as Markdown here")
     args = parser.parse_args(argv)
     lines = [f"load average before: {os.getloadavg()[0]:.2f}", ""]
     if "step" in args.sections:
         lines += step_section(300 if args.quick else 2000, 3 if args.quick else 5)
+    if "blas" in args.sections:
+        lines += blas_section(5 if args.quick else 21)
     if "parareal" in args.sections:
         lines += parareal_section(0.004 if args.quick else 0.02, 4)
     lines.append(f"load average after: {os.getloadavg()[0]:.2f}")
