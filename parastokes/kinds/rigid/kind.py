@@ -32,6 +32,7 @@ from ...bodies.registry import (
     point_layout,
 )
 from ...mobility import SolveError
+from .coarse import coarse_shape
 from .shapes import Bacterium, Helix, PointCloud, Rod, Sphere, Spheroid, spacing
 from .slip import Squirmer, UserSlip
 from .system import RigidBody
@@ -110,6 +111,11 @@ class RigidBase(BodySection):
                          viscosity=self.viscosity, wall=self.wall, shear_rate=self.shear_rate,
                          position=(x, y, z), orientation=(w, qx, qy, qz), force=(fx, fy, fz),
                          torque=(tx, ty, tz), n_threads=threads)
+
+    def coarse_points(self, factor: int) -> int:
+        """Rows of the state on the coarse surface of ``coarse.grid_factor`` (the pose row and
+        ``factor`` times fewer points per part, :meth:`RigidBody.coarsened`)."""
+        return 1 + len(coarse_shape(self.surface_shape(), factor).points(0.0))
 
     def resolve(self) -> BodyResolution:
         body = self.build()
