@@ -5,6 +5,7 @@ state at the surface equal to the body's motion plus its slip, and the movie of 
 from __future__ import annotations
 
 import itertools
+import json
 import xml.etree.ElementTree as ET
 
 import numpy as np
@@ -14,52 +15,33 @@ from parastokes import config, flow, integrate, io
 from parastokes.cli import main
 
 WALL = "viscosity = 1.0\nwall = true\nshear_rate = 0.5\n"
+CELL = {"kind": "bacterium", "head": "sphere", "head_points": 30, "tail_radius": 0.2,
+        "pitch": 1.0, "turns": 1.5, "tail_points": 24, "gap": 0.2}
+
+
+def _toml(table: dict, inline: bool = False) -> str:
+    items = [f"{k} = {json.dumps(v)}" for k, v in table.items()]
+    return "{" + ", ".join(items) + "}" if inline else "\n".join(items) + "\n"
+
+
 SQUIRMER = f"""
 [model]
-kind = "squirmer"
-n_points = 40
-b1 = 1.0
-b2 = 2.0
-{WALL}position = [0.0, 0.0, 2.0]
+{_toml({"kind": "squirmer", "n_points": 40, "b1": 1.0, "b2": 2.0})}{WALL}
+position = [0.0, 0.0, 2.0]
 orientation = [0.95, 0.0, 0.3, 0.1]
 """
 BACTERIUM = f"""
 [model]
-kind = "bacterium"
-head = "sphere"
-head_points = 30
-tail_radius = 0.2
-pitch = 1.0
-turns = 1.5
-tail_points = 24
-gap = 0.2
-motor_rate = 6.283185307179586
+{_toml(CELL)}motor_rate = 6.283185307179586
 {WALL}position = [0.0, 0.0, 1.5]
 orientation = [0.9, 0.1, 0.2, 0.3]
 """
+ROD = {"name": "rod", "kind": "rod", "n_points": 9, "length": 1.6, "wavelength": 1.6,
+       "height": 3.5}
 SCENE = f"""
+bodies = [{_toml(ROD, True)}, {_toml({"name": "cell", **CELL, "position": [1.0, 3.0, 2.0]}, True)}]
 [scene]
-{WALL}
-[[bodies]]
-name = "rod"
-kind = "rod"
-n_points = 11
-length = 2.0
-wavelength = 2.0
-height = 3.0
-viscosity = 1.0
-[[bodies]]
-name = "cell"
-kind = "bacterium"
-head = "sphere"
-head_points = 30
-tail_radius = 0.2
-pitch = 1.0
-turns = 1.5
-tail_points = 24
-gap = 0.2
-{WALL}position = [1.0, 3.0, 2.0]
-"""
+{WALL}"""
 TIMES = """
 [time]
 t1 = 0.06
@@ -124,7 +106,7 @@ def test_the_pose_is_written_as_node_data_the_xdmf_names_by_its_width(tmp_path):
     assert kinds["orientation"] == "Matrix" and kinds["phase"] == "Scalar"
 
 
-def test_a_movie_of_a_squirmer_run_with_its_flow(tmp_path):
+def test_movies_of_a_squirmer_run_with_and_without_its_flow(tmp_path):
     from PIL import Image
 
     _run(tmp_path, SQUIRMER)
@@ -132,3 +114,7 @@ def test_a_movie_of_a_squirmer_run_with_its_flow(tmp_path):
                  "--resolution", "6", "--size", "160x120", "-q"]) == 0
     with Image.open(tmp_path / "m.gif") as gif:
         assert gif.n_frames == 3 and gif.size == (160, 120)
+    assert main(["movie", str(tmp_path), "--out", str(tmp_path / "b.gif"), "--frames", "2",
+                 "--size", "160x120", "-q"]) == 0
+    with Image.open(tmp_path / "b.gif") as gif:
+        assert gif.n_frames == 2

@@ -47,25 +47,12 @@ def solve(
     if not (np.isfinite(tol) and 0 < tol < 1):
         raise ValueError(f"tol: must lie in (0, 1), got {tol!r}")
     with blas_threads(sset.n_threads):
-        return _solve(sset, g, ft, method, tol, precondition, y_known, g_body)
-
-
-def _solve(
-    sset: SurfaceSet,
-    g: np.ndarray,
-    ft: np.ndarray | None,
-    method: str,
-    tol: float,
-    precondition: str,
-    y_known: np.ndarray | None,
-    g_body: np.ndarray | None,
-) -> tuple[np.ndarray, np.ndarray, SolveInfo]:
-    if chosen_method(sset, method) == "dense":
-        return direct_solve(sset, g, ft, y_known, g_body)
-    if ft is None:
-        assert y_known is not None
-        f, _, info = gmres_solve(sset, g + sset.apply_motion(y_known), None, tol, precondition)
-        return f, y_known, info
-    f, y, info = gmres_solve(sset, g, ft, tol, precondition)
-    assert y is not None
-    return f, y, info
+        if chosen_method(sset, method) == "dense":
+            return direct_solve(sset, g, ft, y_known, g_body)
+        if ft is None:
+            assert y_known is not None
+            f, _, info = gmres_solve(sset, g + sset.apply_motion(y_known), None, tol, precondition)
+            return f, y_known, info
+        f, y, info = gmres_solve(sset, g, ft, tol, precondition)
+        assert y is not None
+        return f, y, info
