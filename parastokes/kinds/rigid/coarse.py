@@ -46,7 +46,7 @@ def coarse_shape(shape: Any, factor: int) -> Any:
         return dataclasses.replace(shape, head=coarse_shape(shape.head, factor),
                                    tail=coarse_shape(shape.tail, factor))
     what = "a user's point cloud" if isinstance(shape, PointCloud) else type(shape).__name__
-    raise ValueError(f"coarse.grid_factor: {what} cannot be resampled on a coarser surface; "
+    raise ValueError(f"{what} cannot be resampled on a coarser surface (coarse.grid_factor); "
                      "use grid_factor = 1 (or a built-in shape)")
 
 
