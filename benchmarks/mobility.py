@@ -4,7 +4,7 @@ iterations of the block preconditioner against gap and body count.
 Run from the repository root (one BLAS thread, one kernel thread, so that the LU solves and the
 kernels are compared on the same core)::
 
-    OPENBLAS_NUM_THREADS=1 NUMBA_NUM_THREADS=1 PYTHONPATH=. python benchmarks/mobility.py \
+    NUMBA_NUM_THREADS=1 PYTHONPATH=. python benchmarks/mobility.py \
         [--points 2000] [--sphere 400] [--rounds 5] [--parts a b] [--json PATH]
 
 (a) One rigid sphere of ``--points`` surface points in free space: the one-time body-frame

@@ -1,8 +1,9 @@
 """Rigid-body benchmarks (docs/benchmarks.md, "Rigid and prescribed-motion bodies").
 
-Run from the repository root (one BLAS thread per process: see docs/bodies.md, "Cost")::
+Run from the repository root (the solves limit BLAS to the fluid's threads themselves,
+:mod:`parastokes.mobility.threads`: no ``OPENBLAS_NUM_THREADS`` needed)::
 
-    OPENBLAS_NUM_THREADS=1 PYTHONPATH=. python benchmarks/rigid.py [--quick] [--out PATH]
+    PYTHONPATH=. python benchmarks/rigid.py [--quick] [--sections ...] [--out PATH]
 
 - ``step``: one RK2 step of a free rigid sphere of N ~ 2000 surface points (two mobility solves
   with the body-frame factorization kept, plus ``advance``) against two velocity evaluations of
@@ -10,6 +11,14 @@ Run from the repository root (one BLAS thread per process: see docs/bodies.md, "
   the issue's target is a ratio <= 3. The factorization itself (once per shape, ε, μ) is timed
   apart, and so is a solve with the matrix assembled and factorized every time (as a body near
   the wall or with a moving part pays).
+- ``blas``: one mobility solve of the bacterium near the wall (assembled and factorized at every
+  evaluation) with BLAS limited to the fluid's one thread (the package's default) against the
+  same solve with BLAS on the library's default thread count (what it was before the limit),
+  alternating, in one run.
+- ``coarse_surface`` (not run by default): Parareal on the bacterium of
+  experiments/quick/bacterium_wall.toml with its coarse solver on the fine surface and on
+  surfaces 2, 3 and 4 times coarser (``coarse.grid_factor``): γ_G / γ_F, iterations, errors,
+  eq. 14 at 40 cores.
 - ``parareal``: a bacterium near the wall (80 head points, a 40-point flagellum): the serial fine
   run, a Parareal run on 2 worker processes (Lagrange in ε, forward Euler at 5 τ_f), the measured
   γ_G / γ_F of one slice and the speedups eq. 14 predicts with them at 2 and 40 cores
@@ -83,6 +92,39 @@ def bacterium() -> RigidBody:
                      position=(0.0, 0.0, 1.5))
 
 
+def blas_section(repeats: int) -> list[str]:
+    import contextlib
+    from unittest import mock
+
+    import threadpoolctl
+
+    from parastokes.mobility import choice
+
+    system = bacterium()
+    x0 = system.initial_state()
+    system.rates(0.0, x0)
+    default = max(lib["num_threads"] for lib in threadpoolctl.threadpool_info()
+                  if lib["user_api"] == "blas")
+    limited, unlimited = [], []
+    for _ in range(repeats):
+        limited.append(median_time(lambda: system.rates(0.0, x0), 1))
+        with mock.patch.object(choice, "blas_threads",
+                               lambda n: contextlib.nullcontext(n)):
+            unlimited.append(median_time(lambda: system.rates(0.0, x0), 1))
+    one, free = float(np.median(limited)), float(np.median(unlimited))
+    n = 3 * (len(x0) - 1) + 6
+    return [
+        f"### One mobility solve of the bacterium near the wall ({n}² system, assembled and "
+        f"factorized), median of {repeats}",
+        "",
+        "| BLAS threads in the solve | time (s) | / limited |",
+        "|---|---|---|",
+        f"| 1 (the fluid's n_threads, the package's limit) | {one:.4g} | 1 |",
+        f"| {default} (the library's default, no limit) | {free:.4g} | {free / one:.3g} |",
+        "",
+    ]
+
+
 def parareal_section(t1: float, n_slices: int) -> list[str]:
     system = bacterium()
     x0 = system.initial_state()
@@ -123,17 +165,75 @@ def parareal_section(t1: float, n_slices: int) -> list[str]:
     return [*lines, ""]
 
 
+QUICK_BACTERIUM = os.path.join(os.path.dirname(__file__), "..", "experiments", "quick",
+                               "bacterium_wall.toml")
+
+
+def coarse_surface_section(t1: float, n_slices: int, factors: list[int],
+                           path: str = QUICK_BACTERIUM) -> list[str]:
+    """Parareal on the bacterium of ``path`` (its body, fine and coarse solvers; T = ``t1`` over
+    ``n_slices`` slices) with the coarse solver on the fine surface (factor 1) and on coarser
+    surfaces (:meth:`RigidBody.coarsened`): γ_G / γ_F of one slice, the iterations to
+    η̃ < 1e-8, the error against the serial fine solution, and eq. 14 at 40 cores."""
+    from parastokes import config
+
+    cfg, resolved = config.load(path)
+    system = cfg.model.build(1)
+    x0 = system.initial_state()
+    fine = integrate.Propagator(system, cfg.fine.scheme, cfg.fine.dt)
+    slice_length = t1 / n_slices
+    gamma_f = median_time(lambda: fine(0.0, slice_length, x0), 3)
+    start = time.perf_counter()
+    reference = parareal.serial_solution(fine, x0, 0.0, t1, n_slices)
+    serial = time.perf_counter() - start
+    lines = [
+        f"### Parareal on the bacterium of experiments/quick/bacterium_wall.toml "
+        f"({len(x0) - 1} surface points; fine {cfg.fine.scheme} τ_f = {cfg.fine.dt:g}; coarse "
+        f"{cfg.coarse.scheme} at {resolved.coarse_base_dt:g} s, Lagrange in ε, N_G = "
+        f"{resolved.n_auxiliary}; T = {t1:g}, {n_slices} slices, in one process)",
+        "",
+        f"Serial fine run: {serial:.3g} s; γ_F of one slice: {gamma_f:.3g} s.",
+        "",
+        "| coarse surface | points | γ_G / γ_F | iterations to η̃ < 1e-8 | error η after each "
+        "iteration | eq. 14 at N_c = 40 (K as found); bound eq. 15 |",
+        "|---|---|---|---|---|---|",
+    ]
+    for factor in factors:
+        coarse = parareal.extrapolated(system, cfg.coarse.scheme, resolved.coarse_base_dt,
+                                       lagrange=resolved.lagrange or None,
+                                       grid=factor if factor > 1 else None)
+        points = (system.coarsened(factor)[0] if factor > 1 else system).n_surface
+        gamma_g = median_time(lambda c=coarse: c(0.0, slice_length, x0), 3)
+        result = parareal.run(fine, coarse, x0, 0.0, t1, n_slices, tol=1e-8,
+                              max_iterations=n_slices, reference=reference,
+                              positions=system.positions, project=system.project)
+        k = result.iterations
+        ratio = gamma_g / gamma_f
+        (_, s40, b40), = predict(ratio, k, [40])
+        errors = ", ".join(f"{e:.1e}" for e in result.errors)
+        name = "fine (baseline)" if factor == 1 else f"factor {factor}"
+        lines.append(f"| {name} | {points} | {ratio:.3g} | {k} | {errors} | {s40:.3g}; "
+                     f"{b40:.3g} |")
+        print(lines[-1], flush=True)
+    return [*lines, ""]
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--quick", action="store_true", help="small sizes (a smoke run)")
-    parser.add_argument("--sections", nargs="*", default=["step", "parareal"])
+    parser.add_argument("--sections", nargs="*", default=["step", "blas", "parareal"])
     parser.add_argument("--out", help="write the tables as Markdown here")
     args = parser.parse_args(argv)
     lines = [f"load average before: {os.getloadavg()[0]:.2f}", ""]
     if "step" in args.sections:
         lines += step_section(300 if args.quick else 2000, 3 if args.quick else 5)
+    if "blas" in args.sections:
+        lines += blas_section(5 if args.quick else 21)
     if "parareal" in args.sections:
         lines += parareal_section(0.004 if args.quick else 0.02, 4)
+    if "coarse_surface" in args.sections:
+        lines += coarse_surface_section(0.0048 if args.quick else 0.024, 4 if args.quick else 8,
+                                        [1, 2] if args.quick else [1, 2, 3, 4])
     lines.append(f"load average after: {os.getloadavg()[0]:.2f}")
     text = "\n".join(lines)
     print(text)

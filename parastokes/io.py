@@ -422,9 +422,9 @@ def _body_grid(
     geometry = ET.SubElement(grid, "Geometry", GeometryType="XYZ")
     _slab(geometry, h5name, frames["positions"], i)
     for label in sorted(set(frames) - {"positions"}):
-        attribute = ET.SubElement(
-            grid, "Attribute", Name=label, AttributeType="Vector", Center="Node"
-        )
+        width = frames[label].shape[-1]  # 3: a vector (a rod's D1); 1: a scalar; 4: a quaternion
+        kind = {1: "Scalar", 3: "Vector"}.get(width, "Matrix")
+        attribute = ET.SubElement(grid, "Attribute", Name=label, AttributeType=kind, Center="Node")
         _slab(attribute, h5name, frames[label], i)
     for label in sorted(set(static) - {"connectivity"}):
         attribute = ET.SubElement(

@@ -355,7 +355,8 @@ def _check_room(setup: Setup, writer: io.TrajectoryWriter) -> None:
     frames, parts = _frame_plan(setup)
     runs = 2 if setup.config.run.mode == "both" else 1
     count = runs * (len(frames) + (parts - 1) * setup.config.parareal.n_slices)
-    columns = sum(body.rows * 3 * (1 + len(body.vectors)) for body in writer.layout)
+    columns = sum(body.rows * (3 + sum(c.stop - c.start for c in body.vectors.values()))
+                  for body in writer.layout)
     # its header as written, and the frames' data: a lower bound on the file's size
     needed = writer.path.stat().st_size + 8.0 * count * columns
     room: list[tuple[int, str, float]] = []

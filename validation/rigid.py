@@ -1,7 +1,7 @@
 """Tables of docs/validation.md, "Rigid and prescribed-motion bodies": errors against closed
 forms as the surface is refined, and a torque-driven helix against resistive-force theory.
 
-    OPENBLAS_NUM_THREADS=1 PYTHONPATH=. python validation/rigid.py [--sizes 150 300 600 1200]
+    PYTHONPATH=. python validation/rigid.py [--sizes 150 300 600 1200]
 
 The studies are those of tests/test_rigid_validation.py (which asserts the fitted orders).
 """

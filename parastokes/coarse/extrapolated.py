@@ -56,7 +56,8 @@ class Extrapolated(CoarseSection):
     richardson: Richardson = Field(
         default_factory=Richardson, description="Richardson extrapolation {m, r}."
     )
-    grid_factor: int = Field(1, ge=1, description="σ_c / σ_f (rods only; Table 6 uses 6).")
+    grid_factor: int = Field(1, ge=1, description="σ_c / σ_f (rods; Table 6 uses 6); rigid bodies: "
+                             "each part of the surface with factor times fewer points.")
     max_weight_sum: Positive = Field(
         1e6,
         description="Refuse a coarse solver whose weights have Σ|w_j v_q| above this (nearly "

@@ -2,7 +2,8 @@
 as full states.
 
 ``trajectory.h5`` stores, per frame, every body's positions and its node vectors (a rod's frames
-``D1``-``D3`` with ``output.frames = true``, the default), and as an attribute the resolved
+``D1``-``D3`` with ``output.frames = true``, the default; a rigid body's quaternion and phase on
+its centre), and as an attribute the resolved
 configuration the run was made from (:mod:`parastokes.io`). :func:`load_run` parses that
 configuration again (:func:`parastokes.config.parse`), builds the system by its kind's section,
 gets the layout of its state rows by the kind (the registry), and puts the saved columns back into
@@ -102,12 +103,30 @@ class RunFrames:
         return index % n
 
 
+def _body_entries(body: Any) -> np.ndarray:
+    """The entries of ``body``'s state that carry data: its ``state_entries()`` where it has
+    one (a rigid body's surface rows are zero beyond their points), else all."""
+    entries = getattr(body, "state_entries", None)
+    if entries is not None:
+        return np.asarray(entries(), dtype=bool)
+    return np.ones(np.shape(body.initial_state()), dtype=bool)
+
+
+def _needed(system: Any) -> np.ndarray:
+    """The entries of the state that a rebuilt state needs from the trajectory (a scene: its
+    bodies', not its padding)."""
+    shapes, bodies = getattr(system, "shapes", None), getattr(system, "bodies", None)
+    if shapes is None or bodies is None:
+        return _body_entries(system)
+    needed = np.zeros(np.shape(system.initial_state()), dtype=bool)
+    for body, (first, rows, cols) in zip(bodies, shapes, strict=True):
+        needed[first : first + rows, :cols] = _body_entries(body)
+    return needed
+
+
 def _columns_saved(system: Any, layout: list[BodyLayout]) -> list[str]:
     """What the state needs that the trajectory does not hold (empty if it holds everything)."""
-    template = np.asarray(system.initial_state())
-    needed = np.ones(template.shape, dtype=bool)
-    for first, rows, cols in getattr(system, "shapes", ()):  # a scene's padding is not needed
-        needed[first : first + rows, cols:] = False
+    needed = _needed(system)
     saved = np.zeros_like(needed)
     for body in layout:
         rows = slice(body.first, body.first + body.rows)
@@ -139,6 +158,7 @@ def load_run(directory: str | Path, run: str | None = None, threads: int = 1) ->
     missing = _columns_saved(system, layout)
     if missing:
         raise ValueError(f"{path}: the frames of {', '.join(missing)} lack columns of the state "
-                         "(a rod's frames D1-D3, which its torques need); rerun with "
+                         "(a rod's frames D1-D3, which its torques need, or a rigid body's pose, "
+                         "which trajectories written before it was saved lack); rerun with "
                          "output.frames = true")
     return RunFrames(directory, system, layout, data)

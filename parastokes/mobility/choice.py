@@ -9,6 +9,7 @@ from .direct import direct_solve
 from .errors import SolveInfo
 from .krylov import gmres_solve
 from .system import SurfaceSet
+from .threads import blas_threads
 
 #: Most surface points (all bodies) solved by a fresh dense factorization under "auto"; a single
 #: body in free space always uses its reused body-frame factorization. Measured (benchmarks/
@@ -41,15 +42,17 @@ def solve(
     g_body: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, SolveInfo]:
     """Dispatch to the direct or the GMRES solver (arguments of
-    :func:`parastokes.mobility.direct.direct_solve`)."""
+    :func:`parastokes.mobility.direct.direct_solve`), BLAS on at most the fluid's threads
+    (:func:`.threads.blas_threads`)."""
     if not (np.isfinite(tol) and 0 < tol < 1):
         raise ValueError(f"tol: must lie in (0, 1), got {tol!r}")
-    if chosen_method(sset, method) == "dense":
-        return direct_solve(sset, g, ft, y_known, g_body)
-    if ft is None:
-        assert y_known is not None
-        f, _, info = gmres_solve(sset, g + sset.apply_motion(y_known), None, tol, precondition)
-        return f, y_known, info
-    f, y, info = gmres_solve(sset, g, ft, tol, precondition)
-    assert y is not None
-    return f, y, info
+    with blas_threads(sset.n_threads):
+        if chosen_method(sset, method) == "dense":
+            return direct_solve(sset, g, ft, y_known, g_body)
+        if ft is None:
+            assert y_known is not None
+            f, _, info = gmres_solve(sset, g + sset.apply_motion(y_known), None, tol, precondition)
+            return f, y_known, info
+        f, y, info = gmres_solve(sset, g, ft, tol, precondition)
+        assert y is not None
+        return f, y, info

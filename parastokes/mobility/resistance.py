@@ -88,7 +88,9 @@ def resistance_matrix(
     about ``center``). Free space: the reused body-frame one, rotated; with the wall: assembled
     and factorized at this placement."""
     from .direct import factor_for
+    from .threads import blas_threads
 
     sset = SurfaceSet([surface.place(center, rotation)], mu, wall)
-    factor, _ = factor_for(sset)
+    with blas_threads(sset.n_threads):
+        factor, _ = factor_for(sset)
     return np.array(factor.resistance)

@@ -6,11 +6,14 @@ All three share the pose, the fluid and the loads (:class:`RigidBase`) and build
 neighbouring surface points. Resolving a section builds the body (which refuses a surface too
 coarse for its ε and a body on or below the wall) and solves its mobility problem once, so that
 ``parastokes check`` names a singular system before the run. Output: the centre (one point,
-``<name>_center``) and the surface (``<name>_surface``) as point clouds.
+``<name>_center``, with the rest of the pose as its node data ``orientation``, the quaternion,
+and ``phase``, φ, so that ``parastokes flow`` rebuilds the full state) and the surface
+(``<name>_surface``) as point clouds.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from typing import Annotated, Any, Literal
@@ -29,6 +32,7 @@ from ...bodies.registry import (
     point_layout,
 )
 from ...mobility import SolveError
+from .coarse import coarse_shape
 from .shapes import Bacterium, Helix, PointCloud, Rod, Sphere, Spheroid, spacing
 from .slip import Squirmer, UserSlip
 from .system import RigidBody
@@ -107,6 +111,11 @@ class RigidBase(BodySection):
                          viscosity=self.viscosity, wall=self.wall, shear_rate=self.shear_rate,
                          position=(x, y, z), orientation=(w, qx, qy, qz), force=(fx, fy, fz),
                          torque=(tx, ty, tz), n_threads=threads)
+
+    def coarse_points(self, factor: int) -> int:
+        """Rows of the state on the coarse surface of ``coarse.grid_factor`` (the pose row and
+        ``factor`` times fewer points per part, :meth:`RigidBody.coarsened`)."""
+        return 1 + len(coarse_shape(self.surface_shape(), factor).points(0.0))
 
     def resolve(self) -> BodyResolution:
         body = self.build()
@@ -199,9 +208,14 @@ class BacteriumModel(RigidBase):
 
 def layout(section: Any, system: RigidBody, frames: bool,
            tracked: Sequence[int] | None) -> list[BodyLayout]:
-    """The centre (row 0) and the surface (rows 1..M), each a cloud of points."""
-    return [point_layout("center", system_kind(section), 0, 1),
-            point_layout("surface", system_kind(section), 1, system.n_surface)]
+    """The centre (row 0, with the quaternion and the phase of the pose as node data: written
+    whatever ``frames`` says, since the state cannot be rebuilt without them) and the surface
+    (rows 1..M), each a cloud of points."""
+    kind = system_kind(section)
+    center = point_layout("center", kind, 0, 1)
+    pose = {"orientation": slice(3, 7), "phase": slice(7, 8)}
+    return [dataclasses.replace(center, vectors=pose),
+            point_layout("surface", kind, 1, system.n_surface)]
 
 
 def system_kind(section: Any) -> str:

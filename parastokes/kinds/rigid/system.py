@@ -20,10 +20,14 @@ external force and torque (the augmented system of Khatri & Cortez).
 surface rebuilt from the new pose. **project**: q renormalized, the surface rebuilt (as the
 rod re-orthonormalizes its frames). **bracket**: Ω1 × Ω2 on the pose row (RKMK4, as rods).
 **monitor**: the drift |‖q‖ − 1| (limit 1e-3); infinite when a point is on or below the wall.
+
+**coarsened(factor)**: the same body on a surface of ``factor`` times fewer points, ε scaled with
+the spacing, and the exact grid transfer through the pose (:mod:`.coarse`; Remark 4).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Any, ClassVar
@@ -36,6 +40,7 @@ from ...bodies.sources import FluidSources
 from ...mobility import ResistanceResult, solve_resistance
 from ...mrs.velocity import thread_count
 from . import rotation
+from .coarse import RigidTransfer, coarse_shape
 from .shapes import Sphere, spacing
 from .slip import Squirmer, UserSlip
 from .solve import MobilitySolution, Surface, mobility, placed
@@ -76,13 +81,17 @@ class RigidBody:
     force: tuple[float, float, float] = (0.0, 0.0, 0.0)
     torque: tuple[float, float, float] = (0.0, 0.0, 0.0)
     n_threads: int | None = None
+    #: The blobs' width over the parameter ε of ``params`` (1; a coarse surface's h_c / h, so
+    #: that Lagrange nodes in ε mean the same on both surfaces: :meth:`coarsened`).
+    epsilon_scale: float = 1.0
 
     #: Rates include angular velocities (for scenes); the surface forces come from a solve.
     angular: ClassVar[bool] = True
     rate_columns: ClassVar[int] = RATE_COLUMNS
 
     def __post_init__(self) -> None:
-        require_positive(epsilon=self.epsilon, viscosity=self.viscosity)
+        require_positive(epsilon=self.epsilon, viscosity=self.viscosity,
+                         epsilon_scale=self.epsilon_scale)
         for name, n in (("position", 3), ("force", 3), ("torque", 3), ("orientation", 4)):
             object.__setattr__(self, name, _vector(name, getattr(self, name), n))
         q = rotation.normalized(np.array(self.orientation))
@@ -132,6 +141,14 @@ class RigidBody:
         """Which lab-frame ``points`` lie inside this body at ``state``."""
         c, q, _ = self.pose(state)
         return self.shape.contains((points - c) @ rotation.matrix(q))
+
+    def state_entries(self) -> np.ndarray:
+        """Which entries of the state carry data (the pose row, the surface points' columns
+        0-2); the others are zero by construction (``parastokes flow`` rebuilds a state from
+        the saved data entries, :mod:`parastokes.flow.run`)."""
+        out = np.zeros((1 + self.n_surface, POSE_COLUMNS), dtype=bool)
+        out[0], out[1:, :3] = True, True
+        return out
 
     def initial_state(self) -> np.ndarray:
         return self.state_of(np.array(self.position), np.array(self.orientation), 0.0)
@@ -222,11 +239,27 @@ class RigidBody:
     # ---- parameters and monitor ------------------------------------------------------------
     @property
     def params(self) -> dict[str, float]:
-        return {"epsilon": self.epsilon, "viscosity": self.viscosity}
+        """ε (the blobs' width over ``epsilon_scale``: the fine surface's ε on a coarse one) and
+        the viscosity."""
+        if self.epsilon_scale == 1.0:
+            return {"epsilon": self.epsilon, "viscosity": self.viscosity}
+        return {"epsilon": self.epsilon / self.epsilon_scale, "viscosity": self.viscosity}
 
     def with_params(self, **theta: float) -> RigidBody:
-        """A copy with ``epsilon`` and/or ``viscosity`` changed (each solver its own operator)."""
+        """A copy with ``epsilon`` and/or ``viscosity`` changed (each solver its own operator);
+        the blobs' width is ``epsilon_scale`` times the given ε."""
+        if "epsilon" in theta and self.epsilon_scale != 1.0:
+            theta = {**theta, "epsilon": float(theta["epsilon"]) * self.epsilon_scale}
         return replace_params(self, theta)
+
+    def coarsened(self, factor: int) -> tuple[RigidBody, RigidTransfer]:
+        """The same body on a coarser surface (``factor`` times fewer points per part, ε scaled
+        with the spacing) and the grid transfer (Remark 4; :mod:`.coarse`)."""
+        shape = coarse_shape(self.shape, factor)
+        ratio = spacing(shape) / spacing(self.shape)
+        coarse = dataclasses.replace(self, shape=shape, epsilon=self.epsilon * ratio,
+                                     epsilon_scale=self.epsilon_scale * ratio)
+        return coarse, RigidTransfer(self, coarse)
 
     @property
     def monitor_limit(self) -> float:
