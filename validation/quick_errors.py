@@ -139,7 +139,8 @@ def main(argv: Sequence[str] | None = None) -> None:
         note = f"{time.perf_counter() - start:.1f} s"
         if args.sensitivity:
             moved = first_iterate(name, overrides, perturb=1e-15)
-            changes = [abs(moved[k] / values[k] - 1) for k in fields]
+            changes = [abs(moved[k] / values[k] - 1) if values[k] else abs(moved[k])
+                       for k in fields]  # (absolute where the value is 0)
             note += "; round-off sensitivity " + " ".join(f"{c:.1e}" for c in changes)
         print(f"{name} = [{row}]  # {note}", flush=True)
 
