@@ -456,6 +456,8 @@ def documented_numbers(results: dict) -> dict[str, list[float] | float]:
         "vesicle_bisection": results["vesicle_bisection"]["bisection/tau_f"],
         "dg_former": [amp[name][0]["combined"] for name in CASES],
         "dg_paper": [amp[name][1]["combined"] for name in CASES],
+        "dg_norm_former": [amp[name][0].get("norm", float("nan")) for name in CASES],
+        "dg_norm_paper": [amp[name][1].get("norm", float("nan")) for name in CASES],
         "dg_auxiliary_min": [min(min(a["auxiliary"]) for a in amp[name]) for name in CASES],
         "dg_auxiliary_max": [max(max(a["auxiliary"]) for a in amp[name]) for name in CASES],
         "dg_controls": [results["controls"][name]["combined"] for name in CONTROLS],
@@ -474,7 +476,9 @@ def amplifications(names: Sequence[str], log=print) -> dict:
             found["amplification"][name] = [amplification(name, s) for s in CASES[name]]
         if name in CONTROLS:
             found["controls"][name] = amplification(name, CONTROLS[name])
-        log(f"rho(DG) {name}: done")
+        found_here = found["amplification"].get(name, []) + [found["controls"].get(name, {})]
+        log(f"rho(DG) {name}: " + ", ".join(f"{a['coarse_steps']} steps {a['combined']:.6g}"
+                                            for a in found_here if a))
     return found
 
 
