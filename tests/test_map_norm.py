@@ -65,6 +65,9 @@ def test_dense_gives_the_spectral_radius_and_the_norm():
     assert rho == pytest.approx(np.abs(np.linalg.eigvals(a)).max(), rel=1e-6)
     assert norm == pytest.approx(np.linalg.norm(a, 2), rel=1e-6)
     assert probe.calls == 3 * N + 1
+    central = map_norm.Probe(propagate, _positions, _x0(), central=True)
+    assert map_norm.dense(central)[0] == pytest.approx(rho, rel=1e-6)
+    assert central.calls == 6 * N + 1
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

@@ -9,7 +9,11 @@ no adjoint (so no Lanczos bidiagonalization for the norm of a large DG). Chosen 
 
 - 3M <= ``DENSE_LIMIT`` (the rods, M = 61: 184 calls): the whole Jacobian by forward
   differences; rho from its eigenvalues, ‖DG‖ from its singular values (numpy), both exact up to
-  the differences' error.
+  the differences' error. This DG is far from normal (norm 50, eigenvalues near 1), so its
+  eigenvalues move with that error: on Table 5 G^1 over the paper's slice forward differences
+  gave rho = 1.92, 1.28, 1.053, 1.00086, 1.00075, 1.00099 at absolute steps 1e-7, 1e-6, 1e-5,
+  3e-5, 1e-4, 1.2e-4 (round-off of the weighted sums falls as 1/step), central ones
+  (``central=True``) 1.0016 and 1.0011 at 1.2e-4 and 4e-4; the norm 49.78 +- 0.01 throughout.
 - larger (the vesicle, 3M = 1926, whose Jacobian would take 1927 calls): rho by ARPACK's
   implicitly restarted Arnoldi (scipy.sparse.linalg.eigs, largest modulus) on the products,
   converged to ``RTOL``; the norm is not computed (a Krylov space of forward products alone gave a
@@ -18,8 +22,9 @@ no adjoint (so no Lanczos bidiagonalization for the norm of a large DG). Chosen 
 The five-step power iteration d <- DG d / |DG d| that this replaces returned neither: on Table 5
 G^1 over the paper's slice it gave 1.19 and 1.37 from two starts and 1.39 after ten steps, while
 the eigenvalues of largest modulus there cluster within 1e-3 of 1 (so the iteration barely
-converges towards rho) and the norm is 30-40 (a perturbation of one point against the rod's
-frames moves the whole tail, a transient that a stable map has too).
+converges towards rho) and the norm is 50 (a perturbation of one point against the rod's frames
+turns the whole tail, a transient that a stable map has too); on Table 8 G^1 over the former
+quick slice it gave 18.08 where rho is 20.34.
 """
 
 from __future__ import annotations
@@ -31,13 +36,10 @@ import scipy.sparse.linalg
 
 #: Largest 3M for which the Jacobian is formed whole.
 DENSE_LIMIT = 600
-#: Finite-difference step on the positions, relative to their largest coordinate. DG of the coarse
-#: maps is far from normal (norm 50, eigenvalues near 1), so its eigenvalues are sensitive to the
-#: round-off of the differences, which grows as 1/step (weighted sums with weights up to 1.7e5):
-#: on Table 5 G^1 over the paper's slice (coordinates up to 12) rho came out 1.92, 1.28, 1.053,
-#: 1.00086, 1.00075 at absolute steps 1e-7, 1e-6, 1e-5, 3e-5, 1e-4, while the norm stayed at
-#: 49.78 +- 0.01. At 1e-5 relative the eigenvalues have settled and the truncation error of the
-#: differences is about 3e-4 of DG d (measured along the top eigenvector, steps 1e-5 to 1e-4).
+#: Finite-difference step on the positions, relative to their largest coordinate: large enough
+#: that the round-off of the weighted sums (weights up to 1.7e5), which grows as 1/step, is small,
+#: small enough for the truncation error (forward: about 3e-4 of DG d on Table 5 G^1, along its
+#: top eigenvector; central: second order).
 STEP = 1e-5
 #: Relative tolerance of ARPACK's rho.
 RTOL = 1e-6
@@ -47,19 +49,24 @@ class Probe:
     """DG d by forward differences of ``propagate`` (x0 -> G(x0), full state) on the positions."""
 
     def __init__(self, propagate: Callable[[np.ndarray], np.ndarray], positions, x0: np.ndarray,
-                 step: float = STEP) -> None:
-        self.propagate, self.positions, self.x0 = propagate, positions, x0
+                 step: float = STEP, central: bool = False) -> None:
+        self.propagate, self.positions, self.x0, self.central = propagate, positions, x0, central
         self.step = step * (float(np.abs(positions(x0)).max()) or 1.0)
         self.base = np.asarray(positions(propagate(x0)), dtype=float).ravel()
         self.size = self.base.size
         self.calls = 1
 
-    def __call__(self, d: np.ndarray) -> np.ndarray:
+    def moved(self, d: np.ndarray) -> np.ndarray:
         y = self.x0.copy()
-        y[:, :3] += self.step * np.real(d).reshape(-1, 3)
+        y[:, :3] += d.reshape(-1, 3)
         self.calls += 1
-        moved = np.asarray(self.positions(self.propagate(y)), dtype=float).ravel()
-        return (moved - self.base) / self.step
+        return np.asarray(self.positions(self.propagate(y)), dtype=float).ravel()
+
+    def __call__(self, d: np.ndarray) -> np.ndarray:
+        d = self.step * np.real(d)
+        if self.central:
+            return (self.moved(d) - self.moved(-d)) / (2 * self.step)
+        return (self.moved(d) - self.base) / self.step
 
     def jacobian(self) -> np.ndarray:
         return np.array([self(e) for e in np.eye(self.size)]).T
