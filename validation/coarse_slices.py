@@ -392,7 +392,7 @@ def claims(results: dict) -> dict[str, bool]:
             a[0]["combined"] for a in amp.values()
         )
         > 5,
-        "over the paper's slices it is below 1.3 (rods: within the differences' error)": max(
+        "over the paper's slices it is below 1.3": max(
             a[1]["combined"] for a in amp.values()
         )
         < 1.3,
