@@ -136,8 +136,8 @@ def test_quick_run(name, tmp_path):
 # stiff transients have decayed, the combination follows G_{Theta^0, tau_c}'s growth. Over the
 # former quick slices (4-20 coarse steps) the linearized coarse map amplified perturbations 9 to
 # 122 fold and the runs blew up or left the 0.01 % area limit; over the paper's slices (36-500
-# steps) it amplifies them at most 1.2 fold, as do the other quick variants over their slices
-# (Table 7 G^3: 2 fold). Numbers: docs/validation.md, "Where our runs of the paper's coarse
+# steps) its spectral radius is at most 1.001, as for the other quick variants over their
+# slices (Table 7 G^3: 2.2). Numbers: docs/validation.md, "Where our runs of the paper's coarse
 # solvers differ" (python -m validation.coarse_slices).
 from validation.quick_errors import PAPER_SLICES  # noqa: E402  (the seven, shared)
 

@@ -11,6 +11,7 @@ from functools import lru_cache
 
 import numpy as np
 import pytest
+from documented import check
 
 from parastokes.mobility import (
     RigidSurface,
@@ -69,6 +70,8 @@ def test_translating_and_rotating_sphere():
     assert drag < 0.02
     assert torque < 0.06
     assert traction < 0.17
+    for name, value in (("drag", drag), ("torque", torque), ("traction", traction)):
+        check("rigid_free", name, value, 0)  # docs/validation.md, the table's N = 400 row
 
 
 def fitted_orders(sizes):
@@ -84,6 +87,7 @@ def test_convergence_order_small():
     assert 0.8 < drag < 1.5
     assert 0.8 < torque < 1.5
     assert 0.6 < traction < 1.5
+    check("rigid_free", "orders_small", [drag, torque, traction])
 
 
 @pytest.mark.slow
@@ -94,6 +98,9 @@ def test_convergence_order_large():
     assert 0.85 < torque < 1.3
     assert 0.75 < traction < 1.3
     assert errors[-1, 0] < 0.006
+    check("rigid_free", "orders", [drag, torque, traction])
+    for k, name in enumerate(("drag", "torque", "traction")):
+        check("rigid_free", name, list(errors[:, k]))
 
 
 def test_resistance_matrix_symmetric_positive_definite():

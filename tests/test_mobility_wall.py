@@ -12,6 +12,7 @@ from functools import lru_cache
 
 import numpy as np
 import pytest
+from documented import check
 
 from parastokes.mobility import RigidSurface, resistance_matrix
 from parastokes.mobility.sphere import fibonacci_sphere, sphere_spacing
@@ -51,7 +52,10 @@ def test_series_reproduce_published_values():
     assert gcb_parallel_rotation(0.01) == pytest.approx(0.4 * np.log(100) + 0.3817)
 
 
-@pytest.mark.parametrize("h", [1.5431, 2.3524, 3.7622])
+HEIGHTS_400 = [1.5431, 2.3524, 3.7622]
+
+
+@pytest.mark.parametrize("h", HEIGHTS_400)
 def test_sphere_near_wall_400(h):
     """400 points: normal translation within 3% of Brenner, rotation about the normal within
     0.5% of Jeffery, translation along the wall within 2% of Faxén (h ≥ 1.5a)."""
@@ -60,6 +64,10 @@ def test_sphere_near_wall_400(h):
     assert r[5] == pytest.approx(jeffery_rotation_normal(h), rel=0.005)
     assert r[0] == pytest.approx(faxen_parallel(h), rel=0.02)
     assert r[1] == pytest.approx(r[0], rel=1e-3)  # x and y alike (the points are not symmetric)
+    row = HEIGHTS_400.index(h)  # docs/validation.md's N = 400 rows, docs/numbers.toml [rigid_wall]
+    columns = {"normal": 2, "rotation_normal": 5, "parallel": 0, "rotation_parallel": 3}
+    for name, k in columns.items():
+        check("rigid_wall", name, float(r[k]), row)
 
 
 @pytest.mark.slow

@@ -19,6 +19,7 @@ import math
 
 import numpy as np
 import pytest
+from documented import check
 
 from parastokes.kinds.rigid import Helix, RigidBody, Sphere, Squirmer
 from parastokes.kinds.rigid.shapes import spacing
@@ -26,6 +27,15 @@ from parastokes.kinds.rigid.shapes import spacing
 MU = 1.0
 CI_SIZES = (150, 300, 600)
 FULL_SIZES = (300, 600, 1200, 2400)
+#: The sizes of the page's table (docs/numbers.toml [rigid_closed], one entry per size).
+TABLE_SIZES = (150, 300, 600, 1200)
+
+
+def check_table(name, sizes, errors):
+    """The documented errors of ``name`` at the table's sizes among ``sizes``."""
+    for n, error in zip(sizes, errors, strict=True):
+        if n in TABLE_SIZES:
+            check("rigid_closed", name, float(error), TABLE_SIZES.index(n))
 
 
 def sphere(n, ratio, **kw):
@@ -49,11 +59,13 @@ def squirmer_study(sizes):
         u = [motion(sphere(n, 0.3, slip=Squirmer(1.5, b2)))[0] for b2 in (0.0, 4.0)]
         errors.append(u[0] / 1.0 - 1.0)  # 2 B1 / 3 = 1
         spread.append(abs(u[1] - u[0]))
+        check_table("squirmer_b2", [n], [u[1] - 1.0])
     return np.array(errors), np.array(spread)
 
 
 def check_squirmer(sizes, finest):
     errors, spread = squirmer_study(sizes)
+    check_table("squirmer", sizes, errors)
     order = fitted_order(sizes, errors)
     assert 0.6 <= order <= 1.4, (order, errors)
     assert abs(errors[-1]) < finest
@@ -80,6 +92,8 @@ def stokes_study(sizes):
 
 def check_stokes(sizes, finest):
     drag, turn = stokes_study(sizes)
+    check_table("sediment", sizes, drag)
+    check_table("turning", sizes, turn)
     for errors in (drag, turn):
         assert 0.6 <= fitted_order(sizes, errors) <= 1.4, errors
         assert abs(errors[-1]) < finest
@@ -116,6 +130,10 @@ def test_torque_driven_helix_swims_as_resistive_force_theory_says(eps):
     """Converged in the points (400 vs 800 on the centre line, < 0.5%) and within 12% of RFT,
     which neglects the interaction of the turns (MRS: 0.272, 0.259; RFT: 0.246, 0.234)."""
     coarse, fine = helix_ratio(400, eps), helix_ratio(800, eps)
+    row = [0.03, 0.05].index(eps)
+    check("rigid_closed", "helix_400", coarse, row)
+    check("rigid_closed", "helix_800", fine, row)
+    check("rigid_closed", "helix_rft", rft_ratio(0.25, 2.0, eps), row)
     assert fine == pytest.approx(coarse, rel=5e-3)
     assert fine == pytest.approx(rft_ratio(0.25, 2.0, eps), rel=0.12)
     assert fine > rft_ratio(0.25, 2.0, eps)  # measured: above RFT at both ε

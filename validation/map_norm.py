@@ -1,0 +1,101 @@
+"""The linearized map DG of x0 -> G(x0) over one slice, on position perturbations: its spectral
+radius rho(DG) (the growth per slice of a perturbation under repeated application, what decides
+whether a sweep of coarse steps is stable) and, where the Jacobian is small enough to form, its
+norm ‖DG‖ (largest singular value: the worst one-slice amplification of a single perturbation).
+docs/validation.md section 2, "Measured: the linearized coarse map over one slice".
+
+DG is only available through finite differences of G, one call of G per product DG d; there is
+no adjoint (so no Lanczos bidiagonalization for the norm of a large DG). Chosen by size:
+
+- 3M <= ``DENSE_LIMIT`` (the rods, M = 61: 184 calls): the whole Jacobian by forward
+  differences; rho from its eigenvalues, ‖DG‖ from its singular values (numpy), both exact up to
+  the differences' error. This DG is far from normal (norm 50, eigenvalues near 1), so its
+  eigenvalues move with that error: on Table 5 G^1 over the paper's slice forward differences
+  gave rho = 1.92, 1.28, 1.053, 1.00086, 1.00075, 1.00099 at absolute steps 1e-7, 1e-6, 1e-5,
+  3e-5, 1e-4, 1.2e-4 (round-off of the weighted sums falls as 1/step), central ones
+  (``central=True``) 1.0016 and 1.0011 at 1.2e-4 and 4e-4; the norm 49.78 +- 0.01 throughout.
+- larger (the vesicle, 3M = 1926, whose Jacobian would take 1927 calls): rho by ARPACK's
+  implicitly restarted Arnoldi (scipy.sparse.linalg.eigs, largest modulus) on the products,
+  converged to ``RTOL``; the norm is not computed (a Krylov space of forward products alone gave a
+  lower bound that still grew by 0.5% between 24 and 90 directions on Table 8 G^1).
+
+The five-step power iteration d <- DG d / |DG d| that this replaces returned neither: on Table 5
+G^1 over the paper's slice it gave 1.19 and 1.37 from two starts and 1.39 after ten steps, while
+the eigenvalues of largest modulus there cluster within 1e-3 of 1 (so the iteration barely
+converges towards rho) and the norm is 50 (a perturbation of one point against the rod's frames
+turns the whole tail, a transient that a stable map has too); on Table 8 G^1 over the former
+quick slice it gave 18.08 where rho is 20.34.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import scipy.sparse.linalg
+
+#: Largest 3M for which the Jacobian is formed whole.
+DENSE_LIMIT = 600
+#: Finite-difference step on the positions, relative to their largest coordinate: large enough
+#: that the round-off of the weighted sums (weights up to 1.7e5), which grows as 1/step, is small,
+#: small enough for the truncation error (forward: about 3e-4 of DG d on Table 5 G^1, along its
+#: top eigenvector; central: second order).
+STEP = 1e-5
+#: Relative tolerance of ARPACK's rho.
+RTOL = 1e-6
+
+
+class Probe:
+    """DG d by forward differences of ``propagate`` (x0 -> G(x0), full state) on the positions."""
+
+    def __init__(self, propagate: Callable[[np.ndarray], np.ndarray], positions, x0: np.ndarray,
+                 step: float = STEP, central: bool = False) -> None:
+        self.propagate, self.positions, self.x0, self.central = propagate, positions, x0, central
+        self.step = step * (float(np.abs(positions(x0)).max()) or 1.0)
+        self.base = np.asarray(positions(propagate(x0)), dtype=float).ravel()
+        self.size = self.base.size
+        self.calls = 1
+
+    def moved(self, d: np.ndarray) -> np.ndarray:
+        y = self.x0.copy()
+        y[:, :3] += d.reshape(-1, 3)
+        self.calls += 1
+        return np.asarray(self.positions(self.propagate(y)), dtype=float).ravel()
+
+    def __call__(self, d: np.ndarray) -> np.ndarray:
+        d = self.step * np.real(d)
+        if self.central:
+            return (self.moved(d) - self.moved(-d)) / (2 * self.step)
+        return (self.moved(d) - self.base) / self.step
+
+    def jacobian(self) -> np.ndarray:
+        return np.array([self(e) for e in np.eye(self.size)]).T
+
+
+def dense(probe: Probe) -> tuple[float, float]:
+    """(rho, ‖DG‖) from the whole finite-difference Jacobian."""
+    jac = probe.jacobian()
+    rho = float(np.abs(np.linalg.eigvals(jac)).max())
+    return rho, float(np.linalg.svd(jac, compute_uv=False)[0])
+
+
+def arnoldi_radius(probe: Probe, seed: int = 0, ncv: int = 20) -> float:
+    """rho by ARPACK (largest modulus) from a random start ``seed``."""
+    operator = scipy.sparse.linalg.LinearOperator((probe.size, probe.size), matvec=probe,
+                                                  dtype=float)
+    start = np.random.default_rng(seed).standard_normal(probe.size)
+    found = scipy.sparse.linalg.eigs(operator, k=1, which="LM", v0=start, ncv=ncv, tol=RTOL,
+                                     return_eigenvectors=False)
+    return float(np.abs(found).max())
+
+
+def linearization(propagate: Callable[[np.ndarray], np.ndarray], positions, x0: np.ndarray,
+                  seed: int = 0) -> dict:
+    """{"rho", "norm" (NaN where not formed), "method", "calls"} of DG at ``x0``."""
+    probe = Probe(propagate, positions, x0)
+    if probe.size <= DENSE_LIMIT:
+        rho, norm = dense(probe)
+        method = "dense"
+    else:
+        rho, norm, method = arnoldi_radius(probe, seed), float("nan"), "arnoldi"
+    return {"rho": rho, "norm": norm, "method": method, "calls": probe.calls}
