@@ -16,9 +16,9 @@ tests/test_parareal_tracing.py checks) for three iterations against the serial f
   η^k <= e, and that k's speedup.
 
 Usage (repository root): ``python -m validation.hodmd_compare [--only rod|vesicle] [--runs DIR]
-[--out docs/figures]``: runs what ``--runs`` (default /work/hodmd_runs/compare) does not hold yet
-(rod about 5 min, vesicle about an hour on two shared cores), then writes ``OUT/hodmd_compare.json``
-and prints the tables.
+[--out docs/figures]``: runs what ``--runs`` (default ``hodmd_runs/compare`` in the folder that
+holds the checkout) does not hold yet (rod about 5 min, vesicle about an hour on two shared
+cores), then writes ``OUT/hodmd_compare.json`` and prints the tables.
 """
 
 from __future__ import annotations
@@ -31,6 +31,7 @@ from typing import Any
 
 from parastokes import config, integrate, io, parallel, parareal, runner
 from parastokes.parareal.speedup import speedup, speedup_pipelined, speedup_standard
+from validation.hodmd_rod import RUNS_ROOT
 
 CORES = 40
 ITERATIONS = 3
@@ -133,7 +134,7 @@ def best_by_error(cases: dict[str, dict], targets: list[float]) -> list[dict]:
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--only", choices=sorted(CASES))
-    parser.add_argument("--runs", default="/work/hodmd_runs/compare")
+    parser.add_argument("--runs", default=str(RUNS_ROOT / "compare"))
     parser.add_argument("--out", default="docs/figures")
     args = parser.parse_args(argv)
     path = Path(args.out) / "hodmd_compare.json"

@@ -25,6 +25,9 @@ from pathlib import Path
 
 from parastokes import config, io, runner
 
+#: Where the runs go by default: ``hodmd_runs`` in the folder that holds the checkout (not in git).
+RUNS_ROOT = Path(__file__).resolve().parents[2] / "hodmd_runs"
+
 CONFIG = "experiments/hodmd/authors_rod.toml"
 SCALED = ["model.n_points=61", "model.length=12.0", "time.t1=0.02", "parareal.n_slices=10",
           "coarse.g2.grid_factor=6"]
@@ -32,7 +35,7 @@ SCALED = ["model.n_points=61", "model.length=12.0", "time.t1=0.02", "parareal.n_
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--runs", default="/work/hodmd_runs")
+    parser.add_argument("--runs", default=str(RUNS_ROOT))
     parser.add_argument("--out", default="docs/figures")
     parser.add_argument("--scaled", action="store_true")
     parser.add_argument("--initial", choices=("global", "sweep"), default="global")

@@ -13,17 +13,18 @@ first configuration in ``ROOT/references/NAME``, and its ``reference.npz`` is co
 directory of every run that shares it before ``execute(..., resume=True)``: the runner reloads it
 when its key matches (and recomputes it otherwise, so a mismatch costs time, never correctness).
 
-Layout of the output root (default ``/work/repro-runs``, outside the git tree; nothing there is
-committed): ``references/REF/``, ``runs/NAME/`` (the runner's files plus ``progress.json``,
-``probe.json`` and ``result.json``, the compact summary that :mod:`validation.reproduce_report`
-gathers into ``docs/reproduction/NAME.json``), ``logs/NAME.log``, ``scheduler.json`` (pid and
-state of the background scheduler) and ``status.txt``.
+Layout of the output root (default ``repro-runs`` beside the checkout, outside the git tree;
+nothing there is committed): ``references/REF/``, ``runs/NAME/`` (the runner's files plus
+``progress.json``, ``probe.json`` and ``result.json``, the compact summary that
+:mod:`validation.reproduce_report` gathers into ``docs/reproduction/NAME.json``),
+``logs/NAME.log``, ``scheduler.json`` (pid and state of the background scheduler) and
+``status.txt``.
 
 Usage (from the repository root, ``PYTHONPATH=$PWD``)::
 
     python -m validation.reproduce --dry-run                 # plan and cost of every run
     nohup nice -n 19 env NUMBA_NUM_THREADS=1 python -m validation.reproduce --resume --jobs 2 \\
-        > /work/repro-runs/scheduler.log 2>&1 &              # run (resumes after any stop)
+        > OUT_ROOT/scheduler.log 2>&1 &                      # run (resumes after any stop)
     python -m validation.reproduce --status                  # done / running / not started
     python -m validation.reproduce --collect                 # finished runs -> docs/reproduction/
 
@@ -54,7 +55,8 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parent.parent
 EXPERIMENTS = REPO / "experiments"
-DEFAULT_ROOT = Path("/work/repro-runs")
+#: The output root: ``repro-runs`` in the folder that holds the checkout (outside the git tree).
+DEFAULT_ROOT = REPO.parent / "repro-runs"
 #: Paper's core count: the speedups of Figs. 6-8, 12, 13 are for 40 cores, one slice each.
 PAPER_CORES = 40
 #: Every run here: one core, in-process sweeps (the iterates are those of any executor).
