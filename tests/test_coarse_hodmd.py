@@ -170,3 +170,32 @@ def test_the_slice_cost_probe_times_a_trace_and_its_extrapolation():
                                          x0, repeats=1, fine_steps=20)
     assert costs.n_auxiliary == 1 and costs.auxiliary_steps == [(1, 1)]
     assert costs.auxiliary[0][0] > 0 and costs.overhead[0] > 0
+
+
+def test_the_extrapolation_runs_blas_on_one_thread_and_restores_the_default(monkeypatch):
+    """The SVDs of HODMD run on one BLAS thread whatever the process's default (docs/hodmd.md,
+    "BLAS threads"), and the default is back afterwards."""
+    import threadpoolctl
+
+    from parastokes.coarse.hodmd import solver
+
+    def blas() -> set[int]:
+        return {lib["num_threads"] for lib in threadpoolctl.threadpool_info()
+                if lib["user_api"] == "blas"}
+
+    seen: list[set[int]] = []
+    original = solver.hodmd
+
+    def spy(*args, **kwargs):
+        seen.append(blas())
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(solver, "hodmd", spy)
+    cfg, resolved = config.loads(body_config("rod", window="[0.48, 0.52, 0.96]"))
+    coarse = config.build(cfg, resolved).coarse
+    t = np.arange(coarse.snapshots + 1, dtype=float)[:, None, None]
+    differences = np.cos(0.3 * t) * np.ones((1, 4, 3))
+    with threadpoolctl.threadpool_limits(limits=2, user_api="blas"):
+        coarse.extrapolate(differences, coarse.window(1))
+        assert blas() == {2}
+    assert seen and all(s == {1} for s in seen)
