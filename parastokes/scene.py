@@ -76,6 +76,12 @@ class Coupled(NamedTuple):
     sources: FluidSources
 
 
+def _body_rates(body: Any, u: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """``body.body_rates(u, w)``, checked where it enters: one row per point."""
+    return contract.array(body, "body_rates(u, w)", body.body_rates(u, w), rows=len(u), ndim=2,
+                          what="one row per point")
+
+
 def _name(body: Any) -> str:
     return type(body).__name__.removesuffix("System").lower()
 
@@ -222,18 +228,10 @@ class Scene:
         points = np.ascontiguousarray(state[:, :3])
         angular = any(body.angular for body in self.bodies)
         sources = self.fluid_sources(t, state)
-        torques = sources.torques
-        if angular and torques is None:
-            torques = np.zeros_like(points)
-        value = mrs.velocity(points, sources.points, sources.forces, epsilon=sources.epsilon,
-                             mu=self.viscosity, torques=torques, wall=self.wall, angular=angular,
-                             n_threads=self.n_threads, check=False)
-        u, w = value if angular else (value, np.zeros_like(points))
-        u[:, 0] += self.shear_rate * points[:, 2]
-        w[:, 1] += 0.5 * self.shear_rate
-        parts = [contract.array(body, "body_rates(u, w)", body.body_rates(u[f : f + n],
-                                                                          w[f : f + n]),
-                                rows=n, ndim=2, what="one row per point")
+        if angular and sources.torques is None:
+            sources = sources._replace(torques=np.zeros_like(points))
+        u, w = self._flow(points, sources, angular)
+        parts = [_body_rates(body, u[f : f + n], w[f : f + n])
                  for body, (f, n, _) in zip(self.bodies, self.shapes, strict=True)]
         return self._stack(parts)
 
@@ -324,7 +322,7 @@ class Scene:
                 k += 1
             else:
                 n = len(x)
-                parts.append(body.body_rates(value.u[row : row + n], value.w[row : row + n]))
+                parts.append(_body_rates(body, value.u[row : row + n], value.w[row : row + n]))
                 row += n
         return self._stack(parts)
 
