@@ -198,10 +198,11 @@ def _check_compiled(system: System, x: np.ndarray, t: float, dt: float, n: int) 
 
 
 def _check_orders(system: System, x: np.ndarray, t: float, horizon: float,
-                  counts: Sequence[int], tolerance: float) -> None:
+                  counts: Sequence[int], tolerance: float) -> dict[str, float]:
     ok = _Part(system, "order")
     finest = 16 * max(counts)
     reference = integrate.run(system, x, t, t + horizon, "rk4", horizon / finest).state
+    orders = {}
     for name, scheme in integrate.SCHEMES.items():
         steps = [2 * n for n in counts] if scheme.order == 1 else list(counts)
         p = fitted_order(system, x, t, horizon, name, steps, reference)
@@ -211,6 +212,8 @@ def _check_orders(system: System, x: np.ndarray, t: float, horizon: float,
         ok(abs(p - scheme.order) <= tolerance,
            f"{name}: fitted order {p:.2f}, declared {scheme.order} (steps {steps} on a horizon "
            f"of {horizon:g}; pass state/horizon where the dynamics are too weak or too stiff)")
+        orders[name] = p
+    return orders
 
 
 def _default_horizon(system: System, x: np.ndarray, t: float) -> float:
@@ -250,12 +253,14 @@ def check_system(
     counts: Sequence[int] = (8, 16, 32, 64),
     order_tolerance: float = 0.3,
     pickle_limit: int = 4096,
-) -> None:
+) -> dict[str, float]:
     """Check ``system`` against the System contract (docs/contracts.md); see the module docstring.
 
     ``state`` (default ``initial_state()``) and time ``t`` are where the rates are evaluated and
     the orders fitted, over ``[t, t + horizon]`` with ``counts`` steps (twice as many for
-    first-order schemes). Raises ``AssertionError`` naming the broken part; returns None.
+    first-order schemes). Raises ``AssertionError`` naming the broken part; returns the fitted
+    order of every scheme of ``integrate.SCHEMES`` (``{"euler": 1.01, ...}``, the slope of
+    :func:`fitted_order`), which docs/validation.md section 3 prints for a rod and a vesicle.
     """
     missing = sorted(n for n in vars(System) if not n.startswith("_") and not hasattr(system, n))
     _Part(system, "members")(not missing, f"missing {', '.join(missing)} (contracts.System)")
@@ -279,4 +284,4 @@ def check_system(
     _check_project(system, x, r, dt)
     if compiled_loop(system) is not None:
         _check_compiled(system, x, t, dt, 6)
-    _check_orders(system, x, t, horizon, counts, order_tolerance)
+    return _check_orders(system, x, t, horizon, counts, order_tolerance)

@@ -12,6 +12,7 @@
 import numba
 import numpy as np
 import pytest
+from documented import check
 
 from parastokes import mrs
 from parastokes.mrs import reference as ref
@@ -231,6 +232,7 @@ def test_regularized_stokeslet_tends_to_singular():
     assert np.all(np.diff(errs) < 0)
     slope = np.polyfit(np.log(ratios), np.log(errs), 1)[0]
     assert abs(slope + 2.0) < 0.05
+    check("kernel_slopes", "far_field", slope)
     assert errs[-1] < 1e-4
 
 
@@ -254,6 +256,7 @@ def test_wall_kernel_tends_to_free_with_height():
     assert np.all(np.diff(errs) < 0)
     slope = np.polyfit(np.log(heights), np.log(errs), 1)[0]
     assert abs(slope + 1.0) < 0.1
+    check("kernel_slopes", "wall_to_free", slope)
     assert errs[-1] < 1e-2
 
 

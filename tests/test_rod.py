@@ -367,6 +367,7 @@ def test_restrict_prolong_reproduces_a_smooth_rod_to_spline_accuracy():
         assert errors[-1] < 5 / 384 * (0.2 * factor) ** 4 * fourth
         assert np.abs(back[:, 3:] - fine[:, 3:]).max() < 1e-4
     assert math.log2(errors[1] / errors[0]) > 3.5  # at least fourth order in σ_c
+    check("rod_transfer", "restrict_prolong_error", errors)
 
 
 def test_rod_system_is_a_dataclass_of_scalars():

@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 
 import pytest
+from documented import check
 from rods import helix_rod
 from user_body import SedimentingCloud
 
@@ -16,6 +17,10 @@ from parastokes.testing import check_system
 #: Kinds whose every evaluation is a linear solve: their full check is slow (tests/test_rigid.py
 #: runs it with fewer steps in the default run).
 SOLVED_KINDS = {"rigid", "squirmer", "bacterium"}
+#: Kinds whose fitted orders (forward Euler, RK2, RK4) docs/validation.md section 3 prints:
+#: ``[physics_orders]`` of docs/numbers.toml.
+PRINTED_ORDERS = {"vesicle"}
+SCHEMES = ("euler", "rk2", "rk4")
 
 
 @pytest.mark.parametrize("name", [
@@ -24,14 +29,17 @@ SOLVED_KINDS = {"rigid", "squirmer", "bacterium"}
 ])
 def test_every_registered_kind_keeps_the_contract(name):
     system, state, horizon = registry.get(name).example()
-    check_system(system, state, horizon=horizon)
+    orders = check_system(system, state, horizon=horizon)
+    if name in PRINTED_ORDERS:
+        check("physics_orders", name, [orders[s] for s in SCHEMES])
 
 
 def test_a_rod_with_3d_frame_dynamics_keeps_the_contract():
     """The helix-relaxing rod: w changes direction, so RK4's order needs the RKMK brackets."""
     rod = helix_rod()
     x = integrate.propagate(rod, rod.initial_state(), 0.0, 2.0, "rk2", 0.05)
-    check_system(rod, x, horizon=1.0)
+    orders = check_system(rod, x, horizon=1.0)
+    check("physics_orders", "rod", [orders[s] for s in SCHEMES])
 
 
 def test_a_users_body_keeps_the_contract():

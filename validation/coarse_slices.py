@@ -68,11 +68,13 @@ CONTROLS = {
 }
 
 
-def load(name: str, t1: float | None = None, n_slices: int = 4, quick: bool = True):
-    """(cfg, resolved, system, coarse) of an experiment, optionally with other slices."""
+def load(name: str, t1: float | None = None, n_slices: int = 4, quick: bool = True,
+         sets: Sequence[str] = ()):
+    """(cfg, resolved, system, coarse) of an experiment, optionally with other slices and other
+    ``sets`` (``KEY=VALUE`` as ``parastokes run --set`` takes them)."""
     path = EXPERIMENTS / ("quick" if quick else "") / f"{name}.toml"
-    sets = [] if t1 is None else [f"time.t1={t1}", f"parareal.n_slices={n_slices}"]
-    cfg, resolved = config.load(path, sets)
+    slices = [] if t1 is None else [f"time.t1={t1}", f"parareal.n_slices={n_slices}"]
+    cfg, resolved = config.load(path, [*slices, *sets])
     system = build_system(cfg, resolved)
     return cfg, resolved, system, build_coarse(cfg, resolved, system)
 
@@ -281,6 +283,20 @@ def amplification(name: str, span: float, seed: int = 0) -> dict:
         "calls": combined["calls"],
         "auxiliary": [measure(aux[0])["rho"], measure(aux[-1])["rho"]],
     }
+
+
+def dense_map(name: str, span: float, sets: Sequence[str] = (),
+              checkpoint: Path | None = None) -> dict:
+    """rho(DG) and ‖DG‖ of the combined coarse map over [0, span] from its whole forward-difference
+    Jacobian (``map_norm.dense``), whatever its size: for the vesicle (3M = 1926) 1927 calls of G,
+    with ``checkpoint`` (a ``.npy`` path) to resume; ``sets`` as in :func:`load` (e.g.
+    ``model.subdivisions=2``, a 162-point vesicle, for a CI-sized twin)."""
+    _, resolved, system, coarse = load(name, sets=sets)
+    inner = getattr(coarse, "propagator", coarse)
+    probe = map_norm.Probe(lambda x: inner(0.0, span, x), system.positions, system.initial_state())
+    rho, norm = map_norm.dense(probe, checkpoint)
+    return {"span": span, "coarse_steps": integrate.n_steps(0.0, span, resolved.coarse_dt),
+            "rho_dense": rho, "norm": norm, "calls": probe.calls}
 
 
 # ---- 4. initial sweep --------------------------------------------------------------------------
