@@ -74,6 +74,33 @@ def test_vesicle_spectral_radius_does_not_depend_on_the_start():
         check("coarse_slices", "dg_former", rho, NAMES.index("table8_g1"))
 
 
+#: The vesicle cases whose ‖DG‖ over the former quick slice is registered (the whole Jacobian:
+#: 1927 calls of G, about 2 min of one core per coarse step of the slice).
+VESICLE_NORMS = [n for n in NAMES if n.startswith(("table7", "table8"))
+                 and values("coarse_slices")["dg_norm_former"][NAMES.index(n)]
+                 == values("coarse_slices")["dg_norm_former"][NAMES.index(n)]]
+#: The CI-sized twin: Table 8 G^1's solvers on a 42-point vesicle (``model.subdivisions=1``).
+TWIN = ("model.subdivisions=1",)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", VESICLE_NORMS)
+def test_vesicle_map_norm_over_the_former_quick_slice(name):
+    """‖DG‖ of the vesicle's combined coarse map from the whole forward-difference Jacobian (no
+    adjoint needed), and its rho, which must agree with ARPACK's (``dg_former``)."""
+    found = script.dense_map(name, script.CASES[name][0])
+    index = NAMES.index(name)
+    check("coarse_slices", "dg_norm_former", found["norm"], index)
+    check("coarse_slices", "dg_former", found["rho_dense"], index)
+
+
+def test_vesicle_map_norm_ci_twin():
+    """The comparison of the slow test above on a 42-point vesicle (127 calls of G)."""
+    found = script.dense_map("table8_g1", script.CASES["table8_g1"][0], sets=TWIN)
+    assert found["calls"] == 127
+    check("vesicle_norm_twin", "table8_g1_former", [found["rho_dense"], found["norm"]])
+
+
 @pytest.mark.parametrize(
     "name", ["table5_g3", pytest.param("table3_g2", marks=pytest.mark.slow)]
 )
