@@ -86,3 +86,19 @@ def test_linearization_chooses_by_size(monkeypatch):
     found = map_norm.linearization(propagate, _positions, _x0())
     assert found["method"] == "arnoldi" and np.isnan(found["norm"])
     assert found["rho"] == pytest.approx(1.05, rel=1e-6)
+
+
+def test_an_interrupted_jacobian_resumes_from_its_checkpoint(tmp_path):
+    """The vesicle's 1927 calls run in the background: a run stopped after some columns and
+    restarted gives the same Jacobian, bit for bit, calling G only for the missing columns."""
+    _, propagate = _linear_map()
+    fresh = map_norm.Probe(propagate, _positions, _x0()).jacobian()
+    where = tmp_path / "columns.npy"
+    first = map_norm.Probe(propagate, _positions, _x0())
+    np.save(where, np.array([first(e) for e in np.eye(first.size)[:25]]))  # 25 columns done
+    again = map_norm.Probe(propagate, _positions, _x0())
+    np.testing.assert_array_equal(again.jacobian(where, every=8), fresh)
+    assert again.calls == 1 + 3 * N - 25
+    np.testing.assert_array_equal(np.load(where).T, fresh)  # complete now
+    with pytest.raises(ValueError, match="columns of size"):
+        map_norm.Probe(lambda x: x[:-1], _positions, _x0()).jacobian(where)

@@ -115,4 +115,9 @@ def test_every_section_2_number():
     numbers = script.documented_numbers(script.run_all(log=lambda _line: None))
     assert set(numbers) == set(values("coarse_slices"))
     for name, value in numbers.items():
+        if name == "dg_norm_former":  # the script leaves the vesicle's NaN: the test above
+            for i, norm in enumerate(value):
+                if NAMES[i] not in VESICLE_NORMS:
+                    check("coarse_slices", name, norm, i)
+            continue
         check("coarse_slices", name, value)

@@ -517,9 +517,30 @@ def main(argv: Sequence[str] | None = None) -> dict:
         help="recompute section 3 only (for NAMEs of CASES/CONTROLS, default all) and merge it "
         "into the saved OUT/coarse_slices.json",
     )
+    parser.add_argument(
+        "--dense-norms", nargs="+", metavar="NAME",
+        help="‖DG‖ over the former quick slice of CASES NAME (the vesicle's) from the whole "
+        "Jacobian (1927 calls of G each, about 2 min of one core per coarse step of the slice), "
+        "merged into the saved OUT/coarse_slices.json",
+    )
+    parser.add_argument("--checkpoints", type=Path, default=None,
+                        help="with --dense-norms: keep the Jacobians' columns in "
+                        "DIR/NAME_former.npy and resume from them")
     args = parser.parse_args(argv)
     path = args.out / "coarse_slices.json"
-    if args.amplification_only is not None:
+    if args.dense_norms:
+        unknown = sorted(set(args.dense_norms) - set(CASES))
+        if unknown:
+            parser.error(f"--dense-norms: unknown {unknown}; choose from {list(CASES)}")
+        results = json.loads(path.read_text())
+        for name in args.dense_norms:
+            where = args.checkpoints / f"{name}_former.npy" if args.checkpoints else None
+            found = dense_map(name, CASES[name][0], checkpoint=where)
+            former = results["amplification"][name][0]
+            former.update(norm=found["norm"], rho_dense=found["rho_dense"])
+            print(f"{name}: ‖DG‖ {found['norm']:.6g}, rho {found['rho_dense']:.6g} "
+                  f"({found['calls']} calls)")
+    elif args.amplification_only is not None:
         names = args.amplification_only or [*CASES, *CONTROLS]
         unknown = sorted(set(names) - set(CASES) - set(CONTROLS))
         if unknown:

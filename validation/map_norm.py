@@ -14,10 +14,13 @@ no adjoint (so no Lanczos bidiagonalization for the norm of a large DG). Chosen 
   gave rho = 1.92, 1.28, 1.053, 1.00086, 1.00075, 1.00099 at absolute steps 1e-7, 1e-6, 1e-5,
   3e-5, 1e-4, 1.2e-4 (round-off of the weighted sums falls as 1/step), central ones
   (``central=True``) 1.0016 and 1.0011 at 1.2e-4 and 4e-4; the norm 49.78 +- 0.01 throughout.
-- larger (the vesicle, 3M = 1926, whose Jacobian would take 1927 calls): rho by ARPACK's
+- larger (the vesicle, 3M = 1926, whose Jacobian takes 1927 calls): rho by ARPACK's
   implicitly restarted Arnoldi (scipy.sparse.linalg.eigs, largest modulus) on the products,
-  converged to ``RTOL``; the norm is not computed (a Krylov space of forward products alone gave a
-  lower bound that still grew by 0.5% between 24 and 90 directions on Table 8 G^1).
+  converged to ``RTOL``; the norm is left out here (a Krylov space of forward products alone gave
+  a lower bound that still grew by 0.5% between 24 and 90 directions on Table 8 G^1). It needs no
+  adjoint: :func:`dense` forms the whole Jacobian at any size, column by column with a resumable
+  checkpoint (``validation.coarse_slices.dense_map``, ``--dense-norms``), about 2 min of one
+  core per coarse step of the slice for the 642-point vesicle.
 
 The five-step power iteration d <- DG d / |DG d| that this replaces returned neither: on Table 5
 G^1 over the paper's slice it gave 1.19 and 1.37 from two starts and 1.39 after ten steps, while
