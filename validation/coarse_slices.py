@@ -16,8 +16,9 @@ script measures, for docs/validation.md ("Where our runs of the paper's coarse s
 3. the linearized combined coarse map DG over one slice on position perturbations: its spectral
    radius rho (growth per slice under repeated coarse steps) and, for the rods, its norm
    (``validation.map_norm``: the whole finite-difference Jacobian for the rods, ARPACK for the
-   vesicle), for the former quick slices and for the paper's slice T/N_c, with rho of its two
-   extreme auxiliary solvers for comparison;
+   vesicle; the vesicle's norm from its whole Jacobian with ``--dense-norms``, :func:`dense_map`,
+   merged into the saved JSON), for the former quick slices and for the paper's slice T/N_c,
+   with rho of its two extreme auxiliary solvers for comparison;
 4. the initial coarse sweep: the stability monitor of every combined state X_n^0 (the blow-up check
    of ``integrate`` runs inside each auxiliary solver, not on the combination), for the former quick
    slices and the paper's slices, on the quick rod and on the paper's M = 301 rod.
@@ -290,7 +291,7 @@ def dense_map(name: str, span: float, sets: Sequence[str] = (),
     """rho(DG) and ‖DG‖ of the combined coarse map over [0, span] from its whole forward-difference
     Jacobian (``map_norm.dense``), whatever its size: for the vesicle (3M = 1926) 1927 calls of G,
     with ``checkpoint`` (a ``.npy`` path) to resume; ``sets`` as in :func:`load` (e.g.
-    ``model.subdivisions=2``, a 162-point vesicle, for a CI-sized twin)."""
+    ``model.subdivisions=1``, a 42-point vesicle, for a CI-sized twin)."""
     _, resolved, system, coarse = load(name, sets=sets)
     inner = getattr(coarse, "propagator", coarse)
     probe = map_norm.Probe(lambda x: inner(0.0, span, x), system.positions, system.initial_state())
