@@ -79,7 +79,7 @@ def test_vesicle_spectral_radius_does_not_depend_on_the_start():
 
 
 #: The vesicle cases whose ‖DG‖ over the former quick slice is registered (the whole Jacobian:
-#: 1927 calls of G, about 2 min of one core per coarse step of the slice).
+#: 1927 calls of G, 7 to 21 min each on one shared core).
 VESICLE_NORMS = [n for n, norm in zip(NAMES, values("coarse_slices")["dg_norm_former"], strict=True)
                  if n.startswith(("table7", "table8")) and not math.isnan(norm)]
 #: The CI-sized twin: Table 8 G^1's solvers on a 42-point vesicle (``model.subdivisions=1``).

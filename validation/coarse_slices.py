@@ -521,7 +521,7 @@ def main(argv: Sequence[str] | None = None) -> dict:
     parser.add_argument(
         "--dense-norms", nargs="+", metavar="NAME",
         help="‖DG‖ over the former quick slice of CASES NAME (the vesicle's) from the whole "
-        "Jacobian (1927 calls of G each, about 2 min of one core per coarse step of the slice), "
+        "Jacobian (1927 calls of G each, 7 to 21 min on one shared core), "
         "merged into the saved OUT/coarse_slices.json",
     )
     parser.add_argument("--checkpoints", type=Path, default=None,

@@ -19,8 +19,8 @@ no adjoint (so no Lanczos bidiagonalization for the norm of a large DG). Chosen 
   converged to ``RTOL``; the norm is left out here (a Krylov space of forward products alone gave
   a lower bound that still grew by 0.5% between 24 and 90 directions on Table 8 G^1). It needs no
   adjoint: :func:`dense` forms the whole Jacobian at any size, column by column with a resumable
-  checkpoint (``validation.coarse_slices.dense_map``, ``--dense-norms``), about 2 min of one
-  core per coarse step of the slice for the 642-point vesicle.
+  checkpoint (``validation.coarse_slices.dense_map``, ``--dense-norms``): 7 to 21 min on one
+  shared core for the 642-point vesicle over its former quick slices (4 to 12 coarse steps).
 
 The five-step power iteration d <- DG d / |DG d| that this replaces returned neither: on Table 5
 G^1 over the paper's slice it gave 1.19 and 1.37 from two starts and 1.39 after ten steps, while
@@ -75,8 +75,8 @@ class Probe:
     def jacobian(self, checkpoint: Path | None = None, every: int = 32) -> np.ndarray:
         """The whole Jacobian, column by column (one call of G each). With ``checkpoint`` (a
         ``.npy`` path) the columns done so far are saved every ``every`` columns and a rerun
-        resumes from them (the vesicle's 1926 columns take about 10 min per coarse step of its
-        slice on one core)."""
+        resumes from them (the vesicle's 1926 columns took 7 to 21 min on one shared core over
+        its former quick slices of 4 to 12 coarse steps)."""
         columns: list[np.ndarray] = []
         if checkpoint is not None and checkpoint.exists():
             saved = np.load(checkpoint)
