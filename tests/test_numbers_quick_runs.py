@@ -7,6 +7,11 @@ its serial fine solution and one Parareal iteration (``validation/quick_errors.p
 default run, their CI-sized twins (two short slices, ``[quick_eta1_twins]``) do. A change to a
 kernel, a model, a propagator, the coarse-solver construction, the weights or the Parareal update
 moves these numbers far beyond the tolerance (measured: bit-identical on 1 and 2 threads).
+
+The quick runs whose later iterates docs/validation.md section 2 quotes (``quick_errors.ITERATED``)
+run their three iterations under ``-m slow`` (``[quick_eta_k_slow]``: eta^1..eta^3 and the largest
+monitor of X^3, as ``parastokes run`` writes them); by default their twins of three short slices
+run two iterations (``[quick_eta_k_twins]``), so that eta^2 is compared too.
 """
 
 from __future__ import annotations
@@ -48,3 +53,24 @@ def test_ci_twin_first_iterate(name):
 @pytest.mark.parametrize("name", quick_errors.EXPENSIVE)
 def test_expensive_quick_variant_first_iterate(name):
     _compare("quick_eta1", name)
+
+
+def _compare_iterated(group: str, name: str, overrides=(), iterations: int = 3) -> None:
+    run = quick_errors.iterates(name, overrides, iterations=iterations)
+    check(group, name, [*run["errors"], run["monitor"]])
+
+
+def test_every_iterated_run_is_recorded():
+    assert sorted(values("quick_eta_k_slow")) == sorted(quick_errors.ITERATED)
+    assert sorted(values("quick_eta_k_twins")) == sorted(quick_errors.ITERATED_TWINS)
+
+
+@pytest.mark.parametrize("name", sorted(quick_errors.ITERATED_TWINS))
+def test_ci_twin_second_iterate(name):
+    _compare_iterated("quick_eta_k_twins", name, quick_errors.ITERATED_TWINS[name], 2)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", quick_errors.ITERATED)
+def test_iterated_quick_run(name):
+    _compare_iterated("quick_eta_k_slow", name)
