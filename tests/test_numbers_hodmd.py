@@ -60,7 +60,8 @@ def test_authors_rod_gamma_estimates():
     """The family's operation-count estimate gamma_G/gamma_F at 50 cores (``parastokes
     predict``'s), full scale and scaled."""
     for scaled, name in ((False, "full_sweep"), (True, "scaled_sweep")):
-        cfg, resolved = config.load(ROOT / hodmd_rod.CONFIG, hodmd_rod.run_overrides(scaled, "sweep"))
+        overrides = hodmd_rod.run_overrides(scaled, "sweep")
+        cfg, resolved = config.load(ROOT / hodmd_rod.CONFIG, overrides)
         check("hodmd_rod", f"{name}_gamma_estimate", cfg.coarse.gamma_ratio(cfg, resolved, 50))
 
 

@@ -99,14 +99,15 @@ def config_path(name: str) -> Path:
 def iterates(
     name: str, overrides: Sequence[str] = (), perturb: float = 0.0, iterations: int = 1
 ) -> dict[str, list[float] | float]:
-    """``{"errors", "increments", "monitor"}`` after ``iterations`` Parareal iterations of
-    ``experiments/quick/NAME.toml`` with ``overrides`` (``perturb`` as in :func:`first_iterate`).
+    """``{"errors", "increments", "monitor"}`` after ``iterations`` Parareal iterations of the
+    configuration ``name`` (as :func:`config_path` reads it) with ``overrides`` (``perturb`` as in
+    :func:`first_iterate`).
 
-    ``name`` as :func:`config_path` reads it. ``errors`` are eta^1..eta^K (eq. 34; NaN without a serial solution), ``increments``
-    eta~^1..eta~^K, ``monitor`` the largest monitor value over the states at T_1..T_N of the last
-    iterate X^K (of the serial solution in ``run.mode = "serial"``, whose lists are empty): with
-    K = ``parareal.max_iterations`` of the configuration and ``tol = 0``, the ``errors`` and the
-    ``monitor["max"]`` that ``parastokes run`` writes to ``summary.json``.
+    ``errors`` are eta^1..eta^K (eq. 34; NaN without a serial solution), ``increments``
+    eta~^1..eta~^K, ``monitor`` the largest monitor value over the states at T_1..T_N of X^K (of
+    the serial solution, with one NaN error and increment, in ``run.mode = "serial"``). With K =
+    ``parareal.max_iterations`` and ``tol = 0`` of the configuration, these are the ``errors``
+    and ``monitor["max"]`` that ``parastokes run`` writes to ``summary.json``.
     """
     cfg, resolved = config.load(config_path(name), list(overrides))
     setup = build(cfg, resolved)
