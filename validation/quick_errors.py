@@ -21,6 +21,7 @@ import argparse
 import time
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -98,7 +99,7 @@ def config_path(name: str) -> Path:
 
 def iterates(
     name: str, overrides: Sequence[str] = (), perturb: float = 0.0, iterations: int = 1
-) -> dict[str, list[float] | float]:
+) -> dict[str, Any]:
     """``{"errors", "increments", "monitor"}`` after ``iterations`` Parareal iterations of the
     configuration ``name`` (as :func:`config_path` reads it) with ``overrides`` (``perturb`` as in
     :func:`first_iterate`).
@@ -195,7 +196,7 @@ def _row(name: str, overrides: Sequence[str], perturb: float, iterations: int) -
         found = first_iterate(name, overrides, perturb)
         return [found["eta1"], found["increment1"], found["monitor"]]
     run = iterates(name, overrides, perturb, iterations)
-    return [*run["errors"], run["monitor"]]  # type: ignore[list-item]
+    return [*run["errors"], run["monitor"]]
 
 
 if __name__ == "__main__":
