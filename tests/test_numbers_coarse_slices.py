@@ -10,6 +10,10 @@ random starts (ARPACK; they agree to 1e-6, which a cut-short iteration does not)
 passing control Table 5 G^3. The slow tests add the other former quick slices and controls, and
 rerun the whole script (about 10 min plus the Jacobians) for every registered number, including
 the vesicle nodes, the scalar model and rho(DG) over the paper's slices.
+
+``[coarse_slices_more]``: the weight sums sum |w_j v_q| of the scalar-model table, and the
+monitors of the combined states of section 4's initial sweeps (by default all but the two over
+the paper's slices on the M = 301 rod, which take about 20 s each).
 """
 
 from __future__ import annotations
@@ -89,3 +93,26 @@ def test_every_section_2_number():
     assert set(numbers) == set(values("coarse_slices"))
     for name, value in numbers.items():
         check("coarse_slices", name, value)
+
+
+def test_combination_weight_sums():
+    scalar = [name for name in script.CASES if name.startswith(("table7", "table8"))]
+    found = [script.combination(name, span)["sum_abs_weights"]
+             for name in scalar for span in script.CASES[name]]
+    check("coarse_slices_more", "sum_abs_weights", found)
+
+
+@pytest.mark.parametrize(
+    "key",
+    [pytest.param(key, marks=pytest.mark.slow) if key.startswith("rod301") and "paper" in key
+     else key for key in script.SWEEPS],
+)
+def test_initial_sweep_monitors(key):
+    found = script.sweep(*script.SWEEPS[key])
+    check("coarse_slices_more", key, found["combined"])
+    if f"{key}_auxiliary" in values("coarse_slices_more"):
+        check("coarse_slices_more", f"{key}_auxiliary", found["auxiliary"])
+    blowup = values("coarse_slices_more").get(f"{key}_blowup_t")
+    assert (found["blowup"] is None) == (blowup is None)
+    if blowup is not None:
+        check("coarse_slices_more", f"{key}_blowup_t", found["blowup"]["t"])

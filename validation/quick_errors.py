@@ -91,6 +91,16 @@ def first_iterate(
             "monitor": found["monitor"]}
 
 
+def perturbed(x0: np.ndarray, perturb: float) -> np.ndarray:
+    """``x0`` with every position coordinate (its first three columns) multiplied by
+    1 + perturb z, z standard normal (seed 0); ``x0`` itself when ``perturb`` is 0."""
+    if not perturb:
+        return x0
+    x0 = x0.copy()
+    x0[:, :3] *= 1 + perturb * np.random.default_rng(0).standard_normal(x0[:, :3].shape)
+    return x0
+
+
 def config_path(name: str) -> Path:
     """``experiments/quick/NAME.toml``, or ``name`` itself (from the repository root) when it
     ends in ``.toml`` (any configuration, e.g. ``experiments/hodmd/authors_rod.toml``)."""
@@ -113,10 +123,7 @@ def iterates(
     cfg, resolved = config.load(config_path(name), list(overrides))
     setup = build(cfg, resolved)
     system = setup.system
-    x0 = system.initial_state()
-    if perturb:
-        x0 = x0.copy()
-        x0[:, :3] *= 1 + perturb * np.random.default_rng(0).standard_normal(x0[:, :3].shape)
+    x0 = perturbed(system.initial_state(), perturb)
     p, mode = cfg.parareal, cfg.run.mode
     reference = None
     if mode in ("serial", "both"):
