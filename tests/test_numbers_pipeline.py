@@ -7,13 +7,16 @@ drift from them. The shortened analogues' eta^k that the script falls back on (`
 for a solver without a full-scale record) must be the quick runs' that the registry pins and
 tests recompute (``[quick_eta_k]``, ``[quick_eta_k_slow]``, ``[hodmd_compare]``). The simulated
 speedups of the table are model figures of measured gamma ratios (timings) and are not pinned.
+
+The EMULATION table's model columns (closed formulas and the simulation with the nominal alpha,
+``[pipeline_model]``) are recomputed; its emulated speedups and wall ratios are timings.
 """
 
 from __future__ import annotations
 
 import pytest
 from bench_modules import benchmark_module
-from documented import ROOT, printed_as, values
+from documented import ROOT, check, printed_as, values
 
 
 @pytest.fixture(scope="module")
@@ -77,3 +80,10 @@ def test_the_shortened_analogues_are_the_registered_quick_runs(bench):
         for given, value in zip(errors, registered, strict=True):
             assert given == pytest.approx(value, rel=1e-4), name  # ERRORS: 5 digits
     assert checked == len(bench.ERRORS) - 2
+
+
+def test_emulation_model_speedups(bench):
+    rows = [bench.model_speedups(*case) for case in bench.emulation_grid(quick=False)]
+    for schedule, short in (("standard", "std"), ("pipelined", "pipe")):
+        for kind in ("formula", "simulated"):
+            check("pipeline_model", f"{short}_{kind}", [r[schedule][kind] for r in rows])
