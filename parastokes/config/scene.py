@@ -73,6 +73,13 @@ class SceneModel(BodySection):
         return Scene(tuple(body.build(threads) for body in self.bodies), self.viscosity,
                      self.wall, self.shear_rate, tuple(self.names), n_threads=threads)
 
+    def coarse_points(self, factor: int) -> int:
+        """Rows of the scene on the grid of ``coarse.grid_factor``: each body that has a coarser
+        grid on it, the others as they are (:meth:`Scene.coarsened`, whose ValueError names
+        the body that does not fit, or says that none has one)."""
+        coarse, _ = self.build().coarsened(factor)
+        return len(coarse.initial_state())
+
     def parameter_units(self, name: str) -> tuple[str, dict[str, float]]:
         """Those of the body that ``name`` (``"body.param"``) belongs to."""
         body, _, param = name.partition(".")
