@@ -98,6 +98,9 @@ class Scene:
     shear_rate: float = 0.0
     names: tuple[str, ...] = ()
     n_threads: int | None = None
+    #: The names of the bodies that :meth:`coarsened` puts on their coarser grid (None: every
+    #: body that has one).
+    coarse_bodies: tuple[str, ...] | None = None
 
     def __post_init__(self) -> None:
         if not self.bodies:
@@ -136,6 +139,9 @@ class Scene:
                         f"{name}.{key}: {getattr(body, key)!r} differs from the scene's "
                         f"{getattr(self, key)!r} (one fluid, one background flow)"
                     )
+        if self.coarse_bodies is not None:
+            object.__setattr__(self, "coarse_bodies", tuple(self.coarse_bodies))
+            scene_coarse.check_names(self)
         if any(implicit(body) for body in self.bodies):
             self._check_overlaps()
 
@@ -332,8 +338,9 @@ class Scene:
     # ---- coarse grid (Remark 4) -----------------------------------------------------------
     def coarsened(self, factor: int) -> tuple[Scene, SceneTransfer]:
         """The scene with every body that has a coarser grid on it (rods: σ_c = factor σ_f;
-        rigid bodies: ``factor`` times fewer surface points), the others kept, and the grid
-        transfer that composes the bodies' own (:mod:`parastokes.scene_coarse`)."""
+        rigid bodies: ``factor`` times fewer surface points), or the bodies ``coarse_bodies``
+        names, the others kept, and the grid transfer that composes the bodies' own
+        (:mod:`parastokes.scene_coarse`)."""
         return scene_coarse.coarsened(self, factor)
 
     # ---- parameters and monitor ----------------------------------------------------------

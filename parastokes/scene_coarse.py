@@ -3,7 +3,10 @@
 :meth:`parastokes.scene.Scene.coarsened` calls :func:`coarsened`: every body that has a coarser
 grid (a ``coarsened(factor)`` method: rods, σ_c = factor σ_f; rigid and prescribed-motion bodies,
 each part of the surface with ``factor`` times fewer points) is replaced by its coarse body, the
-others (vesicles, chains, users' bodies) are kept as they are. The coarse scene has the same
+others (vesicles, chains, users' bodies) are kept as they are; ``Scene.coarse_bodies`` (config:
+``[scene] coarse_bodies``) names the bodies to coarsen when not all should be (a rod's coarse
+grid may cost Parareal more iterations than a rigid body's coarse surface: docs/bodies.md). The
+coarse scene has the same
 bodies, names, fluid and Θ (a coarse body's parameters mean the same as the fine body's), so
 Lagrange nodes such as ``"sphere.epsilon"`` carry over.
 
@@ -30,17 +33,32 @@ def has_coarse_grid(body: Any) -> bool:
     return callable(getattr(body, "coarsened", None))
 
 
+def check_names(scene: Any) -> None:
+    """ValueError unless every name in ``scene.coarse_bodies`` is one of its bodies that has a
+    coarser grid."""
+    for name in scene.coarse_bodies:
+        if name not in scene.names:
+            raise ValueError(f"coarse_bodies: no body is named {name!r}; the bodies: "
+                             f"{', '.join(scene.names)}")
+        if not has_coarse_grid(scene.bodies[scene.names.index(name)]):
+            raise ValueError(f"coarse_bodies: {name} has no coarser grid (rods and rigid bodies "
+                             "have); leave it out")
+
+
 def coarsened(scene: Any, factor: int) -> tuple[Any, SceneTransfer]:
     """``scene`` (a :class:`~parastokes.scene.Scene`, which imports this module) with every body
-    that has a coarser grid on it (module text), and the transfer; ValueError when no body has
-    one, or naming the body whose grid ``factor`` does not fit."""
+    that has a coarser grid on it (module text; only those named in ``scene.coarse_bodies`` when
+    it is not None), and the transfer; ValueError when there is none to coarsen, or naming the
+    body whose grid ``factor`` does not fit."""
     if isinstance(factor, bool) or not isinstance(factor, int | np.integer) or factor < 1:
         raise ValueError(f"factor: must be a positive integer, got {factor!r}")
-    which = [i for i, body in enumerate(scene.bodies) if has_coarse_grid(body)]
+    which = [i for i, body in enumerate(scene.bodies) if has_coarse_grid(body) and (
+        scene.coarse_bodies is None or scene.names[i] in scene.coarse_bodies)]
     if not which:
-        raise ValueError(
-            f"none of the scene's bodies ({', '.join(scene.names)}) has a coarser grid (rods and "
-            "rigid bodies have; coarse.grid_factor); use grid_factor = 1")
+        what = "is named in coarse_bodies" if scene.coarse_bodies is not None else (
+            "has a coarser grid (rods and rigid bodies have)")
+        raise ValueError(f"none of the scene's bodies ({', '.join(scene.names)}) {what}; use "
+                         "coarse.grid_factor = 1")
     bodies: list[Any] = list(scene.bodies)
     transfers: list[Any] = [None] * len(bodies)
     for i in which:

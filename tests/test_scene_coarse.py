@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from configs import SERIAL_SOLVERS
 
 from parastokes import config, integrate, models, parallel, parareal
 from parastokes.kinds.chain import ChainSystem
@@ -54,6 +55,39 @@ def test_the_coarse_scene_coarsens_each_body_and_keeps_the_others():
         scene.coarsened(7)
     with pytest.raises(ValueError, match="positive integer"):
         scene.coarsened(0)
+    only = dataclasses.replace(scene, coarse_bodies=("sphere",))
+    coarse, transfer = only.coarsened(7)  # the rod kept: 7 need not divide its segments
+    assert coarse.bodies[0] is rod and transfer.transfers[0] is None
+    assert coarse.bodies[1] == sphere.coarsened(7)[0]
+    with pytest.raises(ValueError, match=r"coarse_bodies: no body is named 'ball'; the bodies: "):
+        dataclasses.replace(scene, coarse_bodies=("ball",))
+    with pytest.raises(ValueError, match=r"coarse_bodies: chain has no coarser grid"):
+        Scene((chain, sphere), viscosity=rod.viscosity, wall=True, coarse_bodies=("chain",))
+
+
+def test_a_scene_config_with_a_grid_factor_resolves_the_coarse_rows():
+    quick = QUICK / "scene_sphere_and_rod.toml"
+    _, resolved = config.load(quick, ["coarse.grid_factor=2"])
+    assert (resolved.n_points, resolved.coarse_points) == (31 + 151, 16 + 76)
+    cfg, resolved = config.load(quick, ["coarse.grid_factor=3",
+                                        "scene.coarse_bodies=['sphere']"])
+    assert resolved.coarse_points == 31 + 51 and cfg.model.build().coarse_bodies == ("sphere",)
+    dumped = {k: v for k, v in cfg.model_dump(mode="json", exclude_none=True).items()
+              if k != "model"} | cfg.model.tables()  # as the tuner writes a configuration
+    assert config.parse(dumped).model.coarse_bodies == ["sphere"]
+    cases = {
+        "coarse.grid_factor=7": ("coarse.grid_factor", "rod: factor: 7 must divide"),
+        "scene.coarse_bodies=['ball']": ("scene.coarse_bodies", "no body is named 'ball'"),
+    }
+    for override, (where, message) in cases.items():
+        with pytest.raises(config.ConfigError) as error:
+            config.load(quick, [override])
+        assert (where, message) in [(w, m[: len(message)]) for w, m in error.value.issues]
+    vesicle = ('[scene]\nviscosity = 1e-3\n[[bodies]]\nkind = "vesicle"\nsubdivisions = 1\n'
+               + SERIAL_SOLVERS.replace("dt_ratio = 2\n", "dt_ratio = 2\ngrid_factor = 2\n"))
+    with pytest.raises(config.ConfigError, match=r"coarse.grid_factor: none of the scene's "
+                                                 r"bodies \(vesicle\) has a coarser grid"):
+        config.loads(vesicle)
 
 
 def test_the_round_trip_keeps_the_sphere_pose_exactly(quick_scene):
