@@ -184,12 +184,14 @@ def _points(system: object) -> int:
 
 def coarse_surface_section(t1: float, n_slices: int, factors: list[int],
                            path: str = QUICK_BACTERIUM,
-                           only: tuple[str, ...] | None = None) -> list[str]:
+                           only: tuple[str, ...] | None = None,
+                           interleave: bool = False) -> list[str]:
     """Parareal on the body or scene of ``path`` (its fine and coarse solvers; T = ``t1`` over
     ``n_slices`` slices) with the coarse solver on the fine grid (factor 1) and on coarser ones
     (:meth:`RigidBody.coarsened`, :meth:`Scene.coarsened`; for a scene, also with only the
     bodies ``only`` coarsened, its ``coarse_bodies``): γ_G / γ_F of one slice, the iterations to
-    η̃ < 1e-8, the error against the serial fine solution, and eq. 14 at 40 cores."""
+    η̃ < 1e-8, the error against the serial fine solution, and eq. 14 at 40 cores.
+    ``interleave``: γ_F measured again beside each row's γ_G (alternating, median of 3 pairs)."""
     from parastokes import config
 
     cfg, resolved = config.load(path)
@@ -223,7 +225,13 @@ def coarse_surface_section(t1: float, n_slices: int, factors: list[int],
                                        lagrange=resolved.lagrange or None,
                                        grid=factor if factor > 1 else None)
         points = _points(variant.coarsened(factor)[0] if factor > 1 else system)
-        gamma_g = median_time(lambda c=coarse: c(0.0, slice_length, x0), 3)
+        if interleave:  # γ_F again beside each γ_G: the ratio in one stretch of load
+            pairs = [(median_time(lambda: fine(0.0, slice_length, x0), 1),
+                      median_time(lambda c=coarse: c(0.0, slice_length, x0), 1))
+                     for _ in range(3)]
+            gamma_f, gamma_g = (float(np.median(v)) for v in zip(*pairs, strict=True))
+        else:
+            gamma_g = median_time(lambda c=coarse: c(0.0, slice_length, x0), 3)
         result = parareal.run(fine, coarse, x0, 0.0, t1, n_slices, tol=1e-8,
                               max_iterations=n_slices, reference=reference,
                               positions=system.positions, project=system.project)
@@ -259,7 +267,7 @@ def main(argv: list[str] | None = None) -> None:
     if "coarse_scene" in args.sections:
         lines += coarse_surface_section(2e-4 if args.quick else 4e-4, 4 if args.quick else 8,
                                         [1, 2] if args.quick else [1, 2, 3], QUICK_SCENE,
-                                        only=("sphere",))
+                                        only=("sphere",), interleave=True)
     lines.append(f"load average after: {os.getloadavg()[0]:.2f}")
     text = "\n".join(lines)
     print(text)
