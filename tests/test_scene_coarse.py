@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from configs import SERIAL_SOLVERS
 
-from parastokes import config, integrate, models, parallel, parareal
+from parastokes import config, integrate, models, parallel, parareal, runner
 from parastokes.kinds.chain import ChainSystem
 from parastokes.kinds.rigid import RigidBody, Sphere
 from parastokes.scene import Scene
@@ -75,6 +75,9 @@ def test_a_scene_config_with_a_grid_factor_resolves_the_coarse_rows():
     dumped = {k: v for k, v in cfg.model_dump(mode="json", exclude_none=True).items()
               if k != "model"} | cfg.model.tables()  # as the tuner writes a configuration
     assert config.parse(dumped).model.coarse_bodies == ["sphere"]
+    plain, _ = config.load(quick)  # the same fine problem: the serial solution can be shared
+    assert runner.fine_identity(cfg) == runner.fine_identity(plain)
+    assert runner.identity(cfg) != runner.identity(plain)
     cases = {
         "coarse.grid_factor=7": ("coarse.grid_factor", "rod: factor: 7 must divide"),
         "scene.coarse_bodies=['ball']": ("scene.coarse_bodies", "no body is named 'ball'"),
