@@ -3,7 +3,8 @@
 For each ``experiments/quick/NAME.toml``: the configuration built as ``parastokes run`` builds it,
 its serial fine solution and one Parareal iteration (``validation/quick_errors.py``), with eta^1
 (eq. 34), eta~^1 and the largest monitor value compared with ``docs/numbers.toml``
-(``[quick_eta1]``). The variants that take tens of seconds run in full under ``-m slow``; in the
+(``[quick_eta1]``; variants added later, in groups of their own at the end: ``LATER``). The
+variants that take tens of seconds run in full under ``-m slow``; in the
 default run, their CI-sized twins (two short slices, ``[quick_eta1_twins]``) do. A change to a
 kernel, a model, a propagator, the coarse-solver construction, the weights or the Parareal update
 moves these numbers far beyond the tolerance (measured: bit-identical on 1 and 2 threads).
@@ -24,7 +25,11 @@ from documented import check, values
 from validation import quick_errors
 
 QUICK = sorted(p.stem for p in (Path(__file__).parents[1] / "experiments" / "quick").glob("*.toml"))
-CHEAP = [name for name in QUICK if name not in quick_errors.EXPENSIVE]
+#: Quick variants recorded in groups of their own after ``[quick_eta1]`` (same fields, same
+#: command), by group.
+LATER = {"quick_eta1_scene_coarse": ["scene_sphere_and_rod_coarse"]}
+CHEAP = [name for name in QUICK if name not in quick_errors.EXPENSIVE
+         and not any(name in names for names in LATER.values())]
 FIELDS = ("eta1", "increment1", "monitor")
 
 
@@ -34,7 +39,9 @@ def _compare(group: str, name: str, overrides=()) -> None:
 
 
 def test_every_quick_variant_is_recorded():
-    assert sorted(values("quick_eta1")) == QUICK
+    later = [name for group in LATER for name in values(group)]
+    assert sorted([*values("quick_eta1"), *later]) == QUICK
+    assert sorted(later) == sorted(n for names in LATER.values() for n in names)
     assert sorted(values("quick_eta1_twins")) == sorted(quick_errors.EXPENSIVE)
     assert sorted(quick_errors.CI_TWINS) == sorted(quick_errors.EXPENSIVE)
 
@@ -42,6 +49,11 @@ def test_every_quick_variant_is_recorded():
 @pytest.mark.parametrize("name", CHEAP)
 def test_quick_variant_first_iterate(name):
     _compare("quick_eta1", name)
+
+
+@pytest.mark.parametrize("group, name", [(g, n) for g, names in LATER.items() for n in names])
+def test_later_quick_variant_first_iterate(group, name):
+    _compare(group, name)
 
 
 @pytest.mark.parametrize("name", sorted(quick_errors.CI_TWINS))

@@ -8,7 +8,8 @@ the executor (docs/parallel.md), so these are the eta^1 and eta~^1 that ``parast
 to ``summary.json`` for the same configuration. Serial-only configurations report the largest
 monitor value (rod length / vesicle area change) of the serial solution instead.
 
-The recorded values live in ``docs/numbers.toml`` (``[quick_eta1]``, ``[quick_eta1_twins]``;
+The recorded values live in ``docs/numbers.toml`` (``[quick_eta1]``, ``[quick_eta1_twins]``, and
+groups of their own for variants added later, e.g. ``[quick_eta1_scene_coarse]``;
 see docs/validation.md); ``tests/test_numbers_quick_runs.py`` recomputes them. Usage (from the
 repository root): ``python -m validation.quick_errors [--twins] [--sensitivity] [NAME ...]``
 prints each configuration's ``[eta1, increment1, monitor]`` as the registry's TOML lines (every
