@@ -57,10 +57,11 @@ def block_factors(sset: SurfaceSet, precondition: str) -> list[LabFactor | Rotat
     return out
 
 
-def near_pairs(sset: SurfaceSet, gap: float = NEAR_GAP) -> list[tuple[int, int]]:
-    """Pairs (a, b), b < a, whose surfaces come closer than ``gap`` times the smaller body's
-    length. Pairs whose bounding spheres (about the centers) are that far apart are skipped
-    before any point distance is computed."""
+def near_pairs(sset: SurfaceSet, gap: float | None = None) -> list[tuple[int, int]]:
+    """Pairs (a, b), b < a, whose surfaces come closer than ``gap`` (default
+    :data:`NEAR_GAP`) times the smaller body's length. Pairs whose bounding spheres (about the
+    centers) are that far apart are skipped before any point distance is computed."""
+    gap = NEAR_GAP if gap is None else gap
     placed = sset.placed
     if gap <= 0 or len(placed) < 2:
         return []
@@ -90,13 +91,13 @@ class BlockSweep:
         self,
         sset: SurfaceSet,
         factors: list[LabFactor | RotatedFactor],
-        gap: float = NEAR_GAP,
+        gap: float | None = None,
     ) -> None:
         self.factors = factors
         self.rows = [sset.rows(b) for b in range(sset.n_bodies)]
         self.n3 = 3 * sset.n_points
         #: body a -> [(b, M_ab)] for its near bodies b swept before it
-        self.lower: list[list[tuple[int, StokesletOperator]]] = [[] for _ in factors]
+        self.lower: list[list[tuple[int, StokesletOperator]]] = [[] for _ in self.rows]
         for a, b in near_pairs(sset, gap):
             pa, pb = sset.placed[a], sset.placed[b]
             op = StokesletOperator(
