@@ -21,7 +21,13 @@ kernels are compared on the same core)::
     such spheres at gap δ from each other and from the wall (both preconditioners); the same row
     in free space. Also
     the time of the dense and the GMRES solve for the row, where the auto choice's crossover
-    (DENSE_MAX_POINTS) comes from.
+    (DENSE_MAX_POINTS) comes from. Each row case is solved twice in the same run: with the
+    preconditioner's sweep over near bodies (the default, parastokes.mobility.precondition) and
+    without it (block Jacobi, NEAR_GAP = 0), for the iterations and the seconds per iteration;
+    the sweep's setup (finding the near pairs, its kernel operators) is timed against one
+    product of the whole operator. ``--contact``: rows of 2, 4 and 8 spheres of ``--fine``
+    points at gap 0.05a (400 points are too coarse for it: the placement check refuses gaps under
+    half the spacing), both preconditioners, with the wall.
 """
 
 from __future__ import annotations
@@ -29,12 +35,15 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from contextlib import contextmanager
 
 import numpy as np
 
 from parastokes import mrs
 from parastokes.mobility import RigidSurface, solve_mobility
+from parastokes.mobility import precondition as pc
 from parastokes.mobility.sphere import fibonacci_sphere, sphere_spacing
+from parastokes.mobility.system import SurfaceSet
 
 MU = 1.0
 TOL = 1e-10
@@ -86,13 +95,43 @@ def single_body(n: int, rounds: int) -> dict:
     }
 
 
-def timed_gmres(bodies: list, wall: bool, precondition: str, **loads) -> tuple[int, float]:
-    """GMRES iterations and seconds of one mobility solve of ``bodies`` under ``loads``."""
-    t = time.perf_counter()
-    m = solve_mobility(
-        bodies, mu=MU, wall=wall, method="gmres", tol=TOL, precondition=precondition, **loads
-    )
-    return m.info.iterations, time.perf_counter() - t
+@contextmanager
+def near_gap(gap: float | None):
+    """The preconditioner's sweep over near bodies with ``gap`` (0: block Jacobi; None: as is)."""
+    old = pc.NEAR_GAP
+    if gap is not None:
+        pc.NEAR_GAP = gap
+    try:
+        yield
+    finally:
+        pc.NEAR_GAP = old
+
+
+def timed_gmres(
+    bodies: list, wall: bool, precondition: str, gap: float | None = None, **loads
+) -> tuple[int, float]:
+    """GMRES iterations and seconds of one mobility solve of ``bodies`` under ``loads``
+    (``gap``: the sweep's NEAR_GAP; 0 is block Jacobi)."""
+    with near_gap(gap):
+        t = time.perf_counter()
+        m = solve_mobility(
+            bodies, mu=MU, wall=wall, method="gmres", tol=TOL, precondition=precondition, **loads
+        )
+        return m.info.iterations, time.perf_counter() - t
+
+
+def sweep_setup(bodies: list, wall: bool, rounds: int = 3) -> dict:
+    """Seconds of the sweep's setup (near pairs and their kernel operators, blocks excluded)
+    and of one product of the whole operator, least of ``rounds``."""
+    sset = SurfaceSet(bodies, MU, wall)
+    op = sset.operator()
+    f = np.random.default_rng(2).normal(size=3 * sset.n_points)
+    op.matvec(f)
+    return {
+        "couplings": pc.BlockSweep(sset, []).n_couplings,
+        "setup_s": best(lambda: pc.BlockSweep(sset, []), rounds),
+        "matvec_s": best(lambda: op.matvec(f), rounds),
+    }
 
 
 def wall_gaps(n: int) -> list[dict]:
@@ -100,11 +139,11 @@ def wall_gaps(n: int) -> list[dict]:
     rows = []
     for gap in GAPS:
         row: dict = {"gap": gap}
-        for pc in ("free", "wall"):
-            row[pc] = timed_gmres(
+        for block in ("free", "wall"):
+            row[block] = timed_gmres(
                 [s.place((0, 0, 1 + gap))],
                 True,
-                pc,
+                block,
                 external_torque=(0, 1, 0),
                 external_force=(1, 0, -1),
             )
@@ -119,12 +158,16 @@ def body_rows(n: int) -> list[dict]:
         for gap in ROW_GAPS:
             bodies = [s.place((i * (2 + gap), 0.0, 1 + gap)) for i in range(count)]
             row: dict = {"bodies": count, "gap": gap}
-            for key, wall, pc in (
+            for key, wall, block in (
                 ("wall", True, "free"),
                 ("wall_pc", True, "wall"),
                 ("free", False, "free"),
             ):
-                row[key] = timed_gmres(bodies, wall, pc, external_force=(0, 0, -1))
+                row[key] = timed_gmres(bodies, wall, block, external_force=(0, 0, -1))
+                row[key + "_jacobi"] = timed_gmres(
+                    bodies, wall, block, gap=0.0, external_force=(0, 0, -1)
+                )
+            row["sweep"] = sweep_setup(bodies, True)
             if count * n <= 1600 and gap == ROW_GAPS[1]:
                 t = time.perf_counter()
                 solve_mobility(bodies, mu=MU, wall=True, method="dense", external_force=(0, 0, -1))
@@ -133,9 +176,33 @@ def body_rows(n: int) -> list[dict]:
     return rows
 
 
+def contact_rows(n: int, gap: float = 0.05) -> list[dict]:
+    """Rows of 2, 4, 8 spheres of ``n`` points at ``gap`` above the wall, both preconditioners,
+    with and without the sweep."""
+    s = sphere(n)
+    rows = []
+    for count in (2, 4, 8):
+        bodies = [s.place((i * (2 + gap), 0.0, 1 + gap)) for i in range(count)]
+        row: dict = {"bodies": count, "gap": gap, "points": n}
+        for key, block in (("wall", "free"), ("wall_pc", "wall")):
+            row[key] = timed_gmres(bodies, True, block, external_force=(0, 0, -1))
+            row[key + "_jacobi"] = timed_gmres(
+                bodies, True, block, gap=0.0, external_force=(0, 0, -1)
+            )
+        rows.append(row)
+    return rows
+
+
 def cell(result: tuple[int, float]) -> str:
     """GMRES iterations and seconds as "its (s)"."""
     return f"{result[0]:3d} ({result[1]:.2f})"
+
+
+def pair(r: dict, key: str) -> str:
+    """Cells "swept / Jacobi" of ``key``, with the ratio of their seconds per iteration."""
+    a, b = r[key], r[key + "_jacobi"]
+    ratio = (a[1] / max(a[0], 1)) / (b[1] / max(b[0], 1))
+    return f"{cell(a)} / {cell(b)} [{ratio:.2f}]"
 
 
 def main() -> None:
@@ -145,6 +212,8 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=5)
     parser.add_argument("--json", type=str, default=None)
     parser.add_argument("--parts", nargs="+", choices=("a", "b"), default=["a", "b"])
+    parser.add_argument("--contact", action="store_true", help="rows at gap 0.05a (--fine)")
+    parser.add_argument("--fine", type=int, default=1200)
     args = parser.parse_args()
     out: dict = {}
     if "a" in args.parts:
@@ -174,16 +243,25 @@ def main() -> None:
             print(f"    {r['gap']:5.2f} | {cell(r['free'])} | {cell(r['wall'])}")
         out["rows"] = body_rows(args.sphere)
         print(f"    B spheres of {args.sphere} points in a row, gap δ between them and to the wall")
+        print("    each cell: swept its (s) / block Jacobi its (s) [seconds per iteration, ratio]")
         print(
             "    B | gap/a | wall: its (s) | wall, precondition 'wall': its (s) "
-            "| free space: its (s) | dense with wall (s)"
+            "| free space: its (s) | dense with wall (s) | sweep: pairs, setup / one product"
         )
         for r in out["rows"]:
             dense = f"{r['dense_wall_s']:.2f}" if "dense_wall_s" in r else "-"
+            sw = r["sweep"]
             print(
-                f"    {r['bodies']:2d} | {r['gap']:4.1f} | {cell(r['wall'])} "
-                f"| {cell(r['wall_pc'])} | {cell(r['free'])} | {dense}"
+                f"    {r['bodies']:2d} | {r['gap']:4.1f} | {pair(r, 'wall')} "
+                f"| {pair(r, 'wall_pc')} | {pair(r, 'free')} | {dense} "
+                f"| {sw['couplings']}, {sw['setup_s'] / sw['matvec_s']:.3f}"
             )
+    if args.contact:
+        out["contact"] = contact_rows(args.fine)
+        print(f"    B spheres of {args.fine} points at gap 0.05a, wall; swept / block Jacobi")
+        print("    B | precondition 'free' | precondition 'wall'")
+        for r in out["contact"]:
+            print(f"    {r['bodies']:2d} | {pair(r, 'wall')} | {pair(r, 'wall_pc')}")
     if args.json:
         with open(args.json, "w") as fh:
             json.dump(out, fh, indent=1)

@@ -68,18 +68,17 @@ def near_pairs(sset: SurfaceSet, gap: float | None = None) -> list[tuple[int, in
     centers = np.array([p.center for p in placed])
     reach = np.array([np.max(np.linalg.norm(p.points - p.center, axis=1)) for p in placed])
     sizes = np.array([p.surface.size for p in placed])
+    limits = gap * np.minimum(sizes[:, None], sizes[None, :])
+    apart = np.linalg.norm(centers[:, None] - centers[None, :], axis=-1)
+    maybe = np.tril(apart - reach[:, None] - reach[None, :] < limits, k=-1)
     trees: dict[int, cKDTree] = {}
     pairs = []
-    for a in range(len(placed)):
-        for b in range(a):
-            limit = gap * min(sizes[a], sizes[b])
-            if np.linalg.norm(centers[a] - centers[b]) - reach[a] - reach[b] >= limit:
-                continue
-            if b not in trees:
-                trees[b] = cKDTree(placed[b].points)
-            dist, _ = trees[b].query(placed[a].points, k=1, distance_upper_bound=limit)
-            if np.min(dist) < limit:
-                pairs.append((a, b))
+    for a, b in np.argwhere(maybe):  # row-major: by a, then b
+        if b not in trees:
+            trees[b] = cKDTree(placed[b].points)
+        dist, _ = trees[b].query(placed[a].points, k=1, distance_upper_bound=limits[a, b])
+        if np.min(dist) < limits[a, b]:
+            pairs.append((int(a), int(b)))
     return pairs
 
 
