@@ -27,7 +27,8 @@ kernels are compared on the same core)::
     the sweep's setup (finding the near pairs, its kernel operators) and one iteration's cost
     with and without it are measured in CPU time against one product of the whole operator
     (NEAR_GAP as in the package: at gap 0.5a no pair is coupled and both columns are the
-    same solve). ``--contact``: rows of 2, 4 and 8 spheres of ``--fine``
+    same solve). ``--parts cost``: that cost alone, for the rows at gap 0.1a (seconds).
+    ``--contact``: rows of 2, 4 and 8 spheres of ``--fine``
     points at gap 0.05a (400 points are too coarse for it: the placement check refuses gaps under
     half the spacing), both preconditioners, with the wall.
 """
@@ -173,12 +174,17 @@ def wall_gaps(n: int) -> list[dict]:
     return rows
 
 
+def row_of(s: RigidSurface, count: int, gap: float) -> list:
+    """``count`` placements of ``s`` along x, gap ``gap`` between neighbours and to the wall."""
+    return [s.place((i * (2 + gap), 0.0, 1 + gap)) for i in range(count)]
+
+
 def body_rows(n: int) -> list[dict]:
     s = sphere(n)
     rows = []
     for count in COUNTS:
         for gap in ROW_GAPS:
-            bodies = [s.place((i * (2 + gap), 0.0, 1 + gap)) for i in range(count)]
+            bodies = row_of(s, count, gap)
             row: dict = {"bodies": count, "gap": gap}
             for key, wall, block in (
                 ("wall", True, "free"),
@@ -204,7 +210,7 @@ def contact_rows(n: int, gap: float = 0.05) -> list[dict]:
     s = sphere(n)
     rows = []
     for count in (2, 4, 8):
-        bodies = [s.place((i * (2 + gap), 0.0, 1 + gap)) for i in range(count)]
+        bodies = row_of(s, count, gap)
         row: dict = {"bodies": count, "gap": gap, "points": n}
         for key, block in (("wall", "free"), ("wall_pc", "wall")):
             row[key] = timed_gmres(bodies, True, block, external_force=(0, 0, -1))
@@ -233,7 +239,7 @@ def main() -> None:
     parser.add_argument("--sphere", type=int, default=400)
     parser.add_argument("--rounds", type=int, default=5)
     parser.add_argument("--json", type=str, default=None)
-    parser.add_argument("--parts", nargs="+", choices=("a", "b"), default=["a", "b"])
+    parser.add_argument("--parts", nargs="+", choices=("a", "b", "cost"), default=["a", "b"])
     parser.add_argument("--contact", action="store_true", help="rows at gap 0.05a (--fine)")
     parser.add_argument("--fine", type=int, default=1200)
     args = parser.parse_args()
@@ -279,6 +285,18 @@ def main() -> None:
                 f"| {pair(r, 'wall_pc')} | {pair(r, 'free')} | {dense} "
                 f"| {sw['couplings']}, {sw['setup_s'] / sw['matvec_s']:.3f}, "
                 f"{sw['per_iteration']:.2f}"
+            )
+    if "cost" in args.parts:
+        out["cost"] = [
+            {"bodies": count, **sweep_cost(row_of(sphere(args.sphere), count, 0.1), True)}
+            for count in COUNTS
+        ]
+        print(f"    the sweep's cost, rows of {args.sphere}-point spheres at gap 0.1a, wall (CPU)")
+        print("    B | pairs | setup / one product | one iteration, swept / Jacobi")
+        for r in out["cost"]:
+            print(
+                f"    {r['bodies']:2d} | {r['couplings']:2d} | {r['setup_s'] / r['matvec_s']:.3f} "
+                f"| {r['per_iteration']:.3f}"
             )
     if args.contact:
         out["contact"] = contact_rows(args.fine)
