@@ -37,9 +37,9 @@ from .system import SurfaceSet
 
 #: Two bodies are coupled in the sweep when their surfaces come closer than this many times the
 #: smaller body's length (rms distance of its points from its center). Measured on rows of unit
-#: spheres above the wall (docs/benchmarks.md): coupling pairs at gap 0.1a saves 8-11 of 22-37
-#: iterations; at gap 0.5a it saves 2-4 of 11-18 but each coupling adds a kernel over the two
-#: bodies' points (8-36% more per iteration for 16-4 bodies), a wash; at 2a it saves nothing.
+#: spheres above the wall (docs/benchmarks.md): coupling pairs at gap 0.1a saves 8-11 of 30-37
+#: iterations for 8-27% more work per iteration; at 0.5a it saves 2-4 of 14-18 for as much more
+#: work, a wash; at 2a nothing.
 NEAR_GAP = 0.4
 
 PRECONDITIONERS = ("free", "wall")
