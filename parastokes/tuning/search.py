@@ -53,7 +53,7 @@ STOPPED_BY: dict[int | None, str] = {signal.SIGTERM: "terminated", signal.SIGHUP
 MIN_STEPS = 10
 
 #: A budget below this many fine slices of the pilot makes the search frugal: a two-slice pilot
-#: window (one iteration), the baseline's own ρ(DG) as the reference growth (docs/tuning.md, the
+#: window (one iteration), reference growth 1 instead of a measured ρ(DG) (docs/tuning.md, the
 #: vesicle).
 FRUGAL_SLICES = 20
 
@@ -435,23 +435,30 @@ class _Search:
         cand.spectral_radius, cand.radius_calls = found.rho, found.calls
         return found
 
-    def measure(self, cand: Candidate) -> None:
-        s = cand.settings
-        coarse, shot = cand.coarse, cand.shot
+    def stable(self, cand: Candidate, coarse: Any) -> bool:
+        """The verdict on ρ(DG) of the combined slice map (docs/tuning.md, step 7); when False,
+        ``cand.reason`` says why."""
         if cand.spectral_radius is None:
             self.radius(cand, coarse)
         assert self.reference_radius is not None  # (set by the baseline, measured first)
-        cand.allowed_radius = stability.allowed_radius(self.reference_radius, self.n_slices)
         assert cand.spectral_radius is not None  # (set just above)
+        cand.allowed_radius = stability.allowed_radius(self.reference_radius, self.n_slices)
         if math.isnan(cand.spectral_radius):
-            cand.status = "rejected"
             cand.reason = ("stability of the combined slice map not established: ρ(DG) did not "
                            f"converge within {cand.radius_calls} calls of the coarse map")
-            return
+            return False
         if not cand.spectral_radius <= cand.allowed_radius:
-            cand.status = "rejected"
             cand.reason = (f"combined slice map unstable: ρ(DG) = {cand.spectral_radius:.4g} > "
                            f"{cand.allowed_radius:.4g} allowed over {self.n_slices} slices")
+            return False
+        return True
+
+    def measure(self, cand: Candidate, check: bool = True) -> None:
+        """The verdict on ρ(DG) (skipped when not ``check``), the pilot run, the prediction."""
+        s = cand.settings
+        coarse, shot = cand.coarse, cand.shot
+        if check and not self.stable(cand, coarse):
+            cand.status = "rejected"
             return
         iterations = min(2, self.pilot.n_slices - 1)
         try:
@@ -475,8 +482,10 @@ class _Search:
 
     def baseline(self, scheme: str, frugal: bool) -> Candidate:
         """G_{Θ⁰,τ} at its largest safe step, measured in full; it fixes the physics' own ρ(DG)
-        (at half the step limit, or in a frugal search at its own step), the bound's cost scale
-        and the screen's calibration."""
+        (at half the step limit), the bound's cost scale and the screen's calibration. In a frugal
+        search ρ(DG) is not measured (its 14 or more coarse calls would take a large part of the
+        budget): the reference growth is 1, and the baseline, a single solver at its safe step
+        (step 6), has no combination to check."""
         self.base_scheme = scheme
         cand = Candidate(Settings(scheme))
         self.timed(cand, self.step)
@@ -488,7 +497,7 @@ class _Search:
             raise TuningError(f"the plain {scheme} coarse solver blows up over the first slice "
                               f"at its largest stable step ({cand.reason}); reduce fine.dt")
         if frugal:
-            reference = self.radius(cand, cand.coarse)
+            self.reference_radius = 1.0
         else:
             assert cand.step_limit is not None  # (set by its step)
             half = replace(cand.settings, dt=self.pilot.slice_length /
@@ -496,11 +505,11 @@ class _Search:
             reference = stability.spectral_radius(
                 half.build(self.system), self.system, self.pilot.x0, *self.window(),
                 tol=stability.radius_tolerance(self.n_slices))
-        if math.isnan(reference.rho):
-            self.notes.append(f"ρ(DG) of the reference did not converge within {reference.calls} "
-                              "calls: reference growth 1 (no growth)")
-        self.reference_radius = 1.0 if math.isnan(reference.rho) else reference.rho
-        self.timed(cand, self.measure)
+            if math.isnan(reference.rho):
+                self.notes.append(f"ρ(DG) of the reference did not converge within "
+                                  f"{reference.calls} calls: reference growth 1 (no growth)")
+            self.reference_radius = 1.0 if math.isnan(reference.rho) else reference.rho
+        self.timed(cand, lambda c: self.measure(c, check=not frugal))
         self.base_shot = cand.shot
         self.base_errors = cand.pilot_errors
         self.base_rho = cand.contraction
@@ -636,8 +645,8 @@ def tune(
         )
     if frugal:
         notes.append(f"frugal search (budget below {FRUGAL_SLICES} fine slices): "
-                     f"{pilot_slices}-slice pilot, the baseline's own ρ(DG) as the reference "
-                     "growth")
+                     f"{pilot_slices}-slice pilot, reference growth 1 (ρ(DG) of the plain "
+                     "solver not measured)")
     progress.note(f"pilot: {pilot_slices} slices of {fine_steps} fine steps "
                   f"(about {slice_seconds:.3g} s each)")
     pilot_window = Pilot.prepare(pilot_fine, start_state, t0, slice_length, pilot_slices)
