@@ -275,6 +275,7 @@ class _Search:
         self.points = points
         self.limits: dict[tuple, float] = {}
         self.reference_radius: float | None = None
+        self.unchecked: Candidate | None = None  # measured without the verdict on ρ(DG)
         self.notes: list[str] = []
         self.base_scheme = "euler"
         self.cost_scale = 1.0
@@ -453,11 +454,11 @@ class _Search:
             return False
         return True
 
-    def measure(self, cand: Candidate, check: bool = True) -> None:
-        """The verdict on ρ(DG) (skipped when not ``check``), the pilot run, the prediction."""
+    def measure(self, cand: Candidate) -> None:
+        """The verdict on ρ(DG) (not for ``self.unchecked``), the pilot run, the prediction."""
         s = cand.settings
         coarse, shot = cand.coarse, cand.shot
-        if check and not self.stable(cand, coarse):
+        if cand is not self.unchecked and not self.stable(cand, coarse):
             cand.status = "rejected"
             return
         iterations = min(2, self.pilot.n_slices - 1)
@@ -482,10 +483,10 @@ class _Search:
 
     def baseline(self, scheme: str, frugal: bool) -> Candidate:
         """G_{Θ⁰,τ} at its largest safe step, measured in full; it fixes the physics' own ρ(DG)
-        (at half the step limit), the bound's cost scale and the screen's calibration. In a frugal
-        search ρ(DG) is not measured (its 14 or more coarse calls would take a large part of the
-        budget): the reference growth is 1, and the baseline, a single solver at its safe step
-        (step 6), has no combination to check."""
+        (at half the step limit), the bound's cost scale and the screen's calibration. It is not
+        checked on ρ(DG) itself: a single solver at its safe step (step 6) has no combination to
+        check. In a frugal search the reference is not measured either (its 22 or more coarse
+        calls would take a large part of the budget): the reference growth is then 1."""
         self.base_scheme = scheme
         cand = Candidate(Settings(scheme))
         self.timed(cand, self.step)
@@ -496,6 +497,7 @@ class _Search:
         if cand.status == "rejected":
             raise TuningError(f"the plain {scheme} coarse solver blows up over the first slice "
                               f"at its largest stable step ({cand.reason}); reduce fine.dt")
+        self.unchecked = cand
         if frugal:
             self.reference_radius = 1.0
         else:
@@ -509,7 +511,7 @@ class _Search:
                 self.notes.append(f"ρ(DG) of the reference did not converge within "
                                   f"{reference.calls} calls: reference growth 1 (no growth)")
             self.reference_radius = 1.0 if math.isnan(reference.rho) else reference.rho
-        self.timed(cand, lambda c: self.measure(c, check=not frugal))
+        self.timed(cand, self.measure)
         self.base_shot = cand.shot
         self.base_errors = cand.pilot_errors
         self.base_rho = cand.contraction

@@ -34,12 +34,12 @@ __all__ = ["Diverged", "Probe", "Radius", "dense", "radius"]
 #: over the paper's slice ρ read 1.92, 1.28, 1.053, 1.0009 at absolute steps 1e-7 .. 3e-5.
 STEP = 1e-5
 #: Defaults of :func:`radius` (the tuner's): Krylov space, relative residual tolerance, most calls
-#: of G. On the rods' clustered eigenvalues near 1 (docs/tuning.md, step 7) ARPACK converges in its
-#: first 14 calls at 1e-2, to ρ within 3e-2 (the non-normality multiplies the residual's error),
-#: and needs 100-200 calls at 1e-3 or 1e-4 for no better a value.
-KRYLOV = 12
+#: of G. On the rods' clustered eigenvalues near 1 (docs/tuning.md, step 7) ARPACK converged in
+#: 22-49 calls at 1e-2 to ρ within 3e-2 (the non-normality multiplies the residual's error); a
+#: Krylov space of 12 often needed 60-75, and 1e-3 or 1e-4 needed 100-200 for no better a value.
+KRYLOV = 20
 TOLERANCE = 1e-2
-MAX_CALLS = 60
+MAX_CALLS = 80
 
 
 class Diverged(ArithmeticError):
