@@ -4,8 +4,10 @@ whether a sweep of coarse steps is stable) and, where the Jacobian is small enou
 norm ‖DG‖ (largest singular value: the worst one-slice amplification of a single perturbation).
 docs/validation.md section 2, "Measured: the linearized coarse map over one slice".
 
-DG is only available through finite differences of G, one call of G per product DG d; there is
-no adjoint (so no Lanczos bidiagonalization for the norm of a large DG). Chosen by size:
+The method is the package's (``parastokes.tuning.slice_map``, which the tuner uses too): DG is
+only available through finite differences of G, one call of G per product DG d; there is no
+adjoint (so no Lanczos bidiagonalization for the norm of a large DG). This module chooses by size,
+with the study's tolerances (tighter than the tuner's):
 
 - 3M <= ``DENSE_LIMIT`` (the rods, M = 61: 184 calls): the whole Jacobian by forward
   differences; rho from its eigenvalues, ‖DG‖ from its singular values (numpy), both exact up to
@@ -32,61 +34,24 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-import scipy.sparse.linalg
+
+from parastokes.tuning.slice_map import Probe, dense, radius
+
+__all__ = ["DENSE_LIMIT", "RTOL", "Probe", "arnoldi_radius", "dense", "linearization"]
 
 #: Largest 3M for which the Jacobian is formed whole.
 DENSE_LIMIT = 600
-#: Finite-difference step on the positions, relative to their largest coordinate: large enough
-#: that the round-off of the weighted sums (weights up to 1.7e5), which grows as 1/step, is small,
-#: small enough for the truncation error (forward: about 3e-4 of DG d on Table 5 G^1, along its
-#: top eigenvector; central: second order).
-STEP = 1e-5
 #: Relative tolerance of ARPACK's rho.
 RTOL = 1e-6
 
 
-class Probe:
-    """DG d by forward differences of ``propagate`` (x0 -> G(x0), full state) on the positions."""
-
-    def __init__(self, propagate: Callable[[np.ndarray], np.ndarray], positions, x0: np.ndarray,
-                 step: float = STEP, central: bool = False) -> None:
-        self.propagate, self.positions, self.x0, self.central = propagate, positions, x0, central
-        self.step = step * (float(np.abs(positions(x0)).max()) or 1.0)
-        self.base = np.asarray(positions(propagate(x0)), dtype=float).ravel()
-        self.size = self.base.size
-        self.calls = 1
-
-    def moved(self, d: np.ndarray) -> np.ndarray:
-        y = self.x0.copy()
-        y[:, :3] += d.reshape(-1, 3)
-        self.calls += 1
-        return np.asarray(self.positions(self.propagate(y)), dtype=float).ravel()
-
-    def __call__(self, d: np.ndarray) -> np.ndarray:
-        d = self.step * np.real(d)
-        if self.central:
-            return (self.moved(d) - self.moved(-d)) / (2 * self.step)
-        return (self.moved(d) - self.base) / self.step
-
-    def jacobian(self) -> np.ndarray:
-        return np.array([self(e) for e in np.eye(self.size)]).T
-
-
-def dense(probe: Probe) -> tuple[float, float]:
-    """(rho, ‖DG‖) from the whole finite-difference Jacobian."""
-    jac = probe.jacobian()
-    rho = float(np.abs(np.linalg.eigvals(jac)).max())
-    return rho, float(np.linalg.svd(jac, compute_uv=False)[0])
-
-
 def arnoldi_radius(probe: Probe, seed: int = 0, ncv: int = 20) -> float:
-    """rho by ARPACK (largest modulus) from a random start ``seed``."""
-    operator = scipy.sparse.linalg.LinearOperator((probe.size, probe.size), matvec=probe,
-                                                  dtype=float)
-    start = np.random.default_rng(seed).standard_normal(probe.size)
-    found = scipy.sparse.linalg.eigs(operator, k=1, which="LM", v0=start, ncv=ncv, tol=RTOL,
-                                     return_eigenvectors=False)
-    return float(np.abs(found).max())
+    """rho by ARPACK (largest modulus) from a random start ``seed``, to ``RTOL``, without a bound
+    on the calls; RuntimeError if ARPACK does not converge."""
+    found = radius(probe, seed, krylov=ncv, tol=RTOL, max_calls=None)
+    if not found.converged:
+        raise RuntimeError(f"ARPACK did not converge to rho within {found.calls} calls")
+    return found.rho
 
 
 def linearization(propagate: Callable[[np.ndarray], np.ndarray], positions, x0: np.ndarray,
