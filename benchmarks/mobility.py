@@ -95,19 +95,29 @@ def timed_gmres(bodies: list, wall: bool, precondition: str, **loads) -> tuple[i
     return m.info.iterations, time.perf_counter() - t
 
 
+#: the loads of the one-sphere case: a force along and toward the wall, a torque
+GAP_LOADS = {"external_torque": (0, 1, 0), "external_force": (1, 0, -1)}
+#: the row's solvers: (column, wall, preconditioner)
+ROW_SOLVERS = (("wall", True, "free"), ("wall_pc", True, "wall"), ("free", False, "free"))
+
+
+def gap_bodies(s: RigidSurface, gap: float) -> list:
+    """One sphere at ``gap`` above the wall (docs/benchmarks.md, (b))."""
+    return [s.place((0, 0, 1 + gap))]
+
+
+def row_bodies(s: RigidSurface, count: int, gap: float) -> list:
+    """A row of ``count`` spheres at ``gap`` from each other and from the wall."""
+    return [s.place((i * (2 + gap), 0.0, 1 + gap)) for i in range(count)]
+
+
 def wall_gaps(n: int) -> list[dict]:
     s = sphere(n)
     rows = []
     for gap in GAPS:
         row: dict = {"gap": gap}
         for pc in ("free", "wall"):
-            row[pc] = timed_gmres(
-                [s.place((0, 0, 1 + gap))],
-                True,
-                pc,
-                external_torque=(0, 1, 0),
-                external_force=(1, 0, -1),
-            )
+            row[pc] = timed_gmres(gap_bodies(s, gap), True, pc, **GAP_LOADS)
         rows.append(row)
     return rows
 
@@ -117,13 +127,9 @@ def body_rows(n: int) -> list[dict]:
     rows = []
     for count in COUNTS:
         for gap in ROW_GAPS:
-            bodies = [s.place((i * (2 + gap), 0.0, 1 + gap)) for i in range(count)]
+            bodies = row_bodies(s, count, gap)
             row: dict = {"bodies": count, "gap": gap}
-            for key, wall, pc in (
-                ("wall", True, "free"),
-                ("wall_pc", True, "wall"),
-                ("free", False, "free"),
-            ):
+            for key, wall, pc in ROW_SOLVERS:
                 row[key] = timed_gmres(bodies, wall, pc, external_force=(0, 0, -1))
             if count * n <= 1600 and gap == ROW_GAPS[1]:
                 t = time.perf_counter()

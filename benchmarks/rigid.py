@@ -169,50 +169,78 @@ QUICK_BACTERIUM = os.path.join(os.path.dirname(__file__), "..", "experiments", "
                                "bacterium_wall.toml")
 
 
+def coarse_surface_setup(t1: float, n_slices: int, path: str = QUICK_BACTERIUM,
+                         perturb: float = 0.0) -> dict:
+    """The bacterium of ``path`` with its fine and coarse solvers (T = ``t1`` over ``n_slices``
+    slices): system, initial state (its entries scaled by 1 + ``perturb``, for the round-off
+    sensitivity of the results), fine propagator and the serial fine solution at the slices'
+    ends (with its run time)."""
+    from parastokes import config
+
+    cfg, resolved = config.load(path)
+    system = cfg.model.build(1)
+    x0 = system.initial_state() * (1.0 + perturb)
+    fine = integrate.Propagator(system, cfg.fine.scheme, cfg.fine.dt)
+    start = time.perf_counter()
+    reference = parareal.serial_solution(fine, x0, 0.0, t1, n_slices)
+    serial = time.perf_counter() - start
+    return {"cfg": cfg, "resolved": resolved, "system": system, "x0": x0, "fine": fine,
+            "reference": reference, "serial": serial, "t1": t1, "n_slices": n_slices}
+
+
+def coarse_surface_coarse(setup: dict, factor: int) -> Callable:
+    """The setup's coarse solver (Lagrange in ε) on a surface ``factor`` times coarser (1: the
+    fine surface)."""
+    cfg, resolved = setup["cfg"], setup["resolved"]
+    return parareal.extrapolated(setup["system"], cfg.coarse.scheme, resolved.coarse_base_dt,
+                                 lagrange=resolved.lagrange or None,
+                                 grid=factor if factor > 1 else None)
+
+
+def coarse_surface_run(setup: dict, factor: int) -> tuple[int, int, list[float]]:
+    """Parareal of the setup with its coarse solver on a surface ``factor`` times coarser, to
+    η̃ < 1e-8 (at most N_c iterations): the coarse surface's points, the iterations and the error
+    η against the serial fine solution after each iteration."""
+    system = setup["system"]
+    points = (system.coarsened(factor)[0] if factor > 1 else system).n_surface
+    result = parareal.run(setup["fine"], coarse_surface_coarse(setup, factor), setup["x0"], 0.0,
+                          setup["t1"], setup["n_slices"], tol=1e-8,
+                          max_iterations=setup["n_slices"], reference=setup["reference"],
+                          positions=system.positions, project=system.project)
+    return points, result.iterations, [float(e) for e in result.errors]
+
+
 def coarse_surface_section(t1: float, n_slices: int, factors: list[int],
                            path: str = QUICK_BACTERIUM) -> list[str]:
     """Parareal on the bacterium of ``path`` (its body, fine and coarse solvers; T = ``t1`` over
     ``n_slices`` slices) with the coarse solver on the fine surface (factor 1) and on coarser
     surfaces (:meth:`RigidBody.coarsened`): γ_G / γ_F of one slice, the iterations to
     η̃ < 1e-8, the error against the serial fine solution, and eq. 14 at 40 cores."""
-    from parastokes import config
-
-    cfg, resolved = config.load(path)
-    system = cfg.model.build(1)
-    x0 = system.initial_state()
-    fine = integrate.Propagator(system, cfg.fine.scheme, cfg.fine.dt)
+    setup = coarse_surface_setup(t1, n_slices, path)
+    cfg, resolved, x0, fine = setup["cfg"], setup["resolved"], setup["x0"], setup["fine"]
     slice_length = t1 / n_slices
     gamma_f = median_time(lambda: fine(0.0, slice_length, x0), 3)
-    start = time.perf_counter()
-    reference = parareal.serial_solution(fine, x0, 0.0, t1, n_slices)
-    serial = time.perf_counter() - start
     lines = [
         f"### Parareal on the bacterium of experiments/quick/bacterium_wall.toml "
         f"({len(x0) - 1} surface points; fine {cfg.fine.scheme} τ_f = {cfg.fine.dt:g}; coarse "
         f"{cfg.coarse.scheme} at {resolved.coarse_base_dt:g} s, Lagrange in ε, N_G = "
         f"{resolved.n_auxiliary}; T = {t1:g}, {n_slices} slices, in one process)",
         "",
-        f"Serial fine run: {serial:.3g} s; γ_F of one slice: {gamma_f:.3g} s.",
+        f"Serial fine run: {setup['serial']:.3g} s; γ_F of one slice: {gamma_f:.3g} s.",
         "",
         "| coarse surface | points | γ_G / γ_F | iterations to η̃ < 1e-8 | error η after each "
         "iteration | eq. 14 at N_c = 40 (K as found); bound eq. 15 |",
         "|---|---|---|---|---|---|",
     ]
     for factor in factors:
-        coarse = parareal.extrapolated(system, cfg.coarse.scheme, resolved.coarse_base_dt,
-                                       lagrange=resolved.lagrange or None,
-                                       grid=factor if factor > 1 else None)
-        points = (system.coarsened(factor)[0] if factor > 1 else system).n_surface
+        coarse = coarse_surface_coarse(setup, factor)
         gamma_g = median_time(lambda c=coarse: c(0.0, slice_length, x0), 3)
-        result = parareal.run(fine, coarse, x0, 0.0, t1, n_slices, tol=1e-8,
-                              max_iterations=n_slices, reference=reference,
-                              positions=system.positions, project=system.project)
-        k = result.iterations
+        points, k, errors = coarse_surface_run(setup, factor)
         ratio = gamma_g / gamma_f
         (_, s40, b40), = predict(ratio, k, [40])
-        errors = ", ".join(f"{e:.1e}" for e in result.errors)
+        shown = ", ".join(f"{e:.1e}" for e in errors)
         name = "fine (baseline)" if factor == 1 else f"factor {factor}"
-        lines.append(f"| {name} | {points} | {ratio:.3g} | {k} | {errors} | {s40:.3g}; "
+        lines.append(f"| {name} | {points} | {ratio:.3g} | {k} | {shown} | {s40:.3g}; "
                      f"{b40:.3g} |")
         print(lines[-1], flush=True)
     return [*lines, ""]
