@@ -64,8 +64,8 @@ def free_errors(n: int) -> tuple[float, float, float]:
 
 def coarseness(n: int = 400, ratios: Sequence[float] = SPACING_RATIOS) -> dict[str, list[float]]:
     """Drag / 6πμaU - 1 of the unit sphere of ``n`` points and the 2-norm condition number of its
-    matrix M (eq. 6; M is symmetric, so from its eigenvalues) at ε = h / ratio, h = sqrt(4πa²/n) (the surface check is off:
-    it refuses ratios above 4)."""
+    matrix M (eq. 6; symmetric, so from its eigenvalues) at ε = h / ratio, h = sqrt(4πa²/n)
+    (the surface check is off: it refuses ratios above 4)."""
     from parastokes.mrs.operator import StokesletOperator
 
     points, h = fibonacci_sphere(n), sphere_spacing(n)
