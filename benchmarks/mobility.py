@@ -163,19 +163,24 @@ def wall_gaps(n: int) -> list[dict]:
     for gap in GAPS:
         row: dict = {"gap": gap}
         for block in ("free", "wall"):
-            row[block] = timed_gmres(
-                [s.place((0, 0, 1 + gap))],
-                True,
-                block,
-                external_torque=(0, 1, 0),
-                external_force=(1, 0, -1),
-            )
+            row[block] = timed_gmres(gap_bodies(s, gap), True, block, **GAP_LOADS)
         rows.append(row)
     return rows
 
 
-def row_of(s: RigidSurface, count: int, gap: float) -> list:
-    """``count`` placements of ``s`` along x, gap ``gap`` between neighbours and to the wall."""
+#: the loads of the one-sphere case: a force along and toward the wall, a torque
+GAP_LOADS = {"external_torque": (0, 1, 0), "external_force": (1, 0, -1)}
+#: the row's solvers: (column, wall, preconditioner)
+ROW_SOLVERS = (("wall", True, "free"), ("wall_pc", True, "wall"), ("free", False, "free"))
+
+
+def gap_bodies(s: RigidSurface, gap: float) -> list:
+    """One sphere at ``gap`` above the wall (docs/benchmarks.md, (b))."""
+    return [s.place((0, 0, 1 + gap))]
+
+
+def row_bodies(s: RigidSurface, count: int, gap: float) -> list:
+    """A row of ``count`` spheres at ``gap`` from each other and from the wall."""
     return [s.place((i * (2 + gap), 0.0, 1 + gap)) for i in range(count)]
 
 
@@ -184,13 +189,9 @@ def body_rows(n: int) -> list[dict]:
     rows = []
     for count in COUNTS:
         for gap in ROW_GAPS:
-            bodies = row_of(s, count, gap)
+            bodies = row_bodies(s, count, gap)
             row: dict = {"bodies": count, "gap": gap}
-            for key, wall, block in (
-                ("wall", True, "free"),
-                ("wall_pc", True, "wall"),
-                ("free", False, "free"),
-            ):
+            for key, wall, block in ROW_SOLVERS:
                 row[key] = timed_gmres(bodies, wall, block, external_force=(0, 0, -1))
                 row[key + "_jacobi"] = timed_gmres(
                     bodies, wall, block, gap=0.0, external_force=(0, 0, -1)
@@ -210,7 +211,7 @@ def contact_rows(n: int, gap: float = 0.05) -> list[dict]:
     s = sphere(n)
     rows = []
     for count in (2, 4, 8):
-        bodies = row_of(s, count, gap)
+        bodies = row_bodies(s, count, gap)
         row: dict = {"bodies": count, "gap": gap, "points": n}
         for key, block in (("wall", "free"), ("wall_pc", "wall")):
             row[key] = timed_gmres(bodies, True, block, external_force=(0, 0, -1))
@@ -288,7 +289,7 @@ def main() -> None:
             )
     if "cost" in args.parts:
         out["cost"] = [
-            {"bodies": count, **sweep_cost(row_of(sphere(args.sphere), count, 0.1), True)}
+            {"bodies": count, **sweep_cost(row_bodies(sphere(args.sphere), count, 0.1), True)}
             for count in COUNTS
         ]
         print(f"    the sweep's cost, rows of {args.sphere}-point spheres at gap 0.1a, wall (CPU)")
