@@ -21,7 +21,16 @@ kernels are compared on the same core)::
     such spheres at gap δ from each other and from the wall (both preconditioners); the same row
     in free space. Also
     the time of the dense and the GMRES solve for the row, where the auto choice's crossover
-    (DENSE_MAX_POINTS) comes from.
+    (DENSE_MAX_POINTS) comes from. Each row case is solved twice in the same run: with the
+    preconditioner's sweep over near bodies (the default, parastokes.mobility.precondition) and
+    without it (block Jacobi, NEAR_GAP = 0), for the iterations and the seconds per iteration;
+    the sweep's setup (finding the near pairs, its kernel operators) and one iteration's cost
+    with and without it are measured in CPU time against one product of the whole operator
+    (NEAR_GAP as in the package: at gap 0.5a no pair is coupled and both columns are the
+    same solve). ``--parts cost``: that cost alone, for the rows at gap 0.1a (seconds).
+    ``--contact``: rows of 2, 4 and 8 spheres of ``--fine``
+    points at gap 0.05a (400 points are too coarse for it: the placement check refuses gaps under
+    half the spacing), both preconditioners, with the wall.
 """
 
 from __future__ import annotations
@@ -29,12 +38,15 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from contextlib import contextmanager
 
 import numpy as np
 
 from parastokes import mrs
 from parastokes.mobility import RigidSurface, solve_mobility
+from parastokes.mobility import precondition as pc
 from parastokes.mobility.sphere import fibonacci_sphere, sphere_spacing
+from parastokes.mobility.system import SurfaceSet
 
 MU = 1.0
 TOL = 1e-10
@@ -86,13 +98,63 @@ def single_body(n: int, rounds: int) -> dict:
     }
 
 
-def timed_gmres(bodies: list, wall: bool, precondition: str, **loads) -> tuple[int, float]:
-    """GMRES iterations and seconds of one mobility solve of ``bodies`` under ``loads``."""
-    t = time.perf_counter()
-    m = solve_mobility(
-        bodies, mu=MU, wall=wall, method="gmres", tol=TOL, precondition=precondition, **loads
-    )
-    return m.info.iterations, time.perf_counter() - t
+@contextmanager
+def near_gap(gap: float | None):
+    """The preconditioner's sweep over near bodies with ``gap`` (0: block Jacobi; None: as is)."""
+    old = pc.NEAR_GAP
+    if gap is not None:
+        pc.NEAR_GAP = gap
+    try:
+        yield
+    finally:
+        pc.NEAR_GAP = old
+
+
+def timed_gmres(
+    bodies: list, wall: bool, precondition: str, gap: float | None = None, **loads
+) -> tuple[int, float]:
+    """GMRES iterations and seconds of one mobility solve of ``bodies`` under ``loads``
+    (``gap``: the sweep's NEAR_GAP; 0 is block Jacobi)."""
+    with near_gap(gap):
+        t = time.perf_counter()
+        m = solve_mobility(
+            bodies, mu=MU, wall=wall, method="gmres", tol=TOL, precondition=precondition, **loads
+        )
+        return m.info.iterations, time.perf_counter() - t
+
+
+def cpu_best(fn, rounds: int) -> float:
+    """Least CPU time of this process over ``rounds`` calls of ``fn`` (one kernel and one BLAS
+    thread: the work, without the time the shared machine did not schedule us)."""
+    times = []
+    for _ in range(rounds):
+        t = time.process_time()
+        fn()
+        times.append(time.process_time() - t)
+    return min(times)
+
+
+def sweep_cost(bodies: list, wall: bool, rounds: int = 5) -> dict:
+    """CPU seconds of the sweep's setup (near pairs and their kernel operators, blocks
+    excluded), of one application of the preconditioner with and without the sweep (mobility
+    problem, "free" blocks) and of one product of the whole operator; the ratio of one GMRES
+    iteration's cost with and without the sweep (product + preconditioner)."""
+    sset = SurfaceSet(bodies, MU, wall)
+    op = sset.operator()
+    rng = np.random.default_rng(2)
+    rv, rft = rng.normal(size=3 * sset.n_points), rng.normal(size=(sset.n_bodies, 6))
+    factors = pc.block_factors(sset, "free")
+    swept, jacobi = pc.BlockSweep(sset, factors), pc.BlockSweep(sset, factors, gap=0.0)
+    op.matvec(rv), swept.saddle(rv, rft)
+    out = {
+        "couplings": swept.n_couplings,
+        "setup_s": cpu_best(lambda: pc.BlockSweep(sset, []), rounds),
+        "matvec_s": cpu_best(lambda: op.matvec(rv), rounds),
+        "swept_s": cpu_best(lambda: swept.saddle(rv, rft), rounds),
+        "jacobi_s": cpu_best(lambda: jacobi.saddle(rv, rft), rounds),
+    }
+    out["per_iteration"] = (out["matvec_s"] + out["swept_s"]) / (out["matvec_s"] + out["jacobi_s"])
+    return out
 
 
 def wall_gaps(n: int) -> list[dict]:
@@ -100,16 +162,26 @@ def wall_gaps(n: int) -> list[dict]:
     rows = []
     for gap in GAPS:
         row: dict = {"gap": gap}
-        for pc in ("free", "wall"):
-            row[pc] = timed_gmres(
-                [s.place((0, 0, 1 + gap))],
-                True,
-                pc,
-                external_torque=(0, 1, 0),
-                external_force=(1, 0, -1),
-            )
+        for block in ("free", "wall"):
+            row[block] = timed_gmres(gap_bodies(s, gap), True, block, **GAP_LOADS)
         rows.append(row)
     return rows
+
+
+#: the loads of the one-sphere case: a force along and toward the wall, a torque
+GAP_LOADS = {"external_torque": (0, 1, 0), "external_force": (1, 0, -1)}
+#: the row's solvers: (column, wall, preconditioner)
+ROW_SOLVERS = (("wall", True, "free"), ("wall_pc", True, "wall"), ("free", False, "free"))
+
+
+def gap_bodies(s: RigidSurface, gap: float) -> list:
+    """One sphere at ``gap`` above the wall (docs/benchmarks.md, (b))."""
+    return [s.place((0, 0, 1 + gap))]
+
+
+def row_bodies(s: RigidSurface, count: int, gap: float) -> list:
+    """A row of ``count`` spheres at ``gap`` from each other and from the wall."""
+    return [s.place((i * (2 + gap), 0.0, 1 + gap)) for i in range(count)]
 
 
 def body_rows(n: int) -> list[dict]:
@@ -117,14 +189,14 @@ def body_rows(n: int) -> list[dict]:
     rows = []
     for count in COUNTS:
         for gap in ROW_GAPS:
-            bodies = [s.place((i * (2 + gap), 0.0, 1 + gap)) for i in range(count)]
+            bodies = row_bodies(s, count, gap)
             row: dict = {"bodies": count, "gap": gap}
-            for key, wall, pc in (
-                ("wall", True, "free"),
-                ("wall_pc", True, "wall"),
-                ("free", False, "free"),
-            ):
-                row[key] = timed_gmres(bodies, wall, pc, external_force=(0, 0, -1))
+            for key, wall, block in ROW_SOLVERS:
+                row[key] = timed_gmres(bodies, wall, block, external_force=(0, 0, -1))
+                row[key + "_jacobi"] = timed_gmres(
+                    bodies, wall, block, gap=0.0, external_force=(0, 0, -1)
+                )
+            row["sweep"] = sweep_cost(bodies, True)
             if count * n <= 1600 and gap == ROW_GAPS[1]:
                 t = time.perf_counter()
                 solve_mobility(bodies, mu=MU, wall=True, method="dense", external_force=(0, 0, -1))
@@ -133,9 +205,33 @@ def body_rows(n: int) -> list[dict]:
     return rows
 
 
+def contact_rows(n: int, gap: float = 0.05) -> list[dict]:
+    """Rows of 2, 4, 8 spheres of ``n`` points at ``gap`` above the wall, both preconditioners,
+    with and without the sweep."""
+    s = sphere(n)
+    rows = []
+    for count in (2, 4, 8):
+        bodies = row_bodies(s, count, gap)
+        row: dict = {"bodies": count, "gap": gap, "points": n}
+        for key, block in (("wall", "free"), ("wall_pc", "wall")):
+            row[key] = timed_gmres(bodies, True, block, external_force=(0, 0, -1))
+            row[key + "_jacobi"] = timed_gmres(
+                bodies, True, block, gap=0.0, external_force=(0, 0, -1)
+            )
+        rows.append(row)
+    return rows
+
+
 def cell(result: tuple[int, float]) -> str:
     """GMRES iterations and seconds as "its (s)"."""
     return f"{result[0]:3d} ({result[1]:.2f})"
+
+
+def pair(r: dict, key: str) -> str:
+    """Cells "swept / Jacobi" of ``key``, with the ratio of their seconds per iteration."""
+    a, b = r[key], r[key + "_jacobi"]
+    ratio = (a[1] / max(a[0], 1)) / (b[1] / max(b[0], 1))
+    return f"{cell(a)} / {cell(b)} [{ratio:.2f}]"
 
 
 def main() -> None:
@@ -144,7 +240,9 @@ def main() -> None:
     parser.add_argument("--sphere", type=int, default=400)
     parser.add_argument("--rounds", type=int, default=5)
     parser.add_argument("--json", type=str, default=None)
-    parser.add_argument("--parts", nargs="+", choices=("a", "b"), default=["a", "b"])
+    parser.add_argument("--parts", nargs="+", choices=("a", "b", "cost"), default=["a", "b"])
+    parser.add_argument("--contact", action="store_true", help="rows at gap 0.05a (--fine)")
+    parser.add_argument("--fine", type=int, default=1200)
     args = parser.parse_args()
     out: dict = {}
     if "a" in args.parts:
@@ -174,16 +272,39 @@ def main() -> None:
             print(f"    {r['gap']:5.2f} | {cell(r['free'])} | {cell(r['wall'])}")
         out["rows"] = body_rows(args.sphere)
         print(f"    B spheres of {args.sphere} points in a row, gap δ between them and to the wall")
+        print("    each cell: swept its (s) / block Jacobi its (s) [seconds per iteration, ratio]")
         print(
             "    B | gap/a | wall: its (s) | wall, precondition 'wall': its (s) "
-            "| free space: its (s) | dense with wall (s)"
+            "| free space: its (s) | dense with wall (s) "
+            "| sweep: pairs, setup / one product, one iteration swept / Jacobi (CPU)"
         )
         for r in out["rows"]:
             dense = f"{r['dense_wall_s']:.2f}" if "dense_wall_s" in r else "-"
+            sw = r["sweep"]
             print(
-                f"    {r['bodies']:2d} | {r['gap']:4.1f} | {cell(r['wall'])} "
-                f"| {cell(r['wall_pc'])} | {cell(r['free'])} | {dense}"
+                f"    {r['bodies']:2d} | {r['gap']:4.1f} | {pair(r, 'wall')} "
+                f"| {pair(r, 'wall_pc')} | {pair(r, 'free')} | {dense} "
+                f"| {sw['couplings']}, {sw['setup_s'] / sw['matvec_s']:.3f}, "
+                f"{sw['per_iteration']:.2f}"
             )
+    if "cost" in args.parts:
+        out["cost"] = [
+            {"bodies": count, **sweep_cost(row_bodies(sphere(args.sphere), count, 0.1), True)}
+            for count in COUNTS
+        ]
+        print(f"    the sweep's cost, rows of {args.sphere}-point spheres at gap 0.1a, wall (CPU)")
+        print("    B | pairs | setup / one product | one iteration, swept / Jacobi")
+        for r in out["cost"]:
+            print(
+                f"    {r['bodies']:2d} | {r['couplings']:2d} | {r['setup_s'] / r['matvec_s']:.3f} "
+                f"| {r['per_iteration']:.3f}"
+            )
+    if args.contact:
+        out["contact"] = contact_rows(args.fine)
+        print(f"    B spheres of {args.fine} points at gap 0.05a, wall; swept / block Jacobi")
+        print("    B | precondition 'free' | precondition 'wall'")
+        for r in out["contact"]:
+            print(f"    {r['bodies']:2d} | {pair(r, 'wall')} | {pair(r, 'wall_pc')}")
     if args.json:
         with open(args.json, "w") as fh:
             json.dump(out, fh, indent=1)

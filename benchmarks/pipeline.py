@@ -167,6 +167,34 @@ def _mean_task(res: parareal.PararealResult, kinds: set[str]) -> float:
     return float(np.mean(durations))
 
 
+def emulation_grid(quick: bool) -> list[tuple[int, float, int, int]]:
+    """The emulated cases (W = P, alpha, K, N_G) of the emulation section."""
+    if quick:
+        return [(8, a, k, 1) for a in (0.01, 0.3) for k in (1, 2)] + [(16, 0.1, 2, 4)]
+    grid = [(w, a, k, 1) for w in (8, 16, 32, 64) for a in (0.01, 0.1, 0.3) for k in (1, 2, 4)]
+    return grid + [(16, 0.1, 2, 4), (32, 0.05, 2, 4), (32, 0.1, 4, 4)]
+
+
+def model_speedups(
+    workers: int, alpha: float, iterations: int, n_auxiliary: int = 1
+) -> dict[str, dict[str, float]]:
+    """Per schedule, the model's speedups of an emulated case with the nominal alpha (P = W
+    slices): ``formula``, the closed formula (eq. 14 for the standard schedule, the pipelined
+    one's of docs/parareal.md) with a coarse step of ceil(N_G / W) rounds of auxiliary solves,
+    and ``simulated``, :func:`parastokes.parareal.simulate`."""
+    step_alpha = math.ceil(n_auxiliary / workers) * alpha
+    formulas = {"standard": parareal.speedup_standard, "pipelined": parareal.speedup_pipelined}
+    return {
+        schedule: {
+            "formula": formula(step_alpha, iterations, workers),
+            "simulated": parareal.simulate(
+                schedule, workers, iterations, workers, alpha, 1.0, n_auxiliary
+            ).speedup,
+        }
+        for schedule, formula in formulas.items()
+    }
+
+
 def emulation_case(
     workers: int, alpha: float, iterations: int, fine_s: float, n_auxiliary: int = 1
 ) -> dict[str, Any]:
@@ -180,6 +208,7 @@ def emulation_case(
     row: dict[str, Any] = {"workers": workers, "alpha": alpha, "iterations": iterations}
     row["n_auxiliary"] = n_auxiliary
     states = {}
+    model = model_speedups(workers, alpha, iterations, n_auxiliary)
     with Pool(workers) as pool:
         for schedule in ("standard", "pipelined"):
             start = time.perf_counter()
@@ -216,20 +245,11 @@ def emulation_case(
             bare = parareal.simulate(
                 schedule, workers, iterations, workers, g_cost / f_cost, 1.0, n_auxiliary
             )
-            nominal = parareal.simulate(
-                schedule, workers, iterations, workers, alpha, 1.0, n_auxiliary
-            )
-            formula = {
-                "standard": parareal.speedup_standard,
-                "pipelined": parareal.speedup_pipelined,
-            }[schedule]
-            step_alpha = math.ceil(n_auxiliary / workers) * alpha
             row[schedule] = {
                 "emulated": True,  # sleeping propagators stand in for the cores
                 "wall": wall,
                 "speedup": workers * fine_s / wall,
-                "formula": formula(step_alpha, iterations, workers),
-                "simulated": nominal.speedup,
+                **model[schedule],
                 "simulated_wall": sim.wall * f_cost,
                 "fine_task": f_cost,
                 "coarse_task": g_cost,
@@ -264,11 +284,7 @@ def emulation(args: argparse.Namespace) -> tuple[str, Any]:
     fine_s = args.fine_ms / 1000.0
     if args.figures:
         gantt_figures(fine_s, Path(args.figures))
-    if args.quick:
-        grid = [(8, a, k, 1) for a in (0.01, 0.3) for k in (1, 2)] + [(16, 0.1, 2, 4)]
-    else:
-        grid = [(w, a, k, 1) for w in (8, 16, 32, 64) for a in (0.01, 0.1, 0.3) for k in (1, 2, 4)]
-        grid += [(16, 0.1, 2, 4), (32, 0.05, 2, 4), (32, 0.1, 4, 4)]
+    grid = emulation_grid(args.quick)
     rows = []
     start = time.perf_counter()
     for w, a, k, n_aux in grid:

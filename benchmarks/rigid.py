@@ -19,6 +19,10 @@ Run from the repository root (the solves limit BLAS to the fluid's threads thems
   experiments/quick/bacterium_wall.toml with its coarse solver on the fine surface and on
   surfaces 2, 3 and 4 times coarser (``coarse.grid_factor``): γ_G / γ_F, iterations, errors,
   eq. 14 at 40 cores.
+- ``coarse_scene`` (not run by default): the same on the scene of
+  experiments/quick/scene_sphere_and_rod.toml (a rigid sphere of 150 points beside a rod of 31
+  nodes; T = 4e-4 over 8 slices): :meth:`Scene.coarsened` coarsening both (the sphere's surface,
+  the rod's nodes), and only the sphere (``coarse_bodies``).
 - ``parareal``: a bacterium near the wall (80 head points, a 40-point flagellum): the serial fine
   run, a Parareal run on 2 worker processes (Lagrange in ε, forward Euler at 5 τ_f), the measured
   γ_G / γ_F of one slice and the speedups eq. 14 predicts with them at 2 and 40 cores
@@ -31,6 +35,7 @@ run are what to read, not absolute times.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import os
 import time
@@ -69,8 +74,6 @@ def step_section(n: int, repeats: int) -> list[str]:
     two = median_time(lambda: [mrs.velocity(points, points, forces, epsilon=body.epsilon,
                                             mu=1.0, check=False) for _ in range(2)], repeats)
     surface = body.surface(0.0, x)
-    import dataclasses
-
     assembled = median_time(lambda: mobility([dataclasses.replace(surface, key=None)], 1.0,
                                              False, None), max(1, repeats // 3))
     return [
@@ -169,50 +172,110 @@ QUICK_BACTERIUM = os.path.join(os.path.dirname(__file__), "..", "experiments", "
                                "bacterium_wall.toml")
 
 
-def coarse_surface_section(t1: float, n_slices: int, factors: list[int],
-                           path: str = QUICK_BACTERIUM) -> list[str]:
-    """Parareal on the bacterium of ``path`` (its body, fine and coarse solvers; T = ``t1`` over
-    ``n_slices`` slices) with the coarse solver on the fine surface (factor 1) and on coarser
-    surfaces (:meth:`RigidBody.coarsened`): γ_G / γ_F of one slice, the iterations to
-    η̃ < 1e-8, the error against the serial fine solution, and eq. 14 at 40 cores."""
+QUICK_SCENE = os.path.join(os.path.dirname(__file__), "..", "experiments", "quick",
+                           "scene_sphere_and_rod.toml")
+
+
+def _points(system: object) -> int:
+    """A rigid body's surface points; a scene's state rows."""
+    n_surface = getattr(system, "n_surface", None)
+    return len(system.initial_state()) if n_surface is None else n_surface  # type: ignore[attr-defined]
+
+
+def coarse_surface_setup(t1: float, n_slices: int, path: str = QUICK_BACTERIUM,
+                         perturb: float = 0.0) -> dict:
+    """The bacterium of ``path`` with its fine and coarse solvers (T = ``t1`` over ``n_slices``
+    slices): system, initial state (its entries scaled by 1 + ``perturb``, for the round-off
+    sensitivity of the results), fine propagator and the serial fine solution at the slices'
+    ends (with its run time)."""
     from parastokes import config
 
     cfg, resolved = config.load(path)
     system = cfg.model.build(1)
-    x0 = system.initial_state()
+    x0 = system.initial_state() * (1.0 + perturb)
     fine = integrate.Propagator(system, cfg.fine.scheme, cfg.fine.dt)
-    slice_length = t1 / n_slices
-    gamma_f = median_time(lambda: fine(0.0, slice_length, x0), 3)
     start = time.perf_counter()
     reference = parareal.serial_solution(fine, x0, 0.0, t1, n_slices)
     serial = time.perf_counter() - start
+    return {"cfg": cfg, "resolved": resolved, "system": system, "x0": x0, "fine": fine,
+            "reference": reference, "serial": serial, "t1": t1, "n_slices": n_slices}
+
+
+def coarse_surface_coarse(setup: dict, factor: int, variant: object = None) -> Callable:
+    """The setup's coarse solver (its Lagrange parameters) on a grid ``factor`` times coarser (1:
+    the fine grid), of ``variant`` (the setup's system with other settings, e.g. a scene's
+    ``coarse_bodies``) or of the setup's system."""
+    cfg, resolved = setup["cfg"], setup["resolved"]
+    return parareal.extrapolated(variant or setup["system"], cfg.coarse.scheme,
+                                 resolved.coarse_base_dt, lagrange=resolved.lagrange or None,
+                                 grid=factor if factor > 1 else None)
+
+
+def coarse_surface_run(setup: dict, factor: int,
+                       variant: object = None) -> tuple[int, int, list[float]]:
+    """Parareal of the setup with its coarse solver on a grid ``factor`` times coarser (of
+    ``variant``, as :func:`coarse_surface_coarse`), to η̃ < 1e-8 (at most N_c iterations): the
+    coarse grid's points, the iterations and the error η against the serial fine solution after
+    each iteration."""
+    system = setup["system"]
+    points = _points((variant or system).coarsened(factor)[0] if factor > 1 else system)
+    coarse = coarse_surface_coarse(setup, factor, variant)
+    result = parareal.run(setup["fine"], coarse, setup["x0"], 0.0,
+                          setup["t1"], setup["n_slices"], tol=1e-8,
+                          max_iterations=setup["n_slices"], reference=setup["reference"],
+                          positions=system.positions, project=system.project)
+    return points, result.iterations, [float(e) for e in result.errors]
+
+
+def coarse_surface_section(t1: float, n_slices: int, factors: list[int],
+                           path: str = QUICK_BACTERIUM,
+                           only: tuple[str, ...] | None = None,
+                           interleave: bool = False) -> list[str]:
+    """Parareal on the body or scene of ``path`` (its fine and coarse solvers; T = ``t1`` over
+    ``n_slices`` slices) with the coarse solver on the fine grid (factor 1) and on coarser ones
+    (:meth:`RigidBody.coarsened`, :meth:`Scene.coarsened`; for a scene, also with only the
+    bodies ``only`` coarsened, its ``coarse_bodies``): γ_G / γ_F of one slice, the iterations to
+    η̃ < 1e-8, the error against the serial fine solution, and eq. 14 at 40 cores.
+    ``interleave``: γ_F measured again beside each row's γ_G (alternating, median of 3 pairs)."""
+    setup = coarse_surface_setup(t1, n_slices, path)
+    cfg, resolved, x0, fine = setup["cfg"], setup["resolved"], setup["x0"], setup["fine"]
+    system = setup["system"]
+    slice_length = t1 / n_slices
+    gamma_f = median_time(lambda: fine(0.0, slice_length, x0), 3)
     lines = [
-        f"### Parareal on the bacterium of experiments/quick/bacterium_wall.toml "
-        f"({len(x0) - 1} surface points; fine {cfg.fine.scheme} τ_f = {cfg.fine.dt:g}; coarse "
-        f"{cfg.coarse.scheme} at {resolved.coarse_base_dt:g} s, Lagrange in ε, N_G = "
-        f"{resolved.n_auxiliary}; T = {t1:g}, {n_slices} slices, in one process)",
+        f"### Parareal on experiments/quick/{os.path.basename(path)} "
+        f"({_points(system)} points; fine {cfg.fine.scheme} τ_f = {cfg.fine.dt:g}; coarse "
+        f"{cfg.coarse.scheme} at {resolved.coarse_base_dt:g} s, Lagrange in "
+        f"{', '.join(resolved.lagrange)}, N_G = {resolved.n_auxiliary}; T = {t1:g}, "
+        f"{n_slices} slices, in one process)",
         "",
-        f"Serial fine run: {serial:.3g} s; γ_F of one slice: {gamma_f:.3g} s.",
+        f"Serial fine run: {setup['serial']:.3g} s; γ_F of one slice: {gamma_f:.3g} s.",
         "",
         "| coarse surface | points | γ_G / γ_F | iterations to η̃ < 1e-8 | error η after each "
         "iteration | eq. 14 at N_c = 40 (K as found); bound eq. 15 |",
         "|---|---|---|---|---|---|",
     ]
-    for factor in factors:
-        coarse = parareal.extrapolated(system, cfg.coarse.scheme, resolved.coarse_base_dt,
-                                       lagrange=resolved.lagrange or None,
-                                       grid=factor if factor > 1 else None)
-        points = (system.coarsened(factor)[0] if factor > 1 else system).n_surface
-        gamma_g = median_time(lambda c=coarse: c(0.0, slice_length, x0), 3)
-        result = parareal.run(fine, coarse, x0, 0.0, t1, n_slices, tol=1e-8,
-                              max_iterations=n_slices, reference=reference,
-                              positions=system.positions, project=system.project)
-        k = result.iterations
+    rows = [(factor, system) for factor in factors]
+    if only is not None:
+        rows += [(factor, dataclasses.replace(system, coarse_bodies=only))
+                 for factor in factors if factor > 1]
+    for factor, variant in rows:
+        coarse = coarse_surface_coarse(setup, factor, variant)
+        if interleave:  # γ_F again beside each γ_G: the ratio in one stretch of load
+            pairs = [(median_time(lambda: fine(0.0, slice_length, x0), 1),
+                      median_time(lambda c=coarse: c(0.0, slice_length, x0), 1))
+                     for _ in range(3)]
+            gamma_f, gamma_g = (float(np.median(v)) for v in zip(*pairs, strict=True))
+        else:
+            gamma_g = median_time(lambda c=coarse: c(0.0, slice_length, x0), 3)
+        points, k, errors = coarse_surface_run(setup, factor, variant)
         ratio = gamma_g / gamma_f
         (_, s40, b40), = predict(ratio, k, [40])
-        errors = ", ".join(f"{e:.1e}" for e in result.errors)
+        shown = ", ".join(f"{e:.1e}" for e in errors)
         name = "fine (baseline)" if factor == 1 else f"factor {factor}"
-        lines.append(f"| {name} | {points} | {ratio:.3g} | {k} | {errors} | {s40:.3g}; "
+        if factor > 1 and getattr(variant, "coarse_bodies", None) is not None:
+            name += f", only {', '.join(variant.coarse_bodies)}"
+        lines.append(f"| {name} | {points} | {ratio:.3g} | {k} | {shown} | {s40:.3g}; "
                      f"{b40:.3g} |")
         print(lines[-1], flush=True)
     return [*lines, ""]
@@ -234,6 +297,10 @@ def main(argv: list[str] | None = None) -> None:
     if "coarse_surface" in args.sections:
         lines += coarse_surface_section(0.0048 if args.quick else 0.024, 4 if args.quick else 8,
                                         [1, 2] if args.quick else [1, 2, 3, 4])
+    if "coarse_scene" in args.sections:
+        lines += coarse_surface_section(2e-4 if args.quick else 4e-4, 4 if args.quick else 8,
+                                        [1, 2] if args.quick else [1, 2, 3], QUICK_SCENE,
+                                        only=("sphere",), interleave=True)
     lines.append(f"load average after: {os.getloadavg()[0]:.2f}")
     text = "\n".join(lines)
     print(text)

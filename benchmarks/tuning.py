@@ -67,10 +67,16 @@ def _num(value: float | None, spec: str) -> str:
     return "-" if value is None else format(value, spec)
 
 
+def _growth(stability: dict) -> float | None:
+    """ρ(DG) of the combined slice map; files written before it replaced the power iteration
+    hold that iteration's ``amplification`` instead (docs/tuning.md, step 7)."""
+    return stability.get("spectral_radius", stability.get("amplification"))
+
+
 def _row(c: dict) -> str:
     p = c["predicted"]
     return (f"| {c['label']} | {_num(c.get('dt_ratio'), '.3g')} | {c['n_auxiliary']} | "
-            f"{_num(c['stability']['amplification'], '.3g')} | "
+            f"{_num(_growth(c['stability']), '.4g')} | "
             f"{_num(c['pilot']['eta1'], '.2e')} | {p['iterations'] or '-'} | "
             f"{_num(p['gamma_ratio'], '.4f')} | {_num(p['speedup'], '.2f')} | {c['status']} |")
 
@@ -88,7 +94,9 @@ def tables(directory: Path) -> str:
                 f"({cost['seconds']:.0f} s wall) = {cost['fraction']:.1%} of the estimated "
                 f"serial fine solve ({cost['serial_fine_estimate']:.0f} s CPU); search stopped: "
                 f"{report['search']['stopped']}; {report['extrapolation']['note']}", "",
-                "| solver | τ_c/τ_f | N_G | ‖DG‖ | η¹ pilot | N_it | γ_G/γ_F | speedup | status |",
+                "| solver | τ_c/τ_f | N_G | ρ(DG) (older files: ‖DG‖, power iteration) "
+                "| η¹ pilot "
+                "| N_it | γ_G/γ_F | speedup | status |",
                 "|---|---|---|---|---|---|---|---|---|"]
         rows = [report["chosen"]] if report["chosen"] else []
         rows.append(report["baseline"])

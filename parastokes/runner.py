@@ -143,7 +143,8 @@ def fine_identity(cfg: Config) -> dict[str, Any]:
     coarse solver and the run mode, so runs that differ only in their coarse solver can share one
     reference (``reference.npz`` copied from one run directory into another is accepted)."""
     fine = ("model.", "time.", "fine.", "parareal.n_slices", "version")
-    return {k: v for k, v in identity(cfg).items() if k.startswith(fine)}
+    coarse = "model.coarse_bodies"  # a scene's choice for G's grid (Scene.coarse_bodies)
+    return {k: v for k, v in identity(cfg).items() if k.startswith(fine) and k != coarse}
 
 
 def _same_run(path: Path, saved: Any, now: dict[str, Any]) -> None:

@@ -43,10 +43,11 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from . import mrs
+from . import mrs, scene_coarse
 from .bodies import contract
 from .bodies.geometry import crossed_wall
 from .bodies.sources import FluidSources, fluid_sources
+from .scene_coarse import SceneTransfer
 from .stepping import registry
 from .stepping.scene import scene_loop
 
@@ -97,6 +98,9 @@ class Scene:
     shear_rate: float = 0.0
     names: tuple[str, ...] = ()
     n_threads: int | None = None
+    #: The names of the bodies that :meth:`coarsened` puts on their coarser grid (None: every
+    #: body that has one).
+    coarse_bodies: tuple[str, ...] | None = None
 
     def __post_init__(self) -> None:
         if not self.bodies:
@@ -135,6 +139,9 @@ class Scene:
                         f"{name}.{key}: {getattr(body, key)!r} differs from the scene's "
                         f"{getattr(self, key)!r} (one fluid, one background flow)"
                     )
+        if self.coarse_bodies is not None:
+            object.__setattr__(self, "coarse_bodies", tuple(self.coarse_bodies))
+            scene_coarse.check_names(self)
         if any(implicit(body) for body in self.bodies):
             self._check_overlaps()
 
@@ -176,7 +183,9 @@ class Scene:
         cols = columns or [c for _, _, c in self.shapes]
         return [array[f : f + n, :c] for (f, n, _), c in zip(self.shapes, cols, strict=True)]
 
-    def _stack(self, parts: list[np.ndarray]) -> np.ndarray:
+    def stack(self, parts: list[np.ndarray]) -> np.ndarray:
+        """The bodies' blocks (one per body, its rows) stacked into one array, zero-padded to
+        the widest."""
         width = max(p.shape[1] for p in parts)
         out = np.zeros((sum(len(p) for p in parts), width))
         for (first, rows, _), part in zip(self.shapes, parts, strict=True):
@@ -185,7 +194,7 @@ class Scene:
 
     # ---- the System contract -------------------------------------------------------------
     def initial_state(self) -> np.ndarray:
-        return self._stack([body.initial_state() for body in self.bodies])
+        return self.stack([body.initial_state() for body in self.bodies])
 
     def positions(self, state: np.ndarray) -> np.ndarray:
         return np.array(state[:, :3])
@@ -233,7 +242,7 @@ class Scene:
         u, w = self._flow(points, sources, angular)
         parts = [_body_rates(body, u[f : f + n], w[f : f + n])
                  for body, (f, n, _) in zip(self.bodies, self.shapes, strict=True)]
-        return self._stack(parts)
+        return self.stack(parts)
 
     @property
     def rate_columns(self) -> list[int]:
@@ -248,7 +257,7 @@ class Scene:
             for body, x, r in zip(self.bodies, self.blocks(state),
                                   self.blocks(rates, self.rate_columns), strict=True)
         ]
-        return self._stack(parts)
+        return self.stack(parts)
 
     def bracket(self, r1: np.ndarray, r2: np.ndarray) -> np.ndarray:
         """The bodies' Lie brackets (zero for bodies without one)."""
@@ -258,10 +267,10 @@ class Scene:
             for body, a, b in zip(self.bodies, self.blocks(r1, cols), self.blocks(r2, cols),
                                   strict=True)
         ]
-        return self._stack(parts)
+        return self.stack(parts)
 
     def project(self, state: np.ndarray) -> np.ndarray:
-        return self._stack([
+        return self.stack([
             contract.array(body, "project(state)", body.project(x), shape=x.shape,
                            what="the state's shape")
             for body, x in zip(self.bodies, self.blocks(state), strict=True)
@@ -324,7 +333,15 @@ class Scene:
                 n = len(x)
                 parts.append(_body_rates(body, value.u[row : row + n], value.w[row : row + n]))
                 row += n
-        return self._stack(parts)
+        return self.stack(parts)
+
+    # ---- coarse grid (Remark 4) -----------------------------------------------------------
+    def coarsened(self, factor: int) -> tuple[Scene, SceneTransfer]:
+        """The scene with every body that has a coarser grid on it (rods: σ_c = factor σ_f;
+        rigid bodies: ``factor`` times fewer surface points), or the bodies ``coarse_bodies``
+        names, the others kept, and the grid transfer that composes the bodies' own
+        (:mod:`parastokes.scene_coarse`)."""
+        return scene_coarse.coarsened(self, factor)
 
     # ---- parameters and monitor ----------------------------------------------------------
     @property

@@ -27,7 +27,7 @@ from typing import Any
 ROOT = Path(__file__).resolve().parents[1]
 REGISTRY = ROOT / "docs" / "numbers.toml"
 #: The pages that bind numbers to the registry.
-PAGES = (ROOT / "docs" / "validation.md", ROOT / "docs" / "benchmarks.md")
+PAGES = tuple(ROOT / "docs" / page for page in ("validation.md", "benchmarks.md", "hodmd.md"))
 #: Keys of a group that are not values.
 RESERVED = {"command", "tests", "rtol", "atol", "note", "tolerance"}
 

@@ -12,6 +12,10 @@ on 42 points, the whole Jacobian). The slow tests add the vesicle's registered â
 quick slices (the whole Jacobian, 1927 calls each), the other former quick slices and controls, and
 rerun the whole script (about 10 min plus the Jacobians) for every registered number, including
 the vesicle nodes, the scalar model and rho(DG) over the paper's slices.
+
+``[coarse_slices_more]``: the weight sums sum |w_j v_q| of the scalar-model table, and the
+monitors of the combined states of section 4's initial sweeps (by default all but the two over
+the paper's slices on the M = 301 rod, which take about 20 s each).
 """
 
 from __future__ import annotations
@@ -124,3 +128,26 @@ def test_every_section_2_number():
                     check("coarse_slices", name, norm, i)
             continue
         check("coarse_slices", name, value)
+
+
+def test_combination_weight_sums():
+    scalar = [name for name in script.CASES if name.startswith(("table7", "table8"))]
+    found = [script.combination(name, span)["sum_abs_weights"]
+             for name in scalar for span in script.CASES[name]]
+    check("coarse_slices_more", "sum_abs_weights", found)
+
+
+@pytest.mark.parametrize(
+    "key",
+    [pytest.param(key, marks=pytest.mark.slow) if key.startswith("rod301") and "paper" in key
+     else key for key in script.SWEEPS],
+)
+def test_initial_sweep_monitors(key):
+    found = script.sweep(*script.SWEEPS[key])
+    check("coarse_slices_more", key, found["combined"])
+    if f"{key}_auxiliary" in values("coarse_slices_more"):
+        check("coarse_slices_more", f"{key}_auxiliary", found["auxiliary"])
+    blowup = values("coarse_slices_more").get(f"{key}_blowup_t")
+    assert (found["blowup"] is None) == (blowup is None)
+    if blowup is not None:
+        check("coarse_slices_more", f"{key}_blowup_t", found["blowup"]["t"])

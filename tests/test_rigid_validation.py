@@ -54,32 +54,34 @@ def fitted_order(sizes, errors):
 
 
 def squirmer_study(sizes):
-    errors, spread = [], []
-    for n in sizes:
-        u = [motion(sphere(n, 0.3, slip=Squirmer(1.5, b2)))[0] for b2 in (0.0, 4.0)]
-        errors.append(u[0] / 1.0 - 1.0)  # 2 B1 / 3 = 1
-        spread.append(abs(u[1] - u[0]))
-        check_table("squirmer_b2", [n], [u[1] - 1.0])
-    return np.array(errors), np.array(spread)
+    """The squirmer's errors against 2 B1 / 3 = 1 at B2 = 0 and at B2 = 4."""
+    errors = [[motion(sphere(n, 0.3, slip=Squirmer(1.5, b2)))[0] - 1.0 for b2 in (0.0, 4.0)]
+              for n in sizes]
+    return np.array(errors).T
+
+
+def check_orders(sizes, errors):
+    """The fitted orders of the page's table (``orders``: squirmer, sedimenting, turning sphere
+    over N = 150-1200) where ``sizes`` are the table's, of the CI sizes (``orders_ci``) where
+    they are those; ``errors`` are the three studies' errors at ``sizes``."""
+    orders = [fitted_order(sizes, e) for e in errors]
+    key = {TABLE_SIZES: "orders", CI_SIZES: "orders_ci"}.get(tuple(sizes))
+    if key is not None:
+        check("rigid_closed", key, orders)
+    return orders
 
 
 def check_squirmer(sizes, finest):
-    errors, spread = squirmer_study(sizes)
+    errors, errors_b2 = squirmer_study(sizes)
     check_table("squirmer", sizes, errors)
+    check_table("squirmer_b2", sizes, errors_b2)
+    spread = np.abs(errors_b2 - errors)
     order = fitted_order(sizes, errors)
     assert 0.6 <= order <= 1.4, (order, errors)
     assert abs(errors[-1]) < finest
     assert np.all(np.abs(np.diff(np.abs(errors))) > 0) and np.all(np.diff(np.abs(errors)) < 0)
     assert np.all(spread < 0.05 * np.abs(errors))  # B2 moves U far less than the error
-
-
-def test_squirmer_speed_converges_ci():
-    check_squirmer(CI_SIZES, 0.06)
-
-
-@pytest.mark.slow
-def test_squirmer_speed_converges_full():
-    check_squirmer(FULL_SIZES, 0.035)
+    return errors, errors_b2
 
 
 def stokes_study(sizes):
@@ -97,15 +99,26 @@ def check_stokes(sizes, finest):
     for errors in (drag, turn):
         assert 0.6 <= fitted_order(sizes, errors) <= 1.4, errors
         assert abs(errors[-1]) < finest
+    return drag, turn
 
 
-def test_stokes_drag_and_torque_converge_ci():
-    check_stokes(CI_SIZES, 0.05)
+def test_closed_forms_converge_ci():
+    """N = 150, 300, 600: the squirmer's, the sedimenting and the turning sphere's errors (the
+    page's rows) and their fitted orders over these sizes (docs/numbers.toml, ``orders_ci``: the
+    CI twin of the table's orders over 150-1200 and of the values at N = 2400)."""
+    check_orders(CI_SIZES, [check_squirmer(CI_SIZES, 0.06)[0], *check_stokes(CI_SIZES, 0.05)])
 
 
 @pytest.mark.slow
-def test_stokes_drag_and_torque_converge_full():
-    check_stokes(FULL_SIZES, 0.025)
+def test_closed_forms_converge_full():
+    """N = 300-2400: orders within 0.6-1.4 and the errors at N = 2400 (``at_2400``: squirmer,
+    B2 = 0 and 4, sedimenting, turning sphere), then the table's fitted orders over 150-1200."""
+    squirmer, squirmer_b2 = check_squirmer(FULL_SIZES, 0.035)
+    drag, turn = check_stokes(FULL_SIZES, 0.025)
+    check("rigid_closed", "at_2400", [squirmer[-1], squirmer_b2[-1], drag[-1], turn[-1]])
+    first = [squirmer_study([150])[0][0], *(e[0] for e in stokes_study([150]))]
+    table = [np.r_[f, e[:3]] for f, e in zip(first, (squirmer, drag, turn), strict=True)]
+    check_orders(TABLE_SIZES, table)
 
 
 def rft_ratio(radius, pitch, filament):

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from parastokes import cli, integrate, models, parareal, tuning
-from parastokes.tuning import Settings, Space, TuningError, stability
+from parastokes.tuning import Settings, Space, TuningError, slice_map, stability
 from parastokes.tuning.report import _helps, toml_dumps
 from parastokes.tuning.search import Candidate
 from parastokes.tuning.space import REACH, reach_table
@@ -106,8 +106,10 @@ def table5_g1(theta0: dict) -> Settings:
 
 def test_combination_of_stable_members_is_rejected_when_it_amplifies():
     """Short slices (14 coarse steps): every member damps, the Lagrange combination (Σ|w| ~ 1e4)
-    amplifies (docs/validation.md, section 3). The tuner must reject it on the combined map,
-    before its pilot run; a real initial sweep confirms that it blows up."""
+    amplifies (docs/validation.md, section 3). The tuner must reject it on the combined map's
+    spectral radius, before its pilot run; a real initial sweep confirms that it blows up. Over
+    longer slices the same solver is stable: ρ(DG) ≈ 1 although its norm ‖DG‖ (a one-slice
+    transient) is above the allowed growth, so the verdict rests on ρ, not on the norm."""
     rod = small_rod(7.0)
     fine = integrate.Propagator(rod, "rk2", 1e-6)
     settings = table5_g1(rod.params)
@@ -116,16 +118,24 @@ def test_combination_of_stable_members_is_rejected_when_it_amplifies():
     res = tuning.tune(fine, t0=0.0, t1=4e-3, n_slices=4, cores=40, target=1e-6, space=space)
     (cand,) = [c for c in res.candidates if c.settings.name == "Table 5 G1"]
     assert cand.status == "rejected"
-    assert "combined slice map unstable" in cand.reason
+    assert "combined slice map unstable: ρ(DG)" in cand.reason
     assert cand.pilot_errors == []  # rejected before the pilot
-    assert cand.amplification > cand.allowed_amplification
+    assert cand.spectral_radius > cand.allowed_radius
     coarse = settings.build(rod)
     x0 = rod.initial_state()
-    members = [stability.amplification(p, rod, x0, 0.0, 1e-3)
+    # the whole Jacobian: the estimate is its spectral radius (5.894 by eigenvalues)
+    rho, _ = slice_map.dense(slice_map.Probe(lambda x: coarse(0.0, 1e-3, x), rod.positions, x0))
+    assert cand.spectral_radius == pytest.approx(rho, rel=3e-2)
+    members = [stability.spectral_radius(p, rod, x0, 0.0, 1e-3)
                for row in coarse.auxiliary for p in row]
-    assert max(members) < cand.allowed_amplification  # each member alone passes
-    # the same check accepts the same solver over the paper's slice length
-    assert stability.amplification(coarse, rod, x0, 0.0, 4e-3) < cand.allowed_amplification
+    assert all(m.converged for m in members)
+    assert max(m.rho for m in members) < cand.allowed_radius  # each member alone passes
+    # over the paper's slice length the same check accepts the same solver, whose norm the
+    # allowed growth would reject
+    longer = stability.spectral_radius(coarse, rod, x0, 0.0, 4e-3)
+    assert longer.converged and longer.rho < cand.allowed_radius
+    _, norm = slice_map.dense(slice_map.Probe(lambda x: coarse(0.0, 4e-3, x), rod.positions, x0))
+    assert norm > 3 * cand.allowed_radius  # 15.2 against 3.2
     # checked against a real run: the initial coarse sweep over the short slices blows up
     with pytest.raises(integrate.BlowUpError):
         for n in range(4):
@@ -430,7 +440,7 @@ def test_coarse_grid_candidates_are_measured_on_the_coarse_rod():
                       budget=1e6)
     (cand,) = [c for c in res.candidates if c.settings.grid == 2]
     assert cand.status == "accepted", cand.reason
-    assert cand.pilot_errors and cand.amplification <= cand.allowed_amplification
+    assert cand.pilot_errors and cand.spectral_radius <= cand.allowed_radius
     # 11 nodes instead of 21: the coarse rod's step limit and cost are its own
     assert cand.step_limit != res.baseline.step_limit
     assert isinstance(cand.settings.build(small_rod()), parareal.OnCoarseGrid)

@@ -43,6 +43,7 @@ from parastokes import config, integrate, models, parareal
 from parastokes.coarse.extrapolated import Extrapolated
 from parastokes.config.build import build_coarse, build_system
 from validation import map_norm
+from validation.quick_errors import perturbed
 from validation.report import print_claims, toml_values, write_results
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -224,8 +225,11 @@ def vesicle_bisection_check(log) -> dict:
 
 
 # ---- 2. scalar model ---------------------------------------------------------------------------
-def scalar_model(spectrum: VesicleSpectrum, name: str, span: float) -> dict:
-    """The stiffest mode's factor over one slice: combined, G_{Theta^0}, largest auxiliary."""
+def combination(name: str, span: float) -> dict:
+    """The coarse solver of ``experiments/quick/NAME.toml`` over one slice of length ``span``:
+    its auxiliary parameter sets ``thetas`` (Lagrange nodes, eq. 30), their weights ``w``, the
+    Richardson steps actually taken (``used``, ``counts``) and their weights ``v`` (eq. 28), and
+    ``sum_abs_weights`` = sum |w_j v_q|, the factor by which the combination can amplify."""
     cfg, resolved = config.load(EXPERIMENTS / "quick" / f"{name}.toml")
     names = list(resolved.lagrange)
     thetas = [
@@ -243,6 +247,16 @@ def scalar_model(spectrum: VesicleSpectrum, name: str, span: float) -> dict:
     counts = [integrate.n_steps(0.0, span, h) for h in steps]
     used = [span / n for n in counts]
     v = parareal.step_weights(used, 1)
+    return {"resolved": resolved, "thetas": thetas, "w": w, "v": v, "used": used,
+            "counts": counts, "sum_abs_weights": float(np.abs(np.multiply.outer(w, v)).sum())}
+
+
+def scalar_model(spectrum: VesicleSpectrum, name: str, span: float) -> dict:
+    """The stiffest mode's factor over one slice: combined, G_{Theta^0}, largest auxiliary."""
+    c = combination(name, span)
+    resolved, thetas, w, v, used, counts = (
+        c[k] for k in ("resolved", "thetas", "w", "v", "used", "counts")
+    )
     lams = np.array([spectrum.lam(t) for t in thetas])
     combined = sum(
         wj * sum(vq * (1 - hq * lj) ** nq for vq, hq, nq in zip(v, used, counts, strict=True))
@@ -255,7 +269,7 @@ def scalar_model(spectrum: VesicleSpectrum, name: str, span: float) -> dict:
         "combined": float(combined),
         "auxiliary_max": float(np.abs(1 - used[0] * lams).max() ** counts[0]),
         "theta0": float((1 - used[0] * lam0) ** counts[0]),
-        "sum_abs_weights": float(np.abs(np.multiply.outer(w, v)).sum()),
+        "sum_abs_weights": c["sum_abs_weights"],
     }
 
 
@@ -289,24 +303,43 @@ def amplification(name: str, span: float, seed: int = 0) -> dict:
 def dense_map(name: str, span: float, sets: Sequence[str] = (),
               checkpoint: Path | None = None) -> dict:
     """rho(DG) and ‖DG‖ of the combined coarse map over [0, span] from its whole forward-difference
-    Jacobian (``map_norm.dense``), whatever its size: for the vesicle (3M = 1926) 1927 calls of G,
-    with ``checkpoint`` (a ``.npy`` path) to resume; ``sets`` as in :func:`load` (e.g.
+    Jacobian (``map_norm.dense_resumable``), whatever its size: for the vesicle (3M = 1926) 1927
+    calls of G, with ``checkpoint`` (a ``.npy`` path) to resume; ``sets`` as in :func:`load` (e.g.
     ``model.subdivisions=1``, a 42-point vesicle, for a CI-sized twin)."""
     _, resolved, system, coarse = load(name, sets=sets)
     inner = getattr(coarse, "propagator", coarse)
     probe = map_norm.Probe(lambda x: inner(0.0, span, x), system.positions, system.initial_state())
-    rho, norm = map_norm.dense(probe, checkpoint)
+    rho, norm = map_norm.dense_resumable(probe, checkpoint)
     return {"span": span, "coarse_steps": integrate.n_steps(0.0, span, resolved.coarse_dt),
             "rho_dense": rho, "norm": norm, "calls": probe.calls}
 
 
 # ---- 4. initial sweep --------------------------------------------------------------------------
-def sweep(kind: str, name: str, t1: float, n_slices: int, quick: bool = True) -> dict:
-    """Monitor of every combined X_n^0 and the largest auxiliary monitor, until a blow-up."""
+_SHORT, _PAPER = "former quick", "paper"
+#: The initial sweeps of section 4 (``sweep``'s arguments: slices, name, T, N_c, quick rod), by
+#: their name in ``[coarse_slices_more]``; ``rod301_*`` on the paper's M = 301 rod.
+SWEEPS: dict[str, tuple[str, str, float, int, bool]] = {
+    "rod61_former": (_SHORT, "table5_g1", 4e-3, 4, True),
+    "rod61_paper": (_PAPER, "table5_g1", 0.1, 4, True),
+    "vesicle_former": (_SHORT, "table7_g1", 0.5, 4, True),
+    "vesicle_paper": (_PAPER, "table7_g1", 7.5, 3, True),
+    "rod301_former": (_SHORT, "table5_g1", 4e-3, 4, False),
+    "rod301_paper": (_PAPER, "table5_g1", 0.075, 3, False),
+    "rod301_g2_paper": (_PAPER, "table5_g2", 0.075, 3, False),
+    # Table 8 G^1: stable over the paper's slices, but X^0 leaves the area limit (reported apart)
+    "table8_paper": ("paper, Table 8", "table8_g1", 5.0, 2, True),
+}
+
+
+def sweep(
+    kind: str, name: str, t1: float, n_slices: int, quick: bool = True, perturb: float = 0.0
+) -> dict:
+    """Monitor of every combined X_n^0 and the largest auxiliary monitor, until a blow-up
+    (``perturb``: the start's round-off perturbation of ``quick_errors.perturbed``)."""
     _cfg, resolved, system, coarse = load(name, t1, n_slices, quick)
     inner = getattr(coarse, "propagator", coarse)
     times = parareal.time_points(0.0, t1, n_slices)
-    x = system.initial_state()
+    x = perturbed(system.initial_state(), perturb)
     combined, auxiliary, blowup = [], [], None
     for n in range(1, n_slices + 1):
         _steps, v = inner.plan(times[n - 1], times[n])
@@ -358,22 +391,9 @@ def run_all(log=print, full_rod: bool = True) -> dict:
             )
         )
     results["controls"] = {name: amplification(name, s) for name, s in CONTROLS.items()}
-    short, paper = "former quick", "paper"
-    sweeps = [
-        (short, "table5_g1", 4e-3, 4, True),
-        (paper, "table5_g1", 0.1, 4, True),
-        (short, "table7_g1", 0.5, 4, True),
-        (paper, "table7_g1", 7.5, 3, True),
+    results["sweeps"] = [
+        sweep(*args) for key, args in SWEEPS.items() if full_rod or not key.startswith("rod301")
     ]
-    if full_rod:
-        sweeps += [
-            (short, "table5_g1", 4e-3, 4, False),
-            (paper, "table5_g1", 0.075, 3, False),
-            (paper, "table5_g2", 0.075, 3, False),
-        ]
-    # Table 8 G^1: stable over the paper's slices, but X^0 leaves the area limit (reported apart)
-    sweeps.append(("paper, Table 8", "table8_g1", 5.0, 2, True))
-    results["sweeps"] = [sweep(*args) for args in sweeps]
     for s in results["sweeps"]:
         log(
             f"sweep {s['slices']} {s['name']} M={s['n_points']} slice {s['slice']:g}: combined "

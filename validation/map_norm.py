@@ -4,8 +4,10 @@ whether a sweep of coarse steps is stable) and, where the Jacobian is small enou
 norm ‖DG‖ (largest singular value: the worst one-slice amplification of a single perturbation).
 docs/validation.md section 2, "Measured: the linearized coarse map over one slice".
 
-DG is only available through finite differences of G, one call of G per product DG d; there is
-no adjoint (so no Lanczos bidiagonalization for the norm of a large DG). Chosen by size:
+The method is the package's (``parastokes.tuning.slice_map``, which the tuner uses too): DG is
+only available through finite differences of G, one call of G per product DG d; there is no
+adjoint (so no Lanczos bidiagonalization for the norm of a large DG). This module chooses by size,
+with the study's tolerances (tighter than the tuner's):
 
 - 3M <= ``DENSE_LIMIT`` (the rods, M = 61: 184 calls): the whole Jacobian by forward
   differences; rho from its eigenvalues, ‖DG‖ from its singular values (numpy), both exact up to
@@ -18,9 +20,9 @@ no adjoint (so no Lanczos bidiagonalization for the norm of a large DG). Chosen 
   implicitly restarted Arnoldi (scipy.sparse.linalg.eigs, largest modulus) on the products,
   converged to ``RTOL``; the norm is left out here (a Krylov space of forward products alone gave
   a lower bound that still grew by 0.5% between 24 and 90 directions on Table 8 G^1). It needs no
-  adjoint: :func:`dense` forms the whole Jacobian at any size, column by column with a resumable
-  checkpoint (``validation.coarse_slices.dense_map``, ``--dense-norms``): 7 to 21 min on one
-  shared core for the 642-point vesicle over its former quick slices (4 to 12 coarse steps).
+  adjoint: :func:`dense_resumable` forms the whole Jacobian at any size, column by column with a
+  resumable checkpoint (``validation.coarse_slices.dense_map``, ``--dense-norms``): 7 to 21 min
+  on one shared core for the 642-point vesicle over its former quick slices (4 to 12 steps).
 
 The five-step power iteration d <- DG d / |DG d| that this replaces returned neither: on Table 5
 G^1 over the paper's slice it gave 1.19 and 1.37 from two starts and 1.39 after ten steps, while
@@ -36,82 +38,25 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
-import scipy.sparse.linalg
+
+from parastokes.tuning.slice_map import Probe, dense, radius
+
+__all__ = ["DENSE_LIMIT", "RTOL", "Probe", "arnoldi_radius", "dense", "dense_resumable",
+           "jacobian", "linearization"]
 
 #: Largest 3M for which the Jacobian is formed whole.
 DENSE_LIMIT = 600
-#: Finite-difference step on the positions, relative to their largest coordinate: large enough
-#: that the round-off of the weighted sums (weights up to 1.7e5), which grows as 1/step, is small,
-#: small enough for the truncation error (forward: about 3e-4 of DG d on Table 5 G^1, along its
-#: top eigenvector; central: second order).
-STEP = 1e-5
 #: Relative tolerance of ARPACK's rho.
 RTOL = 1e-6
 
 
-class Probe:
-    """DG d by forward differences of ``propagate`` (x0 -> G(x0), full state) on the positions."""
-
-    def __init__(self, propagate: Callable[[np.ndarray], np.ndarray], positions, x0: np.ndarray,
-                 step: float = STEP, central: bool = False) -> None:
-        self.propagate, self.positions, self.x0, self.central = propagate, positions, x0, central
-        self.step = step * (float(np.abs(positions(x0)).max()) or 1.0)
-        self.base = np.asarray(positions(propagate(x0)), dtype=float).ravel()
-        self.size = self.base.size
-        self.calls = 1
-
-    def moved(self, d: np.ndarray) -> np.ndarray:
-        y = self.x0.copy()
-        y[:, :3] += d.reshape(-1, 3)
-        self.calls += 1
-        return np.asarray(self.positions(self.propagate(y)), dtype=float).ravel()
-
-    def __call__(self, d: np.ndarray) -> np.ndarray:
-        d = self.step * np.real(d)
-        if self.central:
-            return (self.moved(d) - self.moved(-d)) / (2 * self.step)
-        return (self.moved(d) - self.base) / self.step
-
-    def jacobian(self, checkpoint: Path | None = None, every: int = 32) -> np.ndarray:
-        """The whole Jacobian, column by column (one call of G each). With ``checkpoint`` (a
-        ``.npy`` path) the columns done so far are saved every ``every`` columns and a rerun
-        resumes from them (the vesicle's 1926 columns took 7 to 21 min on one shared core over
-        its former quick slices of 4 to 12 coarse steps)."""
-        columns: list[np.ndarray] = []
-        if checkpoint is not None and checkpoint.exists():
-            saved = np.load(checkpoint)
-            if saved.shape[1:] != (self.size,):
-                raise ValueError(f"{checkpoint}: columns of size {saved.shape[1:]}, this map has "
-                                 f"{self.size}; delete it or choose another path")
-            columns = list(saved)
-        for i in range(len(columns), self.size):
-            unit = np.zeros(self.size)
-            unit[i] = 1.0
-            columns.append(self(unit))
-            if checkpoint is not None and (len(columns) % every == 0 or i == self.size - 1):
-                partial = checkpoint.with_suffix(".partial")
-                with partial.open("wb") as out:  # whole or not at all, should the run be killed
-                    np.save(out, np.array(columns))
-                partial.replace(checkpoint)
-        return np.array(columns).T
-
-
-def dense(probe: Probe, checkpoint: Path | None = None) -> tuple[float, float]:
-    """(rho, ‖DG‖) from the whole finite-difference Jacobian (``checkpoint``: see
-    :meth:`Probe.jacobian`)."""
-    jac = probe.jacobian(checkpoint)
-    rho = float(np.abs(np.linalg.eigvals(jac)).max())
-    return rho, float(np.linalg.svd(jac, compute_uv=False)[0])
-
-
 def arnoldi_radius(probe: Probe, seed: int = 0, ncv: int = 20) -> float:
-    """rho by ARPACK (largest modulus) from a random start ``seed``."""
-    operator = scipy.sparse.linalg.LinearOperator((probe.size, probe.size), matvec=probe,
-                                                  dtype=float)
-    start = np.random.default_rng(seed).standard_normal(probe.size)
-    found = scipy.sparse.linalg.eigs(operator, k=1, which="LM", v0=start, ncv=ncv, tol=RTOL,
-                                     return_eigenvectors=False)
-    return float(np.abs(found).max())
+    """rho by ARPACK (largest modulus) from a random start ``seed``, to ``RTOL``, without a bound
+    on the calls; RuntimeError if ARPACK does not converge."""
+    found = radius(probe, seed, krylov=ncv, tol=RTOL, max_calls=None)
+    if not found.converged:
+        raise RuntimeError(f"ARPACK did not converge to rho within {found.calls} calls")
+    return found.rho
 
 
 def linearization(propagate: Callable[[np.ndarray], np.ndarray], positions, x0: np.ndarray,
@@ -124,3 +69,34 @@ def linearization(propagate: Callable[[np.ndarray], np.ndarray], positions, x0: 
     else:
         rho, norm, method = arnoldi_radius(probe, seed), float("nan"), "arnoldi"
     return {"rho": rho, "norm": norm, "method": method, "calls": probe.calls}
+
+
+def jacobian(probe: Probe, checkpoint: Path | None = None, every: int = 32) -> np.ndarray:
+    """The whole Jacobian of ``probe``, column by column (one call of G each), as
+    ``Probe.jacobian``; with ``checkpoint`` (a ``.npy`` path) the columns done so far are saved
+    every ``every`` columns and a rerun resumes from them (the vesicle's 1926 columns took 7 to
+    21 min on one shared core over its former quick slices of 4 to 12 coarse steps)."""
+    columns: list[np.ndarray] = []
+    if checkpoint is not None and checkpoint.exists():
+        saved = np.load(checkpoint)
+        if saved.shape[1:] != (probe.size,):
+            raise ValueError(f"{checkpoint}: columns of size {saved.shape[1:]}, this map has "
+                             f"{probe.size}; delete it or choose another path")
+        columns = list(saved)
+    for i in range(len(columns), probe.size):
+        unit = np.zeros(probe.size)
+        unit[i] = 1.0
+        columns.append(probe(unit))
+        if checkpoint is not None and (len(columns) % every == 0 or i == probe.size - 1):
+            partial = checkpoint.with_suffix(".partial")
+            with partial.open("wb") as out:  # whole or not at all, should the run be killed
+                np.save(out, np.array(columns))
+            partial.replace(checkpoint)
+    return np.array(columns).T
+
+
+def dense_resumable(probe: Probe, checkpoint: Path | None = None) -> tuple[float, float]:
+    """(rho, ‖DG‖) as ``dense``, from the Jacobian of :func:`jacobian` (resumable)."""
+    jac = jacobian(probe, checkpoint)
+    rho = float(np.abs(np.linalg.eigvals(jac)).max())
+    return rho, float(np.linalg.svd(jac, compute_uv=False)[0])

@@ -57,7 +57,9 @@ class Extrapolated(CoarseSection):
         default_factory=Richardson, description="Richardson extrapolation {m, r}."
     )
     grid_factor: int = Field(1, ge=1, description="σ_c / σ_f (rods; Table 6 uses 6); rigid bodies: "
-                             "each part of the surface with factor times fewer points.")
+                             "each part of the surface with factor times fewer points; scenes: "
+                             "every body that has a coarser grid, or those of "
+                             "scene.coarse_bodies.")
     max_weight_sum: Positive = Field(
         1e6,
         description="Refuse a coarse solver whose weights have Σ|w_j v_q| above this (nearly "

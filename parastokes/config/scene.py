@@ -7,7 +7,8 @@ share: ``viscosity``, ``wall``, ``shear_rate`` (one fluid, one background flow).
 omits one of these keys gets the scene's; one that states a different value is an error naming
 both keys. A ``[scene]`` key left out is taken from the bodies (the first that states it, else the
 first whose section has it, with that section's default), else ``wall = false`` and
-``shear_rate = 0``.
+``shear_rate = 0``. ``[scene] coarse_bodies`` names the bodies that ``coarse.grid_factor`` puts on
+their coarser grid (default: every body that has one, :meth:`Scene.coarsened`).
 
 :func:`scene_section` turns the tables into one :class:`SceneModel`, the ``model`` of the
 configuration: its Θ⁰ names parameters as :attr:`parastokes.scene.Scene.params` does
@@ -55,6 +56,7 @@ class SceneModel(BodySection):
     viscosity: Positive
     wall: bool
     shear_rate: float = Field(allow_inf_nan=False)
+    coarse_bodies: list[str] | None = None
 
     def resolve(self) -> BodyResolution:
         """Θ⁰ named as :attr:`Scene.params`; the rows of all bodies. The scene is built once
@@ -70,8 +72,17 @@ class SceneModel(BodySection):
     def build(self, threads: int = 1) -> Scene:
         from ..scene import Scene
 
+        coarse = None if self.coarse_bodies is None else tuple(self.coarse_bodies)
         return Scene(tuple(body.build(threads) for body in self.bodies), self.viscosity,
-                     self.wall, self.shear_rate, tuple(self.names), n_threads=threads)
+                     self.wall, self.shear_rate, tuple(self.names), n_threads=threads,
+                     coarse_bodies=coarse)
+
+    def coarse_points(self, factor: int) -> int:
+        """Rows of the scene on the grid of ``coarse.grid_factor``: each body that has a coarser
+        grid on it, the others as they are (:meth:`Scene.coarsened`, whose ValueError names
+        the body that does not fit, or says that none has one)."""
+        coarse, _ = self.build().coarsened(factor)
+        return len(coarse.initial_state())
 
     def parameter_units(self, name: str) -> tuple[str, dict[str, float]]:
         """Those of the body that ``name`` (``"body.param"``) belongs to."""
@@ -106,6 +117,8 @@ class SceneModel(BodySection):
     def tables(self) -> dict[str, Any]:
         """``[scene]`` and one ``[[bodies]]`` table per body, named."""
         fluid = {key: getattr(self, key) for key in FLUID}
+        if self.coarse_bodies is not None:
+            fluid["coarse_bodies"] = list(self.coarse_bodies)
         bodies = [{"name": name, **body.tables()["model"]}
                   for name, body in zip(self.names, self.bodies, strict=True)]
         return {"scene": fluid, "bodies": bodies}
@@ -215,4 +228,9 @@ def scene_section(data: dict[str, Any], issues: list[tuple[str, str]], source: s
         issues += [(path, f"names must be distinct strings without '.' or '/', and not "
                           f"{' or '.join(map(repr, RESERVED_NAMES))}, got {names}") for path in bad]
         return None
-    return SceneModel(bodies=bodies, names=names, **fluid)
+    unknown = sorted(set(settings.coarse_bodies or ()) - set(names))
+    if unknown:
+        issues.append(("scene.coarse_bodies", f"no body is named {', '.join(map(repr, unknown))}; "
+                                              f"the bodies: {', '.join(names)}"))
+        return None
+    return SceneModel(bodies=bodies, names=names, coarse_bodies=settings.coarse_bodies, **fluid)

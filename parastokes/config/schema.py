@@ -207,7 +207,8 @@ class Tune(_Section):
 class SceneSettings(BaseModel):
     """The fluid all `[[bodies]]` share; body tables that omit these keys get them. A key left out
     here is taken from the bodies (the first that states it, else the first whose kind has it, with
-    that kind's default), else wall = false and shear_rate = 0."""
+    that kind's default), else wall = false and shear_rate = 0. Besides the fluid: coarse_bodies,
+    the bodies that coarse.grid_factor coarsens."""
 
     model_config = ConfigDict(extra="forbid", strict=True, validate_default=True)
 
@@ -215,6 +216,10 @@ class SceneSettings(BaseModel):
     wall: bool | None = Field(None, description="Plane wall at z = 0 (method of images).")
     shear_rate: float | None = Field(
         None, allow_inf_nan=False, description="Shear rate γ̇ of u∞ = (γ̇ z, 0, 0) (1/s)."
+    )
+    coarse_bodies: list[str] | None = Field(
+        None, description="With coarse.grid_factor > 1: the names of the bodies put on their "
+        "coarser grid (default: every body that has one: rods, rigid bodies)."
     )
 
 

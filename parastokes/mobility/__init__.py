@@ -4,8 +4,9 @@
   :func:`rigid_motion` (K [U, Ω] = U + Ω × (x - c));
 - :mod:`.resistance`: :func:`solve_resistance`, :func:`resistance_matrix`;
 - :mod:`.motion`: :func:`solve_mobility` (the augmented system of Khatri & Cortez);
-- :mod:`.direct` (LU, reused body-frame factorization), :mod:`.krylov` (GMRES with the block
-  preconditioner), :mod:`.choice` (which one), :mod:`.selfsolve` (the factorizations),
+- :mod:`.direct` (LU, reused body-frame factorization), :mod:`.krylov` (GMRES),
+  :mod:`.precondition` (its preconditioner: body blocks swept with the couplings of near
+  bodies), :mod:`.choice` (which one), :mod:`.selfsolve` (the factorizations),
   :mod:`.scaling` (the dimensionless system), :mod:`.system` (several bodies in one fluid);
 - :mod:`.checks`: the input checks; :mod:`.errors`: :class:`SolveInfo`, :class:`SolveError`;
 - :mod:`.sphere`, :mod:`.wall_series`, :mod:`.two_spheres`: sphere points, the exact wall

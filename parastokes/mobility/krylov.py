@@ -1,12 +1,12 @@
 """The iterative solver: GMRES (scipy.sparse.linalg) on the matrix-free operator, right-
-preconditioned by each body's own factorized self block.
+preconditioned by each body's own factorized self block, swept over the bodies with the
+couplings of near bodies (:mod:`parastokes.mobility.precondition`).
 
 Right preconditioning (A P⁻¹ z = b, x = P⁻¹ z) keeps GMRES's residual the true residual of
 A x = b, in the dimensionless form of :mod:`parastokes.mobility.scaling`. The block of body b is
 its exact single-body solve (the saddle system of its own M_bb and K_b): with ``precondition=
-"free"`` the reused free-space body-frame factorization (:class:`RotatedFactor`, nothing
-refactorized), with ``"wall"`` its self block assembled with the wall images and factorized at
-every solve (:class:`LabFactor`).
+"free"`` the reused free-space body-frame factorization, with ``"wall"`` its self block
+assembled with the wall images and factorized at every solve.
 """
 
 from __future__ import annotations
@@ -15,26 +15,13 @@ import numpy as np
 from scipy.sparse.linalg import LinearOperator, gmres
 
 from .errors import SolveError, SolveInfo
+from .precondition import BlockSweep, block_factors
 from .scaling import Scaling, relative_residual
-from .selfsolve import LabFactor, RotatedFactor, saddle_solve
 from .system import SurfaceSet
 
 #: Krylov vectors kept between restarts, and the most GMRES iterations in all.
 RESTART = 100
 MAX_ITERATIONS = 500
-
-
-def block_factors(sset: SurfaceSet, precondition: str) -> list[LabFactor | RotatedFactor]:
-    """Each body's self-block factorization (see the module docstring for ``precondition``)."""
-    if precondition not in ("free", "wall"):
-        raise ValueError(f"precondition: must be 'free' or 'wall', got {precondition!r}")
-    out: list[LabFactor | RotatedFactor] = []
-    for b, p in enumerate(sset.placed):
-        if precondition == "wall" and sset.wall:
-            out.append(LabFactor(p.points, p.epsilon, sset.mu, True, sset.motions[b], p.name))
-        else:
-            out.append(RotatedFactor(p, sset.mu))
-    return out
 
 
 def _run(op: LinearOperator, b: np.ndarray, tol: float) -> tuple[np.ndarray, int, int]:
@@ -69,20 +56,15 @@ def gmres_solve(
 ) -> tuple[np.ndarray, np.ndarray | None, SolveInfo]:
     """As :func:`parastokes.mobility.direct.direct_solve`, by preconditioned GMRES."""
     op = sset.operator()
-    factors = block_factors(sset, precondition)
+    sweep = BlockSweep(sset, block_factors(sset, precondition))
     nb, n3 = sset.n_bodies, 3 * sset.n_points
     sc = Scaling(sset.mu, sset.length)
-    rows = [sset.rows(b) for b in range(nb)]
     if ft is None:
-
-        def prec_r(z: np.ndarray) -> np.ndarray:
-            return np.concatenate([fa.solve(z[r]) for fa, r in zip(factors, rows, strict=True)])
-
-        a = LinearOperator((n3, n3), matvec=lambda z: op.matvec(prec_r(z)), dtype=np.float64)
+        a = LinearOperator((n3, n3), matvec=lambda z: op.matvec(sweep.forces(z)), dtype=np.float64)
         if not np.any(g):
             return np.zeros(n3), None, SolveInfo("gmres", 0, 0.0)
         z, code, its = _run(a, g, tol)
-        f = prec_r(z)
+        f = sweep.forces(z)
         residual = float(np.linalg.norm(op.matvec(f) - g) / np.linalg.norm(g))
         if code != 0 or residual > 10 * tol:
             raise _fail(code, its, residual, tol)
@@ -103,13 +85,8 @@ def gmres_solve(
         )
 
     def prec(z: np.ndarray) -> np.ndarray:
-        """P⁻¹ z̃: each body's own saddle solve of its block of the residual."""
-        rv, rft = z[:n3], -sc.ft_unscaled(z[n3:].reshape(nb, 6))
-        f = np.empty(n3)
-        y = np.empty((nb, 6))
-        for b, (fa, r) in enumerate(zip(factors, rows, strict=True)):
-            f[r], y[b] = saddle_solve(fa, fa.motion, rv[r], rft[b])
-        return join(f, y)
+        """P⁻¹ z̃: the sweep of each body's own saddle solve over the scaled residual."""
+        return join(*sweep.saddle(z[:n3], -sc.ft_unscaled(z[n3:].reshape(nb, 6))))
 
     b_vec = np.concatenate([g, -sc.ft_scaled(ft).ravel()])
     size = n3 + 6 * nb

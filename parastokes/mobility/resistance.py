@@ -65,7 +65,7 @@ def solve_resistance(
     method : "auto", "dense" or "gmres"
         Solver (:mod:`parastokes.mobility.choice`); ``tol``: GMRES relative residual.
     precondition : "free" or "wall"
-        GMRES block preconditioner (:mod:`parastokes.mobility.krylov`).
+        GMRES's block of each body (:mod:`parastokes.mobility.precondition`).
     n_threads : threads of the compiled kernels in GMRES's products.
 
     Raises :class:`parastokes.mobility.SolveError` when the solve fails, ``ValueError`` for bad

@@ -148,8 +148,8 @@ def _fmt(value: Any, spec: str) -> str:
 
 def table(report: Mapping[str, Any], rows: int = 8) -> str:
     """A short text table: baseline, chosen and the best measured candidates."""
-    head = (f"{'':2}{'candidate':44} {'τ_c/τ_f':>8} {'N_G':>4} {'‖DG‖':>7} {'η¹ pilot':>9} "
-            f"{'ρ':>8} {'N_it':>4} {'γ_G/γ_F':>8} {'speedup':>8}")
+    head = (f"{'':2}{'candidate':44} {'τ_c/τ_f':>8} {'N_G':>4} {'ρ(DG)':>7} {'η¹ pilot':>9} "
+            f"{'contr.':>8} {'N_it':>4} {'γ_G/γ_F':>8} {'speedup':>8}")
     lines = [head]
     measured = [c for c in report["candidates"] if c["pilot"]["eta1"] is not None]
     measured.sort(key=lambda c: -(c["predicted"]["speedup"] or 0))
@@ -161,7 +161,7 @@ def table(report: Mapping[str, Any], rows: int = 8) -> str:
             mark = "b "
         lines.append(
             f"{mark}{c['label'][:44]:44} {_fmt(c.get('dt_ratio'), '8.3g')} "
-            f"{c['n_auxiliary']:>4} {_fmt(c['stability']['amplification'], '7.3g')} "
+            f"{c['n_auxiliary']:>4} {_fmt(c['stability']['spectral_radius'], '7.4g')} "
             f"{_fmt(c['pilot']['eta1'], '9.2e')} {_fmt(c['pilot']['contraction'], '8.2e')} "
             f"{_fmt(c['predicted']['iterations'], '>4')} "
             f"{_fmt(c['predicted']['gamma_ratio'], '8.4f')} "

@@ -8,7 +8,7 @@ reference and measures the plain baseline, then searches the candidates of the
   :mod:`.stability`), its optimistic speedup at that step (N_it = 1, γ_G/γ_F from operation
   counts), and one coarse call over the second slice, whose defect gives a screened prediction
   (:func:`.cost.screened_errors`, corrected by a measured candidate of the same structure);
-- measure: the stability verdict of its combined slice map (‖DG‖ by power iteration), the pilot
+- measure: the stability verdict of its combined slice map (ρ(DG), :mod:`.slice_map`), the pilot
   run (η^k, :mod:`.pilot`) and the prediction (:mod:`.cost`).
 
 The next candidate is the one with the highest estimate: its optimistic speedup before the
@@ -34,7 +34,7 @@ from ..contracts import System
 from ..parallel import TaskError
 from ..parareal.transfer import Transfer
 from ..values import is_integer, is_real
-from . import cost, stability
+from . import cost, slice_map, stability
 from .pilot import Pilot, Screen
 from .space import Settings, Space, TuningError, reach_table
 
@@ -53,8 +53,8 @@ STOPPED_BY: dict[int | None, str] = {signal.SIGTERM: "terminated", signal.SIGHUP
 MIN_STEPS = 10
 
 #: A budget below this many fine slices of the pilot makes the search frugal: a two-slice pilot
-#: window (one iteration), two power iterations for ‖DG‖, the baseline's own ‖DG‖ as the reference
-#: growth (docs/tuning.md, the vesicle).
+#: window (one iteration), reference growth 1 instead of a measured ρ(DG) (docs/tuning.md, the
+#: vesicle).
 FRUGAL_SLICES = 20
 
 #: Serial fine solves below this many CPU seconds are small: the default budget is then what
@@ -118,8 +118,9 @@ class Candidate:
     step_limit: float | None = None
     margin: float | None = None  # 1 - step / step limit
     required_margin: float | None = None  # δ derived by stability.step_margin
-    amplification: float | None = None
-    allowed_amplification: float | None = None
+    spectral_radius: float | None = None  # ρ(DG) of the combined slice map (NaN: not converged)
+    radius_calls: int | None = None  # calls of the coarse map it took
+    allowed_radius: float | None = None
     pilot_errors: list[float] = field(default_factory=list)
     contraction: float | None = None
     iterations: int | None = None
@@ -131,20 +132,22 @@ class Candidate:
 
     @property
     def stability_margin(self) -> float | None:
-        """allowed ‖DG‖ / measured ‖DG‖ - 1 (positive when stable)."""
-        if self.amplification is None or self.allowed_amplification is None:
+        """allowed ρ(DG) / measured ρ(DG) - 1 (positive when stable; None when not measured or
+        not converged)."""
+        if (self.spectral_radius is None or self.allowed_radius is None
+                or math.isnan(self.spectral_radius)):
             return None
-        if self.amplification == 0 or not math.isfinite(self.amplification):
-            return -1.0 if not math.isfinite(self.amplification) else math.inf
-        return self.allowed_amplification / self.amplification - 1.0
+        if self.spectral_radius == 0 or not math.isfinite(self.spectral_radius):
+            return -1.0 if not math.isfinite(self.spectral_radius) else math.inf
+        return self.allowed_radius / self.spectral_radius - 1.0
 
     def predicted(self) -> dict[str, Any]:
         return {"speedup": self.speedup, "iterations": self.iterations,
                 "gamma_ratio": self.gamma_ratio}
 
     def as_dict(self, fine_dt: float) -> dict[str, Any]:
-        stable = (None if self.amplification is None or self.allowed_amplification is None
-                  else bool(self.amplification <= self.allowed_amplification))
+        margin = self.stability_margin
+        stable = None if margin is None else bool(margin >= 0)
         return {
             **self.settings.as_dict(fine_dt),
             "given": self.given,
@@ -156,9 +159,14 @@ class Candidate:
                 "step_limit": self.step_limit,
                 "step_margin": self.margin,
                 "required_step_margin": self.required_margin,
-                "amplification": self.amplification,
-                "allowed_amplification": self.allowed_amplification,
-                "margin": self.stability_margin,
+                "spectral_radius": (None if self.spectral_radius is None
+                                    or math.isnan(self.spectral_radius)
+                                    else self.spectral_radius),
+                "radius_converged": (None if self.spectral_radius is None
+                                     else not math.isnan(self.spectral_radius)),
+                "radius_calls": self.radius_calls,
+                "allowed_spectral_radius": self.allowed_radius,
+                "margin": margin,
                 "stable": stable,
             },
             "screen": self.screen,
@@ -266,8 +274,9 @@ class _Search:
         self.theta0 = dict(self.system.params)
         self.points = points
         self.limits: dict[tuple, float] = {}
-        self.reference_gain: float | None = None
-        self.power_iterations = 4
+        self.reference_radius: float | None = None
+        self.unchecked: Candidate | None = None  # measured without the verdict on ρ(DG)
+        self.notes: list[str] = []
         self.base_scheme = "euler"
         self.cost_scale = 1.0
         self.base_shot: Screen | None = None
@@ -416,20 +425,41 @@ class _Search:
                 measured / screened for measured, screened in pairs if screened > 0]))
 
     # ---- stage 2: stability of the combined map, pilot run, prediction ----
+    def window(self) -> tuple[float, float]:
+        """The pilot's first slice."""
+        return self.pilot.t0, self.pilot.t0 + self.pilot.slice_length
+
+    def radius(self, cand: Candidate, coarse: Any) -> slice_map.Radius:
+        """ρ(DG) of ``coarse`` over the first slice, recorded on ``cand``."""
+        found = stability.spectral_radius(coarse, self.system, self.pilot.x0, *self.window(),
+                                              tol=stability.radius_tolerance(self.n_slices))
+        cand.spectral_radius, cand.radius_calls = found.rho, found.calls
+        return found
+
+    def stable(self, cand: Candidate, coarse: Any) -> bool:
+        """The verdict on ρ(DG) of the combined slice map (docs/tuning.md, step 7); when False,
+        ``cand.reason`` says why."""
+        if cand.spectral_radius is None:
+            self.radius(cand, coarse)
+        assert self.reference_radius is not None  # (set by the baseline, measured first)
+        assert cand.spectral_radius is not None  # (set just above)
+        cand.allowed_radius = stability.allowed_radius(self.reference_radius, self.n_slices)
+        if math.isnan(cand.spectral_radius):
+            cand.reason = ("stability of the combined slice map not established: ρ(DG) did not "
+                           f"converge within {cand.radius_calls} calls of the coarse map")
+            return False
+        if not cand.spectral_radius <= cand.allowed_radius:
+            cand.reason = (f"combined slice map unstable: ρ(DG) = {cand.spectral_radius:.4g} > "
+                           f"{cand.allowed_radius:.4g} allowed over {self.n_slices} slices")
+            return False
+        return True
+
     def measure(self, cand: Candidate) -> None:
+        """The verdict on ρ(DG) (not for ``self.unchecked``), the pilot run, the prediction."""
         s = cand.settings
         coarse, shot = cand.coarse, cand.shot
-        window = (self.pilot.t0, self.pilot.t0 + self.pilot.slice_length)
-        if cand.amplification is None:
-            cand.amplification = stability.amplification(
-                coarse, self.system, self.pilot.x0, *window, iterations=self.power_iterations)
-        assert self.reference_gain is not None  # (set by the baseline, measured first)
-        cand.allowed_amplification = stability.allowed_amplification(self.reference_gain,
-                                                                      self.n_slices)
-        if not cand.amplification <= cand.allowed_amplification:
+        if cand is not self.unchecked and not self.stable(cand, coarse):
             cand.status = "rejected"
-            cand.reason = (f"combined slice map unstable: ‖DG‖ = {cand.amplification:.3g} > "
-                           f"{cand.allowed_amplification:.3g} allowed over {self.n_slices} slices")
             return
         iterations = min(2, self.pilot.n_slices - 1)
         try:
@@ -452,9 +482,11 @@ class _Search:
         cand.status = "accepted"
 
     def baseline(self, scheme: str, frugal: bool) -> Candidate:
-        """G_{Θ⁰,τ} at its largest safe step, measured in full; it fixes the physics' own ‖DG‖
-        (at half the step limit, or in a frugal search at its own step), the bound's cost scale
-        and the screen's calibration."""
+        """G_{Θ⁰,τ} at its largest safe step, measured in full; it fixes the physics' own ρ(DG)
+        (at half the step limit), the bound's cost scale and the screen's calibration. It is not
+        checked on ρ(DG) itself: a single solver at its safe step (step 6) has no combination to
+        check. In a frugal search the reference is not measured either (its 22 or more coarse
+        calls would take a large part of the budget): the reference growth is then 1."""
         self.base_scheme = scheme
         cand = Candidate(Settings(scheme))
         self.timed(cand, self.step)
@@ -465,17 +497,20 @@ class _Search:
         if cand.status == "rejected":
             raise TuningError(f"the plain {scheme} coarse solver blows up over the first slice "
                               f"at its largest stable step ({cand.reason}); reduce fine.dt")
-        window = (self.pilot.t0, self.pilot.t0 + self.pilot.slice_length)
+        self.unchecked = cand
         if frugal:
-            cand.amplification = self.reference_gain = stability.amplification(
-                cand.coarse, self.system, self.pilot.x0, *window,
-                iterations=self.power_iterations)
+            self.reference_radius = 1.0
         else:
             assert cand.step_limit is not None  # (set by its step)
             half = replace(cand.settings, dt=self.pilot.slice_length /
                            math.ceil(self.pilot.slice_length / (0.5 * cand.step_limit)))
-            self.reference_gain = stability.amplification(half.build(self.system), self.system,
-                                                          self.pilot.x0, *window)
+            reference = stability.spectral_radius(
+                half.build(self.system), self.system, self.pilot.x0, *self.window(),
+                tol=stability.radius_tolerance(self.n_slices))
+            if math.isnan(reference.rho):
+                self.notes.append(f"ρ(DG) of the reference did not converge within "
+                                  f"{reference.calls} calls: reference growth 1 (no growth)")
+            self.reference_radius = 1.0 if math.isnan(reference.rho) else reference.rho
         self.timed(cand, self.measure)
         self.base_shot = cand.shot
         self.base_errors = cand.pilot_errors
@@ -612,8 +647,8 @@ def tune(
         )
     if frugal:
         notes.append(f"frugal search (budget below {FRUGAL_SLICES} fine slices): "
-                     f"{pilot_slices}-slice pilot, 2 power iterations, the baseline's own ‖DG‖ "
-                     "as the reference growth")
+                     f"{pilot_slices}-slice pilot, reference growth 1 (ρ(DG) of the plain "
+                     "solver not measured)")
     progress.note(f"pilot: {pilot_slices} slices of {fine_steps} fine steps "
                   f"(about {slice_seconds:.3g} s each)")
     pilot_window = Pilot.prepare(pilot_fine, start_state, t0, slice_length, pilot_slices)
@@ -625,8 +660,7 @@ def tune(
         )
     search = _Search(pilot_window, space, n_slices, cores, target,
                      len(pilot_system.positions(start_state)), clock)
-    if frugal:
-        search.power_iterations = 2
+    search.notes = notes
     base_scheme = "euler" if "euler" in space.schemes else space.schemes[0]
     progress.note(f"baseline: plain {base_scheme} at its largest safe step")
     baseline = search.baseline(base_scheme, frugal)
@@ -725,7 +759,7 @@ def tune(
               "fraction": cpu / serial_estimate, "budget": budget},
         search={"stopped": stopped, "evaluated": done, "ordered": ordered,
                 "screened": sum(c.screen is not None for c in candidates),
-                "total": len(everything), "reference_amplification": search.reference_gain,
+                "total": len(everything), "reference_radius": search.reference_radius,
                 "notes": notes},
         full_points=len(system.positions(system.initial_state())),
     )

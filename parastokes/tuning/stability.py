@@ -11,10 +11,11 @@ Three cheap measurements, in the order the tuner uses them:
   what its members leave by up to Σ|w_j v_q|; requiring Σ|w_j v_q| (1 - 2δ)^n <= η*/10 gives
   δ = (1 - (η* / (10 Σ|w_j v_q|))^(1/n)) / 2. Long slices need a small margin (the paper's slices),
   short slices and large weights a large one (the 5-10 % of docs/validation.md);
-- :func:`amplification`: ‖DG‖ over one slice, the largest amplification of a position perturbation
-  by the whole coarse map (power iteration with finite differences). A combination can amplify
-  although every member is stable (docs/validation.md, section 3); :func:`verdict` compares it with
-  the growth allowed over the run.
+- :func:`spectral_radius`: ρ(DG) of the whole coarse map over one slice, the growth per slice of a
+  position perturbation under repeated slices (:mod:`.slice_map`: ARPACK on finite differences).
+  A combination can amplify although every member is stable (docs/validation.md, section 3);
+  :func:`allowed_radius` is the growth allowed over the run. Not the norm ‖DG‖: on the rods it is
+  about 50 for stable maps (a one-slice transient), docs/tuning.md step 7.
 """
 
 from __future__ import annotations
@@ -26,11 +27,13 @@ import numpy as np
 
 from .. import integrate
 from ..contracts import System
+from . import slice_map
 
-__all__ = ["GROWTH", "allowed_amplification", "amplification", "step_limit", "step_margin"]
+__all__ = ["GROWTH", "allowed_radius", "radius_tolerance", "spectral_radius", "step_limit",
+           "step_margin"]
 
 #: The extra growth of coarse perturbations over the whole run that a stable candidate may add to
-#: that of the physics (‖DG‖ of the plain solver at half its step limit): two orders of magnitude.
+#: that of the physics (ρ(DG) of the plain solver at half its step limit): two orders of magnitude.
 GROWTH = 100.0
 
 
@@ -66,63 +69,39 @@ def safe_step(limit: float, slice_length: float, weight_sum: float, target: floa
     return slice_length / n, delta
 
 
-def _positions_view(system: System, state: np.ndarray) -> np.ndarray | None:
-    """The positions as a writable view of ``state`` when they are its first three columns."""
-    if state.ndim == 2 and state.shape[1] >= 3:
-        view = state[:, :3]
-        if np.array_equal(np.asarray(system.positions(state)), view):
-            return view
-    return None
+def radius_tolerance(n_slices: int) -> float:
+    """ARPACK's tolerance for the verdict over ``n_slices``: a tenth of the allowed growth per
+    slice GROWTH^(1/N_c) - 1, at most ``slice_map.TOLERANCE`` (12 % for 40 slices: 1e-2)."""
+    return min(slice_map.TOLERANCE, (GROWTH ** (1.0 / max(n_slices, 1)) - 1.0) / 10.0)
 
 
-def amplification(
-    propagator: Any,
-    system: System,
-    x0: np.ndarray,
-    t0: float,
-    t1: float,
-    iterations: int = 4,
-    seed: int = 0,
-) -> float:
-    """‖DG‖ over [t0, t1] at ``x0``: power iteration with finite differences on the positions.
+def spectral_radius(
+    propagator: Any, system: System, x0: np.ndarray, t0: float, t1: float, seed: int = 0,
+    tol: float = slice_map.TOLERANCE,
+) -> slice_map.Radius:
+    """ρ(DG) of the slice map x -> propagator(t0, t1, x) at ``x0`` on position perturbations
+    (:func:`.slice_map.radius`: ARPACK with a small Krylov space, a fixed start, a tolerance and
+    a bound on the calls; ``converged=False`` when it did not converge within that bound).
 
-    Each iteration costs one call of ``propagator``. The perturbation has norm 1e-6 times the size
-    of the body (linear regime, well above the round-off of sums with weights up to 1e5). A
-    perturbation that makes the propagator blow up counts as infinite amplification.
+    A perturbation that makes the propagator blow up, or return a non-finite state, counts as
+    infinite growth (``rho`` = inf, converged).
     """
-    x0 = np.array(x0, dtype=float)
+    calls = [0]
+
+    def propagate(x: np.ndarray) -> np.ndarray:
+        calls[0] += 1
+        return propagator(t0, t1, x)
+
     try:
-        base = np.asarray(system.positions(propagator(t0, t1, x0)))
-    except integrate.BlowUpError:
-        return math.inf
-    size = float(np.abs(system.positions(x0)).max()) or 1.0
-    h = 1e-6 * size
-    rng = np.random.default_rng(seed)
-    d = rng.standard_normal(np.asarray(system.positions(x0)).shape)
-    d /= np.linalg.norm(d)
-    gain = 0.0
-    for _ in range(iterations):
-        y = x0.copy()
-        view = _positions_view(system, y)
-        if view is None:
-            y = y + h * d.reshape(y.shape)
-        else:
-            view += h * d
-        try:
-            moved = np.asarray(system.positions(propagator(t0, t1, y)))
-        except integrate.BlowUpError:
-            return math.inf
-        diff = (moved - base) / h
-        gain = float(np.linalg.norm(diff))
-        if not math.isfinite(gain):
-            return math.inf
-        if gain == 0.0:
-            return 0.0
-        d = diff / gain
-    return gain
+        return slice_map.radius(slice_map.Probe(propagate, system.positions, x0), seed,
+                                tol=tol)
+    except (integrate.BlowUpError, slice_map.Diverged):
+        return slice_map.Radius(math.inf, True, calls[0])
 
 
-def allowed_amplification(reference: float, n_slices: int) -> float:
-    """The largest ‖DG‖ accepted: the physics' own growth per slice (``reference``, at least 1)
-    times GROWTH^(1/N_c), so that the candidate adds at most a factor GROWTH over the run."""
+def allowed_radius(reference: float, n_slices: int) -> float:
+    """The largest ρ(DG) accepted: the physics' own growth per slice (``reference``, at least 1)
+    times GROWTH^(1/N_c), so that repeated coarse slices add at most a factor GROWTH over the
+    run (a perturbation grows like ρ^n over n slices, after a transient bounded independently
+    of n; docs/tuning.md, step 7)."""
     return max(1.0, reference) * GROWTH ** (1.0 / n_slices)

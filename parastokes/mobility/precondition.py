@@ -1,0 +1,138 @@
+"""The GMRES preconditioner: each body's own solve, swept over the bodies in order (block
+Gauss–Seidel) with the flow of the near bodies already swept.
+
+Write the Stokeslet matrix of B bodies in blocks M_ab (velocity at body a's points from the
+point forces on body b; (1) of docs/physics.md, plus the images (5) with a wall). Block Jacobi
+solves each body alone, f_a = M_aa⁻¹ r_a (in the mobility problem the saddle system of M_aa and
+K_a, :func:`parastokes.mobility.selfsolve.saddle_solve`). Near contact, the coupling M_ab of
+two close bodies is as strong as their self blocks and GMRES has to resolve it. The forward
+sweep here subtracts from body a's residual the flow of the forces just found on the near bodies
+swept before it,
+
+    f_a = M_aa⁻¹ (r_a - Σ_{b < a, b near a} M_ab f_b),
+
+so P is block lower triangular with the near couplings below the diagonal; P⁻¹ is applied
+exactly (one sweep), so right preconditioning keeps GMRES's residual the true one. A pair is
+near when its surfaces come within :data:`NEAR_GAP` times the smaller body's length
+(:attr:`parastokes.mobility.rigid.RigidSurface.size`); each near coupling is a compiled kernel
+call over the two bodies' points (:class:`parastokes.mrs.operator.StokesletOperator` with
+targets), nothing assembled. Far pairs are left to GMRES: they add iterations only near contact
+(docs/benchmarks.md, "Rigid bodies", (b)).
+
+``precondition`` picks each body's own block: ``"free"`` its reused free-space body-frame
+factorization (:class:`RotatedFactor`, nothing refactorized), ``"wall"`` its block with the wall
+images, assembled and factorized at every solve (:class:`LabFactor`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from ..mrs.operator import StokesletOperator
+from .selfsolve import LabFactor, RotatedFactor, saddle_solve
+from .system import SurfaceSet
+
+#: Two bodies are coupled in the sweep when their surfaces come closer than this many times the
+#: smaller body's length (rms distance of its points from its center). Measured on rows of unit
+#: spheres above the wall (docs/benchmarks.md): coupling pairs at gap 0.1a saves 8-11 of 30-37
+#: iterations for 8-27% more work per iteration; at 0.5a it saves 2-4 of 14-18 for as much more
+#: work, a wash; at 2a nothing.
+NEAR_GAP = 0.4
+
+PRECONDITIONERS = ("free", "wall")
+
+
+def block_factors(sset: SurfaceSet, precondition: str) -> list[LabFactor | RotatedFactor]:
+    """Each body's self-block factorization (see the module docstring for ``precondition``)."""
+    if precondition not in PRECONDITIONERS:
+        raise ValueError(f"precondition: must be 'free' or 'wall', got {precondition!r}")
+    out: list[LabFactor | RotatedFactor] = []
+    for b, p in enumerate(sset.placed):
+        if precondition == "wall" and sset.wall:
+            out.append(LabFactor(p.points, p.epsilon, sset.mu, True, sset.motions[b], p.name))
+        else:
+            out.append(RotatedFactor(p, sset.mu))
+    return out
+
+
+def near_pairs(sset: SurfaceSet, gap: float | None = None) -> list[tuple[int, int]]:
+    """Pairs (a, b), b < a, whose surfaces come closer than ``gap`` (default
+    :data:`NEAR_GAP`) times the smaller body's length. Pairs whose bounding spheres (about the
+    centers) are that far apart are skipped before any point distance is computed."""
+    gap = NEAR_GAP if gap is None else gap
+    placed = sset.placed
+    if gap <= 0 or len(placed) < 2:
+        return []
+    centers = np.array([p.center for p in placed])
+    reach = np.array([np.max(np.linalg.norm(p.points - p.center, axis=1)) for p in placed])
+    sizes = np.array([p.surface.size for p in placed])
+    limits = gap * np.minimum(sizes[:, None], sizes[None, :])
+    apart = np.linalg.norm(centers[:, None] - centers[None, :], axis=-1)
+    maybe = np.tril(apart - reach[:, None] - reach[None, :] < limits, k=-1)
+    trees: dict[int, cKDTree] = {}
+    pairs = []
+    for a, b in np.argwhere(maybe):  # row-major: by a, then b
+        if b not in trees:
+            trees[b] = cKDTree(placed[b].points)
+        dist, _ = trees[b].query(placed[a].points, k=1, distance_upper_bound=limits[a, b])
+        if np.min(dist) < limits[a, b]:
+            pairs.append((int(a), int(b)))
+    return pairs
+
+
+class BlockSweep:
+    """P⁻¹ of the module docstring for the bodies of ``sset``: their ``factors``
+    (:func:`block_factors`) and the couplings of their :func:`near_pairs`."""
+
+    def __init__(
+        self,
+        sset: SurfaceSet,
+        factors: list[LabFactor | RotatedFactor],
+        gap: float | None = None,
+    ) -> None:
+        self.factors = factors
+        self.rows = [sset.rows(b) for b in range(sset.n_bodies)]
+        self.n3 = 3 * sset.n_points
+        #: body a -> [(b, M_ab)] for its near bodies b swept before it
+        self.lower: list[list[tuple[int, StokesletOperator]]] = [[] for _ in self.rows]
+        for a, b in near_pairs(sset, gap):
+            pa, pb = sset.placed[a], sset.placed[b]
+            op = StokesletOperator(
+                pa.points, pb.points, pb.epsilon, sset.mu, wall=sset.wall, n_threads=sset.n_threads
+            )
+            self.lower[a].append((b, op))
+
+    @property
+    def n_couplings(self) -> int:
+        """How many near pairs the sweep couples."""
+        return sum(len(c) for c in self.lower)
+
+    def _sweep(self, rv: np.ndarray, solve_block: Callable[[int, np.ndarray], np.ndarray]):
+        """Forces f (3N,) of one forward sweep over velocity residual ``rv``; ``solve_block(a,
+        r_a)`` returns body a's forces for its own residual r_a."""
+        f = np.zeros(self.n3)
+        for a, r in enumerate(self.rows):
+            ra = rv[r]
+            if self.lower[a]:
+                ra = ra - sum(op.matvec(f[self.rows[b]]) for b, op in self.lower[a])
+            f[r] = solve_block(a, ra)
+        return f
+
+    def forces(self, rv: np.ndarray) -> np.ndarray:
+        """P⁻¹ rv for the velocity rows only (the resistance problem: motions known)."""
+        return self._sweep(rv, lambda a, ra: self.factors[a].solve(ra))
+
+    def saddle(self, rv: np.ndarray, rft: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """P⁻¹ of the augmented system (the mobility problem): forces (3N,) and rigid motions
+        Y (B, 6) for velocity residual ``rv`` and force/torque residual ``rft`` (B, 6)."""
+        y = np.empty((len(self.factors), 6))
+
+        def solve_block(a: int, ra: np.ndarray) -> np.ndarray:
+            fa = self.factors[a]
+            f_a, y[a] = saddle_solve(fa, fa.motion, ra, rft[a])
+            return f_a
+
+        return self._sweep(rv, solve_block), y
