@@ -55,13 +55,13 @@ COUNTS = (2, 4, 8, 16)
 ROW_GAPS = (0.1, 0.5, 2.0)
 
 
-def best(fn, rounds: int) -> float:
-    """Least wall time of ``rounds`` calls of ``fn``."""
+def best(fn, rounds: int, clock=time.perf_counter) -> float:
+    """Least time of ``rounds`` calls of ``fn`` on ``clock`` (wall time by default)."""
     times = []
     for _ in range(rounds):
-        t = time.perf_counter()
+        t = clock()
         fn()
-        times.append(time.perf_counter() - t)
+        times.append(clock() - t)
     return min(times)
 
 
@@ -126,12 +126,7 @@ def timed_gmres(
 def cpu_best(fn, rounds: int) -> float:
     """Least CPU time of this process over ``rounds`` calls of ``fn`` (one kernel and one BLAS
     thread: the work, without the time the shared machine did not schedule us)."""
-    times = []
-    for _ in range(rounds):
-        t = time.process_time()
-        fn()
-        times.append(time.process_time() - t)
-    return min(times)
+    return best(fn, rounds, time.process_time)
 
 
 def sweep_cost(bodies: list, wall: bool, rounds: int = 5) -> dict:

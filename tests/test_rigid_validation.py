@@ -21,8 +21,9 @@ import numpy as np
 import pytest
 from documented import check
 
-from parastokes.kinds.rigid import Helix, RigidBody, Sphere, Squirmer
+from parastokes.kinds.rigid import RigidBody, Sphere, Squirmer
 from parastokes.kinds.rigid.shapes import spacing
+from validation.rigid import helix_ratio, rft_ratio
 
 MU = 1.0
 CI_SIZES = (150, 300, 600)
@@ -119,23 +120,6 @@ def test_closed_forms_converge_full():
     first = [squirmer_study([150])[0][0], *(e[0] for e in stokes_study([150]))]
     table = [np.r_[f, e[:3]] for f, e in zip(first, (squirmer, drag, turn), strict=True)]
     check_orders(TABLE_SIZES, table)
-
-
-def rft_ratio(radius, pitch, filament):
-    """U / (ΩR) of a force-free helix turned about its axis, resistive-force theory with Gray &
-    Hancock's coefficients ξ_t = 2πμ/(ln(2λ/a) − 1/2), ξ_n = 4πμ/(ln(2λ/a) + 1/2)."""
-    theta = math.atan(2 * math.pi * radius / pitch)
-    xt = 2 * math.pi / (math.log(2 * pitch / filament) - 0.5)
-    xn = 4 * math.pi / (math.log(2 * pitch / filament) + 0.5)
-    s, c = math.sin(theta), math.cos(theta)
-    return (xn - xt) * s * c / (xn * s * s + xt * c * c)
-
-
-def helix_ratio(n, eps):
-    body = RigidBody(shape=Helix(0.25, 2.0, 4.0, n), epsilon=eps, viscosity=MU,
-                     torque=(1.0, 0.0, 0.0))
-    u = motion(body)
-    return u[0] / (u[3] * 0.25)
 
 
 @pytest.mark.parametrize("eps", [0.03, 0.05])

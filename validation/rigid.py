@@ -3,7 +3,8 @@ forms as the surface is refined, and a torque-driven helix against resistive-for
 
     PYTHONPATH=. python validation/rigid.py [--sizes 150 300 600 1200]
 
-The studies are those of tests/test_rigid_validation.py (which asserts the fitted orders).
+The studies are those of tests/test_rigid_validation.py (which asserts the fitted orders and
+imports the helix study from here).
 """
 
 from __future__ import annotations
@@ -13,15 +14,33 @@ import math
 
 import numpy as np
 
-from parastokes.kinds.rigid import RigidBody, Sphere, Squirmer
+from parastokes.kinds.rigid import Helix, RigidBody, Sphere, Squirmer
 from parastokes.kinds.rigid.shapes import spacing
-from tests.test_rigid_validation import helix_ratio, rft_ratio
 
 
 def speed(n: int, ratio: float, **kw) -> np.ndarray:
     shape = Sphere(1.0, n)
     body = RigidBody(shape=shape, epsilon=ratio * spacing(shape), viscosity=1.0, **kw)
     return body.rates(0.0, body.initial_state())[0, :6]
+
+
+def rft_ratio(radius: float, pitch: float, filament: float) -> float:
+    """U / (ΩR) of a force-free helix turned about its axis, resistive-force theory with Gray &
+    Hancock's coefficients ξ_t = 2πμ/(ln(2λ/a) − 1/2), ξ_n = 4πμ/(ln(2λ/a) + 1/2)."""
+    theta = math.atan(2 * math.pi * radius / pitch)
+    xt = 2 * math.pi / (math.log(2 * pitch / filament) - 0.5)
+    xn = 4 * math.pi / (math.log(2 * pitch / filament) + 0.5)
+    s, c = math.sin(theta), math.cos(theta)
+    return (xn - xt) * s * c / (xn * s * s + xt * c * c)
+
+
+def helix_ratio(n: int, eps: float) -> float:
+    """U / (ΩR) of the force-free rigid helix (radius 0.25, pitch 2, 4 turns, ``n`` centre-line
+    points, regularization ``eps``) turned about its axis by an external torque, μ = 1."""
+    body = RigidBody(shape=Helix(0.25, 2.0, 4.0, n), epsilon=eps, viscosity=1.0,
+                     torque=(1.0, 0.0, 0.0))
+    u = body.rates(0.0, body.initial_state())[0, :6]
+    return float(u[0] / (u[3] * 0.25))
 
 
 def main() -> None:

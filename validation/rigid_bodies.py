@@ -81,7 +81,7 @@ def coarseness(n: int = 400, ratios: Sequence[float] = SPACING_RATIOS) -> dict[s
 
 def settling_pairs(
     n: int, distances: Sequence[float] = PAIR_DISTANCES
-) -> dict[str, list[float]]:
+) -> dict[str, list[float] | list[int]]:
     """Two unit spheres of ``n`` points, centers 2d apart along z, each under the force -e_z:
     their velocity over that of one sphere of the same points (ε = h/2), Stimson & Jeffery's 1/λ,
     and the GMRES iterations of the pair's solve (block preconditioner, tol 1e-10)."""
