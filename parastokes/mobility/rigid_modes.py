@@ -61,12 +61,11 @@ class RigidModeSweep:
             )
             for j in range(6):
                 self.mz[:, 6 * b + j] = op.matvec(np.ascontiguousarray(self.minv_k[b][:, j]))
-        coarse = np.concatenate([k.T @ self.mz[r] for k, r in zip(self.motions, self.rows)])
-        self._lu = sla.lu_factor(coarse, check_finite=False)
+        self._lu = sla.lu_factor(self._moments(self.mz), check_finite=False)  # C = Kᵀ M Z
 
     def _moments(self, rv: np.ndarray) -> np.ndarray:
-        """Kᵀ rv (6B,): each body's total velocity moments."""
-        return np.concatenate([k.T @ rv[r] for k, r in zip(self.motions, self.rows)])
+        """Kᵀ rv (6B,) or (6B, k): each body's total velocity moments (of each column)."""
+        return np.concatenate([k.T @ rv[r] for k, r in zip(self.motions, self.rows, strict=True)])
 
     def forces(self, rv: np.ndarray) -> np.ndarray:
         """P⁻¹ rv (3N,) for velocity residual ``rv``."""
