@@ -4,8 +4,6 @@ iterations of rows near contact (docs/benchmarks.md, "Rigid bodies", (b)).
 
 The rows are those of benchmarks/mobility.py (tests/test_mobility_contact.py's ``row``): unit
 spheres of 400 points at gap δ from each other and from the wall, each moving with U = -e_z.
-The dense-solve agreement of the corrected GMRES is tests/test_mobility_contact.py's
-``test_swept_preconditioner_gives_the_direct_solution`` (three bodies: the correction is on).
 Iteration counts are results of the algorithm (deterministic for a given BLAS), not timings.
 """
 
@@ -54,13 +52,30 @@ def test_the_correction_leaves_no_rigid_moments(wall):
     assert np.abs(left).max() < 1e-10 * np.abs(pre._moments(r)).max()
 
 
-def test_one_body_and_huge_systems_use_the_sweep_alone(monkeypatch):
-    """The correction is for several bodies, and off where M Z would exceed MAX_ENTRIES."""
-    assert not rm.use_rigid_modes(SurfaceSet(row(1, 0.5, n=100), MU, True))
-    two = SurfaceSet(row(2, 0.5, n=100), MU, True)
-    assert rm.use_rigid_modes(two)
-    monkeypatch.setattr(rm, "MAX_ENTRIES", 3 * 200 * 12 - 1)
-    assert not rm.use_rigid_modes(two)
+@pytest.mark.parametrize("wall", [False, True])
+def test_corrected_gmres_gives_the_direct_solution(monkeypatch, wall):
+    """Three spheres of 200 points at gap 0.15a (the correction switched on from two bodies),
+    a different rigid motion for each: the forces of GMRES agree with the dense LU's to 1e-8."""
+    monkeypatch.setattr(rm, "MIN_BODIES", 2)
+    bodies = row(3, 0.15, n=200)
+    assert rm.use_rigid_modes(SurfaceSet(bodies, MU, wall))
+    motion = dict(
+        U=[(0, 0, -1), (1, 0, 0.5), (0, 0.5, 0)], Omega=[(0, 0, 0.2), (0, 0, 1), (1, 0, 0)]
+    )
+    dense = solve_resistance(bodies, mu=MU, wall=wall, method="dense", **motion)
+    krylov_ = solve_resistance(bodies, mu=MU, wall=wall, method="gmres", tol=1e-11, **motion)
+    ref = dense.forces
+    np.testing.assert_allclose(krylov_.forces, ref, atol=1e-8 * np.abs(ref).max())
+
+
+def test_few_bodies_and_huge_systems_use_the_sweep_alone(monkeypatch):
+    """The correction is on from MIN_BODIES (4) bodies, and off where M Z would exceed
+    MAX_ENTRIES."""
+    assert not rm.use_rigid_modes(SurfaceSet(row(3, 0.5, n=100), MU, True))
+    four = SurfaceSet(row(4, 0.5, n=100), MU, True)
+    assert rm.use_rigid_modes(four)
+    monkeypatch.setattr(rm, "MAX_ENTRIES", 3 * 400 * 24 - 1)
+    assert not rm.use_rigid_modes(four)
 
 
 def test_a_row_of_eight_at_a_tenth_of_a_radius():

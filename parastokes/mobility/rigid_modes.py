@@ -30,16 +30,20 @@ from .precondition import BlockSweep
 from .selfsolve import LabFactor, RotatedFactor
 from .system import SurfaceSet
 
+#: Fewest bodies given the correction. Its setup costs about seven products of the whole
+#: operator (measured, docs/benchmarks.md "Rigid bodies" (b)); rows of 2 spheres save 3-4
+#: iterations with it (a loss), rows of 4 save 5-9 and rows of 8 7-14.
+MIN_BODIES = 4
 #: Most entries of the stored M Z (3N x 6B floats: 64 MB); larger systems (hundreds of bodies)
 #: use the sweep alone.
 MAX_ENTRIES = 2**23
 
 
 def use_rigid_modes(sset: SurfaceSet) -> bool:
-    """Whether the resistance preconditioner adds the rigid-mode correction: several bodies (one
-    body alone: its block is already its solve up to the wall) and M Z within
-    :data:`MAX_ENTRIES`."""
-    return sset.n_bodies > 1 and 3 * sset.n_points * 6 * sset.n_bodies <= MAX_ENTRIES
+    """Whether the resistance preconditioner adds the rigid-mode correction: at least
+    :data:`MIN_BODIES` bodies and M Z within :data:`MAX_ENTRIES`."""
+    nb = sset.n_bodies
+    return nb >= MIN_BODIES and 3 * sset.n_points * 6 * nb <= MAX_ENTRIES
 
 
 class RigidModeSweep:
