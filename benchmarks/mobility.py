@@ -28,6 +28,11 @@ kernels are compared on the same core)::
     with and without it are measured in CPU time against one product of the whole operator
     (NEAR_GAP as in the package: at gap 0.5a no pair is coupled and both columns are the
     same solve). ``--parts cost``: that cost alone, for the rows at gap 0.1a (seconds).
+    ``--parts resist``: the resistance problem (U = -e_z on each sphere) for rows of 2, 4, 8
+    spheres at gaps 0.1a and 0.5a, wall and free space: GMRES iterations (seconds) with the
+    default preconditioner (the rigid-mode correction of parastokes.mobility.rigid_modes in
+    front of the sweep), the sweep alone, block Jacobi, and the mobility problem's (a force
+    -e_z on each) for comparison; the correction's setup in CPU time against one product.
     ``--contact``: rows of 2, 4 and 8 spheres of ``--fine``
     points at gap 0.05a (400 points are too coarse for it: the placement check refuses gaps under
     half the spacing), both preconditioners, with the wall.
@@ -43,8 +48,9 @@ from contextlib import contextmanager
 import numpy as np
 
 from parastokes import mrs
-from parastokes.mobility import RigidSurface, solve_mobility
+from parastokes.mobility import RigidSurface, krylov, solve_mobility, solve_resistance
 from parastokes.mobility import precondition as pc
+from parastokes.mobility import rigid_modes as rm
 from parastokes.mobility.sphere import fibonacci_sphere, sphere_spacing
 from parastokes.mobility.system import SurfaceSet
 
@@ -121,6 +127,64 @@ def timed_gmres(
             bodies, mu=MU, wall=wall, method="gmres", tol=TOL, precondition=precondition, **loads
         )
         return m.info.iterations, time.perf_counter() - t
+
+
+@contextmanager
+def rigid_modes(on: bool):
+    """The resistance preconditioner with (default) or without the rigid-mode correction."""
+    old = krylov.use_rigid_modes
+    if not on:
+        krylov.use_rigid_modes = lambda sset: False
+    try:
+        yield
+    finally:
+        krylov.use_rigid_modes = old
+
+
+def timed_resistance(bodies: list, wall: bool, gap: float | None = None, modes: bool = True):
+    """GMRES iterations and seconds of one resistance solve of ``bodies``, each moving with
+    U = -e_z (``gap``: the sweep's NEAR_GAP; ``modes``: the rigid-mode correction)."""
+    with near_gap(gap), rigid_modes(modes):
+        t = time.perf_counter()
+        r = solve_resistance(bodies, (0, 0, -1), mu=MU, wall=wall, method="gmres", tol=TOL)
+        return r.info.iterations, time.perf_counter() - t
+
+
+def correction_setup(bodies: list, wall: bool, rounds: int) -> float:
+    """CPU time of the rigid-mode correction's setup (M Z, C's LU) over one product."""
+    sset = SurfaceSet(bodies, MU, wall)
+    factors = pc.block_factors(sset, "free")
+    sweep = pc.BlockSweep(sset, factors)
+    rv = np.random.default_rng(2).normal(size=3 * sset.n_points)
+    op = sset.operator()
+    op.matvec(rv)
+    setup = cpu_best(lambda: rm.RigidModeSweep(sset, factors, sweep), rounds)
+    return setup / cpu_best(lambda: op.matvec(rv), rounds)
+
+
+def resistance_rows(n: int, rounds: int = 3) -> list[dict]:
+    """Resistance iterations of rows of 2, 4, 8 spheres of ``n`` points (docs/benchmarks.md,
+    (b)): default, sweep alone, block Jacobi, and the mobility problem's; the correction's setup
+    (CPU) over one product of the whole operator."""
+    s = sphere(n)
+    rows = []
+    for count in (2, 4, 8):
+        for gap in (0.1, 0.5):
+            for wall in (True, False):
+                bodies = row_bodies(s, count, gap)
+                rows.append(
+                    {
+                        "bodies": count,
+                        "gap": gap,
+                        "wall": wall,
+                        "default": timed_resistance(bodies, wall),
+                        "sweep": timed_resistance(bodies, wall, modes=False),
+                        "jacobi": timed_resistance(bodies, wall, gap=0.0, modes=False),
+                        "mobility": timed_gmres(bodies, wall, "free", external_force=(0, 0, -1)),
+                        "setup_over_product": correction_setup(bodies, wall, rounds),
+                    }
+                )
+    return rows
 
 
 def cpu_best(fn, rounds: int) -> float:
@@ -235,7 +299,9 @@ def main() -> None:
     parser.add_argument("--sphere", type=int, default=400)
     parser.add_argument("--rounds", type=int, default=5)
     parser.add_argument("--json", type=str, default=None)
-    parser.add_argument("--parts", nargs="+", choices=("a", "b", "cost"), default=["a", "b"])
+    parser.add_argument(
+        "--parts", nargs="+", choices=("a", "b", "cost", "resist"), default=["a", "b"]
+    )
     parser.add_argument("--contact", action="store_true", help="rows at gap 0.05a (--fine)")
     parser.add_argument("--fine", type=int, default=1200)
     args = parser.parse_args()
@@ -293,6 +359,19 @@ def main() -> None:
             print(
                 f"    {r['bodies']:2d} | {r['couplings']:2d} | {r['setup_s'] / r['matvec_s']:.3f} "
                 f"| {r['per_iteration']:.3f}"
+            )
+    if "resist" in args.parts:
+        out["resist"] = resistance_rows(args.sphere)
+        print(f"    resistance problem, rows of {args.sphere}-point spheres, U = -e_z on each")
+        print(
+            "    B | gap/a | wall | default its (s) | sweep alone | block Jacobi "
+            "| mobility (force -e_z) | correction setup / one product (CPU)"
+        )
+        for r in out["resist"]:
+            print(
+                f"    {r['bodies']:2d} | {r['gap']:4.1f} | {'yes' if r['wall'] else 'no ':3s} "
+                f"| {cell(r['default'])} | {cell(r['sweep'])} | {cell(r['jacobi'])} "
+                f"| {cell(r['mobility'])} | {r['setup_over_product']:.2f}"
             )
     if args.contact:
         out["contact"] = contact_rows(args.fine)

@@ -6,7 +6,8 @@
 - :mod:`.motion`: :func:`solve_mobility` (the augmented system of Khatri & Cortez);
 - :mod:`.direct` (LU, reused body-frame factorization), :mod:`.krylov` (GMRES),
   :mod:`.precondition` (its preconditioner: body blocks swept with the couplings of near
-  bodies), :mod:`.choice` (which one), :mod:`.selfsolve` (the factorizations),
+  bodies), :mod:`.rigid_modes` (the resistance problem's coarse correction on the rigid
+  modes), :mod:`.choice` (which one), :mod:`.selfsolve` (the factorizations),
   :mod:`.scaling` (the dimensionless system), :mod:`.system` (several bodies in one fluid);
 - :mod:`.checks`: the input checks; :mod:`.errors`: :class:`SolveInfo`, :class:`SolveError`;
 - :mod:`.sphere`, :mod:`.wall_series`, :mod:`.two_spheres`: sphere points, the exact wall

@@ -1,6 +1,8 @@
 """The iterative solver: GMRES (scipy.sparse.linalg) on the matrix-free operator, right-
 preconditioned by each body's own factorized self block, swept over the bodies with the
-couplings of near bodies (:mod:`parastokes.mobility.precondition`).
+couplings of near bodies (:mod:`parastokes.mobility.precondition`); in the resistance problem
+(motions given) of several bodies behind a coarse correction on their rigid modes
+(:mod:`parastokes.mobility.rigid_modes`).
 
 Right preconditioning (A P⁻¹ z = b, x = P⁻¹ z) keeps GMRES's residual the true residual of
 A x = b, in the dimensionless form of :mod:`parastokes.mobility.scaling`. The block of body b is
@@ -16,6 +18,7 @@ from scipy.sparse.linalg import LinearOperator, gmres
 
 from .errors import SolveError, SolveInfo
 from .precondition import BlockSweep, block_factors
+from .rigid_modes import RigidModeSweep, use_rigid_modes
 from .scaling import Scaling, relative_residual
 from .system import SurfaceSet
 
@@ -56,15 +59,17 @@ def gmres_solve(
 ) -> tuple[np.ndarray, np.ndarray | None, SolveInfo]:
     """As :func:`parastokes.mobility.direct.direct_solve`, by preconditioned GMRES."""
     op = sset.operator()
-    sweep = BlockSweep(sset, block_factors(sset, precondition))
+    factors = block_factors(sset, precondition)
+    sweep = BlockSweep(sset, factors)
     nb, n3 = sset.n_bodies, 3 * sset.n_points
     sc = Scaling(sset.mu, sset.length)
     if ft is None:
-        a = LinearOperator((n3, n3), matvec=lambda z: op.matvec(sweep.forces(z)), dtype=np.float64)
         if not np.any(g):
             return np.zeros(n3), None, SolveInfo("gmres", 0, 0.0)
+        pre = RigidModeSweep(sset, factors, sweep) if use_rigid_modes(sset) else sweep
+        a = LinearOperator((n3, n3), matvec=lambda z: op.matvec(pre.forces(z)), dtype=np.float64)
         z, code, its = _run(a, g, tol)
-        f = sweep.forces(z)
+        f = pre.forces(z)
         residual = float(np.linalg.norm(op.matvec(f) - g) / np.linalg.norm(g))
         if code != 0 or residual > 10 * tol:
             raise _fail(code, its, residual, tol)
