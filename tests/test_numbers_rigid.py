@@ -10,6 +10,8 @@ surface), recomputed and compared with ``docs/numbers.toml``:
 - ``[rigid_gmres]``: GMRES iterations of the block preconditioner, one sphere above the wall at
   gaps >= 0.25a and rows of 2 spheres by default, rows of 4-16 spheres slow
   (``benchmarks/mobility.py``);
+- ``[rigid_resist]``: GMRES iterations of the resistance problem for rows of 2 and 4 spheres by
+  default, 8 slow (``benchmarks/mobility.py --parts resist``);
 - ``[rigid_coarse_surface]``: the bacterium's Parareal with its coarse solver on coarser surfaces
   (``benchmarks/rigid.py --sections coarse_surface``), slow; its CI-sized twin
   ``[rigid_coarse_surface_twins]`` (3 slices, T = 1.2 ms, factor 2) by default, and the
@@ -108,3 +110,39 @@ def test_coarse_surface_parareal():
     """The table: T = 24 ms over 8 slices, the coarse solver on the fine surface and on surfaces
     2, 3 and 4 times coarser: iterations to η̃ < 1e-8 and η after each."""
     _check_parareal("rigid_coarse_surface", 0.024, 8, FACTORS, ["fine", "f2", "f3", "f4"])
+
+
+#: the rows (B, δ/a, wall) of docs/benchmarks.md's resistance table, in its order
+RESIST_ROWS = [(b, gap, wall) for b in (2, 4, 8) for gap in (0.1, 0.5) for wall in (True, False)]
+
+
+def _resistance_iterations(bench, rows):
+    s = bench.sphere(400)
+    found: dict[str, list[int]] = {"default": [], "sweep": [], "jacobi": [], "mobility": []}
+    for count, gap, wall in rows:
+        bodies = bench.row_bodies(s, count, gap)
+        found["default"].append(bench.timed_resistance(bodies, wall)[0])
+        found["sweep"].append(bench.timed_resistance(bodies, wall, modes=False)[0])
+        found["jacobi"].append(bench.timed_resistance(bodies, wall, gap=0.0, modes=False)[0])
+        found["mobility"].append(
+            bench.timed_gmres(bodies, wall, "free", external_force=(0, 0, -1))[0])
+    return found
+
+
+def _check_resistance(which):
+    with benchmark_module("mobility") as bench:
+        found = _resistance_iterations(bench, [RESIST_ROWS[i] for i in which])
+    for name, its in found.items():
+        for i, value in zip(which, its, strict=True):
+            check("rigid_resist", name, value, i)
+
+
+def test_resistance_iterations_of_rows_of_2_and_4():
+    """``[rigid_resist]``: GMRES iterations of the resistance rows of 2 and 4 spheres (default
+    preconditioner, the sweep alone, block Jacobi) and of the mobility problem of the same rows."""
+    _check_resistance(range(8))
+
+
+@pytest.mark.slow
+def test_resistance_iterations_of_rows_of_8():
+    _check_resistance(range(8, len(RESIST_ROWS)))
