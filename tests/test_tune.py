@@ -289,7 +289,14 @@ def test_tune_command_writes_a_config_that_runs_to_the_target(tmp_path):
         assert cand["status"] in ("accepted", "rejected", "pruned", "not reached")
         assert cand["status"] == "accepted" or cand["reason"]
     chosen = report["chosen"]
-    assert chosen["stability"]["stable"] and chosen["stability"]["margin"] > 0
+    if chosen == report["baseline"]:
+        # the plain solver won (the choice rests on measured costs): it has no combination to
+        # check on ρ(DG) (docs/tuning.md, step 7), only its step below the limit by its margin
+        stab = chosen["stability"]
+        assert stab["stable"] is None and stab["spectral_radius"] is None
+        assert stab["step_margin"] >= stab["required_step_margin"] - 1e-12 > 0
+    else:
+        assert chosen["stability"]["stable"] and chosen["stability"]["margin"] > 0
     # the chosen solver is the accepted one with the highest predicted speedup
     accepted = [c for c in [report["baseline"], *report["candidates"]] if c["status"] == "accepted"]
     assert chosen["predicted"]["speedup"] == max(c["predicted"]["speedup"] for c in accepted)
