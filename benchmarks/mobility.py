@@ -162,6 +162,18 @@ def correction_setup(bodies: list, wall: bool, rounds: int) -> float:
     return setup / cpu_best(lambda: op.matvec(rv), rounds)
 
 
+def resistance_solves(bodies: list, wall: bool) -> dict[str, tuple[int, float]]:
+    """(iterations, seconds) of the resistance solve of ``bodies`` with the default
+    preconditioner, the sweep alone and block Jacobi, and of the mobility problem of the same
+    bodies (a force -e_z on each)."""
+    return {
+        "default": timed_resistance(bodies, wall),
+        "sweep": timed_resistance(bodies, wall, modes=False),
+        "jacobi": timed_resistance(bodies, wall, gap=0.0, modes=False),
+        "mobility": timed_gmres(bodies, wall, "free", external_force=(0, 0, -1)),
+    }
+
+
 def resistance_rows(n: int, rounds: int = 3) -> list[dict]:
     """Resistance iterations of rows of 2, 4, 8 spheres of ``n`` points (docs/benchmarks.md,
     (b)): default, sweep alone, block Jacobi, and the mobility problem's; the correction's setup
@@ -177,10 +189,7 @@ def resistance_rows(n: int, rounds: int = 3) -> list[dict]:
                         "bodies": count,
                         "gap": gap,
                         "wall": wall,
-                        "default": timed_resistance(bodies, wall),
-                        "sweep": timed_resistance(bodies, wall, modes=False),
-                        "jacobi": timed_resistance(bodies, wall, gap=0.0, modes=False),
-                        "mobility": timed_gmres(bodies, wall, "free", external_force=(0, 0, -1)),
+                        **resistance_solves(bodies, wall),
                         "setup_over_product": correction_setup(bodies, wall, rounds),
                     }
                 )

@@ -211,15 +211,15 @@ def coarse_surface_coarse(setup: dict, factor: int, variant: object = None) -> C
                                  grid=factor if factor > 1 else None)
 
 
-def coarse_surface_run(setup: dict, factor: int,
-                       variant: object = None) -> tuple[int, int, list[float]]:
+def coarse_surface_run(setup: dict, factor: int, variant: object = None,
+                       coarse: Callable | None = None) -> tuple[int, int, list[float]]:
     """Parareal of the setup with its coarse solver on a grid ``factor`` times coarser (of
-    ``variant``, as :func:`coarse_surface_coarse`), to η̃ < 1e-8 (at most N_c iterations): the
-    coarse grid's points, the iterations and the error η against the serial fine solution after
-    each iteration."""
+    ``variant``, as :func:`coarse_surface_coarse`, or ``coarse`` when already built), to
+    η̃ < 1e-8 (at most N_c iterations): the coarse grid's points, the iterations and the error η
+    against the serial fine solution after each iteration."""
     system = setup["system"]
     points = _points((variant or system).coarsened(factor)[0] if factor > 1 else system)
-    coarse = coarse_surface_coarse(setup, factor, variant)
+    coarse = coarse or coarse_surface_coarse(setup, factor, variant)
     result = parareal.run(setup["fine"], coarse, setup["x0"], 0.0,
                           setup["t1"], setup["n_slices"], tol=1e-8,
                           max_iterations=setup["n_slices"], reference=setup["reference"],
@@ -268,7 +268,7 @@ def coarse_surface_section(t1: float, n_slices: int, factors: list[int],
             gamma_f, gamma_g = (float(np.median(v)) for v in zip(*pairs, strict=True))
         else:
             gamma_g = median_time(lambda c=coarse: c(0.0, slice_length, x0), 3)
-        points, k, errors = coarse_surface_run(setup, factor, variant)
+        points, k, errors = coarse_surface_run(setup, factor, variant, coarse)
         ratio = gamma_g / gamma_f
         (_, s40, b40), = predict(ratio, k, [40])
         shown = ", ".join(f"{e:.1e}" for e in errors)

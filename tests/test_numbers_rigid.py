@@ -120,12 +120,9 @@ def _resistance_iterations(bench, rows):
     s = bench.sphere(400)
     found: dict[str, list[int]] = {"default": [], "sweep": [], "jacobi": [], "mobility": []}
     for count, gap, wall in rows:
-        bodies = bench.row_bodies(s, count, gap)
-        found["default"].append(bench.timed_resistance(bodies, wall)[0])
-        found["sweep"].append(bench.timed_resistance(bodies, wall, modes=False)[0])
-        found["jacobi"].append(bench.timed_resistance(bodies, wall, gap=0.0, modes=False)[0])
-        found["mobility"].append(
-            bench.timed_gmres(bodies, wall, "free", external_force=(0, 0, -1))[0])
+        solves = bench.resistance_solves(bench.row_bodies(s, count, gap), wall)
+        for name, (its, _) in solves.items():
+            found[name].append(its)
     return found
 
 

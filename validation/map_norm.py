@@ -39,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from parastokes.tuning.slice_map import Probe, dense, radius
+from parastokes.tuning.slice_map import Probe, dense, norms, radius
 
 __all__ = ["DENSE_LIMIT", "RTOL", "Probe", "arnoldi_radius", "dense", "dense_resumable",
            "jacobian", "linearization"]
@@ -97,6 +97,4 @@ def jacobian(probe: Probe, checkpoint: Path | None = None, every: int = 32) -> n
 
 def dense_resumable(probe: Probe, checkpoint: Path | None = None) -> tuple[float, float]:
     """(rho, ‖DG‖) as ``dense``, from the Jacobian of :func:`jacobian` (resumable)."""
-    jac = jacobian(probe, checkpoint)
-    rho = float(np.abs(np.linalg.eigvals(jac)).max())
-    return rho, float(np.linalg.svd(jac, compute_uv=False)[0])
+    return norms(jacobian(probe, checkpoint))

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse.linalg
 
-__all__ = ["Diverged", "Probe", "Radius", "dense", "radius"]
+__all__ = ["Diverged", "Probe", "Radius", "dense", "norms", "radius"]
 
 #: Finite-difference step on the positions, relative to their largest coordinate: large enough
 #: that the round-off of the combination's weighted sums (weights up to 1.7e5), which grows as
@@ -89,11 +89,15 @@ class Probe:
         return np.array([self(e) for e in np.eye(self.size)]).T
 
 
-def dense(probe: Probe) -> tuple[float, float]:
-    """(ρ, ‖DG‖) from the whole finite-difference Jacobian (eigenvalues, singular values)."""
-    jac = probe.jacobian()
+def norms(jac: np.ndarray) -> tuple[float, float]:
+    """(ρ, ‖DG‖) of a whole Jacobian ``jac`` (eigenvalues, singular values)."""
     rho = float(np.abs(np.linalg.eigvals(jac)).max())
     return rho, float(np.linalg.svd(jac, compute_uv=False)[0])
+
+
+def dense(probe: Probe) -> tuple[float, float]:
+    """(ρ, ‖DG‖) from the whole finite-difference Jacobian (:func:`norms`)."""
+    return norms(probe.jacobian())
 
 
 @dataclass(frozen=True)
