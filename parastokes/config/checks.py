@@ -183,6 +183,28 @@ def _workers(cfg: Config, n_auxiliary: int, issues: list, warnings: list) -> int
     return workers
 
 
+def _stiff_issues(cfg: Config) -> list[tuple[str, str]]:
+    """The adaptive steps' tolerances (finite, positive, a scheme with an error estimate) and the
+    executor of linearly implicit schemes (their stage solves run on the CPU only)."""
+    issues = []
+    fine = cfg.fine
+    if fine.rtol is not None or fine.atol is not None:
+        if fine.rtol is None:
+            issues.append(("fine.rtol", "required with fine.atol (adaptive steps)"))
+        else:
+            try:
+                integrate.tolerances(fine.scheme, fine.rtol, fine.atol)
+            except ValueError as error:
+                key, _, text = str(error).partition(": ")
+                issues.append((f"fine.{key}", text))
+    schemes = {fine.scheme, getattr(cfg.coarse, "scheme", fine.scheme)}
+    implicit = sorted(s for s in schemes if integrate.SCHEMES[s].implicit)
+    if implicit and cfg.execution.executor == "gpu":
+        issues.append(("execution.executor", f"the GPU solves explicit schemes only; "
+                       f"{', '.join(implicit)} runs on processes, mpi or serial"))
+    return issues
+
+
 def resolve(cfg: Config, source: str = "") -> Resolved:
     """Check ``cfg`` across keys and compute the derived values; raise :class:`ConfigError`."""
     issues: list[tuple[str, str]] = []
@@ -203,6 +225,7 @@ def resolve(cfg: Config, source: str = "") -> Resolved:
         issues.append(("time.t1", f"must exceed t0 = {t0}, got {t1}"))
         raise ConfigError(issues, source)
     slice_length = (t1 - t0) / cfg.parareal.n_slices
+    issues += _stiff_issues(cfg)
     if cfg.fine.dt > slice_length * (1 + 1e-12):
         issues.append(
             ("fine.dt", f"exceeds the slice length (t1 - t0)/n_slices = {slice_length:.6g}")

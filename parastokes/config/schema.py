@@ -37,7 +37,9 @@ __all__ = [
     "Tune",
 ]
 
-Scheme = Literal["euler", "rk2", "rk4"]
+#: The schemes of ``parastokes.integrate.SCHEMES`` (explicit Runge-Kutta; linearly implicit
+#: Rosenbrock-W, docs/stiff.md).
+Scheme = Literal["euler", "rk2", "rk4", "lieuler", "ros2", "ros2-krylov"]
 
 
 class _Section(BaseModel):
@@ -54,8 +56,15 @@ class Time(_Section):
 class Fine(_Section):
     """The fine solver F: always the correct parameters Θ⁰ and the fine grid (section 3)."""
 
-    scheme: Scheme = Field("rk2", description="Runge-Kutta scheme of F (the paper: rk2 or rk4).")
-    dt: Positive = Field(description="Fine time step τ_f.")
+    scheme: Scheme = Field("rk2", description="Scheme of F (the paper: rk2 or rk4; linearly "
+                           "implicit for stiff bodies: lieuler, ros2, ros2-krylov, docs/stiff.md).")
+    dt: Positive = Field(description="Fine time step τ_f (with rtol: the first step tried).")
+    rtol: float | None = Field(
+        None, description="Adaptive steps within this relative error per step (a scheme with an "
+        "error estimate: ros2, ros2-krylov); omitted: fixed steps of dt.")
+    atol: float | None = Field(
+        None, description="Absolute error per step of the adaptive steps (default: rtol; state "
+        "units, μm for positions).")
 
 
 class LagrangeNodes(_Section):
