@@ -124,7 +124,8 @@ def local_jacobian(system: Any, t: float, x: np.ndarray, n_rates: int) -> sp.csr
     k = load_jacobian(system, t, x)
     m = near_mobility(system.positions(x), float(system.epsilon), float(system.viscosity),
                       angular, CUTOFF * float(system.epsilon))
-    return sp.csr_array(m @ k)
+    width = m.blocksize[0]
+    return sp.csr_array(m @ sp.bsr_array(k, blocksize=(width, _rate_columns(system))))
 
 
 def block_jacobian(parts: list[tuple[int, int, int, sp.csr_array | None]], rows: int,

@@ -73,18 +73,19 @@ def wendland(q: np.ndarray) -> np.ndarray:
 
 
 def near_mobility(points: np.ndarray, epsilon: float, viscosity: float, angular: bool,
-                  cutoff: float) -> sp.csr_array:
-    """The free-space mobility of the pairs closer than ``cutoff``: (n V, n V) sparse, V = 6
-    (``[u, w]`` from ``[f, n]``) with ``angular``, else 3, point-major rows and columns."""
+                  cutoff: float) -> sp.bsr_array:
+    """The free-space mobility of the pairs closer than ``cutoff``, tapered by :func:`wendland`:
+    (n V, n V) sparse in blocks of V x V, V = 6 (``[u, w]`` from ``[f, n]``) with ``angular``,
+    else 3, point-major rows and columns."""
     points = np.ascontiguousarray(points, dtype=float)
     target, source = near_pairs(points, cutoff)
+    order = np.lexsort((source, target))
+    target, source = target[order], source[order]
     r = points[target] - points[source]
     blocks = pair_blocks(r, float(epsilon), angular)
     blocks *= (wendland(np.sqrt(np.einsum("pk,pk->p", r, r)) / cutoff)
                / (_EIGHT_PI * viscosity))[:, None, None]
-    v = blocks.shape[1]
-    rows = (v * target)[:, None, None] + np.arange(v)[None, :, None]
-    cols = (v * source)[:, None, None] + np.arange(v)[None, None, :]
-    rows, cols = np.broadcast_arrays(rows, cols)
-    n = len(points)
-    return sp.csr_array((blocks.ravel(), (rows.ravel(), cols.ravel())), shape=(n * v, n * v))
+    n, v = len(points), blocks.shape[1]
+    indptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(target, minlength=n), out=indptr[1:])
+    return sp.bsr_array((blocks, source, indptr), shape=(n * v, n * v))

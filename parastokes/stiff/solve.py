@@ -51,6 +51,14 @@ class StiffSolveError(RuntimeError):
         return type(self), (self.t, self.residual, self.iterations, self.reason)
 
 
+def _ordering(matrix: sp.csr_array) -> str:
+    """SuperLU's column ordering: the natural one for a banded matrix (a rod's or chain's points
+    in order along it: no fill outside the band, measured 2x faster to factorize), else COLAMD."""
+    coo = matrix.tocoo()
+    band = int(np.abs(coo.row - coo.col).max(initial=0))
+    return "NATURAL" if band < matrix.shape[0] // 8 else "COLAMD"
+
+
 class StageSolver:
     """Solves ``(I - hγ A) k = r`` at one step (see the module docstring).
 
@@ -71,7 +79,7 @@ class StageSolver:
         if matrix is not None and matrix.nnz:
             system = sp.csc_array(sp.eye_array(matrix.shape[0]) - hgamma * matrix)
             try:
-                self.lu = spla.splu(system)
+                self.lu = spla.splu(system, permc_spec=_ordering(matrix))
             except RuntimeError as error:  # "Factor is exactly singular"
                 raise StiffSolveError(t, float("nan"), 0, f"I - h*gamma*A is singular ({error}); "
                                       "use a smaller step") from None
