@@ -12,7 +12,7 @@ import pytest
 import scipy.sparse as sp
 from rods import helix_rod
 
-from parastokes import integrate, models, parareal, parallel
+from parastokes import integrate, models, parallel, parareal
 from parastokes.bodies.contract import BodyError
 from parastokes.integrate import SCHEMES, BlowUpError
 from parastokes.kinds.chain import ChainSystem

@@ -14,6 +14,7 @@ shift, for a rod's frames a rotation, so the Jacobian is the one the stage solve
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 
 import numpy as np
@@ -38,6 +39,21 @@ def colours(coupling: sp.spmatrix | sp.sparray) -> np.ndarray:
     return out
 
 
+_COLOURS: dict[tuple, np.ndarray] = {}
+
+
+def _cached_colours(rows: np.ndarray, cols: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    """:func:`colours` of a pattern given by its entries, kept per pattern (a body's coupling
+    is the same at every step; at most 64 patterns are kept)."""
+    key = (shape, hash(rows.tobytes()), hash(cols.tobytes()))
+    if key not in _COLOURS:
+        if len(_COLOURS) >= 64:
+            _COLOURS.clear()
+        _COLOURS[key] = colours(sp.coo_array((np.ones(len(rows), dtype=bool), (rows, cols)),
+                                             shape=shape))
+    return _COLOURS[key]
+
+
 def fd_jacobian(
     function: Callable[[np.ndarray], np.ndarray],
     advance: Callable[[np.ndarray, np.ndarray, float], np.ndarray],
@@ -53,7 +69,7 @@ def fd_jacobian(
     """
     pattern = sp.coo_array(sp.csc_array(coupling, dtype=bool))
     rows_all, cols_all = pattern.row, pattern.col
-    colour = colours(coupling)
+    colour = _cached_colours(rows_all, cols_all, pattern.shape)
     n = len(colour)
     rc = rate_columns
     data, rows, cols = [], [], []
@@ -82,9 +98,11 @@ def fd_jacobian(
     )
 
 
+@functools.lru_cache(maxsize=32)
 def banded(n_groups: int, size: int, width: int) -> sp.csr_array:
     """The coupling of ``n_groups`` chains of ``size`` points whose loads depend on the points
-    within ``width`` of them along their own chain (a rod's nodes: 1; a chain's beads: 2)."""
+    within ``width`` of them along their own chain (a rod's nodes: 1; a chain's beads: 2);
+    cached, so do not modify it."""
     n = n_groups * size
     index = np.arange(n)
     rows, cols = [], []

@@ -106,7 +106,8 @@ def _is_fluid_body(system: Any) -> bool:
         hasattr(system, "surface") and hasattr(system, "motion_rates"))
 
 
-def local_jacobian(system: Any, t: float, x: np.ndarray, n_rates: int) -> sp.csr_array | None:
+def local_jacobian(system: Any, t: float, x: np.ndarray, n_rates: int
+                   ) -> sp.csr_array | sp.bsr_array | None:
     """``A`` of ``system`` at ``(t, x)`` over its ``n_rates`` rates flattened point-major, or
     None (no stiff part known: the schemes step it explicitly); see the module docstring."""
     x = np.asarray(x, dtype=float)
@@ -125,7 +126,7 @@ def local_jacobian(system: Any, t: float, x: np.ndarray, n_rates: int) -> sp.csr
     m = near_mobility(system.positions(x), float(system.epsilon), float(system.viscosity),
                       angular, CUTOFF * float(system.epsilon))
     width = m.blocksize[0]
-    return sp.csr_array(m @ sp.bsr_array(k, blocksize=(width, _rate_columns(system))))
+    return m @ sp.bsr_array(k, blocksize=(width, _rate_columns(system)))
 
 
 def block_jacobian(parts: list[tuple[int, int, int, sp.csr_array | None]], rows: int,

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
+from numba import njit
 from scipy.spatial import cKDTree
 
 __all__ = ["near_mobility", "near_pairs"]
@@ -32,35 +33,42 @@ def near_pairs(points: np.ndarray, cutoff: float) -> tuple[np.ndarray, np.ndarra
             np.concatenate([own, pairs[:, 1], pairs[:, 0]]))
 
 
-def _cross_matrix(r: np.ndarray) -> np.ndarray:
-    """[r]_x, (P, 3, 3): [r]_x v = r × v."""
-    out = np.zeros(r.shape[:-1] + (3, 3))
-    out[..., 0, 1], out[..., 0, 2] = -r[..., 2], r[..., 1]
-    out[..., 1, 0], out[..., 1, 2] = r[..., 2], -r[..., 0]
-    out[..., 2, 0], out[..., 2, 1] = -r[..., 1], r[..., 0]
-    return out
+@njit(cache=True, error_model="numpy")
+def _pair_blocks(r, eps, angular, out):  # pragma: no cover - compiled
+    e2 = eps * eps
+    for p in range(r.shape[0]):
+        x, y, z = r[p, 0], r[p, 1], r[p, 2]
+        r2 = x * x + y * y + z * z
+        i3 = (r2 + e2) ** -1.5
+        i5 = i3 / (r2 + e2)
+        diag = (r2 + 2.0 * e2) * i3
+        v = (x, y, z)
+        for a in range(3):
+            for b in range(3):
+                out[p, a, b] = i3 * v[a] * v[b] + (diag if a == b else 0.0)
+        if not angular:
+            continue
+        q = 0.5 * (2.0 * r2 + 5.0 * e2) * i5
+        p1 = -0.5 * (r2 - 2.0 * e2) * i5  # -1/4 of 8π × (4)'s p1
+        p2 = 1.5 * i5                      # -1/4 of 8π × (4)'s p2
+        # [r]_x rows: (0, -z, y), (z, 0, -x), (-y, x, 0)
+        cross = ((0.0, -z, y), (z, 0.0, -x), (-y, x, 0.0))
+        for a in range(3):
+            for b in range(3):
+                out[p, a, 3 + b] = -i3 * cross[a][b]
+                out[p, 3 + a, b] = -q * cross[a][b]
+                out[p, 3 + a, 3 + b] = p2 * v[a] * v[b] + (p1 if a == b else 0.0)
 
 
 def pair_blocks(r: np.ndarray, eps: float, angular: bool) -> np.ndarray:
     """8π μ × the mobility blocks of pairs with separations ``r`` (P, 3): (P, 3, 3) force ->
-    velocity, or with ``angular`` (P, 6, 6) of ``[u, w]`` from ``[f, n]``."""
-    r2 = np.einsum("pk,pk->p", r, r)
-    e2 = eps * eps
-    i3 = (r2 + e2) ** -1.5
-    i5 = i3 / (r2 + e2)
-    rr = r[:, :, None] * r[:, None, :]
-    eye = np.eye(3)
-    uf = ((r2 + 2 * e2) * i3)[:, None, None] * eye + i3[:, None, None] * rr
-    if not angular:
-        return uf
-    cross = _cross_matrix(r)
-    out = np.empty((len(r), 6, 6))
-    out[:, :3, :3] = uf
-    out[:, :3, 3:] = -i3[:, None, None] * cross                          # (n × r)/r_ε³
-    out[:, 3:, :3] = -0.5 * ((2 * r2 + 5 * e2) * i5)[:, None, None] * cross  # ½ q (f × r)
-    p1 = 2.0 * (r2 - 2 * e2) * i5                                           # 8π × (4)'s p1
-    p2 = -6.0 * i5
-    out[:, 3:, 3:] = -0.25 * (p1[:, None, None] * eye + p2[:, None, None] * rr)
+    velocity, or with ``angular`` (P, 6, 6) of ``[u, w]`` from ``[f, n]``: the Stokeslet
+    (r² + 2ε²)/r_ε³ I + r rᵀ/r_ε³, the rotlet -[r]ₓ/r_ε³, ½ the Stokeslet's curl
+    -½ (2r² + 5ε²)/r_ε⁵ [r]ₓ and the potential dipole -¼ (p₁ I + p₂ r rᵀ)."""
+    r = np.ascontiguousarray(r, dtype=float)
+    size = 6 if angular else 3
+    out = np.empty((len(r), size, size))
+    _pair_blocks(r, float(eps), bool(angular), out)
     return out
 
 

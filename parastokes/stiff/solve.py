@@ -51,7 +51,7 @@ class StiffSolveError(RuntimeError):
         return type(self), (self.t, self.residual, self.iterations, self.reason)
 
 
-def _ordering(matrix: sp.csr_array) -> str:
+def _ordering(matrix: sp.sparray) -> str:
     """SuperLU's column ordering: the natural one for a banded matrix (a rod's or chain's points
     in order along it: no fill outside the band, measured 2x faster to factorize), else COLAMD."""
     coo = matrix.tocoo()
@@ -67,7 +67,7 @@ class StageSolver:
     a rate perturbation, for the products of the exact Jacobian with ``f0 = rates_at(x)``.
     """
 
-    def __init__(self, matrix: sp.csr_array | None, hgamma: float, t: float, *,
+    def __init__(self, matrix: sp.sparray | None, hgamma: float, t: float, *,
                  krylov: bool = False,
                  rates_at: Callable[[np.ndarray], np.ndarray] | None = None,
                  advance: Callable[[np.ndarray, np.ndarray, float], np.ndarray] | None = None,
@@ -77,7 +77,7 @@ class StageSolver:
         self.lu = None
         self.iterations = 0
         if matrix is not None and matrix.nnz:
-            system = sp.csc_array(sp.eye_array(matrix.shape[0]) - hgamma * matrix)
+            system = sp.eye_array(matrix.shape[0], format="csc") - hgamma * matrix.tocsc()
             try:
                 self.lu = spla.splu(system, permc_spec=_ordering(matrix))
             except RuntimeError as error:  # "Factor is exactly singular"
