@@ -293,12 +293,20 @@ def _advice(setup: Setup, label: str, error: BlowUpError, where: str,
     step = _solver_step(cfg, setup.resolved, label)
     found = [note for note in (_near_wall(setup, error.last_state),
                                _same_time(previous, error, where, step, span)) if note]
-    return "; ".join(found) if found else _fix(cfg, label)
+    return "; ".join(found) if found else _fix(cfg, label, error.reason)
 
 
-def _fix(cfg: Config, label: str) -> str:
-    """What to change after a blow-up of the solve named ``label``."""
-    if "fine solve" in label or label == "serial":
+def _fix(cfg: Config, label: str, reason: str = "") -> str:
+    """What to change after a blow-up of the solve named ``label`` (``reason``: the error's)."""
+    fine = "fine solve" in label or label == "serial"
+    if "step size" in reason:  # adaptive steps shrank to nothing
+        return ("loosen fine.rtol/fine.atol, or use fixed steps (no rtol) to see where the "
+                "body fails")
+    if "linear solve failed" in reason:
+        which = "fine.dt" if fine else "the coarse step"
+        return (f"reduce {which}, or use the scheme ros2 (a direct solve on the approximate "
+                "Jacobian, no GMRES iterations to fail)")
+    if fine:
         return f"reduce fine.dt (now {cfg.fine.dt:g}) or use a more stable fine.scheme"
     return (
         "reduce the coarse step (coarse.dt_ratio or coarse.dt), or choose Lagrange nodes at which "
@@ -442,10 +450,13 @@ def _serial(
         reporter.note(f"serial fine run resumed after slice {done} of {n_slices}")
     reporter.start("serial", n_slices - done)
     reporter.expect(_slice_seconds(setup))
+    accepted = rejected = 0
     for n in range(done + 1, n_slices + 1):
         start = time.perf_counter()
         try:
-            states[n] = setup.fine(times[n - 1], times[n], states[n - 1])
+            result = setup.fine.run(times[n - 1], times[n], states[n - 1])
+            states[n] = result.state
+            accepted, rejected = accepted + result.n_steps, rejected + result.n_rejected
         except BlowUpError as error:
             cfg = setup.config
             where = f"the fine solver F ({cfg.fine.scheme}) in slice {n} of the serial fine run"
@@ -456,6 +467,9 @@ def _serial(
         io.save_arrays(path, {"key": key, "done": n, "wall_time": wall}, states=states)
         reporter.advance()
     reporter.finish()
+    if setup.config.fine.rtol is not None:
+        reporter.note(f"serial fine run: adaptive steps ({setup.config.fine.scheme}, rtol "
+                      f"{setup.config.fine.rtol:g}): {accepted} accepted, {rejected} rejected")
     return states, wall
 
 
