@@ -43,6 +43,8 @@ from parastokes.parareal import speedup
 from parastokes.stiff import stepper
 
 OUT = pathlib.Path("docs/figures/stiff")
+#: Slices of the Parareal part (T = 0.01).
+N_SLICES = 10
 
 ROD_STEPS = {
     "euler": [1.2e-5],
@@ -170,7 +172,7 @@ def parareal_part() -> dict[str, Any]:
     data = _load(path)
     rod = models.rod_swimmer(n_points=301, epsilon=1.0, n_threads=1)
     x0 = rod.initial_state()
-    t1, n_slices, fine_dt = 0.01, 10, 1e-6
+    t1, n_slices, fine_dt = 0.01, N_SLICES, 1e-6
     fine = integrate.Propagator(rod, "rk2", fine_dt)
     slice_length = t1 / n_slices
     if "fine_slice_cpu" not in data:
@@ -209,7 +211,7 @@ def _serial(fine: Any, x0: np.ndarray, t1: float) -> np.ndarray:
     """The serial fine solution at ``t1`` (cached)."""
     cache = OUT / ".parareal_serial.npy"
     if not cache.exists():
-        np.save(cache, fine(0.0, t1, x0))
+        np.save(cache, parareal.serial_solution(fine, x0, 0.0, t1, N_SLICES))
     return np.load(cache)
 
 
