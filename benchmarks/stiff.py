@@ -39,7 +39,7 @@ from typing import Any
 import numpy as np
 
 from parastokes import integrate, models, parareal
-from parastokes.parareal import speedup
+from parastokes.parareal.speedup import speedup as eq14
 from parastokes.stiff import stepper
 
 OUT = pathlib.Path("docs/figures/stiff")
@@ -200,8 +200,8 @@ def parareal_part() -> dict[str, Any]:
         gamma = cpu / n_aux / data["fine_slice_cpu"]
         rows[label] = {"gamma_ratio": gamma, "n_auxiliary": n_aux,
                        "errors": result.errors, "increments": result.increments,
-                       "speedup_eq14_40_cores_k1": speedup.speedup(gamma, 1.0, 1, 40),
-                       "speedup_eq14_40_cores_k2": speedup.speedup(gamma, 1.0, 2, 40)}
+                       "speedup_eq14_40_cores_k1": eq14(gamma, 1.0, 1, 40),
+                       "speedup_eq14_40_cores_k2": eq14(gamma, 1.0, 2, 40)}
         print("parareal", label, rows[label], flush=True)
         _save(path, data)
     return data

@@ -316,3 +316,13 @@ def test_implicit_schemes_and_adaptive_steps_are_keys_checked_before_any_work():
         "required with fine.atol (adaptive steps)")
     gpu = issues_of(VESICLE, 'coarse.scheme="ros2-krylov"', 'execution.executor="gpu"')
     assert "ros2-krylov runs on processes, mpi or serial" in gpu["execution.executor"]
+
+
+def test_adaptive_coarse_solvers_are_keys_checked_before_any_work():
+    cfg, _ = config.loads(VESICLE, overrides=['coarse.scheme="ros2"', "coarse.rtol=1e-3"])
+    assert (cfg.coarse.rtol, cfg.coarse.atol) == (1e-3, None)
+    assert "needs the fixed steps" in issues_of(
+        VESICLE, 'coarse.scheme="ros2"', "coarse.rtol=1e-3", "coarse.richardson.m=1",
+        "coarse.richardson.r=0.5")["coarse.rtol"]
+    assert issues_of(VESICLE, "coarse.atol=1e-3")["coarse.rtol"] == (
+        "required with atol (adaptive steps)")

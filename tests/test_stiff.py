@@ -298,3 +298,15 @@ def test_parareal_with_implicit_coarse_solvers_converges_on_a_vesicle_and_a_scen
         inc = result.increments
         assert inc[1] < 0.25 * inc[0] and inc[2] < 0.25 * inc[1]
         assert float(np.abs(result.states[-1] - serial).max()) < 2 * inc[2]
+
+
+def test_adaptive_auxiliary_solvers_of_an_extrapolated_coarse_solver():
+    """rtol/atol reach every auxiliary solver; Richardson's fixed steps refuse them."""
+    rod = models.rod_swimmer(n_points=21)
+    coarse = parareal.extrapolated(rod, "ros2", 1e-4, lagrange={"epsilon": [1.03, 1.06]},
+                                   rtol=1e-3, atol=1e-4)
+    assert {(p.rtol, p.atol) for row in coarse.auxiliary for p in row} == {(1e-3, 1e-4)}
+    with pytest.raises(ValueError, match=r"rtol: Richardson extrapolation \(m >= 1\) needs"):
+        parareal.extrapolated(rod, "ros2", 1e-4, richardson={"m": 1, "r": 0.5}, rtol=1e-3)
+    with pytest.raises(ValueError, match=r"rtol: the scheme 'euler' has no error estimate"):
+        parareal.extrapolated(rod, "euler", 1e-4, rtol=1e-3)

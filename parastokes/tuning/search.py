@@ -304,7 +304,8 @@ class _Search:
                 system = system.with_params(**corner)
             # at least MIN_STEPS steps per slice: a test over fewer steps cannot see growth
             span = self.pilot.slice_length
-            fewest = IMPLICIT_MIN_STEPS if integrate.SCHEMES[settings.scheme].implicit else MIN_STEPS
+            implicit = integrate.SCHEMES[settings.scheme].implicit
+            fewest = IMPLICIT_MIN_STEPS if implicit else MIN_STEPS
             lo, hi = self.pilot.fine.dt, span / fewest
             try:
                 self.limits[key] = stability.step_limit(system, settings.scheme, x0,
