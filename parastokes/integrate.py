@@ -68,6 +68,7 @@ __all__ = [
     "Propagator",
     "RunResult",
     "Scheme",
+    "explicit_scheme",
     "is_stable",
     "largest_stable_step",
     "n_steps",
@@ -144,6 +145,17 @@ def _scheme(scheme: str | AnyScheme) -> AnyScheme:
         raise ValueError(
             f"scheme: unknown scheme {scheme!r}; choose one of {sorted(SCHEMES)}"
         ) from None
+
+
+def explicit_scheme(name: str) -> Scheme:
+    """The explicit tableau ``name`` (for the compiled and GPU loops, which run tableaux only);
+    ValueError naming the scheme for an implicit one."""
+    s = _scheme(name)
+    if not isinstance(s, Scheme):
+        explicit = ", ".join(k for k, v in SCHEMES.items() if not v.implicit)
+        raise ValueError(f"scheme: {name!r} is linearly implicit; the GPU and compiled loops run "
+                         f"the explicit schemes only ({explicit})")
+    return s
 
 
 def scheme_order(name: str) -> int:

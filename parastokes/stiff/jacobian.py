@@ -133,7 +133,9 @@ def block_jacobian(parts: list[tuple[int, int, int, sp.csr_array | None]], rows:
                    width: int) -> sp.csr_array:
     """A block-diagonal ``A`` over rates padded to ``width`` columns (a scene's): ``parts`` are
     ``(first row, rows, rate columns, A of the body or None)``."""
-    data, r_all, c_all = [], [], []
+    data: list[np.ndarray] = []
+    r_all: list[np.ndarray] = []
+    c_all: list[np.ndarray] = []
     for first, _, rc, matrix in parts:
         if matrix is None:
             continue
