@@ -477,27 +477,34 @@ def cmd_tune(args: argparse.Namespace, console: Console) -> ExitCode:
 
 
 def cmd_plot(args: argparse.Namespace, console: Console) -> ExitCode:
-    from . import plots
+    from . import plots, rundir
 
     formats = args.formats
     if args.benchmark is not None:
         if args.dirs:
             raise ValueError("plot: give run directories or --benchmark FILE.json, not both")
-        out = args.out if args.out is not None else Path(args.benchmark).parent
-        written = plots.draw_benchmark(args.benchmark, out, formats)
+        out = Path(args.out if args.out is not None else Path(args.benchmark).parent)
+        with rundir.claim_files(_figures(out, plots.BENCHMARK_FIGURES, formats)):
+            written = plots.draw_benchmark(args.benchmark, out, formats)
     elif not args.dirs:
         raise ValueError("plot: give run directories or --benchmark FILE.json")
     elif len(args.dirs) == 1 and args.out is None:
-        from . import rundir
-
         with rundir.locked(args.dirs[0]) as directory:  # not while a run writes there
             written = plots.draw_run(args.dirs[0], formats)
             directory.add_results([path.name for path in written])
     else:
-        written = plots.draw_comparison(args.dirs, args.out or "comparison", formats)
+        out = Path(args.out or "comparison")
+        with rundir.claim_files(_figures(out, plots.COMPARISON_FIGURES, formats),
+                                reads=args.dirs):
+            written = plots.draw_comparison(args.dirs, out, formats)
     for path in written:
         console.print(str(path))
     return ExitCode.OK
+
+
+def _figures(out: Path, stems: Sequence[str], formats: Sequence[str]) -> list[Path]:
+    """The files of the figures ``stems`` in ``formats`` in the directory ``out``."""
+    return [out / f"{stem}.{fmt}" for stem in stems for fmt in formats]
 
 
 # ---- parser and main -------------------------------------------------------------------------

@@ -48,7 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .bodies import contract
-from .contracts import System
+from .contracts import StepFailure, System
 from .stepping.registry import compiled_loop
 
 __all__ = [
@@ -262,7 +262,10 @@ def _python_steps(
     """
     worst = _monitor(system, x)
     for i in range(n):
-        x_new = step(system, scheme, t0 + i * dt, x, dt)
+        try:
+            x_new = step(system, scheme, t0 + i * dt, x, dt)
+        except StepFailure as error:  # (a failed mobility solve): no result, a blow-up
+            raise BlowUpError(t0 + (i + 1) * dt, i, math.nan, x, str(error)) from None
         if not np.isfinite(x_new).all():
             return x, worst, i, NON_FINITE, math.nan
         m = _monitor(system, x_new)

@@ -65,6 +65,9 @@ __all__ = [
 ]
 
 FORMATS = ("png", "pdf")
+#: The figures of :func:`draw_comparison` and of :func:`draw_benchmark`, by stem.
+COMPARISON_FIGURES = ("error_decay", "speedup_vs_error", "speedup_by_iteration", "scaling")
+BENCHMARK_FIGURES = ("scaling_benchmark", "spatial_vs_temporal")
 
 
 @dataclass

@@ -30,6 +30,7 @@ from ..bodies.registry import (
     BodyLayout,
     BodyResolution,
     BodySection,
+    PlannedSize,
     Positive,
     Tracked,
 )
@@ -68,6 +69,14 @@ class SceneModel(BodySection):
         for name, part in zip(self.names, parts, strict=True):
             theta0 |= {f"{name}.{k}": v for k, v in part.theta0.items() if k != "viscosity"}
         return BodyResolution(theta0, sum(part.n_points for part in parts))
+
+    def planned_size(self) -> PlannedSize:
+        """The bodies' sizes together (each from its keys where its kind says, else from its
+        cheap :meth:`resolve`), named ``bodies``."""
+        parts = [body.planned_size() or PlannedSize(body.resolve().n_points)
+                 for body in self.bodies]
+        return PlannedSize(sum(p.rows for p in parts), sum(p.dense_bytes for p in parts),
+                           "bodies")
 
     def build(self, threads: int = 1) -> Scene:
         from ..scene import Scene

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from ..files import atomic_write
+from ..files import Staging, staged
 from .average import window
 from .evaluate import velocity
 from .grids import Grid, PlaneSpec, bodies_box, grid_for
@@ -69,11 +69,15 @@ def plane_of(grid: Grid, values: np.ndarray, y: float) -> tuple[Grid, np.ndarray
 
 
 def save_png(path: Path, grid: Grid, values: np.ndarray, run: RunFrames, frame: int,
-             title: str, size: tuple[float, float] = (7.0, 4.0), dpi: int = 120) -> Path:
+             title: str, size: tuple[float, float] = (7.0, 4.0), dpi: int = 120,
+             staging: Staging | None = None) -> Path:
     """The picture of :func:`.render.draw_plane` (a box: its x-z slice through the bodies) with
-    the bodies of ``frame``, written atomically to ``path``."""
+    the bodies of ``frame``, written to ``path`` through ``staging`` (moved into place when it
+    commits), else atomically at once."""
+    if staging is None:
+        with staged() as own:
+            return save_png(path, grid, values, run, frame, title, size, dpi, own)
     plane, field = plane_of(grid, values, float(run.positions(frame)[:, 1].mean()))
     fig = Figure(figsize=size, layout="constrained")
     draw_plane(fig, plane, field, title, run.wall, run.data["bodies"], frame)
-    atomic_write(path, lambda handle: fig.savefig(handle, format="png", dpi=dpi))
-    return path
+    return staging.write(path, lambda handle: fig.savefig(handle, format="png", dpi=dpi))

@@ -35,9 +35,12 @@ def multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
 
 
 def rotation_about(axis: np.ndarray, angle: float) -> np.ndarray:
-    """The unit quaternion of the rotation by ``angle`` about the (non-zero) ``axis``."""
+    """The unit quaternion of the rotation by ``angle`` about the (non-zero) ``axis``; NaN for a
+    non-finite angle or axis (a step that blew up: the integrator reports the state)."""
     axis = np.asarray(axis, dtype=float)
     norm = float(np.linalg.norm(axis))
+    if not (math.isfinite(angle) and math.isfinite(norm)):
+        return np.full(4, math.nan)
     if norm == 0.0:
         return np.array(IDENTITY)
     half = 0.5 * angle

@@ -37,7 +37,8 @@ import numpy as np
 from ...bodies.base import replace_params, require_positive
 from ...bodies.geometry import crossed_wall
 from ...bodies.sources import FluidSources
-from ...mobility import ResistanceResult, solve_resistance
+from ...mobility import ResistanceResult, SolveError, solve_resistance
+from ...mobility.errors import OVERFLOW
 from ...mrs.velocity import thread_count
 from . import rotation
 from .coarse import RigidTransfer, coarse_shape
@@ -205,7 +206,11 @@ class RigidBody:
         return out
 
     def rates(self, t: float, state: np.ndarray) -> np.ndarray:
-        """(U, Ω) of the mobility solve, dφ/dt, and the surface velocities."""
+        """(U, Ω) of the mobility solve, dφ/dt, and the surface velocities; a state that is not
+        finite (a stage after a motion that overflowed) is a :class:`SolveError`."""
+        if not np.isfinite(state).all():
+            raise SolveError(f"the state of the rigid body is not finite at t = {t:.6g} (its "
+                             f"motion in the step overflowed): {OVERFLOW}")
         solution = self.solve(t, state)
         return self.motion_rates(state, solution.U[0], solution.Omega[0],
                                  self.surface(t, state).slip)
