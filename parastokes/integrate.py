@@ -324,7 +324,7 @@ def run_result(
     if outcome == BEYOND:
         reason = f"monitor beyond {blowup_factor:g} x its limit {system.monitor_limit:g}"
         if m == math.inf:  # the monitors' sign of a point on or below the wall z = 0
-            reason += " (infinite: a point reached the wall z = 0; a smaller step keeps it off)"
+            reason += " (infinite: a point reached the wall z = 0)"
         raise BlowUpError(t, taken, m, x, reason)
     end = projected(system, x, t0 + taken * dt, max(taken - 1, 0))
     return RunResult(end, worst, taken, dt, completed=outcome == DONE)

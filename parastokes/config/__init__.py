@@ -210,8 +210,9 @@ def merge(base: dict[str, Any], update: dict[str, Any]) -> dict[str, Any]:
 
 def _text(path: Path) -> bytes:
     """The bytes of the configuration file ``path``: a regular file of at most
-    :data:`MAX_CONFIG_BYTES` (a device, a pipe or a huge file is refused before it is read)."""
-    with open(path, "rb") as handle:
+    :data:`MAX_CONFIG_BYTES` (a device, a pipe or a huge file is refused before it is read;
+    opened without waiting, as a pipe would until something writes to it)."""
+    with os.fdopen(os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0)), "rb") as handle:
         if not stat.S_ISREG(os.fstat(handle.fileno()).st_mode):
             raise ConfigError([("", "not a regular file (a device, a pipe or a directory): give a "
                                     "TOML file")], str(path))

@@ -32,7 +32,7 @@ from ...bodies.registry import (
     draw_over_time,
     point_layout,
 )
-from ...mobility import SolveError
+from ...contracts import StepFailure
 from .coarse import coarse_shape
 from .shapes import Bacterium, Helix, PointCloud, Rod, Sphere, Spheroid, spacing
 from .slip import Squirmer, UserSlip
@@ -61,7 +61,7 @@ def check_solvable(body: RigidBody, name: str = "model") -> None:
         solution = body.solve(0.0, body.initial_state())
     except np.linalg.LinAlgError as error:
         residual, reason = math.inf, str(error)
-    except SolveError as error:
+    except StepFailure as error:  # a SolveError, or a slip that is not finite
         raise ValueError(f"{name}: at the initial state, {error}") from None
     else:
         residual = solution.residual
