@@ -17,6 +17,7 @@ ValueError: exit status 2 with one line naming what to change.
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -211,7 +212,10 @@ def add_commands(sub: Any, parents: list[argparse.ArgumentParser]) -> None:
     which.add_argument("--average", type=float, nargs=2, metavar=("T0", "T1"),
                        help="mean over the saved frames in [T0, T1] (trapezoidal rule)")
     p.add_argument("--box", type=float, nargs=6, metavar=("X0", "X1", "Y0", "Y1", "Z0", "Z1"),
-                   help="a box (3-D grid), or the extent of --plane")
+                   help="a box (3-D grid), or the extent of --plane (its range on the plane's "
+                   "own axis must hold the plane)")
+    # (argparse takes "-1e6" for an option unless told that such words are numbers)
+    p._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
     p.add_argument("--no-background", action="store_true",
                    help="leave out the background shear u∞ (the bodies' disturbance only)")
     p.add_argument("--out", metavar="STEM",
