@@ -240,7 +240,7 @@ def _read(path: Path, chain: tuple[Path, ...] = ()) -> dict[str, Any]:
     base = data.pop("base", None)
     if base is None:
         return data
-    if not isinstance(base, str):
+    if not isinstance(base, str) or not base.strip() or "\0" in base:
         raise ConfigError([("base", f"must be a file name, got {base!r}")], source)
     return merge(_read(path.parent / base, (*chain, path.resolve())), data)
 

@@ -82,9 +82,18 @@ class SceneModel(BodySection):
         from ..scene import Scene
 
         coarse = None if self.coarse_bodies is None else tuple(self.coarse_bodies)
-        return Scene(tuple(body.build(threads) for body in self.bodies), self.viscosity,
+        return Scene(tuple(self._built(i, threads) for i in range(len(self.bodies))),
+                     self.viscosity,
                      self.wall, self.shear_rate, tuple(self.names), n_threads=threads,
                      coarse_bodies=coarse)
+
+    def _built(self, index: int, threads: int) -> System:
+        """Body ``index`` built; its ValueError (a body on the wall, too coarse a surface)
+        names it."""
+        try:
+            return self.bodies[index].build(threads)
+        except ValueError as error:
+            raise ValueError(f"bodies[{index}] ({self.names[index]!r}): {error}") from None
 
     def coarse_points(self, factor: int) -> int:
         """Rows of the scene on the grid of ``coarse.grid_factor``: each body that has a coarser

@@ -103,7 +103,17 @@ class RigidBase(BodySection):
         return None
 
     def _epsilon(self, shape: Any) -> tuple[float, float]:
+        """ε⁰ in μm and the surface's largest gap; ValueError naming the keys of a surface
+        with fewer than 2 points or one too large for floating point."""
         gap = spacing(shape)
+        if not 0.0 < gap < math.inf:
+            count = self.planned_size().rows - 1
+            if count < 2:
+                raise ValueError(f"{self.size_keys()}: the surface has {count} point; a rigid "
+                                 "body needs at least 2 (and enough to cover it for its ε)")
+            raise ValueError(f"the surface's points are {gap:g} apart: its sizes (radius, "
+                             "length, ...) are beyond what floating point holds; give them in "
+                             "μm, e.g. radius = 1")
         return self.epsilon * (gap if self.epsilon_unit == "spacing" else 1.0), gap
 
     def build(self, threads: int = 1) -> RigidBody:
