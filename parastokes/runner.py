@@ -335,8 +335,8 @@ def _advice(setup: Setup, label: str, error: BlowUpError, where: str,
     span = cfg.time.t1 - cfg.time.t0
     step = _solver_step(cfg, setup.resolved, label)
     if " returned " in error.reason:  # a body's own method at the (finite) last good state
-        return ("the body's method named above gives non-finite values at the last good state, "
-                "so a smaller step does not help: fix that method (or the values it is given)")
+        return ("the body's own function named above gives non-finite values, so a smaller step "
+                "does not help: fix that function (or the values it is given)")
     wall = _near_wall(setup, error.last_state)
     solve = "solve" in label or label == "serial"  # (not a correction or combination)
     if wall is not None and solve and _smaller_step_passes(setup, error, step):

@@ -222,7 +222,7 @@ def test_flow_into_a_run_directory_lists_its_files_with_the_results(run_dir):
     assert max(flow.read_grid(run_dir / "flow_frame1.h5")[0].shape) == 7
 
 
-# ---- 8: a damaged trajectory ----------------------------------------------------------------------
+# ---- 8: a damaged trajectory ---------------------------------------------------------------------
 @pytest.mark.parametrize("damage", ["positions deleted", "time short", "NaN", "no frames"])
 def test_a_damaged_trajectory_is_named_by_flow_movie_and_plot(run_dir, tmp_path, capsys, damage):
     with h5py.File(run_dir / "trajectory.h5", "a") as f:

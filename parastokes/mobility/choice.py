@@ -75,8 +75,11 @@ def checked(sset: SurfaceSet, f: np.ndarray, y: np.ndarray, info: SolveInfo,
     if finite and info.residual <= limit:
         return f, y, info
     names = ", ".join(p.name for p in sset.placed)
-    cause = (f"non-finite forces or motions: {OVERFLOW}" if not finite else
-             "the system is beyond what the solver resolves (bodies too close to each other or "
-             "to the wall for their ε)")
+    if not (finite and np.isfinite(info.residual)):
+        cause = f"{'non-finite forces or motions' if not finite else 'a non-finite residual'}: " \
+                f"{OVERFLOW}"
+    else:
+        cause = ("the system is beyond what the solver resolves (bodies too close to each other "
+                 "or to the wall for their ε)")
     raise SolveError(f"the {info.method} solve of {names} failed (relative residual "
                      f"{info.residual:.3g}, limit {limit:.3g}): {cause}")
