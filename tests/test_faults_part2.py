@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 from configs import SERIAL_SOLVERS
 from test_faults import TINY, finished  # noqa: F401  (the fixture: a finished TINY run)
+from test_flow import scene_run  # noqa: F401  (the fixture: a scene run of 5 frames)
 from test_run_directory import _config, _run
 
 from parastokes import cli, config, runner
@@ -272,3 +273,47 @@ def test_out_of_memory_in_flow_names_what_to_make_smaller(capsys):
     assert cli._report(error, cli.Console(quiet=False), "flow") == cli.ExitCode.CONFIG
     err = capsys.readouterr().err
     assert "use a smaller --resolution or --dpi" in err and "slices or workers" not in err
+
+
+# ---- from the first trial of the new bodies ------------------------------------------------------
+def test_the_scene_figure_draws_a_rigid_surface_beside_a_rod():
+    from matplotlib.figure import Figure
+
+    from parastokes import plots
+
+    times = np.linspace(0.0, 1.0, 4)
+    rod = {"positions": np.tile(np.linspace([0, 0, 5], [4, 0, 5], 9), (4, 1, 1)),
+           "connectivity": np.array([[k, k + 1] for k in range(8)])}
+    sphere = {"positions": np.tile(np.random.default_rng(3).normal(size=(30, 3)) + [6, 0, 3],
+                                   (4, 1, 1)), "connectivity": np.arange(30)[:, None]}
+    fig = Figure()
+    plots.scene_snapshots(fig, {"rod": rod, "sphere_surface": sphere}, times, "serial")
+    for ax in fig.axes:  # (was: zero-length segments, so no sphere at all)
+        (dots,) = [line for line in ax.get_lines() if line.get_label() == "sphere_surface"]
+        assert len(dots.get_xdata()) == 30
+
+
+def test_movie_panels_are_at_true_scale_and_the_flow_picture_fills_its_canvas(
+    scene_run, tmp_path  # noqa: F811
+):
+    from matplotlib.figure import Figure
+    from PIL import Image
+
+    from parastokes import flow
+    from parastokes.flow.fields import frames_velocity, run_grid, save_png
+    from parastokes.flow.movie import _bodies_limits, draw_bodies_frame, render_frame
+
+    run = flow.load_run(scene_run[0])
+    fig = Figure(figsize=(8, 6), dpi=100, layout="constrained")
+    draw_bodies_frame(fig, run, 2, _bodies_limits(run))
+    render_frame(fig)
+    for ax in fig.axes:  # a micrometre as long across as up (a 45° body looked 18°)
+        (x0, y0), (x1, y1) = ax.transData.transform([(0.0, 0.0), (1.0, 1.0)])
+        assert x1 - x0 == pytest.approx(y1 - y0, rel=1e-6)
+    grid = run_grid(run, [4], None, None, (40,))
+    path = save_png(tmp_path / "f.png", grid, frames_velocity(run, [4], [1.0], grid.points()),
+                    run, 4, "t")
+    drawn = np.asarray(Image.open(path).convert("L")) < 245
+    assert drawn.mean() > 0.6  # (was 0.27: a 7 x 4 in canvas around a tall plane)
+    columns = np.flatnonzero(drawn.any(axis=0))
+    assert (columns[-1] - columns[0]) / drawn.shape[1] > 0.9

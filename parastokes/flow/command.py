@@ -31,7 +31,7 @@ __all__ = ["add_commands", "cmd_flow", "cmd_movie", "write_run_flow"]
 
 #: Nodes along the longest side: a picture's plane, a movie's plane, a box.
 PLANE_RESOLUTION, MOVIE_RESOLUTION, BOX_RESOLUTION = 128, 64, 32
-#: The most dots per inch of the flow picture (7 x 4 inches: 7 000 x 4 000 pixels).
+#: The most dots per inch of the flow picture (7 inches wide: 7 000 pixels).
 MAX_DPI = 1000
 #: The most pixels along a movie's side (8K), and the most frames per second.
 MAX_PIXELS, MAX_FPS = 7680, 1000.0
@@ -220,7 +220,7 @@ def add_commands(sub: Any, parents: list[argparse.ArgumentParser]) -> None:
                    help="leave out the background shear u∞ (the bodies' disturbance only)")
     p.add_argument("--out", metavar="STEM",
                    help="output files STEM.h5, STEM.xdmf, STEM.png (default: RUN_DIR/flow_<frame>)")
-    p.add_argument("--dpi", type=int, default=120, help="the picture's dots per inch (7 x 4 in)")
+    p.add_argument("--dpi", type=int, default=120, help="the picture's dots per inch (7 in wide)")
     p.set_defaults(func=cmd_flow)
 
     p = sub.add_parser("movie", parents=[*parents, common],

@@ -71,12 +71,14 @@ def _bodies_limits(run: RunFrames) -> np.ndarray:
 
 
 def draw_bodies_frame(fig: Figure, run: RunFrames, frame: int, limits: np.ndarray) -> None:
-    """The bodies of ``frame`` in the x-y and x-z planes on the fixed ``limits``."""
+    """The bodies of ``frame`` in the x-y and x-z planes on the fixed ``limits``, at true scale
+    (a micrometre as long across as up)."""
     axes = fig.subplots(2, 1, sharex=True)
     for ax, (i, j) in zip(axes, ((0, 1), (0, 2)), strict=True):
         draw_bodies(ax, run.data["bodies"], frame, (i, j), color="C0")
         ax.set_xlim(*limits[i])
         ax.set_ylim(*limits[j])
+        ax.set_aspect("equal", adjustable="box")
         ax.set_ylabel(f"{'xyz'[j]} (μm)" + (" (distance to the wall)" if j == 2 and run.wall
                                             else ""))
         ax.ticklabel_format(axis="y", useOffset=False)
