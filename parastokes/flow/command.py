@@ -65,12 +65,12 @@ def _finite(values: np.ndarray, grid: Any) -> None:
     import numpy as np
 
     points = grid.points()
-    bad = ~np.isfinite(np.reshape(values, (-1, len(points), 3))).all(axis=2).any(axis=0)
-    if bad.any():
-        where = points[np.argmax(bad)]
-        raise ValueError(f"the flow is not finite at {int(bad.sum())} of {len(bad)} nodes (the "
-                         f"first at {np.array2string(where, precision=4)}): bring the plane or "
-                         "box nearer to the bodies")
+    finite = np.isfinite(np.reshape(values, (-1, len(points), 3))).all(axis=(0, 2))
+    if not finite.all():
+        where = points[np.argmin(finite)]
+        raise ValueError(f"the flow is not finite at {int((~finite).sum())} of {finite.size} "
+                         f"nodes (the first at {np.array2string(where, precision=4)}): bring the "
+                         "plane or box nearer to the bodies")
 
 
 def cmd_flow(args: argparse.Namespace, console: Any) -> int:
