@@ -337,3 +337,15 @@ def test_without_imageio_ffmpeg_the_missing_package_is_named(run_dir, tmp_path, 
     err = capsys.readouterr().err
     assert "MP4 needs the ffmpeg of imageio-ffmpeg (pip install 'parastokes[movie]')" in err
     assert "missing None" not in err and f"--out {tmp_path / 'm.gif'}" in err
+
+
+def test_a_flow_that_is_not_finite_at_some_node_is_refused_naming_it():
+    from parastokes.flow.command import _finite
+
+    grid = grid_for(np.array([[0.0, 1.0], [0.0, 1.0], [0.0, 1.0]]), (3, 3, 2))
+    values = np.zeros((2, 18, 3))
+    _finite(values, grid)
+    values[1, 4, 2] = np.nan  # the second frame, node 4: (0.5, 0.5, 0)
+    with pytest.raises(ValueError, match=r"not finite at 1 of 18 nodes \(the first at "
+                                         r"\[0\.5 0\.5 0\. \]\)"):
+        _finite(values, grid)
