@@ -42,6 +42,7 @@ __all__ = [
     "Setup",
     "apply_overrides",
     "build",
+    "build_body",
     "build_system",
     "load",
     "loads",
@@ -243,6 +244,23 @@ def _read(path: Path, chain: tuple[Path, ...] = ()) -> dict[str, Any]:
     if not isinstance(base, str) or not base.strip() or "\0" in base:
         raise ConfigError([("base", f"must be a file name, got {base!r}")], source)
     return merge(_read(path.parent / base, (*chain, path.resolve())), data)
+
+
+def build_body(table: dict[str, Any], threads: int = 1, source: str = "body table") -> Any:
+    """One body built from its configuration table alone (what a ``[model]`` table holds, e.g.
+    ``{"kind": "rigid", "shape": "sphere", "n_points": 400}``), without a whole run
+    configuration: validated by its kind's section, resolved (its checks: a surface too coarse, a
+    body on the wall, a singular system), and built with its kernels on ``threads`` threads.
+    :class:`ConfigError` names what is wrong."""
+    issues: list[tuple[str, str]] = []
+    section = _model_section({"model": dict(table)}, issues, source)
+    if section is None:
+        raise ConfigError(issues, source)
+    try:
+        section.resolve()
+    except ValueError as error:
+        raise ConfigError([("model", str(error))], source) from None
+    return section.build(threads)
 
 
 def _model_section(data: dict[str, Any], issues: list[tuple[str, str]], source: str) -> Any:

@@ -34,7 +34,7 @@ from ...bodies.registry import (
 )
 from ...contracts import StepFailure
 from .coarse import coarse_shape
-from .shapes import Bacterium, Helix, PointCloud, Rod, Sphere, Spheroid, spacing
+from .shapes import MOTOR_RATE, Bacterium, Helix, PointCloud, Rod, Sphere, Spheroid, spacing
 from .slip import Squirmer, UserSlip
 from .system import RigidBody
 
@@ -229,7 +229,7 @@ class BacteriumModel(RigidBase):
     tail_points: int = Field(100, ge=2, description="Points on the flagellum's centre line.")
     handedness: Literal[1, -1] = Field(1, description="1 right-handed, -1 left-handed.")
     gap: Positive = Field(0.25, description="Gap between the head's rear and the flagellum.")
-    motor_rate: Finite = Field(2 * math.pi * 10, description="Flagellum's rotation rate about "
+    motor_rate: Finite = Field(MOTOR_RATE, description="Flagellum's rotation rate about "
                                "the body axis x relative to the head (rad/s).")
 
     def surface_shape(self) -> Bacterium:

@@ -38,6 +38,7 @@ from ...bodies.base import replace_params, require_positive
 from ...bodies.geometry import crossed_wall
 from ...bodies.sources import FluidSources
 from ...mobility import ResistanceResult, SolveError, solve_resistance
+from ...mobility.checks import MAX_SPACING_OVER_EPS
 from ...mobility.errors import OVERFLOW
 from ...mrs.velocity import thread_count
 from . import rotation
@@ -46,14 +47,12 @@ from .shapes import Sphere, spacing
 from .slip import Squirmer, UserSlip
 from .solve import MobilitySolution, Surface, mobility, placed
 
-__all__ = ["COARSE_RATIO", "POSE_COLUMNS", "RATE_COLUMNS", "RigidBody"]
+__all__ = ["POSE_COLUMNS", "RATE_COLUMNS", "RigidBody"]
 
 #: Columns of the state: c (0-2), q (3-6), φ (7).
 POSE_COLUMNS = 8
 #: Columns of the rates: U (0-2), Ω (3-5), dφ/dt (6).
 RATE_COLUMNS = 7
-#: A surface whose largest gap between neighbours exceeds this many ε leaks between its blobs.
-COARSE_RATIO = 5.0
 
 
 def _vector(name: str, value: Any, n: int) -> tuple[float, ...]:
@@ -106,12 +105,13 @@ class RigidBody:
             raise ValueError("slip: the squirmer's slip is defined on a sphere; use "
                              f"shape = Sphere, not {type(self.shape).__name__}")
         thread_count(self.n_threads)
-        gap = spacing(self.shape)
-        if gap > COARSE_RATIO * self.epsilon:
+        gap = spacing(self.shape)  # (the one rule of mobility.checks.check_surface)
+        if gap > MAX_SPACING_OVER_EPS * self.epsilon:
             raise ValueError(
                 f"epsilon: the surface is too coarse for ε = {self.epsilon:g}: its largest gap "
-                f"between neighbouring points is {gap:.3g} > {COARSE_RATIO:g} ε, so the fluid "
-                f"leaks between the blobs; use more points or ε >= {gap / COARSE_RATIO:.3g}")
+                f"between neighbouring points is {gap:.3g} > {MAX_SPACING_OVER_EPS:g} ε, so the "
+                f"fluid leaks between the blobs; use more points or ε >= "
+                f"{gap / MAX_SPACING_OVER_EPS:.3g}")
         if self.wall and crossed_wall(self.initial_state(), True):
             low = float(self.initial_state()[:, 2].min())
             raise ValueError(
