@@ -317,3 +317,11 @@ def test_movie_panels_are_at_true_scale_and_the_flow_picture_fills_its_canvas(
     assert drawn.mean() > 0.6  # (was 0.27: a 7 x 4 in canvas around a tall plane)
     columns = np.flatnonzero(drawn.any(axis=0))
     assert (columns[-1] - columns[0]) / drawn.shape[1] > 0.9
+
+
+def test_wall_contact_is_checked_on_the_shape_not_only_its_points(tmp_path, capsys):
+    # (a sphere of radius 1 at z = 0.997: all 40 points above the wall; it ran)
+    assert _check(tmp_path, _sphere().replace("[0.0, 0.0, 3.0]", "[0.0, 0.0, 0.997]")) == 2
+    assert "the body's shape reaches below the wall z = 0 between its surface points" in \
+        capsys.readouterr().err
+    assert _check(tmp_path, _sphere().replace("[0.0, 0.0, 3.0]", "[0.0, 0.0, 1.05]")) == 0

@@ -117,6 +117,22 @@ class RigidBody:
             raise ValueError(
                 f"position: the body reaches z = {low:.3g} <= 0, on or below the wall z = 0; "
                 f"raise position[2] by more than {-low:.3g}")
+        if self.wall and self._inside_at_wall():
+            raise ValueError(
+                f"position: the body's shape reaches below the wall z = 0 between its surface "
+                f"points (its centre is at z = {self.position[2]:.4g}); raise position[2]")
+
+    def _inside_at_wall(self, samples: int = 41) -> bool:
+        """Whether the wall plane z = 0 cuts the body's shape (not only its points: a sphere of
+        radius 1 at z = 0.997 has all its points above the wall): the plane's points under the
+        body, on a grid as wide as the body, tested with the shape's ``contains``."""
+        state = self.initial_state()
+        c, q, _ = self.pose(state)
+        reach = float(np.max(np.linalg.norm(self.shape.points(0.0), axis=1)))
+        side = np.linspace(-reach, reach, samples)
+        u, v = np.meshgrid(side, side)
+        plane = np.stack([c[0] + u.ravel(), c[1] + v.ravel(), np.zeros(u.size)], axis=1)
+        return bool(self.shape.contains((plane - c) @ rotation.matrix(q)).any())
 
     # ---- geometry --------------------------------------------------------------------------
     @property
