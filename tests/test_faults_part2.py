@@ -325,3 +325,14 @@ def test_wall_contact_is_checked_on_the_shape_not_only_its_points(tmp_path, caps
     assert "the body's shape reaches below the wall z = 0 between its surface points" in \
         capsys.readouterr().err
     assert _check(tmp_path, _sphere().replace("[0.0, 0.0, 3.0]", "[0.0, 0.0, 1.05]")) == 0
+
+
+def test_a_base_of_another_kind_gives_no_keys_of_its_kind(tmp_path):
+    quick = ROOT / "experiments" / "hodmd" / "quick_rod.toml"  # base: an extrapolated G
+    cfg, resolved = config.load(quick)  # (was: the base's lagrange, dt_ratio "unknown keys")
+    assert cfg.coarse.kind == "hodmd" and resolved.n_auxiliary == 1
+    assert cfg.coarse.g2.grid_factor == 2 and cfg.model.n_points == 61
+    based = _config(tmp_path, f'base = "{quick}"\n[model]\nkind = "chain"\n'
+                              "[coarse.g2]\ngrid_factor = 1\n", "chain.toml")
+    cfg, _ = config.load(based)  # another body: none of the rod's keys (n_points, length)
+    assert cfg.model.kind == "chain" and cfg.coarse.kind == "hodmd"

@@ -243,7 +243,23 @@ def _read(path: Path, chain: tuple[Path, ...] = ()) -> dict[str, Any]:
         return data
     if not isinstance(base, str) or not base.strip() or "\0" in base:
         raise ConfigError([("base", f"must be a file name, got {base!r}")], source)
-    return merge(_read(path.parent / base, (*chain, path.resolve())), data)
+    return merge(_kinds_switched(_read(path.parent / base, (*chain, path.resolve())), data), data)
+
+
+#: The tables whose ``kind`` selects their keys, and the kind each has without one.
+_KINDED = {"model": None, "coarse": coarse_registry.DEFAULT}
+
+
+def _kinds_switched(base: dict[str, Any], data: dict[str, Any]) -> dict[str, Any]:
+    """``base`` without the tables whose ``kind`` ``data`` changes (``[coarse] kind = "hodmd"``
+    over a base of the extrapolated family): the keys of another kind are not inherited."""
+    out = dict(base)
+    for table, default in _KINDED.items():
+        mine, theirs = data.get(table), base.get(table)
+        if isinstance(mine, dict) and isinstance(theirs, dict) and "kind" in mine and \
+                mine["kind"] != theirs.get("kind", default):
+            del out[table]
+    return out
 
 
 def build_body(table: dict[str, Any], threads: int = 1, source: str = "body table") -> Any:
