@@ -336,3 +336,16 @@ def test_a_base_of_another_kind_gives_no_keys_of_its_kind(tmp_path):
                               "[coarse.g2]\ngrid_factor = 1\n", "chain.toml")
     cfg, _ = config.load(based)  # another body: none of the rod's keys (n_points, length)
     assert cfg.model.kind == "chain" and cfg.coarse.kind == "hodmd"
+
+
+def test_a_background_flow_that_went_nan_is_a_solve_failure_not_a_configuration_error():
+    from parastokes import rigid
+    from parastokes.contracts import StepFailure
+    from parastokes.mobility import solve_mobility
+
+    surface = rigid.sphere(1.0, 40).place((0.0, 0.0, 3.0))
+    background = np.zeros((40, 3))
+    background[7, 1] = np.nan  # (another body of the scene blew up)
+    with pytest.raises(StepFailure, match="background: contains non-finite values .1 of 120.; "
+                                          "the other bodies' flow is not finite"):
+        solve_mobility(surface, mu=1.0, background=background)
