@@ -358,7 +358,7 @@ def test_tune_outputs_are_three_distinct_new_files_unless_overwrite(tmp_path):
     toml.parent.mkdir()
     record.write_text("{}")
     assert outputs(toml, overwrite=True) == (toml, record, figure)
-    with pytest.raises(ValueError, match="t.json already exist"):
+    with pytest.raises(ValueError, match=r"t\.json already exist"):
         outputs(toml, overwrite=False)
 
 
