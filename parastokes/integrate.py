@@ -57,7 +57,7 @@ import numpy as np
 
 from . import stiff
 from .bodies import contract
-from .contracts import System
+from .contracts import StepFailure, System
 from .stepping.registry import compiled_loop
 from .stiff import Rosenbrock
 
@@ -327,7 +327,10 @@ def _python_steps(
     take = (_implicit_stepper(system, scheme) if isinstance(scheme, Rosenbrock)
             else functools.partial(step, system, scheme))
     for i in range(n):
-        x_new = take(t0 + i * dt, x, dt)
+        try:
+            x_new = take(t0 + i * dt, x, dt)
+        except StepFailure as error:  # (a failed mobility solve): no result, a blow-up
+            raise BlowUpError(t0 + (i + 1) * dt, i, math.nan, x, str(error)) from None
         if not np.isfinite(x_new).all():
             return x, worst, i, NON_FINITE, math.nan
         m = _monitor(system, x_new)
@@ -386,7 +389,7 @@ def run_result(
     if outcome == BEYOND:
         reason = f"monitor beyond {blowup_factor:g} x its limit {system.monitor_limit:g}"
         if m == math.inf:  # the monitors' sign of a point on or below the wall z = 0
-            reason += " (infinite: a point reached the wall z = 0; a smaller step keeps it off)"
+            reason += " (infinite: a point reached the wall z = 0)"
         raise BlowUpError(t, taken, m, x, reason)
     end = projected(system, x, t0 + taken * dt, max(taken - 1, 0))
     return RunResult(end, worst, taken, dt, completed=outcome == DONE)
@@ -473,6 +476,8 @@ def _adaptive(system: System, scheme: AnyScheme, x: np.ndarray, t0: float, t1: f
         end, counts = stiff.adaptive_steps(stepper, x, t0, t1, dt, *tol, accept)
     except (stiff.StiffSolveError, stiff.StepSizeError) as error:
         raise _stiff_blowup(error, stepper.steps, x) from error
+    except StepFailure as error:  # (a failed mobility solve): no result, a blow-up
+        raise BlowUpError(t0, stepper.steps, math.nan, x, str(error)) from None
     log.debug("adaptive %s on [%g, %g]: %d steps accepted, %d rejected", scheme.name, t0, t1,
               counts.accepted, counts.rejected)
     return RunResult(projected(system, end, t1), worst[0], counts.accepted, counts.last_step,

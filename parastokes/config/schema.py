@@ -40,6 +40,12 @@ __all__ = [
 #: The schemes of ``parastokes.integrate.SCHEMES`` (explicit Runge-Kutta; linearly implicit
 #: Rosenbrock-W, docs/stiff.md).
 Scheme = Literal["euler", "rk2", "rk4", "lieuler", "ros2", "ros2-krylov"]
+#: The most nodes of a flow grid along one side (``output.flow_resolution``, ``parastokes flow
+#: --resolution``): 4096² nodes of a plane are 400 MB of velocities per frame.
+MAX_FLOW_RESOLUTION = 4096
+#: The largest coordinate (μm) of a flow plane or box: the wall's image terms go as the fifth
+#: power of the distance, which overflows past about 1e61.
+MAX_FLOW_COORDINATE = 1e30
 
 
 class _Section(BaseModel):
@@ -165,7 +171,8 @@ class Output(_Section):
         "through the bodies.",
     )
     flow_resolution: int = Field(
-        64, ge=2, description="Nodes of flow_every's plane along its longest side (square cells)."
+        64, ge=2, le=MAX_FLOW_RESOLUTION,
+        description="Nodes of flow_every's plane along its longest side (square cells).",
     )
     tracked_points: list[Index] | dict[str, list[Index]] | None = Field(
         None,
