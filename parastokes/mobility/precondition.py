@@ -60,8 +60,9 @@ def block_factors(sset: SurfaceSet, precondition: str) -> list[LabFactor | Rotat
 
 def near_pairs(sset: SurfaceSet, gap: float | None = None) -> list[tuple[int, int]]:
     """Pairs (a, b), b < a, whose surfaces come closer than ``gap`` (default
-    :data:`NEAR_GAP`) times the smaller body's length. Pairs whose bounding spheres (about the
-    centers) are that far apart are skipped before any point distance is computed."""
+    :data:`NEAR_GAP`) times the smaller body's length, by a then b. Only pairs whose bounding
+    spheres (about the centers) come that close are looked at (a k-d tree of the centers: no
+    B x B array for a suspension of thousands of bodies)."""
     gap = NEAR_GAP if gap is None else gap
     placed = sset.placed
     if gap <= 0 or len(placed) < 2:
@@ -69,16 +70,18 @@ def near_pairs(sset: SurfaceSet, gap: float | None = None) -> list[tuple[int, in
     centers = np.array([p.center for p in placed])
     reach = np.array([np.max(np.linalg.norm(p.points - p.center, axis=1)) for p in placed])
     sizes = np.array([p.surface.size for p in placed])
-    limits = gap * np.minimum(sizes[:, None], sizes[None, :])
-    apart = np.linalg.norm(centers[:, None] - centers[None, :], axis=-1)
-    maybe = np.tril(apart - reach[:, None] - reach[None, :] < limits, k=-1)
+    candidates = cKDTree(centers).query_pairs(
+        2 * reach.max() + gap * sizes.max(), output_type="ndarray")
     trees: dict[int, cKDTree] = {}
     pairs = []
-    for a, b in np.argwhere(maybe):  # row-major: by a, then b
+    for b, a in sorted(map(tuple, np.sort(candidates, axis=1)), key=lambda p: (p[1], p[0])):
+        limit = gap * min(sizes[a], sizes[b])
+        if np.linalg.norm(centers[a] - centers[b]) - reach[a] - reach[b] >= limit:
+            continue
         if b not in trees:
             trees[b] = cKDTree(placed[b].points)
-        dist, _ = trees[b].query(placed[a].points, k=1, distance_upper_bound=limits[a, b])
-        if np.min(dist) < limits[a, b]:
+        dist, _ = trees[b].query(placed[a].points, k=1, distance_upper_bound=limit)
+        if np.min(dist) < limit:
             pairs.append((int(a), int(b)))
     return pairs
 
