@@ -89,3 +89,26 @@ def test_iterations_stay_flat_as_bodies_are_added():
                              external_force=(0.0, 0.0, -1.0)).info.iterations
               for side in (2, 3, 4)]
     assert max(counts) - min(counts) <= 2 and max(counts) <= 10, counts
+
+
+def test_the_batched_solves_of_one_surface_equal_each_bodys_own():
+    """RotatedBatch (the copies of one surface solved at once) against each placement's own
+    RotatedFactor: the saddle solve (forces, motions) and M⁻¹ g to round-off."""
+    from scipy.spatial.transform import Rotation
+
+    from parastokes.mobility.selfsolve import RotatedBatch, RotatedFactor, saddle_solve
+
+    s = sphere(42)
+    rng = np.random.default_rng(5)
+    rotations = Rotation.random(5, random_state=rng).as_matrix()
+    factors = [RotatedFactor(s.place(rng.normal(size=3), r), 1.0) for r in rotations]
+    g, ft = rng.normal(size=(5, 126)), rng.normal(size=(5, 6))
+    forces, motions = RotatedBatch(factors).saddle(g, ft)
+    for k, factor in enumerate(factors):
+        f_k, y_k = saddle_solve(factor, factor.motion, g[k], ft[k])
+        np.testing.assert_allclose(forces[k], f_k, rtol=0, atol=1e-12 * np.abs(f_k).max())
+        np.testing.assert_allclose(motions[k], y_k, rtol=0, atol=1e-12 * np.abs(y_k).max())
+    np.testing.assert_allclose(RotatedBatch(factors).solve(g)[2], factors[2].solve(g[2]),
+                               rtol=0, atol=1e-12 * np.abs(factors[2].solve(g[2])).max())
+    with pytest.raises(ValueError, match="share one body-frame"):
+        RotatedBatch([factors[0], RotatedFactor(sphere(50).place(), 1.0)])
