@@ -17,9 +17,10 @@ what is compared is the interaction.
    speed against the Rotne–Prager sum, and for two spheres against the two-sphere mobility
    functions (:func:`parastokes.mobility.two_spheres.pair_mobility`).
 
-Usage (from the repository root): ``python -m validation.many_bodies [--full]``: the tables of
-docs/validation.md (``--full``: also the sizes of the slow tests; about a minute, five with
-``--full``).
+Usage (from the repository root): ``python -m validation.many_bodies [--full] [--toml]``: the
+tables of docs/validation.md (``--full``: also the sizes of the slow tests; half a minute, two
+minutes with ``--full`` on an idle core); ``--toml``: the values of docs/numbers.toml's
+[many_cloud] and [many_row] instead.
 """
 
 from __future__ import annotations
@@ -107,47 +108,77 @@ def row(n: int, count: int, spacing: float) -> dict:
     return out
 
 
-def cloud_table(rows: Sequence[tuple[int, int, float, Sequence[int]]]) -> list[dict]:
-    out = []
-    print("| N (points) | spheres | R/a | volume fraction | seed | mean speed / one sphere's "
-          "| Rotne–Prager | 1 + (6/5)(n - 1) a/R | (mean - 1) / ((6/5)(n - 1) a/R) | GMRES |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
-    for n, count, radius, seeds in rows:
-        for seed in seeds:
-            c = cloud(n, count, radius, seed)
-            out.append(c)
-            print(f"| {n} | {count} | {radius:g} | {c['fraction']:.3f} | {seed} | "
-                  f"{c['mean']:.4f} | {c['rotne_prager']:.4f} | {c['theory']:.4f} | "
-                  f"{(c['mean'] - 1) / (c['theory'] - 1):.4f} | {c['iterations']} |",
-                  flush=True)
+def cloud_values(rows: Sequence[tuple[int, int, float, Sequence[int]]]) -> dict[str, list]:
+    """The cloud table's columns (docs/numbers.toml [many_cloud]), one entry per (row, seed)."""
+    clouds = [cloud(n, count, radius, seed) for n, count, radius, seeds in rows
+              for seed in seeds]
+    keys = ("points", "count", "radius", "seed", "fraction", "mean", "rotne_prager", "theory",
+            "iterations")
+    out: dict[str, list] = {key: [c[key] for c in clouds] for key in keys}
+    out["collective"] = [(c["mean"] - 1) / (c["theory"] - 1) for c in clouds]
     return out
 
 
-def row_table(rows: Sequence[tuple[int, int, Sequence[float]]]) -> list[dict]:
-    out = []
-    print("| N (points) | spheres | spacing/a | end, middle speed / one sphere's "
-          "| Rotne–Prager | largest relative difference | two spheres: ours / series |")
-    print("|---|---|---|---|---|---|---|")
+def row_values(rows: Sequence[tuple[int, int, Sequence[float]]]) -> dict[str, list]:
+    """The row table's columns (docs/numbers.toml [many_row]), one entry per (row, spacing):
+    the end and middle sphere's speeds, their Rotne–Prager values, the largest relative
+    difference over the row, and a pair's speed against the two-sphere series."""
+    out: dict[str, list] = {key: [] for key in (
+        "points", "spacing", "end", "middle", "rp_end", "rp_middle", "difference", "pair",
+        "series")}
     for n, count, spacings in rows:
         for spacing in spacings:
             r, pair = row(n, count, spacing), row(n, 2, spacing)
-            out += [r, pair]
-            s, rp = np.array(r["speeds"]), np.array(r["rotne_prager"])
-            mid = count // 2
-            print(f"| {n} | {count} | {spacing:g} | {s[0]:.4f}, {s[mid]:.4f} | "
-                  f"{rp[0]:.4f}, {rp[mid]:.4f} | {np.max(np.abs(s / rp - 1)):.1e} | "
-                  f"{pair['speeds'][0]:.4f} / {pair['pair']:.4f} |", flush=True)
+            speeds, reference = np.array(r["speeds"]), np.array(r["rotne_prager"])
+            out["points"].append(n)
+            out["spacing"].append(spacing)
+            out["end"].append(float(speeds[0]))
+            out["middle"].append(float(speeds[count // 2]))
+            out["rp_end"].append(float(reference[0]))
+            out["rp_middle"].append(float(reference[count // 2]))
+            out["difference"].append(float(np.max(np.abs(speeds / reference - 1))))
+            out["pair"].append(float(pair["speeds"][0]))
+            out["series"].append(float(pair["pair"]))
     return out
+
+
+def print_tables(clouds: dict[str, list], rows: dict[str, list]) -> None:
+    """The markdown tables of docs/validation.md."""
+    print("| N (points) | spheres | R/a | volume fraction | seed | mean speed / one sphere's "
+          "| Rotne–Prager | 1 + (6/5)(n - 1) a/R | (mean - 1) / ((6/5)(n - 1) a/R) | GMRES |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for i in range(len(clouds["mean"])):
+        c = {key: value[i] for key, value in clouds.items()}
+        print(f"| {c['points']} | {c['count']} | {c['radius']:g} | {c['fraction']:.3f} | "
+              f"{c['seed']} | {c['mean']:.4f} | {c['rotne_prager']:.4f} | {c['theory']:.4f} | "
+              f"{c['collective']:.4f} | {c['iterations']} |")
+    print()
+    print("| N (points) | spacing/a | end sphere | middle sphere | Rotne–Prager: end | middle "
+          "| largest relative difference | two spheres | their series |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for i in range(len(rows["end"])):
+        r = {key: value[i] for key, value in rows.items()}
+        print(f"| {r['points']} | {r['spacing']:g} | {r['end']:.4f} | {r['middle']:.4f} | "
+              f"{r['rp_end']:.4f} | {r['rp_middle']:.4f} | {r['difference']:.1e} | "
+              f"{r['pair']:.4f} | {r['series']:.4f} |")
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--full", action="store_true", help="also the slow tests' sizes")
+    parser.add_argument("--toml", action="store_true", help="print docs/numbers.toml values")
     args = parser.parse_args()
-    clouds = CLOUDS if args.full else CLOUDS[:2]
-    cloud_table(clouds)
-    print()
-    row_table(ROWS if args.full else ROWS[:1])
+    clouds = cloud_values(CLOUDS if args.full else CLOUDS[:2])
+    rows = row_values(ROWS if args.full else ROWS[:1])
+    if args.toml:
+        from validation.report import toml_values
+
+        print("[many_cloud]")
+        print(toml_values({k: v for k, v in clouds.items() if k not in ("count", "seed")}))
+        print("[many_row]")
+        print(toml_values(rows))
+        return
+    print_tables(clouds, rows)
 
 
 if __name__ == "__main__":
