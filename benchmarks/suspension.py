@@ -41,7 +41,7 @@ import numpy as np
 import scipy.linalg as sla
 from scipy.sparse.linalg import LinearOperator, gmres
 
-from parastokes.config import build, loads
+from parastokes import config
 from parastokes.mobility import RigidSurface
 from parastokes.mobility.sphere import fibonacci_sphere, sphere_spacing
 from parastokes.mobility.system import SurfaceSet
@@ -51,39 +51,35 @@ MU = 1e-6
 #: a Stokes speed of 1 μm/s for a sphere of radius 1 μm: 6 π μ a
 WEIGHT = 6 * math.pi * MU
 
-REST = """
-[time]
-t1 = 0.1
-[fine]
-dt = 0.05
-[coarse]
-dt_ratio = 2
-[parareal]
-n_slices = 2
-[execution]
-executor = "serial"
-"""
+def scene_config(placement: dict, points: int) -> tuple:
+    """The configuration (and its resolved values) of one suspension of spheres of ``points``
+    points (``placement``: the keys of its table) sedimenting above the wall: the solvers of a
+    tiny serial run, which the benchmark does not use."""
+    data = {
+        "title": "suspension benchmark",
+        "scene": {"viscosity": MU, "wall": True},
+        "suspensions": [{"name": "s", **placement, "body": {
+            "kind": "rigid", "radius": 1.0, "n_points": points,
+            "force": [0.0, 0.0, -WEIGHT]}}],
+        "time": {"t1": 0.1}, "fine": {"dt": 0.05}, "coarse": {"dt_ratio": 2},
+        "parareal": {"n_slices": 2}, "execution": {"executor": "serial"},
+    }
+    cfg = config.parse(data)
+    return cfg, config.resolve(cfg)
 
 
-def scene_text(placement: str, points: int) -> str:
-    """A config of one suspension of spheres (``placement``: its keys) above the wall."""
-    return (f"title = 'suspension benchmark'\n[scene]\nviscosity = {MU}\nwall = true\n"
-            f"[[suspensions]]\nname = 's'\n{placement}\n[suspensions.body]\nkind = 'rigid'\n"
-            f"radius = 1.0\nn_points = {points}\nforce = [0.0, 0.0, {-WEIGHT!r}]\n{REST}")
-
-
-def random_placement(count: int, fraction: float) -> str:
+def random_placement(count: int, fraction: float) -> dict:
     """``count`` spheres at random in a cube at volume ``fraction``, half a radius above the
     wall."""
     edge = (count * 4 / 3 * math.pi / fraction) ** (1 / 3)
-    return (f"placement = 'random'\ncount = {count}\nsize = [{edge}, {edge}, {edge}]\n"
-            f"center = [0.0, 0.0, {0.5 + edge / 2}]\nseed = 1")
+    return {"placement": "random", "count": count, "size": [edge] * 3,
+            "center": [0.0, 0.0, 0.5 + edge / 2], "seed": 1}
 
 
-def lattice_placement(spacing: float) -> str:
+def lattice_placement(spacing: float) -> dict:
     """4 x 4 x 4 spheres ``spacing`` apart, the lowest layer at height 3."""
-    return (f"placement = 'lattice'\ncounts = [4, 4, 4]\nspacing = {spacing}\n"
-            f"center = [0.0, 0.0, {3 + 1.5 * spacing}]")
+    return {"placement": "lattice", "counts": [4, 4, 4], "spacing": spacing,
+            "center": [0.0, 0.0, 3 + 1.5 * spacing]}
 
 
 def cpu_best(fn: Callable[[], object], rounds: int) -> float:
@@ -96,13 +92,13 @@ def cpu_best(fn: Callable[[], object], rounds: int) -> float:
     return min(times)
 
 
-def measure(text: str, rounds: int) -> dict:
-    """One evaluation of the scene of ``text`` (its coupled solve) against one product of its
+def measure(setup: tuple, rounds: int) -> dict:
+    """One evaluation of the scene of ``setup`` (:func:`scene_config`: its coupled solve)
+    against one product of its
     operator (see the module), alternated ``rounds`` times; the last evaluation under
     tracemalloc for its memory. The first evaluation includes the body-frame factorization of
     the sphere (once per shape: a few ms at 42 points)."""
-    cfg, resolved = loads(text)
-    scene = build(cfg, resolved).system
+    scene = config.build(*setup).system
     x0 = scene.initial_state()
     surfaces = [body.surface(0.0, block) for body, block in zip(scene.bodies, scene.blocks(x0),
                                                                  strict=True)]
@@ -135,7 +131,7 @@ def measure(text: str, rounds: int) -> dict:
 def scaling(counts: list[int], points: int, fraction: float, rounds: int) -> list[dict]:
     out = []
     for count in counts:
-        row = measure(scene_text(random_placement(count, fraction), points),
+        row = measure(scene_config(random_placement(count, fraction), points),
                       rounds if count < 1000 else 1)
         out.append(row)
         print(f"    {row['bodies']:5d} | {row['points']:6d} | {row['iterations']:3d} | "
@@ -148,7 +144,8 @@ def scaling(counts: list[int], points: int, fraction: float, rounds: int) -> lis
 def scene64(rounds: int) -> list[dict]:
     out = []
     for spacing in (3.0, 4.0):
-        row = {"spacing": spacing, **measure(scene_text(lattice_placement(spacing), 150), rounds)}
+        row = {"spacing": spacing,
+               **measure(scene_config(lattice_placement(spacing), 150), rounds)}
         out.append(row)
         print(f"    {spacing:4.1f} | {row['iterations']:3d} | {row['evaluation_s']:6.2f} | "
               f"{row['product_s']:5.3f} | {row['ratio']:5.2f}", flush=True)

@@ -9,23 +9,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from configs import SERIAL_SOLVERS
 
 from parastokes import cli, config
 from parastokes.config import ConfigError, loads
 from parastokes.config import placement as placement_module
-
-REST = """
-[time]
-t1 = 0.02
-[fine]
-dt = 0.01
-[coarse]
-dt_ratio = 2
-[parareal]
-n_slices = 2
-[execution]
-executor = "serial"
-"""
 
 SPHERE = """
 [suspensions.body]
@@ -40,7 +28,7 @@ force = [0.0, 0.0, -1.0]
 def text(suspension: str, *, body: str = SPHERE, wall: bool = True, extra: str = "") -> str:
     """A scene of one [[suspensions]] table (``suspension``: its keys) of ``body``."""
     fluid = f"[scene]\nviscosity = 1.0\nwall = {'true' if wall else 'false'}\n"
-    return f"title = 't'\n{fluid}\n[[suspensions]]\n{suspension}\n{body}{extra}{REST}"
+    return f"title = 't'\n{fluid}\n[[suspensions]]\n{suspension}\n{body}{extra}{SERIAL_SOLVERS}"
 
 
 def issues(source: str) -> dict[str, str]:

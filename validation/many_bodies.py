@@ -142,25 +142,27 @@ def row_values(rows: Sequence[tuple[int, int, Sequence[float]]]) -> dict[str, li
     return out
 
 
-def print_tables(clouds: dict[str, list], rows: dict[str, list]) -> None:
-    """The markdown tables of docs/validation.md."""
-    print("| N (points) | spheres | R/a | volume fraction | seed | mean speed / one sphere's "
-          "| Rotne–Prager | 1 + (6/5)(n - 1) a/R | (mean - 1) / ((6/5)(n - 1) a/R) | GMRES |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
-    for i in range(len(clouds["mean"])):
-        c = {key: value[i] for key, value in clouds.items()}
-        print(f"| {c['points']} | {c['count']} | {c['radius']:g} | {c['fraction']:.3f} | "
-              f"{c['seed']} | {c['mean']:.4f} | {c['rotne_prager']:.4f} | {c['theory']:.4f} | "
-              f"{c['collective']:.4f} | {c['iterations']} |")
-    print()
-    print("| N (points) | spacing/a | end sphere | middle sphere | Rotne–Prager: end | middle "
-          "| largest relative difference | two spheres | their series |")
-    print("|---|---|---|---|---|---|---|---|---|")
-    for i in range(len(rows["end"])):
-        r = {key: value[i] for key, value in rows.items()}
-        print(f"| {r['points']} | {r['spacing']:g} | {r['end']:.4f} | {r['middle']:.4f} | "
-              f"{r['rp_end']:.4f} | {r['rp_middle']:.4f} | {r['difference']:.1e} | "
-              f"{r['pair']:.4f} | {r['series']:.4f} |")
+#: The columns of the two tables of docs/validation.md: (heading, value, format).
+CLOUD_COLUMNS = (("N (points)", "points", "d"), ("spheres", "count", "d"), ("R/a", "radius", "g"),
+                 ("volume fraction", "fraction", ".3f"), ("seed", "seed", "d"),
+                 ("mean speed / one sphere's", "mean", ".4f"),
+                 ("Rotne–Prager", "rotne_prager", ".4f"),
+                 ("1 + (6/5)(n - 1) a/R", "theory", ".4f"),
+                 ("(mean - 1) / ((6/5)(n - 1) a/R)", "collective", ".4f"),
+                 ("GMRES", "iterations", "d"))
+ROW_COLUMNS = (("N (points)", "points", "d"), ("spacing/a", "spacing", "g"),
+               ("end sphere", "end", ".4f"), ("middle sphere", "middle", ".4f"),
+               ("Rotne–Prager: end", "rp_end", ".4f"), ("middle", "rp_middle", ".4f"),
+               ("largest relative difference", "difference", ".1e"),
+               ("two spheres", "pair", ".4f"), ("their series", "series", ".4f"))
+
+
+def print_table(columns: Sequence[tuple[str, str, str]], values: dict[str, list]) -> None:
+    """A markdown table of ``values`` (name -> one entry per row) in ``columns``."""
+    print("| " + " | ".join(heading for heading, _, _ in columns) + " |")
+    print("|" + "---|" * len(columns))
+    for i in range(len(values[columns[0][1]])):
+        print("| " + " | ".join(format(values[key][i], spec) for _, key, spec in columns) + " |")
 
 
 def main() -> None:
@@ -178,7 +180,9 @@ def main() -> None:
         print("[many_row]")
         print(toml_values(rows))
         return
-    print_tables(clouds, rows)
+    print_table(CLOUD_COLUMNS, clouds)
+    print()
+    print_table(ROW_COLUMNS, rows)
 
 
 if __name__ == "__main__":
