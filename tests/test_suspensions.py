@@ -221,6 +221,7 @@ def test_bad_poses_files_are_named(tmp_path):
         return dict(info.value.issues)["suspensions[0].file"]
 
     assert "3 numbers (x y z) or 7" in file_issue("1 2 3 4\n")
+    assert "3 numbers (x y z) or 7" in file_issue("# no pose\n")
     assert "not a finite number" in file_issue("0 0 5\n0 nan 5\n")
     assert "the quaternion is zero" in file_issue("0 0 5 0 0 0 0\n")
     assert "body rigid1 reaches z = -0.46" in file_issue("0 0 5\n3 0 0.5\n")

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -140,25 +141,28 @@ def read_poses(path: Path) -> np.ndarray:
             data = np.load(path, allow_pickle=False)
         else:
             text = path.read_text(encoding="utf-8").replace(",", " ")
-            data = np.loadtxt(text.splitlines(), ndmin=2)
+            with warnings.catch_warnings():  # a file without numbers: refused below, by shape
+                warnings.simplefilter("ignore", UserWarning)
+                data = np.loadtxt(text.splitlines(), ndmin=2)
     except PlacementError:
         raise
     except (OSError, ValueError, UnicodeDecodeError) as error:
         raise PlacementError("file", f"cannot read {path}: {error}") from None
     data = np.asarray(data, dtype=float)
-    if data.ndim != 2 or data.shape[1] not in (3, 7) or len(data) == 0:
+    if data.ndim != 2 or len(data) == 0 or data.shape[1] not in (3, 7):
         raise PlacementError("file", f"{path}: expected one body per line with 3 numbers (x y z) "
                                      f"or 7 (x y z qw qx qy qz), got an array of shape "
                                      f"{data.shape}")
     bad = np.flatnonzero(~np.isfinite(data).all(axis=1))
     if len(bad):
-        raise PlacementError("file", f"{path}: line {bad[0] + 1} holds a value that is not a "
-                                     "finite number")
+        raise PlacementError("file", f"{path}: pose {bad[0]} (counted from 0, as the bodies) "
+                                     "holds a value that is not a finite number")
     if data.shape[1] == 7:
         norms = np.linalg.norm(data[:, 3:], axis=1)
         zero = np.flatnonzero(norms == 0.0)
         if len(zero):
-            raise PlacementError("file", f"{path}: line {zero[0] + 1}: the quaternion is zero, "
-                                         "no rotation; give a unit quaternion (1 0 0 0: none)")
+            raise PlacementError("file", f"{path}: pose {zero[0]} (counted from 0): the "
+                                         "quaternion is zero, no rotation; give a unit "
+                                         "quaternion (1 0 0 0: none)")
         data[:, 3:] /= norms[:, None]
     return data
