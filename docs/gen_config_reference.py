@@ -64,6 +64,15 @@ Lagrange nodes then name `"body.parameter"` (`coarse.lagrange."rod.epsilon"`, in
 units) or `viscosity` (the one fluid's). Giving both `[model]` and `[[bodies]]` is an error.
 See docs/tutorial.md, "Several bodies in one flow".
 
+Many copies of one body (a suspension): a `[[suspensions]]` table with the body in its
+`[suspensions.body]` sub-table (a `[[bodies]]` table without `name` and position) places them on
+a lattice, at random without overlap in a box or a sphere (seeded, to a count or a volume
+fraction), or at the poses of a file, and names them `name0`, `name1`, ... They join the
+`[[bodies]]` of the scene (a scene may have both) and every check of a scene applies to them; a
+suspension that cannot be placed is refused with its key, e.g. `suspensions[0].volume_fraction:
+random placement gave up: ...`. See the `suspensions` section below and docs/bodies.md,
+"Suspensions".
+
 The `[coarse]` section is the section of its coarse-solver family (`kind`, default
 `"extrapolated"`; a family of your own is `kind = "package.module:ClassName"`, docs/extending.md).
 
@@ -136,6 +145,7 @@ def render() -> str:
         ("(top level)", schema.Config),
         *((f'model (kind = "{name}")', registry.get(name).section) for name in registry.BUILTIN),
         ("scene", SceneSettings),
+        ("suspensions", schema.Suspension),
         ("time", schema.Time),
         ("fine", schema.Fine),
         *((f'coarse (kind = "{name}")', coarse_registry.get(name))

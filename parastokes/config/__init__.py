@@ -224,6 +224,16 @@ def _text(path: Path) -> bytes:
     return data
 
 
+def _anchor_files(data: dict[str, Any], folder: Path) -> None:
+    """Make the relative ``file`` of every ``[[suspensions]]`` table of ``data`` relative to
+    ``folder``, the folder of the file that names it (so a variant through ``base`` finds it)."""
+    tables = data.get("suspensions")
+    for table in tables if isinstance(tables, list) else []:
+        name = table.get("file") if isinstance(table, dict) else None
+        if isinstance(name, str) and name and not Path(name).is_absolute():
+            table["file"] = str(folder / name)
+
+
 def _read(path: Path, chain: tuple[Path, ...] = ()) -> dict[str, Any]:
     """The TOML table of ``path``, merged onto its ``base`` file (a path relative to it), if any."""
     source = str(path)
@@ -238,6 +248,7 @@ def _read(path: Path, chain: tuple[Path, ...] = ()) -> dict[str, Any]:
         raise ConfigError([("", f"not UTF-8 text, as TOML must be ({error})")], source) from None
     except tomllib.TOMLDecodeError as error:
         raise ConfigError([("", f"TOML syntax error: {error}")], source) from None
+    _anchor_files(data, path.parent)
     base = data.pop("base", None)
     if base is None:
         return data
@@ -304,19 +315,26 @@ def _section_of_kind(data: dict[str, Any], key: str, section_of: Any,
         return None
 
 
+#: The top-level tables of a scene: its bodies, its suspensions (many copies of one body,
+#: :mod:`.suspension`) and its fluid.
+SCENE_KEYS = ("bodies", "suspensions", "scene")
+
+
 def _scene_data(data: dict[str, Any], issues: list[tuple[str, str]], source: str
                 ) -> dict[str, Any]:
-    """``data`` with its ``[[bodies]]`` and ``[scene]`` replaced by their scene section as the
-    ``model`` (:mod:`.scene`); issues for a ``[scene]`` without bodies or both forms at once."""
-    rest = {k: v for k, v in data.items() if k not in ("bodies", "scene")}
-    if "bodies" not in data:
+    """``data`` with its ``[[bodies]]``, ``[[suspensions]]`` and ``[scene]`` replaced by their
+    scene section as the ``model`` (:mod:`.scene`); issues for a ``[scene]`` without bodies or
+    both forms at once."""
+    rest = {k: v for k, v in data.items() if k not in SCENE_KEYS}
+    if "bodies" not in data and "suspensions" not in data:
         issues.append(("scene", "[scene] sets the fluid of [[bodies]] tables; add them, or move "
                                 "its keys into [model]"))
         return rest
     if "model" in data:
         issues.append(("model", "give either [model] (one body) or [[bodies]] tables (a scene), "
                                 "not both; move [model] into a [[bodies]] table"))
-        issues.append(("bodies", "given together with [model]; keep one of the two"))
+        issues += [(key, "given together with [model]; keep one of the two")
+                   for key in ("bodies", "suspensions") if key in data]
         return rest
     section = scene_section(data, issues, source)
     return rest | {"model": section} if section is not None else rest
@@ -328,11 +346,12 @@ def parse(data: dict[str, Any], source: str = "") -> Config:
     The ``[model]`` table is validated by the section of its kind
     (:mod:`parastokes.bodies.registry`; an unknown kind is an error listing the registered ones),
     the ``[coarse]`` table by the section of its family (:mod:`parastokes.coarse.registry`),
-    ``[[bodies]]`` tables and ``[scene]`` make one scene section (:mod:`.scene`), the rest is
+    ``[[bodies]]`` and ``[[suspensions]]`` tables and ``[scene]`` make one scene section
+    (:mod:`.scene`), the rest is
     validated by :class:`Config`, and the issues of all are reported together.
     """
     issues: list[tuple[str, str]] = []
-    if isinstance(data, dict) and ("bodies" in data or "scene" in data):
+    if isinstance(data, dict) and any(key in data for key in SCENE_KEYS):
         data = _scene_data(data, issues, source)
     elif isinstance(data, dict) and isinstance(data.get("model"), dict):
         section = _model_section(data, issues, source)

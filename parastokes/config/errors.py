@@ -85,6 +85,13 @@ def _section_class(loc: tuple[Any, ...], data: Any) -> type[BaseModel] | None:
         nested = None if field is None else field.annotation
         if isinstance(nested, type) and issubclass(nested, BaseModel):
             return nested
+    if len(loc) == 3 and loc[0] == "suspensions" and loc[2] == "body":  # its body's kind
+        try:
+            return registry.get(data["suspensions"][loc[1]]["body"]["kind"]).section
+        except (TypeError, KeyError, IndexError, registry.UnknownKindError):
+            return None
+    if len(loc) == 2 and loc[0] == "suspensions":
+        return schema.Suspension
     if loc == ("scene",):
         return schema.SceneSettings
     if len(loc) == 3 and loc[:2] == ("coarse", "lagrange"):

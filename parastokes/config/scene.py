@@ -22,7 +22,7 @@ import dataclasses
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any, Literal
 
-from pydantic import Field, SerializeAsAny, ValidationError
+from pydantic import Field, PrivateAttr, SerializeAsAny, ValidationError
 
 from ..bodies import registry
 from ..bodies.registry import (
@@ -36,7 +36,9 @@ from ..bodies.registry import (
 )
 from ..contracts import System
 from .errors import from_validation_error
-from .schema import SceneSettings
+from .placement import PlacementError
+from .schema import SceneSettings, Suspension
+from .suspension import expand
 
 if TYPE_CHECKING:  # the scene (and the fluid's kernels) are imported on use
     from ..scene import Scene
@@ -58,13 +60,20 @@ class SceneModel(BodySection):
     wall: bool
     shear_rate: float = Field(allow_inf_nan=False)
     coarse_bodies: list[str] | None = None
+    #: For each body, the index of the body it copies (a suspension's copies differ in their
+    #: poses only: one of them is resolved for all); None: every body on its own.
+    _copy_of: list[int] | None = PrivateAttr(None)
 
     def resolve(self) -> BodyResolution:
         """Θ⁰ named as :attr:`Scene.params`; the rows of all bodies. The scene is built once
         here, so that a body that cannot join a scene is named by ``check``, not by a run's
-        first step (ValueError)."""
+        first step (ValueError). A suspension's copies are resolved once (the rigid kinds'
+        trial solve, :func:`parastokes.kinds.rigid.kind.check_solvable`, on its first body)."""
         self.build()
-        parts = [body.resolve() for body in self.bodies]
+        copy_of = self._copy_of or list(range(len(self.bodies)))
+        found: dict[int, BodyResolution] = {}
+        parts = [found.setdefault(k, self.bodies[k].resolve()) if k not in found else found[k]
+                 for k in copy_of]
         theta0 = {"viscosity": float(self.viscosity)}
         for name, part in zip(self.names, parts, strict=True):
             theta0 |= {f"{name}.{k}": v for k, v in part.theta0.items() if k != "viscosity"}
@@ -170,9 +179,10 @@ def _default_names(kinds: list[str]) -> list[str]:
 
 
 def _fluid(tables: list[dict[str, Any]], sections: list[type[BodySection]],
-           settings: SceneSettings, issues: list[tuple[str, str]]) -> dict[str, Any]:
+           settings: SceneSettings, issues: list[tuple[str, str]], paths: list[str]
+           ) -> dict[str, Any]:
     """The scene's fluid values; fills them into the body tables that omit them, and appends an
-    issue for each body table that contradicts them."""
+    issue for each body table that contradicts them (``paths``: each table's key path)."""
     out: dict[str, Any] = {}
     for key in FLUID:
         value, where = getattr(settings, key), f"scene.{key}"
@@ -181,7 +191,7 @@ def _fluid(tables: list[dict[str, Any]], sections: list[type[BodySection]],
             having = [i for i, s in enumerate(sections)
                       if key in s.model_fields and not s.model_fields[key].is_required()]
             if stated:
-                value, where = stated[0][1], f"bodies[{stated[0][0]}].{key}"
+                value, where = stated[0][1], f"{paths[stated[0][0]]}.{key}"
             elif having:
                 value, where = sections[having[0]].model_fields[key].default, where
             elif key in _DEFAULTS:
@@ -191,26 +201,103 @@ def _fluid(tables: list[dict[str, Any]], sections: list[type[BodySection]],
                                       "table)"))
                 continue
         out[key] = value
-        for i, (table, section) in enumerate(zip(tables, sections, strict=True)):
+        for path, table, section in zip(paths, tables, sections, strict=True):
             if key not in section.model_fields:
                 continue
             if key not in table:
                 table[key] = value
             elif table[key] != value:
-                issues.append((f"bodies[{i}].{key}",
+                issues.append((f"{path}.{key}",
                                f"{table[key]!r} differs from {where} = {value!r} (the bodies "
                                "share one fluid and one background flow); remove one or make "
                                "them agree"))
     return out
 
 
+def _tables(data: dict[str, Any], key: str, issues: list[tuple[str, str]]) -> list[dict] | None:
+    """The array of tables ``data[key]`` (empty when absent; None, with an issue, if it is not
+    one)."""
+    tables = data.get(key, [])
+    if key in data and (not isinstance(tables, list) or not tables
+                        or not all(isinstance(t, dict) for t in tables)):
+        issues.append((key, f"must be one or more [[{key}]] tables"))
+        return None
+    return tables
+
+
+def _suspensions(data: dict[str, Any], issues: list[tuple[str, str]], source: str
+                 ) -> list[Suspension] | None:
+    """The validated ``[[suspensions]]`` tables (their bodies not yet; None, with issues, if
+    one is not valid)."""
+    tables = _tables(data, "suspensions", issues)
+    if tables is None:
+        return None
+    specs = []
+    for j, table in enumerate(tables):
+        try:
+            specs.append(Suspension.model_validate(table))
+        except ValidationError as error:
+            issues += from_validation_error(error, data, source, ("suspensions", j)).issues
+        if isinstance(table.get("body"), dict) and "name" in table["body"]:
+            issues.append((f"suspensions[{j}].body.name", "the suspension names its bodies: "
+                                                          "give name in [[suspensions]]"))
+    return specs if len(specs) == len(tables) else None
+
+
+def _placed(specs: list[Suspension], templates: list[BodySection], wall: bool,
+            issues: list[tuple[str, str]], first: int
+            ) -> tuple[list[BodySection], list[str], list[str], list[int]]:
+    """Every suspension's copies, their names, the key path of each name (its table's
+    ``name``, :func:`.suspension.expand`) and the index of each suspension's first copy among
+    the scene's bodies (counted from ``first``); an issue naming the table's key for each
+    suspension that cannot be placed."""
+    bodies: list[BodySection] = []
+    names: list[str] = []
+    paths: list[str] = []
+    copied: list[int] = []
+    for j, (spec, template) in enumerate(zip(specs, templates, strict=True)):
+        prefix = spec.name if spec.name is not None else _default_names([template.kind])[0]
+        try:
+            copies = expand(spec, template, prefix, wall)
+        except PlacementError as error:
+            issues.append((f"suspensions[{j}].{error.key}", str(error)))
+            continue
+        except ValueError as error:  # the body's own table, built to measure it
+            issues.append((f"suspensions[{j}].body", str(error)))
+            continue
+        copied += [first + len(bodies)] * len(copies)
+        bodies += copies
+        names += [f"{prefix}{i}" for i in range(len(copies))]
+        paths += [f"suspensions[{j}].name"] * len(copies)
+    return bodies, names, paths, copied
+
+
+def _name_issues(names: list[str], paths: list[str]) -> list[tuple[str, str]]:
+    """One issue per key path whose (first) name is not distinct or not allowed."""
+    count: dict[str, int] = {}
+    for n in names:
+        count[n] = count.get(n, 0) + 1
+    rule = (f"names must be distinct strings without '.' or '/', and not "
+            f"{' or '.join(map(repr, RESERVED_NAMES))}")
+    out: dict[str, str] = {}
+    for path, n in zip(paths, names, strict=True):
+        if path in out:
+            continue
+        if not isinstance(n, str) or not n or "." in n or "/" in n or n in RESERVED_NAMES:
+            out[path] = f"{rule}, got {n!r}"
+        elif count[n] > 1:
+            out[path] = f"{rule}: {n!r} names more than one body"
+    return list(out.items())
+
+
 def scene_section(data: dict[str, Any], issues: list[tuple[str, str]], source: str
                   ) -> SceneModel | None:
-    """The :class:`SceneModel` of ``data``'s ``[[bodies]]`` and ``[scene]`` (None, with issues,
-    if they are not valid)."""
-    tables = data["bodies"]
-    if not isinstance(tables, list) or not tables or not all(isinstance(t, dict) for t in tables):
-        issues.append(("bodies", "must be one or more [[bodies]] tables"))
+    """The :class:`SceneModel` of ``data``'s ``[[bodies]]``, ``[[suspensions]]`` and ``[scene]``
+    (None, with issues, if they are not valid)."""
+    found = len(issues)
+    tables = _tables(data, "bodies", issues)
+    specs = _suspensions(data, issues, source)
+    if tables is None or specs is None:
         return None
     try:
         settings = SceneSettings.model_validate(data.get("scene", {}))
@@ -219,36 +306,52 @@ def scene_section(data: dict[str, Any], issues: list[tuple[str, str]], source: s
         return None
     tables = [dict(t) for t in tables]
     names = [t.pop("name", None) for t in tables]
+    every = tables + [{k: v for k, v in spec.body.items() if k != "name"} for spec in specs]
+    paths = [f"bodies[{i}]" for i in range(len(tables))] + [
+        f"suspensions[{j}].body" for j in range(len(specs))]
+    locations = [("bodies", i) for i in range(len(tables))] + [
+        ("suspensions", j, "body") for j in range(len(specs))]
     sections: list[type[BodySection]] = []
-    for i, table in enumerate(tables):
+    for path, table in zip(paths, every, strict=True):
         try:
             sections.append(registry.get(table.get("kind", "")).section)
         except registry.UnknownKindError as error:
-            issues.append((f"bodies[{i}].kind",
+            issues.append((f"{path}.kind",
                            "required key is missing" if "kind" not in table else str(error)))
-    if len(sections) < len(tables):
+    if len(sections) < len(every):
         return None
-    fluid = _fluid(tables, sections, settings, issues)
-    bodies = []
-    for i, (table, section) in enumerate(zip(tables, sections, strict=True)):
+    fluid = _fluid(every, sections, settings, issues, paths)
+    validated = []
+    for location, table, section in zip(locations, every, sections, strict=True):
         try:
-            bodies.append(section.model_validate(table))
+            validated.append(section.model_validate(table))
         except ValidationError as error:
-            issues += from_validation_error(error, data, source, ("bodies", i)).issues
-    if len(bodies) < len(tables) or len(fluid) < len(FLUID):
+            issues += from_validation_error(error, data, source, location).issues
+    if len(validated) < len(every) or len(fluid) < len(FLUID) or len(issues) > found:
         return None
+    bodies, templates = validated[:len(tables)], validated[len(tables):]
     default = _default_names([t["kind"] for t in tables])
     names = [n if n is not None else d for n, d in zip(names, default, strict=True)]
-    bad = [f"bodies[{i}].name" for i, n in enumerate(names)
-           if not isinstance(n, str) or not n or "." in n or "/" in n or n in RESERVED_NAMES
-           or names.count(n) > 1]
-    if bad:
-        issues += [(path, f"names must be distinct strings without '.' or '/', and not "
-                          f"{' or '.join(map(repr, RESERVED_NAMES))}, got {names}") for path in bad]
+    placed, generated, origins, copied = _placed(specs, templates, fluid["wall"], issues,
+                                                 len(bodies))
+    issues += _name_issues(names + generated, [f"bodies[{i}].name" for i in range(len(tables))]
+                           + origins)
+    if len(issues) > found:
         return None
-    unknown = sorted(set(settings.coarse_bodies or ()) - set(names))
+    all_names = names + generated
+    unknown = sorted(set(settings.coarse_bodies or ()) - set(all_names))
     if unknown:
         issues.append(("scene.coarse_bodies", f"no body is named {', '.join(map(repr, unknown))}; "
-                                              f"the bodies: {', '.join(names)}"))
+                                              f"the bodies: {_listed(all_names)}"))
         return None
-    return SceneModel(bodies=bodies, names=names, coarse_bodies=settings.coarse_bodies, **fluid)
+    model = SceneModel(bodies=bodies + placed, names=all_names,
+                       coarse_bodies=settings.coarse_bodies, **fluid)
+    model._copy_of = list(range(len(bodies))) + copied
+    return model
+
+
+def _listed(names: list[str], most: int = 12) -> str:
+    """``names`` joined, the middle of a long list left out."""
+    if len(names) <= most:
+        return ", ".join(names)
+    return f"{', '.join(names[:most // 2])}, ... ({len(names)} bodies), {names[-1]}"

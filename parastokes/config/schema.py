@@ -33,6 +33,7 @@ __all__ = [
     "Richardson",
     "RunSection",
     "SceneSettings",
+    "Suspension",
     "Time",
     "Tune",
 ]
@@ -237,6 +238,63 @@ class SceneSettings(BaseModel):
         None, description="With coarse.grid_factor > 1: the names of the bodies put on their "
         "coarser grid (default: every body that has one: rods, rigid bodies)."
     )
+
+
+Finite = Annotated[float, Field(allow_inf_nan=False)]
+
+
+class Suspension(BaseModel):
+    """Many copies of one body in a scene (docs/bodies.md, "Suspensions"): `body` is a table of
+    any kind with a position key (`position` or `center`), as a [[bodies]] table but without
+    its position; `placement` puts the copies on a lattice, at random without overlap in a box
+    or a sphere (seeded), or at the poses of a file. The bodies are named `name` + index
+    (sphere0, sphere1, ...) and join the [[bodies]] of the scene, checked as they are."""
+
+    model_config = ConfigDict(extra="forbid", strict=True, validate_default=True)
+
+    name: str | None = Field(
+        None, description="Prefix of the bodies' names: name0, name1, ... (default: the body's "
+        "kind, as a [[bodies]] table is named).")
+    body: dict[str, Any] = Field(
+        description="The body that is copied: `kind` and its keys (a [[bodies]] table without "
+        "`name` and without its position).")
+    placement: Literal["lattice", "random", "file"] = Field(
+        description="lattice: `counts` x `spacing` about `center`; random: `count` bodies (or "
+        "`volume_fraction`) without overlap in the `region` about `center`, from `seed`; file: "
+        "one pose per line of `file`.")
+    center: list[Finite] | None = Field(
+        None, min_length=3, max_length=3,
+        description="lattice, random: the centre of the lattice or of the region (μm).")
+    counts: list[Annotated[int, Field(ge=1)]] | None = Field(
+        None, min_length=3, max_length=3, description="lattice: bodies along x, y and z.")
+    spacing: Positive | list[Positive] | None = Field(
+        None, description="lattice: distance between neighbouring centres (μm), one number or "
+        "[dx, dy, dz].")
+    region: Literal["box", "sphere"] = Field(
+        "box", description="random: the region the bodies lie in (wholly), a box of `size` or "
+        "a sphere of `radius` about `center`.")
+    size: list[Positive] | None = Field(
+        None, min_length=3, max_length=3, description="random, box: its edges [Lx, Ly, Lz] (μm).")
+    radius: Positive | None = Field(None, description="random, sphere: its radius (μm).")
+    count: int | None = Field(
+        None, ge=1, description="random: the number of bodies (or give volume_fraction).")
+    volume_fraction: float | None = Field(
+        None, gt=0, lt=1, description="random: the bodies' volume over the region's, each body "
+        "counted as its bounding sphere about its position (a sphere's own volume); sets the "
+        "number of bodies (or give count).")
+    seed: int = Field(0, ge=0, description="random: seed of the positions and orientations "
+                      "(the same seed, the same suspension).")
+    gap: float | None = Field(
+        None, ge=0, allow_inf_nan=False,
+        description="lattice, random: least distance between the bounding spheres of two bodies "
+        "(μm); default: the larger of a fifth of the bounding radius and 2 ε.")
+    orientations: Literal["fixed", "random"] = Field(
+        "fixed", description="fixed: every copy turned as the body table says; random: uniform "
+        "random orientations from `seed` (kinds with an `orientation` key).")
+    file: str | None = Field(
+        None, description="file: one body per line, x y z or x y z qw qx qy qz (a quaternion, "
+        "kinds with an `orientation` key), in a text file (spaces or commas, # comments) or a "
+        ".npy array; a relative path is relative to the configuration file that names it.")
 
 
 class Config(_Section):

@@ -66,6 +66,10 @@ class SurfaceSet:
         self.points = np.concatenate([p.points for p in self.placed])
         self.epsilon = np.concatenate([p.epsilon for p in self.placed])
         self.motions = [p.motion() for p in self.placed]
+        #: each point's body and its arm x - c from the body's center (K Y, Kᵀ f for all
+        #: bodies at once)
+        self._body = np.repeat(np.arange(len(sizes)), sizes)
+        self._arms = self.points - np.repeat([p.center for p in self.placed], sizes, axis=0)
         spacings = [p.surface.spacing for p in self.placed]
         self.spacings = spacings
         check_placements(
@@ -99,12 +103,15 @@ class SurfaceSet:
         return k
 
     def apply_motion(self, y: np.ndarray) -> np.ndarray:
-        """K Y for Y (B, 6): every point's rigid velocity (3N,)."""
-        return np.concatenate([kb @ yb for kb, yb in zip(self.motions, y, strict=True)])
+        """K Y for Y (B, 6): every point's rigid velocity U + Ω × (x - c) (3N,)."""
+        per_point = y[self._body]
+        return (per_point[:, :3] + np.cross(per_point[:, 3:], self._arms)).ravel()
 
     def reduce(self, f: np.ndarray) -> np.ndarray:
         """Kᵀ f for f (3N,): each body's total force and torque about its center, (B, 6)."""
-        return np.stack([kb.T @ f[self.rows(b)] for b, kb in enumerate(self.motions)])
+        f3 = f.reshape(-1, 3)
+        moments = np.concatenate([f3, np.cross(self._arms, f3)], axis=1)
+        return np.add.reduceat(moments, self.offsets[:-1].astype(np.intp), axis=0)
 
     def point_vectors(self, name: str, value) -> np.ndarray:
         """A per-point (N, 3) input (None: zeros) flattened to (3N,)."""
