@@ -79,7 +79,8 @@ def advance_node(x, u, dt, out):
 def advance_rod(state, rates, dt):
     """New state: X + dt u and every frame vector rotated by the angle ``|w| dt`` about w (eq. 13).
 
-    ``state`` is (n, 12) ``[X, D1, D2, D3]``, ``rates`` (n, 6) ``[u, w]``; |w| = 0 leaves the frame.
+    ``state`` is (n, 12) ``[X, D1, D2, D3]``, ``rates`` (n, 6) ``[u, w]``; ``|w| = 0`` leaves the
+    frame.
     """
     out = np.empty_like(state)
     for k in range(state.shape[0]):

@@ -263,7 +263,7 @@ class RigidBody:
 
     @property
     def monitor_limit(self) -> float:
-        """1e-3: the exponential map keeps |q| = 1 to round-off, but Parareal's corrections
+        """1e-3: the exponential map keeps ``|q| = 1`` to round-off, but Parareal's corrections
         (linear combinations of states, before ``project``) move it by about their error."""
         return 1e-3
 
