@@ -12,6 +12,7 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 import os
 import re
@@ -152,7 +153,7 @@ def _rod_swimmer_flow(out: str) -> None:
 
 def _parareal_convergence(out: str) -> None:
     errors = [float(e) for e in re.findall(r"error (\S+)", out)]
-    assert len(errors) == 4 and all(a > 5 * b for a, b in zip(errors, errors[1:], strict=False))
+    assert len(errors) == 4 and all(a > 5 * b for a, b in itertools.pairwise(errors))
     assert errors[-1] < 1e-7
     theory, bound = _numbers(r"after K = 4: (\S+), bound \(eq. 15\): (\S+)", out)
     assert 1.0 < theory < bound
