@@ -1,10 +1,12 @@
-"""Two small Sphinx additions for the generated API reference (docs/api/index.rst).
+"""Small Sphinx additions for the generated API reference (docs/api/index.rst).
 
 - ``.. public-names::``: a table of public names (an autosummary table) whose links go to where
   each object is defined. A package re-exports names from its modules (``parastokes.parareal.run``
   is defined in ``parastokes.parareal.algorithm``); each object is documented once, in its home
   module, and the table lists the names a user imports. Its content lists names, or its option
   ``:all-of: PACKAGE`` takes the package's ``__all__``, so new public names appear by themselves.
+- Summaries that do not stop at "eq.": autosummary's one-line summary of an object is its first
+  sentence, and the docstrings cite the paper's equations as "eq. 30".
 - Sibling-relative references: ``:mod:`.registry``` in a docstring of ``parastokes.coarse.x``
   means ``parastokes.coarse.registry``, as in a relative import; Sphinx alone searches every
   module ending in ``.registry`` and finds several.
@@ -21,6 +23,7 @@ from typing import ClassVar
 from docutils.parsers.rst import directives
 from sphinx import addnodes
 from sphinx.application import Sphinx
+from sphinx.ext import autosummary
 from sphinx.ext.autosummary import Autosummary
 from sphinx.transforms.post_transforms import SphinxPostTransform
 
@@ -86,7 +89,14 @@ class SiblingReferences(SphinxPostTransform):
                 node["refspecific"] = False
 
 
+#: Abbreviations that end no sentence, added to autosummary's own (its module's global, read by
+#: its ``extract_summary``).
+ABBREVIATIONS = ("eq.", "eqs.", "Eq.", "Eqs.")
+
+
 def setup(app: Sphinx) -> dict:
+    autosummary.WELL_KNOWN_ABBREVIATIONS = tuple(
+        dict.fromkeys((*autosummary.WELL_KNOWN_ABBREVIATIONS, *ABBREVIATIONS)))
     app.add_directive("public-names", PublicNames)
     app.add_post_transform(SiblingReferences)
     return {"parallel_read_safe": True, "parallel_write_safe": True}
