@@ -45,7 +45,9 @@ Two more things the loader understands:
 
 - `base = "other.toml"` at the top level (a path relative to the file) reads that file first and
   applies this one on top of it, table by table: the `experiments/quick/*.toml` variants are written
-  this way.
+  this way. A `[model]` or `[coarse]` table that names another `kind` than the base's replaces
+  the base's table whole (none of the other kind's keys is inherited): `[coarse] kind = "hodmd"`
+  over an extrapolated base, as `experiments/hodmd/quick_rod.toml` does.
 - `--set KEY=VALUE` on the command line (repeatable) overrides any key with a TOML value, e.g.
   `--set parareal.n_slices=8 --set fine.scheme='"rk4"'`. The value replaces what is at the key,
   a whole table included (`--set 'coarse.lagrange={}'` removes every Lagrange node). KEY is a

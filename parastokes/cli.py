@@ -67,6 +67,16 @@ _SIZE_VARIABLES = ("PMI_SIZE", "OMPI_COMM_WORLD_SIZE")
 _TICK_SECONDS = 0.5
 #: Signals handled like Ctrl-C: the run stops with a consistent checkpoint.
 _TERMINATING = (signal.SIGTERM, signal.SIGHUP)
+#: The exit status when the reader of standard output has gone (as a process ended by SIGPIPE).
+_PIPE_CLOSED = 128 + 13
+#: The commands other than a run that write files (through rundir.claim_files).
+_WRITERS = ("flow", "movie", "tune", "plot")
+#: What to make smaller when a command runs out of memory.
+_SMALLER = {
+    "flow": "use a smaller --resolution or --dpi (a plane rather than a box)",
+    "movie": "use a smaller --size or --resolution, or fewer --frames",
+    "plot": "plot fewer runs at once",
+}
 
 
 class ExitCode(enum.IntEnum):
@@ -477,27 +487,34 @@ def cmd_tune(args: argparse.Namespace, console: Console) -> ExitCode:
 
 
 def cmd_plot(args: argparse.Namespace, console: Console) -> ExitCode:
-    from . import plots
+    from . import plots, rundir
 
     formats = args.formats
     if args.benchmark is not None:
         if args.dirs:
             raise ValueError("plot: give run directories or --benchmark FILE.json, not both")
-        out = args.out if args.out is not None else Path(args.benchmark).parent
-        written = plots.draw_benchmark(args.benchmark, out, formats)
+        out = Path(args.out if args.out is not None else Path(args.benchmark).parent)
+        with rundir.claim_files(_figures(out, plots.BENCHMARK_FIGURES, formats)):
+            written = plots.draw_benchmark(args.benchmark, out, formats)
     elif not args.dirs:
         raise ValueError("plot: give run directories or --benchmark FILE.json")
     elif len(args.dirs) == 1 and args.out is None:
-        from . import rundir
-
         with rundir.locked(args.dirs[0]) as directory:  # not while a run writes there
             written = plots.draw_run(args.dirs[0], formats)
             directory.add_results([path.name for path in written])
     else:
-        written = plots.draw_comparison(args.dirs, args.out or "comparison", formats)
+        out = Path(args.out or "comparison")
+        with rundir.claim_files(_figures(out, plots.COMPARISON_FIGURES, formats),
+                                reads=args.dirs):
+            written = plots.draw_comparison(args.dirs, out, formats)
     for path in written:
         console.print(str(path))
     return ExitCode.OK
+
+
+def _figures(out: Path, stems: Sequence[str], formats: Sequence[str]) -> list[Path]:
+    """The files of the figures ``stems`` in ``formats`` in the directory ``out``."""
+    return [out / f"{stem}.{fmt}" for stem in stems for fmt in formats]
 
 
 # ---- parser and main -------------------------------------------------------------------------
@@ -620,7 +637,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BaseException as error:  # map every failure to a documented exit status
         if isinstance(error, SystemExit):
             raise
-        return int(_report(error, console, args.command in ("run", "demo")))
+        if _reader_gone(error):
+            return _PIPE_CLOSED
+        return int(_report(error, console, args.command))
     finally:
         for signum, handler in handlers.items():
             signal.signal(signum, handler)
@@ -638,24 +657,44 @@ def _catch_termination() -> dict[int, _Handler]:
     return handlers
 
 
-def _machine_limit(error: BaseException) -> str | None:
+def _reader_gone(error: BaseException) -> bool:
+    """Whether ``error`` is the reader of standard output closing it (``parastokes check ... |
+    head -2``); then the output goes nowhere from now on (no second error at exit)."""
+    if not isinstance(error, BrokenPipeError):
+        return False
+    try:  # a pipe without a reader polls as an error on its writing end
+        import select
+
+        poller = select.poll()
+        poller.register(sys.stdout.fileno(), select.POLLOUT)
+        if not any(event & select.POLLERR for _, event in poller.poll(0)):
+            return False  # (another pipe broke: a worker's, say)
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):  # no such file descriptor, or no poll()
+        return False
+    return True
+
+
+def _machine_limit(error: BaseException, command: str = "run") -> str | None:
     """A line naming the machine's limit (memory, disk, open files) behind ``error`` when its
-    own message does not."""
+    own message does not; out of memory, what to make smaller for ``command``."""
     from .files import describe_os_error, is_resource_error
 
     for cause in _causes(error):
         if isinstance(cause, MemoryError):
-            return ("cause: out of memory (MemoryError): use fewer points, slices or workers, or "
-                    "a machine with more memory")
+            smaller = _SMALLER.get(command, "use fewer points, slices or workers")
+            return f"cause: out of memory (MemoryError): {smaller}, or a machine with more memory"
         if is_resource_error(cause) and isinstance(cause, OSError):
             text = describe_os_error(cause)
             return None if text in str(error) else f"cause: {text}"
     return None
 
 
-def _report(error: BaseException, console: Console, resumable: bool = True) -> ExitCode:
-    """Print what ended the command (with the notes that say what was saved); its exit status.
-    ``resumable``: the command is a run (``run``, ``demo``), which ``--resume`` continues."""
+def _report(error: BaseException, console: Console, command: str = "run") -> ExitCode:
+    """Print what ended ``command`` (with the notes that say what was saved); its exit status.
+    A run (``run``, ``demo``) is continued by ``--resume``; the other commands that write keep
+    the previous files."""
+    resumable = command in ("run", "demo")
     code = exit_code(error)
     console.finish()
     if not is_manager() and mpi_processes() > 1 and code is ExitCode.CONFIG:
@@ -667,12 +706,14 @@ def _report(error: BaseException, console: Console, resumable: bool = True) -> E
             lines = [f"{what}: the workers are stopped and the checkpoint is consistent; rerun "
                      "with --resume to continue"]
         else:
-            lines = [f"{what}; no run was in progress, so there is nothing to resume"]
+            kept = ("; the files it was writing are dropped, the previous ones kept"
+                    if command in _WRITERS else "")
+            lines = [f"{what}; no run was in progress, so there is nothing to resume{kept}"]
     elif code is ExitCode.UNEXPECTED:
         logger.exception("unexpected error")
         return code
     else:
-        limit = _machine_limit(error)
+        limit = _machine_limit(error, command)
         lines = [f"error: {_body_error(error) or error}", *notes, *([limit] if limit else [])]
         if code is ExitCode.PARALLEL and resumable:
             lines.append("rerun with --resume to continue from the last iteration")

@@ -31,6 +31,7 @@ __all__ = [
     "Propagator",
     "PropagatorLike",
     "SizedExecutor",
+    "StepFailure",
     "System",
     "TracingCoarse",
     "auxiliary_count",
@@ -44,6 +45,13 @@ logger = logging.getLogger(__name__)
 
 #: Any callable propagator, ``P(t_start, t_end, x) -> x``.
 PropagatorLike = Callable[[float, float, np.ndarray], np.ndarray]
+
+
+class StepFailure(RuntimeError):
+    """A system's ``rates`` could not give a trustworthy result at a state (e.g. a rigid body's
+    mobility solve that failed, :class:`parastokes.mobility.SolveError`): the integrator reports
+    the step as a blow-up (:class:`parastokes.integrate.BlowUpError`, the last good state kept),
+    with this message as its reason."""
 
 
 @runtime_checkable

@@ -1,8 +1,12 @@
 """Files the package writes and reads back: atomic writes, and reads that name a damaged file.
 
-Every file is written to a temporary name beside its destination, flushed to disk and renamed over
-it (``os.replace``, atomic on POSIX), so a reader, or a run that is killed mid-write, sees either
-the old complete file or the new complete one. A file that cannot be read back (truncated, not
+Every file is written to a temporary name beside its destination (``NAME.<pid>.tmp``,
+:func:`temporary_name`), flushed to disk and renamed over it (``os.replace``, atomic on POSIX), so
+a reader, or a command that is killed mid-write, sees either the old complete file or the new
+complete one (:class:`Staging`: several files of one command, each moved into place once all are
+written; :func:`atomic_write`: one file). A writer that names its own file (h5py, a video
+encoder) writes to :meth:`Staging.temporary`; a temporary file it left empty or did not create is
+a :class:`FileWriteError`, and the old file stays. A file that cannot be read back (truncated, not
 written by parastokes, another format) raises :class:`CorruptFileError`, a ``ValueError`` whose
 message names the file and what to do (the command line exits with status 2).
 
@@ -19,15 +23,17 @@ import io
 import json
 import os
 import zipfile
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
 from pathlib import Path
 from typing import IO, Any
 
 import numpy as np
 
 __all__ = [
-    "CorruptFileError", "FileWriteError", "GuardedFile", "atomic_write", "describe_os_error",
-    "is_resource_error", "read_npz", "write_npz", "write_text",
+    "CorruptFileError", "FileWriteError", "GuardedFile", "Staging", "atomic_write",
+    "describe_os_error", "is_resource_error", "read_npz", "staged", "temporary_name",
+    "write_npz", "write_text",
 ]
 
 #: errno values of a full disk or a reached limit, and what each means.
@@ -85,22 +91,111 @@ def _rebuilt_write_error(path: Path, number: int, reason: str, message: str) -> 
     return error
 
 
-def atomic_write(path: str | os.PathLike, write: Callable[[IO[bytes]], Any]) -> None:
-    """Call ``write(handle)`` on a temporary file beside ``path``, then rename it to ``path``;
-    an ``OSError`` on the way is a :class:`FileWriteError` naming ``path``."""
+def temporary_name(path: str | os.PathLike, pid: int | None = None) -> Path:
+    """The temporary file ``NAME.<pid>.tmp`` beside ``path`` that a new version of it is written
+    to (``pid``: of the writing process, this one by default)."""
     path = Path(path)
-    tmp = path.with_name(f"{path.name}.{os.getpid()}.tmp")
+    return path.with_name(f"{path.name}.{os.getpid() if pid is None else pid}.tmp")
+
+
+def temporary_owner(path: str | os.PathLike) -> int | None:
+    """The PID in the name of a temporary file ``NAME.<pid>.tmp`` (:func:`temporary_name`), or
+    None for any other name."""
+    name = Path(path).name
+    if not name.endswith(".tmp"):
+        return None
+    pid = name[: -len(".tmp")].rpartition(".")[2]
+    return int(pid) if pid.isdigit() else None
+
+
+def _synced(path: Path) -> None:
+    """Flush ``path`` (written by another writer) to disk."""
+    fd = os.open(path, os.O_RDONLY)
     try:
-        with open(tmp, "wb") as handle:
-            write(handle)
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.replace(tmp, path)
-    except BaseException as error:
-        tmp.unlink(missing_ok=True)
-        if isinstance(error, OSError) and not isinstance(error, FileWriteError):
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+class Staging:
+    """New versions of files, each written to its :func:`temporary_name` and moved into place by
+    :meth:`commit` once all of them are complete; :meth:`discard` removes what is left. An
+    ``OSError`` on the way is a :class:`FileWriteError` naming the destination, never the
+    temporary file."""
+
+    def __init__(self) -> None:
+        self._files: dict[Path, Path] = {}
+        self._unchecked: set[Path] = set()  # written by another writer: checked at the commit
+
+    def temporary(self, path: str | os.PathLike) -> Path:
+        """The temporary file to write the new ``path`` to, by a writer that opens its file by
+        name (give it the format explicitly: the name ends in ``.tmp``); :meth:`commit` refuses
+        it if that writer left it missing or empty."""
+        path = Path(path)
+        self._files[path] = temporary_name(path)
+        self._unchecked.add(path)
+        return self._files[path]
+
+    def write(self, path: str | os.PathLike, write: Callable[[IO[bytes]], Any]) -> Path:
+        """Call ``write(handle)`` on the temporary file of ``path``, flushed to disk; ``path``."""
+        path = Path(path)
+        tmp = self.temporary(path)
+        try:
+            with open(tmp, "wb") as handle:
+                write(handle)
+                handle.flush()
+                os.fsync(handle.fileno())
+        except FileWriteError:
+            raise
+        except OSError as error:
             raise FileWriteError(path, error) from None
-        raise
+        self._unchecked.discard(path)
+        return path
+
+    def commit(self) -> list[Path]:
+        """Move every written file into place; returns the destinations. A temporary file that
+        is missing or empty (a writer that failed without saying so) is a FileWriteError, and
+        then nothing is moved."""
+        for path in self._unchecked:
+            tmp = self._files[path]
+            if not (tmp.is_file() and tmp.stat().st_size > 0):
+                raise FileWriteError(path, OSError(errno.EIO, "the writer produced no data"))
+        for path, tmp in self._files.items():
+            try:
+                if path in self._unchecked:
+                    _synced(tmp)
+                os.replace(tmp, path)
+            except OSError as error:
+                raise FileWriteError(path, error) from None
+        written = list(self._files)
+        self._files, self._unchecked = {}, set()
+        return written
+
+    def discard(self) -> None:
+        """Remove the temporary files not moved into place."""
+        for tmp in self._files.values():
+            tmp.unlink(missing_ok=True)
+        self._files, self._unchecked = {}, set()
+
+
+@contextmanager
+def staged() -> Iterator[Staging]:
+    """A :class:`Staging` whose files are moved into place when the block ends normally, and
+    removed when it raises (an interrupt included): the old files stay whole."""
+    staging = Staging()
+    try:
+        yield staging
+        staging.commit()
+    finally:
+        staging.discard()
+
+
+def atomic_write(path: str | os.PathLike, write: Callable[[IO[bytes]], Any]) -> None:
+    """Call ``write(handle)`` on a temporary file beside ``path``, then rename it to ``path``
+    (:class:`Staging` of one file); an ``OSError`` on the way is a :class:`FileWriteError`
+    naming ``path``."""
+    with staged() as staging:
+        staging.write(path, write)
 
 
 class GuardedFile(io.RawIOBase):

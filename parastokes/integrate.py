@@ -33,6 +33,14 @@ type in :mod:`parastokes.stepping.registry` (rods and vesicles): the same tablea
 the same checks, without a Python call per stage. :func:`run` uses it when present;
 ``run(..., compiled=False)`` does not.
 
+The linearly implicit schemes of :mod:`parastokes.stiff` (``lieuler``, ``ros2``,
+``ros2-krylov``: Rosenbrock-W methods, one linear solve per stage) are entries of
+:data:`SCHEMES` too, usable wherever the explicit ones are; they always take their steps in
+Python (:class:`parastokes.stiff.Stepper`), since the stage solves are scipy's. With ``rtol``
+(and ``atol``) in place of a fixed step, :func:`run` takes adaptive steps from the embedded
+error estimate of a scheme that has one (``ros2``); the step sequence is a deterministic
+function of the input.
+
 Blow-up is an error: after every step the state must be finite and ``system.monitor`` must stay
 below ``blowup_factor * system.monitor_limit``; otherwise :class:`BlowUpError` names the time, the
 step index and the monitor value and keeps the last good state.
@@ -47,16 +55,20 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import stiff
 from .bodies import contract
-from .contracts import System
+from .contracts import StepFailure, System
 from .stepping.registry import compiled_loop
+from .stiff import Rosenbrock
 
 __all__ = [
     "SCHEMES",
+    "AnyScheme",
     "BlowUpError",
     "Propagator",
     "RunResult",
     "Scheme",
+    "explicit_scheme",
     "is_stable",
     "largest_stable_step",
     "n_steps",
@@ -65,6 +77,7 @@ __all__ = [
     "run_result",
     "scheme_order",
     "step",
+    "tolerances",
 ]
 
 log = logging.getLogger(__name__)
@@ -93,12 +106,19 @@ class Scheme:
     stage_brackets: tuple[tuple[Bracket, ...], ...]
     final_brackets: tuple[Bracket, ...] = ()
 
+    #: Explicit: no linear solves (the schemes of :mod:`parastokes.stiff` say True).
+    implicit = False
+
     @property
     def stages(self) -> int:
         return len(self.b)
 
 
-SCHEMES: dict[str, Scheme] = {
+#: A scheme of :data:`SCHEMES`: an explicit tableau or a linearly implicit one.
+AnyScheme = Scheme | Rosenbrock
+
+#: Every scheme by name; each says its ``order`` and whether it is ``implicit``.
+SCHEMES: dict[str, AnyScheme] = {
     "euler": Scheme("euler", 1, c=(0.0,), a=((),), b=(1.0,), stage_brackets=((),)),
     "rk2": Scheme(
         "rk2", 2, c=(0.0, 1.0), a=((), (1.0,)), b=(0.5, 0.5), stage_brackets=((), ())
@@ -112,11 +132,12 @@ SCHEMES: dict[str, Scheme] = {
         stage_brackets=((), (), ((-1 / 8, 0, 1),), ()),
         final_brackets=((-1 / 12, 0, 3),),
     ),
+    **stiff.ROSENBROCK,
 }
 
 
-def _scheme(scheme: str | Scheme) -> Scheme:
-    if isinstance(scheme, Scheme):
+def _scheme(scheme: str | AnyScheme) -> AnyScheme:
+    if isinstance(scheme, Scheme | Rosenbrock):
         return scheme
     try:
         return SCHEMES[scheme]
@@ -124,6 +145,17 @@ def _scheme(scheme: str | Scheme) -> Scheme:
         raise ValueError(
             f"scheme: unknown scheme {scheme!r}; choose one of {sorted(SCHEMES)}"
         ) from None
+
+
+def explicit_scheme(name: str) -> Scheme:
+    """The explicit tableau ``name`` (for the compiled and GPU loops, which run tableaux only);
+    ValueError naming the scheme for an implicit one."""
+    s = _scheme(name)
+    if not isinstance(s, Scheme):
+        explicit = ", ".join(k for k, v in SCHEMES.items() if not v.implicit)
+        raise ValueError(f"scheme: {name!r} is linearly implicit; the GPU and compiled loops run "
+                         f"the explicit schemes only ({explicit})")
+    return s
 
 
 def scheme_order(name: str) -> int:
@@ -199,15 +231,44 @@ def _advance(system: System, x: np.ndarray, r: np.ndarray, dt: float) -> np.ndar
                           shape=x.shape, what="the state's shape")
 
 
-def step(system: System, scheme: str | Scheme, t: float, x: np.ndarray, dt: float) -> np.ndarray:
+def step(system: System, scheme: str | AnyScheme, t: float, x: np.ndarray, dt: float
+         ) -> np.ndarray:
     """One step of ``scheme`` from ``(t, x)`` to ``t + dt`` (no projection; what ``rates`` and
     ``advance`` return is checked, :mod:`parastokes.bodies.contract`, not its finiteness)."""
     s = _scheme(scheme)
+    if isinstance(s, Rosenbrock):
+        return _implicit_stepper(system, s)(t, x, dt)
     k: list[np.ndarray] = [_rates(system, t, x)]
     for i in range(1, s.stages):
         xi = _advance(system, x, _combine(system, s.a[i], k, s.stage_brackets[i], dt), dt)
         k.append(_rates(system, t + s.c[i] * dt, xi))
     return _advance(system, x, _combine(system, s.b, k, s.final_brackets, dt), dt)
+
+
+def _stiff_blowup(error: stiff.StiffSolveError | stiff.StepSizeError, step: int,
+                  x: np.ndarray) -> BlowUpError:
+    """A failed stage solve or a step size that shrank to nothing, as the blow-up of a run."""
+    if isinstance(error, stiff.StepSizeError):
+        reason = f"{error} (adaptive steps); loosen rtol/atol or check the body's forces"
+    else:
+        reason = str(error)
+    return BlowUpError(error.t, step, math.nan, x, reason)
+
+
+def _implicit_stepper(system: System, scheme: Rosenbrock):
+    """``step(t, x, dt)`` of a linearly implicit scheme: a :class:`parastokes.stiff.Stepper`
+    (it keeps the Jacobian and its factorization across the steps of one run) on the checked
+    ``rates`` and ``advance``; a failed solve is a :class:`BlowUpError`."""
+    stepper = stiff.Stepper(system, scheme, lambda t, y: _rates(system, t, y),
+                            lambda y, r, h: _advance(system, y, r, h))
+
+    def take(t: float, x: np.ndarray, dt: float) -> np.ndarray:
+        try:
+            return stepper.step(t, x, dt)
+        except stiff.StiffSolveError as error:
+            raise _stiff_blowup(error, stepper.steps, x) from error
+
+    return take
 
 
 def n_steps(t_start: float, t_end: float, dt: float) -> int:
@@ -231,6 +292,8 @@ class RunResult:
     n_steps: int
     dt: float
     completed: bool = True
+    #: Steps rejected by the error control of adaptive steps (``n_steps`` counts the accepted).
+    n_rejected: int = 0
 
 
 #: Outcomes of a loop of steps (:func:`_python_steps`, ``system.run_steps``): all steps taken;
@@ -247,7 +310,7 @@ def _monitor(system: System, x: np.ndarray) -> float:
 
 def _python_steps(
     system: System,
-    scheme: Scheme,
+    scheme: AnyScheme,
     x: np.ndarray,
     t0: float,
     dt: float,
@@ -261,8 +324,13 @@ def _python_steps(
     ``system.run_steps`` (optional, compiled) has the same signature and result.
     """
     worst = _monitor(system, x)
+    take = (_implicit_stepper(system, scheme) if isinstance(scheme, Rosenbrock)
+            else functools.partial(step, system, scheme))
     for i in range(n):
-        x_new = step(system, scheme, t0 + i * dt, x, dt)
+        try:
+            x_new = take(t0 + i * dt, x, dt)
+        except StepFailure as error:  # (a failed mobility solve): no result, a blow-up
+            raise BlowUpError(t0 + (i + 1) * dt, i, math.nan, x, str(error)) from None
         if not np.isfinite(x_new).all():
             return x, worst, i, NON_FINITE, math.nan
         m = _monitor(system, x_new)
@@ -277,7 +345,7 @@ def _python_steps(
 
 def _stepping(
     system: System,
-    scheme: Scheme,
+    scheme: AnyScheme,
     x: np.ndarray,
     t0: float,
     dt: float,
@@ -295,7 +363,7 @@ def _stepping(
     limit = blowup_factor * system.monitor_limit
     shape = x.shape
     x = projected(system, x, t0)
-    loop = compiled_loop(system) if compiled else None
+    loop = compiled_loop(system) if compiled and not scheme.implicit else None
     if loop is None:
         x = contract.array(system, "project(state)", x, shape=shape, what="the state's shape")
         loop = functools.partial(_python_steps, system)
@@ -321,7 +389,7 @@ def run_result(
     if outcome == BEYOND:
         reason = f"monitor beyond {blowup_factor:g} x its limit {system.monitor_limit:g}"
         if m == math.inf:  # the monitors' sign of a point on or below the wall z = 0
-            reason += " (infinite: a point reached the wall z = 0; a smaller step keeps it off)"
+            reason += " (infinite: a point reached the wall z = 0)"
         raise BlowUpError(t, taken, m, x, reason)
     end = projected(system, x, t0 + taken * dt, max(taken - 1, 0))
     return RunResult(end, worst, taken, dt, completed=outcome == DONE)
@@ -332,13 +400,19 @@ def run(
     x: np.ndarray,
     t0: float,
     t1: float,
-    scheme: str | Scheme,
+    scheme: str | AnyScheme,
     dt: float,
     *,
     blowup_factor: float = BLOWUP_FACTOR,
     compiled: bool = True,
+    rtol: float | None = None,
+    atol: float | None = None,
 ) -> RunResult:
     """Integrate from ``t0`` to ``t1`` with equal steps closest to ``dt``; report the worst monitor.
+
+    With ``rtol`` (``atol`` defaults to ``rtol``): adaptive steps of a scheme with an error
+    estimate instead (:func:`parastokes.stiff.adaptive_steps`, ``dt`` the first step tried);
+    ``n_steps`` of the result counts the accepted steps, ``n_rejected`` the rejected ones.
 
     The step actually used is ``(t1 - t0) / n_steps(t0, t1, dt)``; a change is logged (DEBUG).
     The initial and the final state are projected (``system.project``). Raises
@@ -348,6 +422,9 @@ def run(
     """
     s = _scheme(scheme)
     n = n_steps(t0, t1, dt)
+    if rtol is not None and n:
+        return _adaptive(system, s, np.asarray(x, dtype=float), t0, t1, dt,
+                         tolerances(s, rtol, atol), blowup_factor)
     if n == 0:
         return RunResult(system.project(np.array(x, dtype=float)), system.monitor(x), 0, dt)
     h = (t1 - t0) / n
@@ -358,33 +435,90 @@ def run(
     )
 
 
+def tolerances(scheme: str | AnyScheme, rtol: float, atol: float | None
+               ) -> tuple[float, float]:
+    """``(rtol, atol)`` checked for the adaptive steps of ``scheme``: finite and positive
+    (``atol`` None: ``rtol``), and a scheme with an error estimate (ValueError naming the key)."""
+    s = _scheme(scheme)
+    atol = rtol if atol is None else atol
+    for name, value in (("rtol", rtol), ("atol", atol)):
+        if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
+            raise ValueError(f"{name}: must be a finite number > 0, got {value!r}")
+    if getattr(s, "b_low", None) is None:
+        adaptive = sorted(k for k, v in SCHEMES.items() if getattr(v, "b_low", None) is not None)
+        raise ValueError(f"rtol: the scheme {s.name!r} has no error estimate for adaptive "
+                         f"steps; use one of {adaptive}, or a fixed step without rtol/atol")
+    return float(rtol), float(atol)
+
+
+def _adaptive(system: System, scheme: AnyScheme, x: np.ndarray, t0: float, t1: float,
+              dt: float, tol: tuple[float, float], blowup_factor: float) -> RunResult:
+    """:func:`run` with adaptive steps (see there): every accepted state is checked as the
+    fixed steps' are (finite, monitor within ``blowup_factor`` times the limit; a state beyond
+    it is a rejected step, halved)."""
+    assert isinstance(scheme, Rosenbrock)
+    limit = blowup_factor * system.monitor_limit
+    x = projected(system, x, t0)
+    worst = [_monitor(system, x)]
+    stepper = stiff.Stepper(system, scheme, lambda t, y: _rates(system, t, y),
+                            lambda y, r, h: _advance(system, y, r, h))
+
+    def accept(t: float, x_new: np.ndarray, index: int) -> bool:
+        if not np.isfinite(x_new).all():
+            return False
+        m = _monitor(system, x_new)
+        if not m <= limit:
+            return False
+        worst[0] = max(worst[0], m)
+        return True
+
+    try:
+        end, counts = stiff.adaptive_steps(stepper, x, t0, t1, dt, *tol, accept)
+    except (stiff.StiffSolveError, stiff.StepSizeError) as error:
+        raise _stiff_blowup(error, stepper.steps, x) from error
+    except StepFailure as error:  # (a failed mobility solve): no result, a blow-up
+        raise BlowUpError(t0, stepper.steps, math.nan, x, str(error)) from None
+    log.debug("adaptive %s on [%g, %g]: %d steps accepted, %d rejected", scheme.name, t0, t1,
+              counts.accepted, counts.rejected)
+    return RunResult(projected(system, end, t1), worst[0], counts.accepted, counts.last_step,
+                     n_rejected=counts.rejected)
+
+
 def propagate(
     system: System,
     x: np.ndarray,
     t0: float,
     t1: float,
-    scheme: str | Scheme,
+    scheme: str | AnyScheme,
     dt: float,
     *,
     blowup_factor: float = BLOWUP_FACTOR,
+    rtol: float | None = None,
+    atol: float | None = None,
 ) -> np.ndarray:
     """The state at ``t1`` of the run of :func:`run` (fixed public name, design.md)."""
-    return run(system, x, t0, t1, scheme, dt, blowup_factor=blowup_factor).state
+    return run(system, x, t0, t1, scheme, dt, blowup_factor=blowup_factor, rtol=rtol,
+               atol=atol).state
 
 
 @dataclass(frozen=True)
 class Propagator:
-    """A picklable fixed-step solver ``P(t_start, t_end, x) -> x`` (fine F or auxiliary G)."""
+    """A picklable solver ``P(t_start, t_end, x) -> x`` (fine F or auxiliary G): fixed steps
+    closest to ``dt``, or with ``rtol`` (and ``atol``) adaptive steps from a first step ``dt``."""
 
     system: System
     scheme: str
     dt: float
     blowup_factor: float = BLOWUP_FACTOR
+    rtol: float | None = None
+    atol: float | None = None
 
     def __post_init__(self) -> None:
         _scheme(self.scheme)
         if not self.dt > 0:
             raise ValueError(f"dt: must be positive, got {self.dt}")
+        if self.rtol is not None or self.atol is not None:
+            tolerances(self.scheme, self.rtol if self.rtol is not None else math.nan, self.atol)
 
     @property
     def order(self) -> int:
@@ -395,14 +529,17 @@ class Propagator:
         return n_steps(t_start, t_end, self.dt)
 
     def __call__(self, t_start: float, t_end: float, x: np.ndarray) -> np.ndarray:
-        return propagate(
-            self.system, x, t_start, t_end, self.scheme, self.dt, blowup_factor=self.blowup_factor
-        )
+        return self.run(t_start, t_end, x).state
+
+    def run(self, t_start: float, t_end: float, x: np.ndarray) -> RunResult:
+        """The :class:`RunResult` of the propagation (steps taken, and rejected with ``rtol``)."""
+        return run(self.system, x, t_start, t_end, self.scheme, self.dt,
+                   blowup_factor=self.blowup_factor, rtol=self.rtol, atol=self.atol)
 
 
 def is_stable(
     system: System,
-    scheme: str | Scheme,
+    scheme: str | AnyScheme,
     dt: float,
     t_span: float,
     *,
@@ -417,7 +554,7 @@ def is_stable(
     return worst is not None and worst <= limit
 
 
-def _worst_monitor(system: System, scheme: str | Scheme, dt: float, t_span: float,
+def _worst_monitor(system: System, scheme: str | AnyScheme, dt: float, t_span: float,
                    x0: np.ndarray | None, t0: float, stop_above: float) -> float | None:
     """The largest monitor over ``ceil(t_span/dt)`` steps of ``dt``; None if it blew up or went
     above ``stop_above`` (the run stops there)."""
@@ -433,7 +570,7 @@ def _worst_monitor(system: System, scheme: str | Scheme, dt: float, t_span: floa
 
 def largest_stable_step(
     system: System,
-    scheme: str | Scheme,
+    scheme: str | AnyScheme,
     t_span: float,
     dt_lo: float,
     dt_hi: float,

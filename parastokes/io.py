@@ -43,12 +43,21 @@ import h5py
 import numpy as np
 
 from .bodies.registry import RESERVED_NAMES, BodyLayout
-from .files import CorruptFileError, FileWriteError, GuardedFile, read_npz, write_npz, write_text
+from .files import (
+    CorruptFileError,
+    FileWriteError,
+    GuardedFile,
+    Staging,
+    read_npz,
+    write_npz,
+    write_text,
+)
 
 __all__ = [
     "HistoryRecord",
     "TrajectoryWriter",
     "load_arrays",
+    "new_hdf5",
     "read_history",
     "read_summary",
     "read_trajectory",
@@ -78,10 +87,15 @@ def _plain(value: Any) -> Any:
     return value
 
 
-def write_summary(path: str | os.PathLike, summary: Mapping[str, Any]) -> None:
-    """Write ``summary`` as strict JSON (NaN and infinities become null), atomically."""
-    text = json.dumps(_plain(summary), indent=2, allow_nan=False)
-    write_text(path, text)
+def write_summary(path: str | os.PathLike, summary: Mapping[str, Any],
+                  staging: Staging | None = None) -> None:
+    """Write ``summary`` as strict JSON (NaN and infinities become null), atomically (through
+    ``staging`` when given: in place when it commits)."""
+    data = json.dumps(_plain(summary), indent=2, allow_nan=False).encode()
+    if staging is None:
+        write_text(path, data.decode())
+    else:
+        staging.write(path, lambda handle: handle.write(data))
 
 
 #: The keys every run's ``summary.json`` has (docs/design.md); what reads one relies on them.
@@ -141,7 +155,27 @@ def _reading(path: str | os.PathLike) -> Iterator[h5py.File]:
         ) from None
 
 
-# ---- HDF5 trajectory -------------------------------------------------------------------------
+# ---- HDF5 files ------------------------------------------------------------------------------
+@contextmanager
+def new_hdf5(staging: Staging, path: str | os.PathLike) -> Iterator[h5py.File]:
+    """A new HDF5 file that becomes ``path`` when ``staging`` commits, written to its temporary
+    file through a :class:`~parastokes.files.GuardedFile`: a full disk or a file-size limit
+    raises :class:`~parastokes.files.FileWriteError` naming ``path`` when the block ends (h5py's
+    own driver would crash the interpreter)."""
+    path = Path(path)
+    try:
+        sink = GuardedFile(staging.temporary(path))
+    except FileWriteError as error:
+        raise FileWriteError(path, error) from None
+    try:
+        with h5py.File(sink, "w", locking=False) as f:
+            yield f
+    finally:
+        sink.close()
+    if sink.failed is not None:
+        raise FileWriteError(path, sink.failed)
+
+
 def _flat_attributes(prefix: str, value: Any, out: dict[str, Any]) -> None:
     if isinstance(value, Mapping):
         for key, item in value.items():
@@ -323,12 +357,15 @@ def read_trajectory(path: str | os.PathLike, run: str | None = None) -> dict[str
     {"kind", "positions", "connectivity", marks ("tracked"), node vectors ("D1"...)}},
     "config"}``.
 
-    ``run`` defaults to ``"parareal"`` when present, else ``"serial"``.
+    ``run`` defaults to ``"parareal"`` when present, else ``"serial"``. A file that lacks a
+    dataset, holds no frames, or whose frames disagree with its times or are not finite raises
+    :class:`~parastokes.files.CorruptFileError` naming what is wrong.
     """
     with _reading(path) as f:
         available = [r for r in RUNS if r in f]
         if not available:
-            raise ValueError(f"{path} holds no frames")
+            raise CorruptFileError(path, "holds no frames (no serial or parareal run)",
+                                   "rerun the run that wrote it")
         run = run or available[0]
         if run not in f:
             raise ValueError(f"{path} has no run {run!r}; it has {available}")
@@ -338,13 +375,48 @@ def read_trajectory(path: str | os.PathLike, run: str | None = None) -> dict[str
             body.update({key: value[()] for key, value in static.items()})
             body["kind"] = str(static.attrs.get("kind", f.attrs["kind"]))
             bodies[name] = body
-        return {
+        data = {
             "run": run,
             "kind": str(f.attrs["kind"]),
             "time": f[run]["time"][()],
             "bodies": bodies,
             "config": json.loads(f.attrs["config"]),
         }
+        static_names = {name: set(group) for name, group in f["bodies"].items()}
+    _check_frames(path, data, static_names)
+    return data
+
+
+def _check_frames(path: str | os.PathLike, data: dict[str, Any],
+                  static: Mapping[str, set[str]]) -> None:
+    """:class:`~parastokes.files.CorruptFileError` unless every body of ``data`` (one run of a
+    trajectory) has finite positions (F, M, 3) and node vectors (F, M, k) for its F finite,
+    increasing times, and its connectivity."""
+    times = np.asarray(data["time"], dtype=float)
+    where = f"run {data['run']!r}"
+    problems = []
+    if times.ndim != 1 or len(times) == 0:
+        problems.append(f"{where} holds no frames (time has shape {times.shape})")
+    elif not (np.isfinite(times).all() and np.all(np.diff(times) > 0)):
+        problems.append(f"the times of {where} are not finite and increasing")
+    for name, body in data["bodies"].items():
+        if "positions" not in body or "connectivity" not in body:
+            lacking = [k for k in ("positions", "connectivity") if k not in body]
+            problems.append(f"body {name!r} lacks its {' and '.join(lacking)}")
+            continue
+        rows = np.shape(body["positions"])[1:2]
+        for key, value in body.items():
+            if key in static.get(name, ()) or key == "kind":
+                continue
+            shape = np.shape(value)
+            if len(shape) != 3 or shape[:2] != (len(times), *rows):
+                problems.append(f"body {name!r}: {key} has shape {shape}, not one row per point "
+                                f"for each of the {len(times)} frames")
+            elif not np.isfinite(value).all():
+                frame = int(np.argwhere(~np.isfinite(value))[0, 0])
+                problems.append(f"body {name!r}: {key} is not finite in frame {frame}")
+    if problems:
+        raise CorruptFileError(path, "; ".join(problems[:3]), "rerun the run that wrote it")
 
 
 # ---- XDMF ------------------------------------------------------------------------------------

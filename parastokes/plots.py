@@ -36,7 +36,7 @@ From the JSON of ``benchmarks/parareal.py --json`` (:func:`draw_benchmark`):
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -51,6 +51,7 @@ from .figure_files import save_figure as _save
 __all__ = [
     "RunData",
     "draw_benchmark",
+    "draw_body",
     "draw_comparison",
     "draw_run",
     "error_decay",
@@ -65,6 +66,9 @@ __all__ = [
 ]
 
 FORMATS = ("png", "pdf")
+#: The figures of :func:`draw_comparison` and of :func:`draw_benchmark`, by stem.
+COMPARISON_FIGURES = ("error_decay", "speedup_vs_error", "speedup_by_iteration", "scaling")
+BENCHMARK_FIGURES = ("scaling_benchmark", "spatial_vs_temporal")
 
 
 @dataclass
@@ -393,21 +397,29 @@ def structure(
     return written
 
 
-def _edges(body: dict[str, Any], frame: int, i: int, j: int) -> np.ndarray:
-    """The segments of one frame of ``body`` projected on the plane (i, j): its triangles' edges,
-    its polyline's segments, or zero-length segments at its points."""
-    points = body["positions"][frame][:, [i, j]]
+def draw_body(ax: Any, body: Mapping[str, Any], frame: int, axes: tuple[int, int],
+              color: str, label: str | None = None) -> None:
+    """One frame of ``body`` (as :func:`parastokes.io.read_trajectory` gives it) projected on
+    the plane of ``axes``: its triangles' edges, its polyline (thicker), or its points as dots (a
+    rigid surface, its centre)."""
+    from matplotlib.collections import LineCollection
+
+    i, j = axes
+    points = np.asarray(body["positions"][frame])
     cells = np.asarray(body["connectivity"])
-    pairs = {3: [0, 1, 1, 2, 2, 0], 2: [0, 1], 1: [0, 0]}[cells.shape[1]]
-    return points[cells[:, pairs].reshape(-1, 2)]
+    if cells.shape[1] == 1:
+        ax.plot(points[:, i], points[:, j], ".", color=color, ms=2, label=label)
+        return
+    pairs = {3: [0, 1, 1, 2, 2, 0], 2: [0, 1]}[cells.shape[1]]
+    segments = points[:, [i, j]][cells[:, pairs].reshape(-1, 2)]
+    ax.add_collection(LineCollection(list(segments), colors=color, label=label,
+                                     linewidths=1.5 if cells.shape[1] == 2 else 0.4))
 
 
 def scene_snapshots(fig: Figure, bodies: dict[str, dict[str, Any]], times: np.ndarray, run: str,
                     count: int = 4) -> None:
     """Bodies of several kinds together: the x-z plane at ``count`` times, one axes each, centred
     on the first body (so that the others are seen passing it), at true scale."""
-    from matplotlib.collections import LineCollection
-
     frames = sorted(set(np.linspace(0, len(times) - 1, count).round().astype(int).tolist()))
     first = next(iter(bodies.values()))
     centres = [float(first["positions"][f][:, 0].mean()) for f in frames]
@@ -418,9 +430,7 @@ def scene_snapshots(fig: Figure, bodies: dict[str, dict[str, Any]], times: np.nd
     axes = fig.subplots(len(frames), 1, squeeze=False)[:, 0]
     for ax, frame, centre in zip(axes, frames, centres, strict=True):
         for index, (name, body) in enumerate(bodies.items()):
-            width = 1.5 if body["connectivity"].shape[1] == 2 else 0.4
-            ax.add_collection(LineCollection(list(_edges(body, frame, 0, 2)), colors=f"C{index}",
-                                             linewidths=width, label=name))
+            draw_body(ax, body, frame, (0, 2), f"C{index}", name)
         ax.set_xlim(centre - 1.05 * reach, centre + 1.05 * reach)
         ax.set_aspect("equal")
         ax.autoscale_view(scalex=False)

@@ -18,6 +18,14 @@ replaced whole.
   ``checkpoint.solves/``, ``reference.npz``, ``history.npz``) is written in place, each file
   atomically; the partial
   results of a run that stops early are dropped (the next run writes them anew).
+
+The commands that write beside or from a run (``flow``, ``movie``, ``tune``, ``plot``) claim their
+files through the same rules (:func:`claim_files`): checked before any work (a directory, an
+unwritable place, an existing file without ``--overwrite``); never one of a run's own files
+(:func:`is_run_file`); the lock of a run directory they write into held while they work, and one
+they read from refused while a run holds it; every file written to a temporary name and moved into
+place whole (:class:`parastokes.files.Staging`), so that an interrupt, a full disk or a failing
+writer leaves the previous file intact and no partial one.
 """
 
 from __future__ import annotations
@@ -28,14 +36,15 @@ import shutil
 import socket
 import sys
 import time
-from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Collection, Iterator, Sequence
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
-from .files import CorruptFileError, write_text
+from .files import CorruptFileError, Staging, staged, temporary_owner, write_text
 
 __all__ = [
-    "DirectoryInUse", "RunDirectory", "RunDirectoryError", "claim", "locked", "process_alive"
+    "DirectoryInUse", "RunDirectory", "RunDirectoryError", "check_files", "check_free", "claim",
+    "claim_files", "is_run_directory", "is_run_file", "locked", "process_alive",
 ]
 
 LOCK = ".parastokes.lock"
@@ -57,6 +66,12 @@ _OLD_FIGURES = tuple(
     for stem in ("error_decay", "speedup_vs_error", "speedup_by_iteration", "structure")
     for fmt in ("png", "pdf")
 )
+#: The figures a run draws itself (``output.figures``; ``parastokes plot RUN`` draws them again),
+#: by stem (``structure_<kind>`` too), and its own flow output (``output.flow_every``).
+RUN_FIGURES = ("error_decay", "speedup_vs_error", "speedup_by_iteration", "gantt", "structure")
+RUN_FLOW = ("flow.h5", "flow.xdmf", "flow.png")
+#: The files that keep a run directory's books.
+_BOOKS = (LOCK, LOCK + ".break", STAGING, MANIFEST)
 # Seconds after which a lock take-over that was itself interrupted is ignored.
 _BREAK_TIMEOUT = 10.0
 
@@ -283,13 +298,17 @@ class RunDirectory:
         shutil.rmtree(self.staging, ignore_errors=True)
 
 
-def _remove_orphans(path: Path) -> None:
-    """Remove the temporary files (``NAME.<pid>.tmp``, :func:`parastokes.files.atomic_write`)
-    that a process killed while writing left in ``path``: with the lock held, no other process
-    writes there."""
+def _remove_orphans(path: Path, locked: bool = True) -> None:
+    """Remove the temporary files (``NAME.<pid>.tmp``, :func:`parastokes.files.temporary_name`)
+    that a process killed while writing left in ``path``: with its lock held (``locked``), every
+    one but this process's (no other process writes there); else those of processes gone from
+    this host and untouched for a minute (one of another host sharing the folder still
+    writing)."""
     for entry in path.glob("*.tmp"):
-        pid = entry.name[: -len(".tmp")].rpartition(".")[2]
-        if pid.isdigit() and int(pid) != os.getpid() and entry.is_file():
+        pid = temporary_owner(entry)
+        if pid is None or pid == os.getpid() or not entry.is_file():
+            continue
+        if locked or (not process_alive(pid) and _age(entry) > 6 * _BREAK_TIMEOUT):
             entry.unlink(missing_ok=True)
 
 
@@ -298,21 +317,24 @@ def _write_names(path: Path, names: Sequence[str]) -> None:
     write_text(path, json.dumps({"files": list(names)}))
 
 
-def check_path(out: str | os.PathLike) -> None:
-    """:class:`RunDirectoryError` when ``out`` cannot become a writable run directory (a file,
-    under a file, in a folder that is not writable), without creating or locking anything: what
-    a run checks before any work, ahead of :func:`claim`."""
+def check_path(out: str | os.PathLike, shown: str | None = None) -> None:
+    """:class:`RunDirectoryError` when ``out`` cannot become a writable directory (a file, under a
+    file, in a folder that is not writable), without creating or locking anything: what a run
+    checks before any work, ahead of :func:`claim`. ``shown``: how the message names the path
+    (default ``--out OUT``)."""
     path = Path(out)
     if path.exists() and not path.is_dir():
-        raise RunDirectoryError(f"--out {path} is a file, not a directory; choose another --out")
+        where = f"{shown}: {path}" if shown else f"--out {path}"
+        raise RunDirectoryError(f"{where} is a file, not a directory; choose another --out")
+    shown = shown or f"--out {path}"
     existing = path if path.exists() else next(p for p in path.absolute().parents if p.exists())
     if not existing.is_dir():
         raise RunDirectoryError(
-            f"--out {path}: cannot create the directory (Not a directory: {existing}); "
+            f"{shown}: cannot create the directory (Not a directory: {existing}); "
             "choose a path in a directory you can write to"
         )
     if not os.access(existing, os.W_OK | os.X_OK):
-        raise RunDirectoryError(f"--out {path}: {existing} is not writable; choose another --out")
+        raise RunDirectoryError(f"{shown}: {existing} is not writable; choose another --out")
 
 
 def _directory(out: Path) -> None:
@@ -386,3 +408,87 @@ def claim(out: str | os.PathLike, *, resume: bool, overwrite: bool) -> Iterator[
             shutil.rmtree(path / STAGING, ignore_errors=True)
         if _owner(path / LOCK) == record:
             (path / LOCK).unlink(missing_ok=True)
+
+
+# ---- the files of the commands that write beside or from a run ---------------------------------
+def is_run_directory(path: str | os.PathLike) -> bool:
+    """Whether ``path`` is a run's output directory (its lock, results, resume state or books)."""
+    path = Path(path)
+    markers = (LOCK, MANIFEST, STAGING, *RESULT_FILES, *STATE_FILES)
+    return path.is_dir() and any((path / name).exists() for name in markers)
+
+
+def is_run_file(name: str) -> bool:
+    """Whether ``name`` is one of the files a run writes into its own directory: its results
+    (with its figures and its own flow output), its resume state, its input and its books."""
+    stem, _, suffix = name.rpartition(".")
+    figure = suffix in ("png", "pdf") and (stem in RUN_FIGURES or stem.startswith("structure_"))
+    own = (*RESULT_FILES, *STATE_FILES, *INPUT_FILES, *RUN_FLOW, *_BOOKS)
+    return name in own or figure
+
+
+def check_free(run: str | os.PathLike) -> None:
+    """:class:`DirectoryInUse` when a live process holds the lock of the run directory ``run``
+    (a command reads a run's results only when no run is replacing them)."""
+    path = Path(run)
+    owner = _owner(path / LOCK)
+    if owner is not None and not _stale(owner):
+        raise DirectoryInUse(path, owner)
+
+
+def check_files(paths: Sequence[str | os.PathLike], *, overwrite: bool = True,
+                regenerates: Collection[str] = (), option: str = "--out") -> list[Path]:
+    """The files ``paths`` a command is to write, checked before any work (nothing is created):
+    none a directory, each in a folder that exists or can be made and is writable, none an
+    existing file unless ``overwrite``, and none one of a run's own files in its directory
+    (:func:`is_run_file`) but the names in ``regenerates`` (``plot RUN`` draws its figures
+    again). :class:`RunDirectoryError` (exit 2) names the file and what to change."""
+    found = [Path(p) for p in paths]
+    for path in found:
+        if path.is_dir():
+            raise RunDirectoryError(f"{option} {path} is a directory: give a file name, e.g. "
+                                    f"{path / 'out'}")
+        check_path(path.parent, f"{option} {path}")
+        if is_run_directory(path.parent) and is_run_file(path.name) and \
+                path.name not in regenerates:
+            raise RunDirectoryError(
+                f"{option} {path}: {path.name} is a file of the run in {path.parent}, which no "
+                f"other command replaces; choose another {option} (a new name, or another "
+                "directory)")
+    existing = [str(p) for p in found if p.exists()]
+    if existing and not overwrite:
+        raise RunDirectoryError(f"{option} {found[0]}: {', '.join(existing)} already exist(s); "
+                                f"pass --overwrite to replace them, or choose another {option}")
+    return found
+
+
+@contextmanager
+def claim_files(paths: Sequence[str | os.PathLike], *, overwrite: bool = True,
+                reads: Sequence[str | os.PathLike] = (), regenerates: Collection[str] = (),
+                option: str = "--out") -> Iterator[Staging]:
+    """Own the files ``paths`` that a command writes (``flow``, ``movie``, ``tune``, ``plot``),
+    checked before any work: :func:`check_files`; the lock of every run directory among their
+    folders held until the block ends (:class:`DirectoryInUse` if a run holds it), and the run
+    directories ``reads`` (those the command reads) refused while a run holds them
+    (:func:`check_free`). Yields the :class:`~parastokes.files.Staging` to write them through:
+    they are moved into place when the block ends normally (and listed with the results of a run
+    directory they are in, so that its next ``--overwrite`` replaces them), and removed when it
+    raises, so the previous files stay whole."""
+    found = check_files(paths, overwrite=overwrite, regenerates=regenerates, option=option)
+    folders = list(dict.fromkeys(path.parent for path in found))
+    with ExitStack() as stack:
+        runs: dict[Path, RunDirectory] = {}
+        for folder in folders:
+            if is_run_directory(folder):
+                runs[folder] = stack.enter_context(locked(folder))
+            else:
+                _directory(folder)
+                _remove_orphans(folder, locked=False)
+        held = {folder.resolve() for folder in runs}
+        for read in reads:
+            if Path(read).resolve() not in held:
+                check_free(read)
+        with staged() as staging:
+            yield staging
+        for folder, directory in runs.items():
+            directory.add_results([p.name for p in found if p.parent == folder and p.exists()])

@@ -39,10 +39,10 @@ except ImportError:  # (not on Windows)
 
 import numpy as np
 
-from . import __version__, files, io, parareal, rundir, session
+from . import __version__, files, integrate, io, parareal, rundir, session
 from .config import Config, ConfigError, Resolved, Setup, preflight, resolved_dict
 from .config.checks import estimated_fine_seconds
-from .contracts import System
+from .contracts import StepFailure, System
 from .files import CorruptFileError, write_text
 from .integrate import BlowUpError
 from .parallel import SerialExecutor, run_labelled
@@ -128,14 +128,20 @@ def identity(cfg: Config) -> dict[str, Any]:
     ``execution``, ``output``) are left out: ``--resume`` may change them (e.g. to run more
     iterations).
     """
-    dumped = cfg.model_dump(mode="json")
+    return _identity(cfg.model_dump(mode="json"), __version__)
+
+
+def _identity(dumped: dict[str, Any], version: str) -> dict[str, Any]:
+    """:func:`identity` of a configuration's ``model_dump(mode="json")`` (as a run's summary
+    stores it) and the package ``version``."""
     sections = {key: dumped[key] for key in ("model", "time", "fine", "coarse")}
-    sections["parareal"] = {"n_slices": cfg.parareal.n_slices}
-    sections["run"] = {"mode": cfg.run.mode}
-    sections["coarse"].pop("max_weight_sum", None)  # a safety bound, not a setting of the solver
+    sections["parareal"] = {"n_slices": dumped["parareal"]["n_slices"]}
+    sections["run"] = {"mode": dumped["run"]["mode"]}
+    sections["coarse"] = {k: v for k, v in sections["coarse"].items()
+                          if k != "max_weight_sum"}  # a safety bound, not a setting of the solver
     flat: dict[str, Any] = {}
     _flatten("", sections, flat)
-    return {**flat, "version": __version__}
+    return {**flat, "version": version}
 
 
 def fine_identity(cfg: Config) -> dict[str, Any]:
@@ -166,9 +172,19 @@ def _same_run(path: Path, saved: Any, now: dict[str, Any]) -> None:
         raise ConfigError([*issues, ("--resume", hint)], f"{path} (the run to resume)")
 
 
-def _check_resumable(out: Path, cfg: Config) -> None:
+def _check_resumable(out: Path, cfg: Config, resume: bool) -> None:
     """Before any work: every resume file in ``out`` is readable and of this run (the reference:
-    of its fine problem, :func:`fine_identity`; the others: of the whole run, :func:`identity`)."""
+    of its fine problem, :func:`fine_identity`; the others: of the whole run, :func:`identity`),
+    and with ``resume`` the finished run's ``summary.json`` too (its results are replaced: by
+    this run's only if it is the same run, even when its resume files are gone)."""
+    if resume and (out / SUMMARY).exists():
+        summary = io.read_summary(out / SUMMARY)
+        try:
+            saved = _identity(summary["config"], summary["versions"]["parastokes"])
+        except (KeyError, TypeError) as error:
+            raise CorruptFileError(out / SUMMARY, f"not a run's summary (no {error})",
+                                   "pass --overwrite to replace that run") from None
+        _same_run(out / SUMMARY, saved, identity(cfg))
     for name, key in ((REFERENCE, fine_identity(cfg)), (HISTORY, identity(cfg)),
                       (CHECKPOINT, identity(cfg))):
         path = out / name
@@ -239,6 +255,32 @@ def _solver_step(cfg: Config, resolved: Resolved, label: str) -> float:
     return float(resolved.fine_dt if fine else resolved.coarse_dt)
 
 
+def _height_keys(cfg: Config) -> str:
+    """The keys that say how far the bodies start from the wall, by kind."""
+    model = cfg.model
+    if model.kind == "scene":
+        return "the bodies' height, position or center ([[bodies]])"
+    for key in ("height", "position", "center"):
+        if key in type(model).model_fields:
+            return f"model.{key}" + (" (its z)" if key != "height" else "")
+    return "the body's initial position"
+
+
+def _smaller_step_passes(setup: Setup, error: BlowUpError, step: float) -> bool:
+    """Whether the fine scheme with a step 10 times smaller than ``step`` carries the last good
+    state of ``error`` through the time of two such steps without a blow-up: then the step, not
+    the model, drove the body into the wall (a probe of 20 small steps)."""
+    system, x = setup.system, error.last_state
+    if np.shape(x) != np.shape(system.initial_state()):
+        return False  # (a coarser grid's state)
+    start = error.t - step
+    try:
+        integrate.run(system, x, start, start + 2 * step, setup.config.fine.scheme, step / 10)
+    except (BlowUpError, StepFailure, ValueError, FloatingPointError):
+        return False
+    return True
+
+
 def _near_wall(setup: Setup, state: np.ndarray) -> str | None:
     """Why a blow-up at ``state`` is the body reaching the wall z = 0 (its lowest point closer to
     the wall than the blob size ε, where the regularised kernels stop resolving the gap), else
@@ -256,9 +298,10 @@ def _near_wall(setup: Setup, state: np.ndarray) -> str | None:
     return (
         f"a body is at the wall: its lowest point is {lowest:.3g} above z = 0, closer than the "
         f"blob size ε = {scale:.3g}, where the regularised flow no longer keeps it off; it gets "
-        "there at this time whatever the step, so a smaller step does not help: start it "
-        "farther from the wall (model.height), end the run before (time.t1), or change the "
-        "forces that drive it there"
+        "there at this time whatever the step (a step 10 times smaller meets the wall too), so "
+        f"a smaller step does not help: start it farther from the wall "
+        f"({_height_keys(setup.config)}), end the run before (time.t1), or change the forces "
+        "that drive it there"
     )
 
 
@@ -291,15 +334,32 @@ def _advice(setup: Setup, label: str, error: BlowUpError, where: str,
     cfg = setup.config
     span = cfg.time.t1 - cfg.time.t0
     step = _solver_step(cfg, setup.resolved, label)
-    found = [note for note in (_near_wall(setup, error.last_state),
-                               _same_time(previous, error, where, step, span)) if note]
-    return "; ".join(found) if found else _fix(cfg, label)
+    if " returned " in error.reason:  # a body's own method at the (finite) last good state
+        return ("the body's own function named above gives non-finite values, so a smaller step "
+                "does not help: fix that function (or the values it is given)")
+    wall = _near_wall(setup, error.last_state)
+    solve = "solve" in label or label == "serial"  # (not a correction or combination)
+    if wall is not None and solve and _smaller_step_passes(setup, error, step):
+        wall = None  # the step drove it there: a smaller one is the fix
+    found = [note for note in (wall, _same_time(previous, error, where, step, span)) if note]
+    return "; ".join(found) if found else _fix(cfg, label, error.reason)
 
 
-def _fix(cfg: Config, label: str) -> str:
-    """What to change after a blow-up of the solve named ``label``."""
-    if "fine solve" in label or label == "serial":
+def _fix(cfg: Config, label: str, reason: str = "") -> str:
+    """What to change after a blow-up of the solve named ``label`` (``reason``: the error's)."""
+    fine = "fine solve" in label or label == "serial"
+    if "step size" in reason:  # adaptive steps shrank to nothing
+        return ("loosen fine.rtol/fine.atol, or use fixed steps (no rtol) to see where the "
+                "body fails")
+    if "linear solve failed" in reason:
+        which = "fine.dt" if fine else "the coarse step"
+        return (f"reduce {which}, or use the scheme ros2 (a direct solve on the approximate "
+                "Jacobian, no GMRES iterations to fail)")
+    if fine:
         return f"reduce fine.dt (now {cfg.fine.dt:g}) or use a more stable fine.scheme"
+    if cfg.coarse.kind == "hodmd":
+        return ("reduce the steps of the coarse solvers (coarse.g1 and coarse.g2: their dt or "
+                "dt_ratio), or use a more stable scheme for them")
     return (
         "reduce the coarse step (coarse.dt_ratio or coarse.dt), or choose Lagrange nodes at which "
         f"the coarse scheme ({getattr(cfg.coarse, 'scheme', cfg.coarse.kind)}) is stable at that "
@@ -442,10 +502,13 @@ def _serial(
         reporter.note(f"serial fine run resumed after slice {done} of {n_slices}")
     reporter.start("serial", n_slices - done)
     reporter.expect(_slice_seconds(setup))
+    accepted = rejected = 0
     for n in range(done + 1, n_slices + 1):
         start = time.perf_counter()
         try:
-            states[n] = setup.fine(times[n - 1], times[n], states[n - 1])
+            result = setup.fine.run(times[n - 1], times[n], states[n - 1])
+            states[n] = result.state
+            accepted, rejected = accepted + result.n_steps, rejected + result.n_rejected
         except BlowUpError as error:
             cfg = setup.config
             where = f"the fine solver F ({cfg.fine.scheme}) in slice {n} of the serial fine run"
@@ -456,6 +519,9 @@ def _serial(
         io.save_arrays(path, {"key": key, "done": n, "wall_time": wall}, states=states)
         reporter.advance()
     reporter.finish()
+    if setup.config.fine.rtol is not None:
+        reporter.note(f"serial fine run: adaptive steps ({setup.config.fine.scheme}, rtol "
+                      f"{setup.config.fine.rtol:g}): {accepted} accepted, {rejected} rejected")
     return states, wall
 
 
@@ -614,7 +680,7 @@ def execute(
         found = directory.entries()
         if resume and not found["state"] and not found["results"]:
             reporter.note(f"--resume: {out} holds no run to continue; starting afresh")
-        return _execute(setup, directory, reporter, files or {})
+        return _execute(setup, directory, reporter, files or {}, resume)
 
 
 def _kernels_cached() -> bool:
@@ -626,6 +692,7 @@ def _kernels_cached() -> bool:
 
 def _execute(
     setup: Setup, directory: rundir.RunDirectory, reporter: ReporterLike, files: dict[str, str],
+    resume: bool = False,
 ) -> dict[str, Any]:
     from . import plots
 
@@ -633,7 +700,7 @@ def _execute(
     out, staging = directory.path, directory.staging
     conf = resolved_dict(cfg, resolved)
     key = identity(cfg)
-    _check_resumable(out, cfg)
+    _check_resumable(out, cfg, resume)
     previous = _previous_blow_up(out)  # (an earlier run's, to compare a new blow-up with)
     for name, text in files.items():
         write_text(out / name, text)

@@ -50,6 +50,7 @@ from .bodies.sources import FluidSources, fluid_sources
 from .scene_coarse import SceneTransfer
 from .stepping import registry
 from .stepping.scene import scene_loop
+from .stiff.jacobian import block_jacobian, local_jacobian
 
 __all__ = ["Scene"]
 
@@ -258,6 +259,17 @@ class Scene:
                                   self.blocks(rates, self.rate_columns), strict=True)
         ]
         return self.stack(parts)
+
+    def stiff_jacobian(self, t: float, state: np.ndarray) -> Any:
+        """The approximate Jacobian of the linearly implicit schemes (:mod:`parastokes.stiff`):
+        each body's own (its near mobility times its load Jacobian; none for rigid and
+        prescribed-motion bodies), block-diagonal over the padded rates; the coupling between
+        bodies stays out of it (W-methods keep their order with any approximation)."""
+        cols = self.rate_columns
+        parts = [(first, rows, rc, local_jacobian(body, t, x, rows * rc))
+                 for body, x, (first, rows, _), rc in zip(self.bodies, self.blocks(state),
+                                                           self.shapes, cols, strict=True)]
+        return block_jacobian(parts, len(state), max(cols))
 
     def bracket(self, r1: np.ndarray, r2: np.ndarray) -> np.ndarray:
         """The bodies' Lie brackets (zero for bodies without one)."""

@@ -301,3 +301,28 @@ def test_the_coarse_solver_family_is_a_key_with_the_extrapolated_default():
     assert cfg.model_dump()["coarse"]["kind"] == "extrapolated"
     issues = issues_of(BASE, 'coarse.kind="spectral"')
     assert "coarse.kind" in issues and "extrapolated" in issues["coarse.kind"]
+
+
+def test_implicit_schemes_and_adaptive_steps_are_keys_checked_before_any_work():
+    """docs/stiff.md: the schemes by name, rtol/atol finite and positive with a scheme that has
+    an error estimate, no implicit scheme on the GPU."""
+    cfg, _ = config.loads(VESICLE, overrides=['fine.scheme="ros2"', "fine.rtol=1e-4"])
+    assert (cfg.fine.scheme, cfg.fine.rtol, cfg.fine.atol) == ("ros2", 1e-4, None)
+    assert issues_of(VESICLE, 'fine.scheme="ros2"', "fine.rtol=-1")["fine.rtol"] == (
+        "must be a finite number > 0, got -1.0")
+    assert "no error estimate" in issues_of(VESICLE, 'fine.scheme="lieuler"',
+                                            "fine.rtol=1e-3")["fine.rtol"]
+    assert issues_of(VESICLE, 'fine.scheme="ros2"', "fine.atol=1e-3")["fine.rtol"] == (
+        "required with fine.atol (adaptive steps)")
+    gpu = issues_of(VESICLE, 'coarse.scheme="ros2-krylov"', 'execution.executor="gpu"')
+    assert "ros2-krylov runs on processes, mpi or serial" in gpu["execution.executor"]
+
+
+def test_adaptive_coarse_solvers_are_keys_checked_before_any_work():
+    cfg, _ = config.loads(VESICLE, overrides=['coarse.scheme="ros2"', "coarse.rtol=1e-3"])
+    assert (cfg.coarse.rtol, cfg.coarse.atol) == (1e-3, None)
+    assert "needs the fixed steps" in issues_of(
+        VESICLE, 'coarse.scheme="ros2"', "coarse.rtol=1e-3", "coarse.richardson.m=1",
+        "coarse.richardson.r=0.5")["coarse.rtol"]
+    assert issues_of(VESICLE, "coarse.atol=1e-3")["coarse.rtol"] == (
+        "required with atol (adaptive steps)")

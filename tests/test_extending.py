@@ -56,6 +56,9 @@ def test_the_pages_python_steps_run(walk):
     assert outputs["check_compiled.py"].strip() == "compiled loop ok"
     assert outputs["parareal_cloud.py"].startswith("errors")
     assert outputs["check_beads.py"].strip() == "beads ok"
+    coupling, relaxed = outputs["stiff_coarse.py"].splitlines()
+    assert coupling == "coupling checked: 0.0e+00"
+    assert relaxed == "ros2 at 0.1: monitor 0.00241 of 0.192 at the start"
     assert outputs["broken_beads.py"].strip() == (
         "OneRowShort.forces(state) returned shape (7, 3); expected (8, 3): one row per point")
     assert outputs["check_device.py"].strip() == "device ok"  # the cloud's device parts (11.)

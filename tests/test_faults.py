@@ -354,9 +354,12 @@ def test_tune_outputs_are_three_distinct_new_files_unless_overwrite(tmp_path):
 
     toml, record, figure = outputs(tmp_path / "sub" / "t.toml", overwrite=False)
     assert (toml.name, record.name, figure.name) == ("t.toml", "t.json", "t.png")
-    assert toml.parent.is_dir()
+    assert not toml.parent.exists()  # checked only: the claim makes it (rundir.claim_files)
+    toml.parent.mkdir()
     record.write_text("{}")
     assert outputs(toml, overwrite=True) == (toml, record, figure)
+    with pytest.raises(ValueError, match=r"t\.json already exist"):
+        outputs(toml, overwrite=False)
 
 
 # ---- 9: predict at any core count --------------------------------------------------------------

@@ -663,3 +663,19 @@ def test_screen_is_corrected_by_a_measured_candidate_of_the_same_structure():
     assert other_reach.screen["eta"] == [1e-10, 1e-12]
     assert other_reach.screen["calibrated_by"] == "baseline"
     assert other_reach.screen["iterations"] == 1
+
+
+def test_implicit_schemes_are_searched_beyond_the_explicit_step_limit():
+    """An L-stable candidate (docs/stiff.md) gets a step limit up to half a slice, far above
+    forward Euler's on the same rod, and is judged by the same measures (ρ(DG), the pilot's η^k,
+    γ_G/γ_F) as every candidate; the report says why it wins or loses."""
+    fine = integrate.Propagator(small_rod(), "rk2", 1e-6)
+    space = Space(schemes=("euler", "ros2"), parameters=(), richardson=(0,),
+                  step_fractions=(1.0,))
+    res = tuning.tune(fine, t0=0.0, t1=2e-3, n_slices=8, cores=8, target=1e-6, space=space,
+                      pilot_slices=2, budget=300.0)
+    rows = {row["scheme"]: row for row in res.report["candidates"]}
+    explicit, implicit = rows["euler"]["stability"], rows["ros2"]["stability"]
+    assert implicit["step_limit"] >= 5 * explicit["step_limit"]
+    assert rows["ros2"]["status"] in {"accepted", "not reached", "unstable"}
+    assert rows["ros2"]["predicted"]["gamma_ratio"] > 0 or rows["ros2"]["reason"]

@@ -36,6 +36,7 @@ __all__ = [
     "BodyLayout",
     "BodyResolution",
     "BodySection",
+    "PlannedSize",
     "Positive",
     "UnknownKindError",
     "axis_stretch",
@@ -77,6 +78,18 @@ class UnknownKindError(ValueError):
 
 
 @dataclass(frozen=True)
+class PlannedSize:
+    """A body's size from its keys alone, before anything is built (the memory check of
+    ``check`` and of every run): ``rows`` of its state, ``dense_bytes`` of the dense matrices its
+    solves factorize and keep (a rigid surface of N points: its (3N)² matrix and LU factors; 0
+    for none), and the ``keys`` that set them (named by the check's message)."""
+
+    rows: int
+    dense_bytes: float = 0.0
+    keys: str = "n_points"
+
+
+@dataclass(frozen=True)
 class BodyResolution:
     """What a body section resolves to, in absolute units.
 
@@ -109,6 +122,12 @@ class BodySection(BaseModel):
     def build(self, threads: int = 1) -> System:
         """The system of this section with Θ⁰, its kernels on ``threads`` threads."""
         raise NotImplementedError
+
+    def planned_size(self) -> PlannedSize | None:
+        """The size of this body from its keys alone, for a kind whose :meth:`resolve` builds
+        the body (so that too large a body is refused before it is allocated); None (the
+        default) when :meth:`resolve` builds nothing large and its rows are the size."""
+        return None
 
     def coarse_points(self, factor: int) -> int:
         """State rows on the grid ``factor`` times coarser; ValueError naming why not."""

@@ -27,6 +27,7 @@ from ..config.checks import steps_on_slice
 from ..config.schema import LagrangeNodes, Richardson, Scheme
 from ..contracts import System, rounds
 from ..parareal import weights
+from ..parareal.extrapolation import adaptive_tolerances
 from .registry import CoarseResolution, CoarseSection
 
 __all__ = ["Extrapolated"]
@@ -56,6 +57,10 @@ class Extrapolated(CoarseSection):
     richardson: Richardson = Field(
         default_factory=Richardson, description="Richardson extrapolation {m, r}."
     )
+    rtol: float | None = Field(
+        None, description="Adaptive steps of every auxiliary solver within this relative error "
+        "per step (ros2, ros2-krylov; not with richardson.m >= 1); dt is then the first step.")
+    atol: float | None = Field(None, description="Absolute error per step (default: rtol).")
     grid_factor: int = Field(1, ge=1, description="σ_c / σ_f (rods; Table 6 uses 6); rigid bodies: "
                              "each part of the surface with factor times fewer points; scenes: "
                              "every body that has a coarser grid, or those of "
@@ -101,6 +106,12 @@ class Extrapolated(CoarseSection):
                     "all differ (choose r farther from 1 or a smaller coarse step)",
                 )
             )
+        if self.rtol is not None or self.atol is not None:
+            try:
+                adaptive_tolerances(self.scheme, self.rtol, self.atol, m)
+            except ValueError as error:
+                key, _, text = str(error).partition(": ")
+                issues.append((f"coarse.{key}", text))
         if coarse_dt < cfg.fine.dt:
             warnings.append(
                 f"coarse.dt: τ_c = {coarse_dt:.6g} is smaller than τ_f = {cfg.fine.dt:.6g}"
@@ -202,6 +213,8 @@ class Extrapolated(CoarseSection):
             lagrange=resolved.lagrange or None,
             richardson={"m": richardson.m, "r": richardson.r} if richardson.m else None,
             grid=self.grid_factor if self.grid_factor > 1 else None,
+            rtol=self.rtol,
+            atol=self.atol,
         )
 
     def gamma_ratio(self, cfg: Any, resolved: Any, cores: int) -> float:

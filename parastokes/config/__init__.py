@@ -42,6 +42,7 @@ __all__ = [
     "Setup",
     "apply_overrides",
     "build",
+    "build_body",
     "build_system",
     "load",
     "loads",
@@ -210,8 +211,9 @@ def merge(base: dict[str, Any], update: dict[str, Any]) -> dict[str, Any]:
 
 def _text(path: Path) -> bytes:
     """The bytes of the configuration file ``path``: a regular file of at most
-    :data:`MAX_CONFIG_BYTES` (a device, a pipe or a huge file is refused before it is read)."""
-    with open(path, "rb") as handle:
+    :data:`MAX_CONFIG_BYTES` (a device, a pipe or a huge file is refused before it is read;
+    opened without waiting, as a pipe would until something writes to it)."""
+    with os.fdopen(os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0)), "rb") as handle:
         if not stat.S_ISREG(os.fstat(handle.fileno()).st_mode):
             raise ConfigError([("", "not a regular file (a device, a pipe or a directory): give a "
                                     "TOML file")], str(path))
@@ -239,9 +241,42 @@ def _read(path: Path, chain: tuple[Path, ...] = ()) -> dict[str, Any]:
     base = data.pop("base", None)
     if base is None:
         return data
-    if not isinstance(base, str):
+    if not isinstance(base, str) or not base.strip() or "\0" in base:
         raise ConfigError([("base", f"must be a file name, got {base!r}")], source)
-    return merge(_read(path.parent / base, (*chain, path.resolve())), data)
+    return merge(_kinds_switched(_read(path.parent / base, (*chain, path.resolve())), data), data)
+
+
+#: The tables whose ``kind`` selects their keys, and the kind each has without one.
+_KINDED = {"model": None, "coarse": coarse_registry.DEFAULT}
+
+
+def _kinds_switched(base: dict[str, Any], data: dict[str, Any]) -> dict[str, Any]:
+    """``base`` without the tables whose ``kind`` ``data`` changes (``[coarse] kind = "hodmd"``
+    over a base of the extrapolated family): the keys of another kind are not inherited."""
+    out = dict(base)
+    for table, default in _KINDED.items():
+        mine, theirs = data.get(table), base.get(table)
+        if isinstance(mine, dict) and isinstance(theirs, dict) and "kind" in mine and \
+                mine["kind"] != theirs.get("kind", default):
+            del out[table]
+    return out
+
+
+def build_body(table: dict[str, Any], threads: int = 1, source: str = "body table") -> Any:
+    """One body built from its configuration table alone (what a ``[model]`` table holds, e.g.
+    ``{"kind": "rigid", "shape": "sphere", "n_points": 400}``), without a whole run
+    configuration: validated by its kind's section, resolved (its checks: a surface too coarse, a
+    body on the wall, a singular system), and built with its kernels on ``threads`` threads.
+    :class:`ConfigError` names what is wrong."""
+    issues: list[tuple[str, str]] = []
+    section = _model_section({"model": dict(table)}, issues, source)
+    if section is None:
+        raise ConfigError(issues, source)
+    try:
+        section.resolve()
+    except ValueError as error:
+        raise ConfigError([("model", str(error))], source) from None
+    return section.build(threads)
 
 
 def _model_section(data: dict[str, Any], issues: list[tuple[str, str]], source: str) -> Any:

@@ -45,5 +45,6 @@ def build(cfg: Config, resolved: Resolved) -> Setup:
     :func:`parastokes.session.start` for that.
     """
     system = build_system(cfg, resolved)
-    fine = integrate.Propagator(system, cfg.fine.scheme, cfg.fine.dt)
+    fine = integrate.Propagator(system, cfg.fine.scheme, cfg.fine.dt, rtol=cfg.fine.rtol,
+                                atol=cfg.fine.atol)
     return Setup(cfg, resolved, system, fine, build_coarse(cfg, resolved, system))

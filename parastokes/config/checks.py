@@ -15,8 +15,10 @@ And what cannot work or will not end in reasonable time:
 - a serial fine solution of more than 10¹² steps is refused, and one estimated (from the points
   and steps, :func:`estimated_fine_seconds`) to take more than a day on one core gets a note;
 - more workers x threads than the cores of this machine gets a note naming what to pass instead;
-- a problem whose states cannot fit in this machine's memory (:func:`estimated_bytes`, a lower
-  bound) is refused before anything is allocated.
+- a problem whose states (and the dense mobility matrices of its rigid bodies) cannot fit in this
+  machine's memory (:func:`estimated_bytes`, a lower bound) is refused before anything is
+  allocated: for a kind that builds its body to resolve it, from its keys alone
+  (:meth:`~parastokes.bodies.registry.BodySection.planned_size`).
 """
 
 from __future__ import annotations
@@ -27,10 +29,11 @@ from dataclasses import asdict, dataclass, field
 from typing import Any
 
 from .. import integrate
+from ..bodies.registry import PlannedSize
 from ..contracts import oversubscription
 from ..parallel import available_cores
 from .errors import ConfigError
-from .schema import Config
+from .schema import MAX_FLOW_COORDINATE, Config
 
 __all__ = [
     "Resolved", "estimated_bytes", "estimated_fine_seconds", "physical_memory", "resolve",
@@ -105,13 +108,14 @@ def estimated_fine_seconds(scheme: str, steps: float, points: int) -> float:
     return steps * stages * (_EVAL_SECONDS + _PAIR_SECONDS * points**2)
 
 
-def estimated_bytes(cfg: Config, n_points: int) -> float:
+def estimated_bytes(cfg: Config, n_points: int, dense_bytes: float = 0.0) -> float:
     """A lower bound on the memory of a run: its states counted at 3 doubles per point (the
     positions; rods hold 12), the Parareal iterates, coarse and fine values at every slice
-    boundary (3 (N_c + 1)), the serial solution (N_c + 1) and the stages of one step."""
+    boundary (3 (N_c + 1)), the serial solution (N_c + 1) and the stages of one step; plus
+    ``dense_bytes``, the dense matrices its solves factorize (rigid bodies)."""
     slices = cfg.parareal.n_slices + 1
     states = 3 * slices + slices + integrate.SCHEMES[cfg.fine.scheme].stages + 2
-    return 24.0 * n_points * states
+    return 24.0 * n_points * states + dense_bytes
 
 
 def physical_memory() -> float:
@@ -122,13 +126,40 @@ def physical_memory() -> float:
         return math.inf
 
 
-def _memory(cfg: Config, n_points: int, issues: list[tuple[str, str]]) -> None:
-    """An issue when the run's states cannot fit in memory (:func:`estimated_bytes`)."""
-    needed, memory = estimated_bytes(cfg, n_points), physical_memory()
-    if needed > memory:
-        issues.append(("model.n_points", f"{n_points} points: the run's states alone need more "
-                                         f"than {needed / 2**30:.3g} GiB, and this machine has "
-                                         f"{memory / 2**30:.3g} GiB; use fewer points or slices"))
+def _memory(cfg: Config, size: PlannedSize, issues: list[tuple[str, str]]) -> None:
+    """An issue when the run's states and dense matrices cannot fit in memory
+    (:func:`estimated_bytes`), naming the keys that set the size."""
+    needed, memory = estimated_bytes(cfg, size.rows, size.dense_bytes), physical_memory()
+    if not needed > memory:
+        return
+    what = "states alone need" if not size.dense_bytes else (
+        f"states and the dense mobility matrix of its rigid surface "
+        f"({size.dense_bytes / 2**30:.3g} GiB: (3N)² doubles and their LU factors) need")
+    key = size.keys if size.keys == "bodies" else ", ".join(
+        f"model.{k.strip()}" for k in size.keys.split(","))
+    issues.append((key, f"{size.rows} points: the run's {what} more than "
+                        f"{needed / 2**30:.3g} GiB, and this machine has {memory / 2**30:.3g} "
+                        "GiB; use fewer points or slices"))
+
+
+def _flow_plane_issue(cfg: Config) -> str | None:
+    """What is wrong with ``output.flow_plane`` (checked here, before the run, as ``parastokes
+    flow --plane`` checks its own): a value that is not a number, beyond
+    :data:`~.schema.MAX_FLOW_COORDINATE`, or below the wall z = 0."""
+    text = cfg.output.flow_plane
+    if text is None:
+        return None
+    axis, _, value = text.partition("=")
+    try:
+        number = float(value)
+    except ValueError:
+        number = math.nan
+    if not abs(number) <= MAX_FLOW_COORDINATE:
+        return (f"{text!r}: give AXIS=VALUE with a number of at most {MAX_FLOW_COORDINATE:g} "
+                'μm, e.g. "y=0"')
+    if axis.strip().lower() == "z" and number < 0 and getattr(cfg.model, "wall", False):
+        return f"{text!r} is below the wall z = 0 (no fluid there); choose z >= 0"
+    return None
 
 
 def _cores(cfg: Config, workers: int, warnings: list[str]) -> None:
@@ -183,18 +214,47 @@ def _workers(cfg: Config, n_auxiliary: int, issues: list, warnings: list) -> int
     return workers
 
 
+def _stiff_issues(cfg: Config) -> list[tuple[str, str]]:
+    """The adaptive steps' tolerances (finite, positive, a scheme with an error estimate) and the
+    executor of linearly implicit schemes (their stage solves run on the CPU only)."""
+    issues = []
+    fine = cfg.fine
+    if fine.rtol is not None or fine.atol is not None:
+        if fine.rtol is None:
+            issues.append(("fine.rtol", "required with fine.atol (adaptive steps)"))
+        else:
+            try:
+                integrate.tolerances(fine.scheme, fine.rtol, fine.atol)
+            except ValueError as error:
+                key, _, text = str(error).partition(": ")
+                issues.append((f"fine.{key}", text))
+    schemes = {fine.scheme, getattr(cfg.coarse, "scheme", fine.scheme)}
+    implicit = sorted(s for s in schemes if integrate.SCHEMES[s].implicit)
+    if implicit and cfg.execution.executor == "gpu":
+        issues.append(("execution.executor", f"the GPU solves explicit schemes only; "
+                       f"{', '.join(implicit)} runs on processes, mpi or serial"))
+    return issues
+
+
 def resolve(cfg: Config, source: str = "") -> Resolved:
     """Check ``cfg`` across keys and compute the derived values; raise :class:`ConfigError`."""
     issues: list[tuple[str, str]] = []
     warnings: list[str] = []
     model = cfg.model
+    where = "bodies" if model.kind == "scene" else "model"
     try:
+        planned = model.planned_size()
+        if planned is not None:  # the body is built to resolve it: refused before if too large
+            _memory(cfg, planned, issues)
+            if issues:
+                raise ConfigError(issues, source)
         body = model.resolve()
     except ValueError as error:  # a user section whose system rejects its values
-        where = "bodies" if model.kind == "scene" else "model"
+        if isinstance(error, ConfigError):
+            raise
         raise ConfigError([(where, str(error))], source) from None
     theta0, n_points = body.theta0, body.n_points
-    _memory(cfg, n_points, issues)
+    _memory(cfg, PlannedSize(n_points, planned.dense_bytes if planned else 0.0), issues)
     if issues:
         raise ConfigError(issues, source)
 
@@ -203,6 +263,7 @@ def resolve(cfg: Config, source: str = "") -> Resolved:
         issues.append(("time.t1", f"must exceed t0 = {t0}, got {t1}"))
         raise ConfigError(issues, source)
     slice_length = (t1 - t0) / cfg.parareal.n_slices
+    issues += _stiff_issues(cfg)
     if cfg.fine.dt > slice_length * (1 + 1e-12):
         issues.append(
             ("fine.dt", f"exceeds the slice length (t1 - t0)/n_slices = {slice_length:.6g}")
@@ -243,6 +304,9 @@ def resolve(cfg: Config, source: str = "") -> Resolved:
     if cfg.output.flow_every is not None and not cfg.output.trajectory:
         issues.append(("output.flow_every", "the flow is computed from the saved frames: set "
                                             "output.trajectory = true or remove flow_every"))
+    plane = _flow_plane_issue(cfg)
+    if plane:
+        issues.append(("output.flow_plane", plane))
 
     workers = _workers(cfg, coarse.n_auxiliary, issues, warnings)
     if issues:

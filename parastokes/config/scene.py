@@ -30,6 +30,7 @@ from ..bodies.registry import (
     BodyLayout,
     BodyResolution,
     BodySection,
+    PlannedSize,
     Positive,
     Tracked,
 )
@@ -69,13 +70,30 @@ class SceneModel(BodySection):
             theta0 |= {f"{name}.{k}": v for k, v in part.theta0.items() if k != "viscosity"}
         return BodyResolution(theta0, sum(part.n_points for part in parts))
 
+    def planned_size(self) -> PlannedSize:
+        """The bodies' sizes together (each from its keys where its kind says, else from its
+        cheap :meth:`resolve`), named ``bodies``."""
+        parts = [body.planned_size() or PlannedSize(body.resolve().n_points)
+                 for body in self.bodies]
+        return PlannedSize(sum(p.rows for p in parts), sum(p.dense_bytes for p in parts),
+                           "bodies")
+
     def build(self, threads: int = 1) -> Scene:
         from ..scene import Scene
 
         coarse = None if self.coarse_bodies is None else tuple(self.coarse_bodies)
-        return Scene(tuple(body.build(threads) for body in self.bodies), self.viscosity,
+        return Scene(tuple(self._built(i, threads) for i in range(len(self.bodies))),
+                     self.viscosity,
                      self.wall, self.shear_rate, tuple(self.names), n_threads=threads,
                      coarse_bodies=coarse)
+
+    def _built(self, index: int, threads: int) -> System:
+        """Body ``index`` built; its ValueError (a body on the wall, too coarse a surface)
+        names it."""
+        try:
+            return self.bodies[index].build(threads)
+        except ValueError as error:
+            raise ValueError(f"bodies[{index}] ({self.names[index]!r}): {error}") from None
 
     def coarse_points(self, factor: int) -> int:
         """Rows of the scene on the grid of ``coarse.grid_factor``: each body that has a coarser

@@ -37,7 +37,15 @@ __all__ = [
     "Tune",
 ]
 
-Scheme = Literal["euler", "rk2", "rk4"]
+#: The schemes of ``parastokes.integrate.SCHEMES`` (explicit Runge-Kutta; linearly implicit
+#: Rosenbrock-W, docs/stiff.md).
+Scheme = Literal["euler", "rk2", "rk4", "lieuler", "ros2", "ros2-krylov"]
+#: The most nodes of a flow grid along one side (``output.flow_resolution``, ``parastokes flow
+#: --resolution``): 4096² nodes of a plane are 400 MB of velocities per frame.
+MAX_FLOW_RESOLUTION = 4096
+#: The largest coordinate (μm) of a flow plane or box: the wall's image terms go as the fifth
+#: power of the distance, which overflows past about 1e61.
+MAX_FLOW_COORDINATE = 1e30
 
 
 class _Section(BaseModel):
@@ -54,8 +62,15 @@ class Time(_Section):
 class Fine(_Section):
     """The fine solver F: always the correct parameters Θ⁰ and the fine grid (section 3)."""
 
-    scheme: Scheme = Field("rk2", description="Runge-Kutta scheme of F (the paper: rk2 or rk4).")
-    dt: Positive = Field(description="Fine time step τ_f.")
+    scheme: Scheme = Field("rk2", description="Scheme of F (the paper: rk2 or rk4; linearly "
+                           "implicit for stiff bodies: lieuler, ros2, ros2-krylov, docs/stiff.md).")
+    dt: Positive = Field(description="Fine time step τ_f (with rtol: the first step tried).")
+    rtol: float | None = Field(
+        None, description="Adaptive steps within this relative error per step (a scheme with an "
+        "error estimate: ros2, ros2-krylov); omitted: fixed steps of dt.")
+    atol: float | None = Field(
+        None, description="Absolute error per step of the adaptive steps (default: rtol; state "
+        "units, μm for positions).")
 
 
 class LagrangeNodes(_Section):
@@ -156,7 +171,8 @@ class Output(_Section):
         "through the bodies.",
     )
     flow_resolution: int = Field(
-        64, ge=2, description="Nodes of flow_every's plane along its longest side (square cells)."
+        64, ge=2, le=MAX_FLOW_RESOLUTION,
+        description="Nodes of flow_every's plane along its longest side (square cells).",
     )
     tracked_points: list[Index] | dict[str, list[Index]] | None = Field(
         None,

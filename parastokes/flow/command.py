@@ -17,6 +17,7 @@ ValueError: exit status 2 with one line naming what to change.
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -30,6 +31,10 @@ __all__ = ["add_commands", "cmd_flow", "cmd_movie", "write_run_flow"]
 
 #: Nodes along the longest side: a picture's plane, a movie's plane, a box.
 PLANE_RESOLUTION, MOVIE_RESOLUTION, BOX_RESOLUTION = 128, 64, 32
+#: The most dots per inch of the flow picture (7 inches wide: 7 000 pixels).
+MAX_DPI = 1000
+#: The most pixels along a movie's side (8K), and the most frames per second.
+MAX_PIXELS, MAX_FPS = 7680, 1000.0
 
 
 def _selection(run: RunFrames, args: argparse.Namespace) -> tuple[np.ndarray, np.ndarray, str]:
@@ -53,10 +58,26 @@ def _title(run: RunFrames, frames: np.ndarray, background: bool) -> str:
     return f"{when} ({run.data['run']}){extra}"
 
 
+def _finite(values: np.ndarray, grid: Any) -> None:
+    """ValueError when the flow ``values`` (nodes x 3, or frames x nodes x 3) is not finite at
+    some node of ``grid`` (a grid so far from the bodies that the kernels overflow, or a damaged
+    state)."""
+    import numpy as np
+
+    points = grid.points()
+    finite = np.isfinite(np.reshape(values, (-1, len(points), 3))).all(axis=(0, 2))
+    if not finite.all():
+        where = points[np.argmin(finite)]
+        raise ValueError(f"the flow is not finite at {int((~finite).sum())} of {finite.size} "
+                         f"nodes (the first at {np.array2string(where, precision=4)}): bring the "
+                         "plane or box nearer to the bodies")
+
+
 def cmd_flow(args: argparse.Namespace, console: Any) -> int:
     """``parastokes flow``: the flow of a frame (or a window's mean) on a plane or a box."""
     import numpy as np
 
+    from .. import rundir
     from .fields import frames_velocity, run_grid, save_png
     from .grids import parse_box, parse_plane, parse_resolution
     from .run import load_run
@@ -66,6 +87,9 @@ def cmd_flow(args: argparse.Namespace, console: Any) -> int:
     box = parse_box(args.box) if args.box is not None else None
     default = PLANE_RESOLUTION if plane is not None or box is None else BOX_RESOLUTION
     resolution = parse_resolution(args.resolution or default)
+    if not 0 < args.dpi <= MAX_DPI:
+        raise ValueError(f"--dpi {args.dpi}: give 1 to {MAX_DPI} dots per inch")
+    rundir.check_free(args.run_dir)  # not while a run replaces its results
     run = load_run(args.run_dir, args.run, threads=args.threads)
     frames, weights, label = _selection(run, args)
     grid = run_grid(run, list(frames), plane, box, resolution)
@@ -73,19 +97,15 @@ def cmd_flow(args: argparse.Namespace, console: Any) -> int:
     stem = Path(args.out) if args.out else run.directory / f"flow_{label}"
     if stem.suffix in (".h5", ".xdmf", ".png"):  # --out flow.h5: the stem flow
         stem = stem.with_suffix("")
-    values = frames_velocity(run, frames, weights, grid.points(), background, args.threads)
-    shown = int(frames[len(frames) // 2])
-    attrs = {"run": run.data["run"], "frames": np.asarray(frames), "background": background}
-    if stem.parent != Path(""):
-        stem.parent.mkdir(parents=True, exist_ok=True)
-    written = [*write_grid(stem, grid, run.times[frames[-1:]], values[None], attrs),
-               save_png(suffixed(stem, ".png"), grid, values, run, shown,
-                        _title(run, frames, background), dpi=args.dpi)]
-    if args.out is None:
-        from .. import rundir
-
-        with rundir.locked(run.directory) as directory:  # listed with the run's results
-            directory.add_results([p.name for p in written])
+    paths = [suffixed(stem, suffix) for suffix in (".h5", ".xdmf", ".png")]
+    with rundir.claim_files(paths, reads=[run.directory]) as staging:
+        values = frames_velocity(run, frames, weights, grid.points(), background, args.threads)
+        _finite(values, grid)
+        shown = int(frames[len(frames) // 2])
+        attrs = {"run": run.data["run"], "frames": np.asarray(frames), "background": background}
+        written = [*write_grid(stem, grid, run.times[frames[-1:]], values[None], attrs, staging),
+                   save_png(paths[2], grid, values, run, shown, _title(run, frames, background),
+                            dpi=args.dpi, staging=staging)]
     nx, ny, nz = grid.shape
     top = float(np.linalg.norm(values, axis=1).max())
     console.print(f"flow on {nx}x{ny}x{nz} nodes, |u| up to {top:.4g} μm/s:")
@@ -96,6 +116,7 @@ def cmd_flow(args: argparse.Namespace, console: Any) -> int:
 
 def cmd_movie(args: argparse.Namespace, console: Any) -> int:
     """``parastokes movie``: the bodies frame by frame, optionally over the flow."""
+    from .. import rundir
     from .fields import frames_velocity, run_grid
     from .grids import parse_plane, parse_resolution
     from .movie import choose_frames, write_movie
@@ -104,11 +125,11 @@ def cmd_movie(args: argparse.Namespace, console: Any) -> int:
     out = Path(args.out)
     if out.suffix.lower() not in (".mp4", ".gif"):
         raise ValueError(f"--out {out}: give a .mp4 or .gif file name")
-    size = parse_resolution(args.size)
-    if len(size) != 2 or any(s % 2 for s in size):
-        raise ValueError(f"--size {args.size}: give WxH in pixels, both even, e.g. 800x600")
-    if not args.fps > 0:
-        raise ValueError(f"--fps {args.fps}: must be > 0")
+    size = _movie_size(args.size)
+    if not 0 < args.fps <= MAX_FPS:
+        raise ValueError(f"--fps {args.fps}: give more than 0 and at most {MAX_FPS:g} frames per "
+                         "second")
+    rundir.check_free(args.run_dir)  # not while a run replaces its results
     run = load_run(args.run_dir, args.run, threads=args.threads)
     frames = choose_frames(len(run.times), args.frames)
     flow = None
@@ -119,13 +140,28 @@ def cmd_movie(args: argparse.Namespace, console: Any) -> int:
         points = grid.points()
 
         def flow(frame: int) -> tuple[Any, np.ndarray]:
-            return grid, frames_velocity(run, [frame], [1.0], points, True, args.threads)
+            values = frames_velocity(run, [frame], [1.0], points, True, args.threads)
+            _finite(values, grid)
+            return grid, values
 
-    out.parent.mkdir(parents=True, exist_ok=True)
     progress = not args.quiet and sys.stderr.isatty()
-    write_movie(run, out, frames, args.fps, (size[0], size[1]), flow, progress)
+    with rundir.claim_files([out], reads=[run.directory]) as staging:
+        write_movie(run, out, frames, args.fps, size, flow, progress, staging)
     console.print(f"{out}: {len(frames)} frames at {args.fps:g} fps")
     return 0
+
+
+def _movie_size(text: str) -> tuple[int, int]:
+    """``--size WxH`` in pixels: two even numbers from 16 to :data:`MAX_PIXELS`."""
+    parts = str(text).lower().split("x")
+    try:
+        width, height = (int(p) for p in parts)
+    except ValueError:
+        width = height = 0
+    if not (16 <= width <= MAX_PIXELS and 16 <= height <= MAX_PIXELS) or width % 2 or height % 2:
+        raise ValueError(f"--size {text}: give WxH in pixels, both even, from 16 to {MAX_PIXELS}, "
+                         "e.g. 800x600")
+    return width, height
 
 
 def write_run_flow(directory: Path, every: int, plane: str | None, resolution: int) -> list[Path]:
@@ -133,6 +169,7 @@ def write_run_flow(directory: Path, every: int, plane: str | None, resolution: i
     plane as ``flow.h5`` + ``flow.xdmf`` (a time series) and ``flow.png`` (the last of them)."""
     import numpy as np
 
+    from ..files import staged
     from .fields import frames_velocity, run_grid, save_png
     from .grids import PlaneSpec, parse_plane
     from .run import load_run
@@ -144,11 +181,13 @@ def write_run_flow(directory: Path, every: int, plane: str | None, resolution: i
     grid = run_grid(run, frames, spec, None, (resolution,))
     points = grid.points()
     values = np.stack([frames_velocity(run, [f], [1.0], points) for f in frames])
+    _finite(values, grid)
     stem = directory / "flow"
-    written = [*write_grid(stem, grid, run.times[frames], values,
-                           {"run": run.data["run"], "frames": np.asarray(frames)})]
-    written.append(save_png(suffixed(stem, ".png"), grid, values[-1], run, frames[-1],
-                            _title(run, np.array(frames[-1:]), True)))
+    with staged() as staging:
+        written = [*write_grid(stem, grid, run.times[frames], values,
+                               {"run": run.data["run"], "frames": np.asarray(frames)}, staging),
+                   save_png(suffixed(stem, ".png"), grid, values[-1], run, frames[-1],
+                            _title(run, np.array(frames[-1:]), True), staging=staging)]
     return written
 
 
@@ -173,12 +212,15 @@ def add_commands(sub: Any, parents: list[argparse.ArgumentParser]) -> None:
     which.add_argument("--average", type=float, nargs=2, metavar=("T0", "T1"),
                        help="mean over the saved frames in [T0, T1] (trapezoidal rule)")
     p.add_argument("--box", type=float, nargs=6, metavar=("X0", "X1", "Y0", "Y1", "Z0", "Z1"),
-                   help="a box (3-D grid), or the extent of --plane")
+                   help="a box (3-D grid), or the extent of --plane (its range on the plane's "
+                   "own axis must hold the plane)")
+    # (argparse takes "-1e6" for an option unless told that such words are numbers)
+    p._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
     p.add_argument("--no-background", action="store_true",
                    help="leave out the background shear u∞ (the bodies' disturbance only)")
     p.add_argument("--out", metavar="STEM",
                    help="output files STEM.h5, STEM.xdmf, STEM.png (default: RUN_DIR/flow_<frame>)")
-    p.add_argument("--dpi", type=int, default=120, help="the picture's dots per inch (7 x 4 in)")
+    p.add_argument("--dpi", type=int, default=120, help="the picture's dots per inch (7 in wide)")
     p.set_defaults(func=cmd_flow)
 
     p = sub.add_parser("movie", parents=[*parents, common],

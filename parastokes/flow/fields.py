@@ -10,14 +10,15 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from ..files import atomic_write
+from ..files import Staging, staged
 from .average import window
 from .evaluate import velocity
 from .grids import Grid, PlaneSpec, bodies_box, grid_for
 from .render import draw_plane
 from .run import RunFrames
 
-__all__ = ["default_plane", "frames_velocity", "plane_of", "run_grid", "save_png"]
+__all__ = ["default_plane", "frames_velocity", "picture_size", "plane_of", "run_grid",
+           "save_png"]
 
 
 def default_plane(run: RunFrames, frames: Sequence[int]) -> PlaneSpec:
@@ -68,12 +69,26 @@ def plane_of(grid: Grid, values: np.ndarray, y: float) -> tuple[Grid, np.ndarray
     return plane, grid.field(values)[:, k].reshape(-1, 3)
 
 
+def picture_size(plane: Grid, width: float = 7.0) -> tuple[float, float]:
+    """Inches (width, height) of the picture of ``plane`` at true scale: its axes ``width`` less
+    the colour bar and labels (1.8 in) wide, as tall as the plane's aspect makes them plus the
+    title and labels (1 in); between 2.5 and 9 in tall."""
+    i, j = plane.plane_axes or (0, 2)
+    extent = [plane.spacing[k] * (plane.shape[k] - 1) for k in (i, j)]
+    height = (width - 1.8) * extent[1] / extent[0] + 1.0
+    return width, float(np.clip(height, 2.5, 9.0))
+
+
 def save_png(path: Path, grid: Grid, values: np.ndarray, run: RunFrames, frame: int,
-             title: str, size: tuple[float, float] = (7.0, 4.0), dpi: int = 120) -> Path:
+             title: str, size: tuple[float, float] | None = None, dpi: int = 120,
+             staging: Staging | None = None) -> Path:
     """The picture of :func:`.render.draw_plane` (a box: its x-z slice through the bodies) with
-    the bodies of ``frame``, written atomically to ``path``."""
+    the bodies of ``frame`` (``size`` in inches: by default :func:`picture_size`), written to
+    ``path`` through ``staging`` (moved into place when it commits), else atomically at once."""
+    if staging is None:
+        with staged() as own:
+            return save_png(path, grid, values, run, frame, title, size, dpi, own)
     plane, field = plane_of(grid, values, float(run.positions(frame)[:, 1].mean()))
-    fig = Figure(figsize=size, layout="constrained")
+    fig = Figure(figsize=size or picture_size(plane), layout="constrained")
     draw_plane(fig, plane, field, title, run.wall, run.data["bodies"], frame)
-    atomic_write(path, lambda handle: fig.savefig(handle, format="png", dpi=dpi))
-    return path
+    return staging.write(path, lambda handle: fig.savefig(handle, format="png", dpi=dpi))

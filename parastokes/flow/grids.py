@@ -5,8 +5,10 @@ ordered with x fastest and z slowest, so a field of the grid reshapes to ``(nz, 
 order of the XDMF structured grids, :mod:`.xdmf`). A plane is a grid with one node across it.
 
 From the command line: ``--plane z=5`` (or ``x=``, ``y=``), ``--box x0 x1 y0 y1 z0 z1``, and
-``--resolution N`` (N nodes along the longest side, square cells) or ``NxM`` (NxMxK for a box).
-Without a box the extent is that of the bodies plus a margin (and down to the wall).
+``--resolution N`` (N nodes along the longest side, square cells) or ``NxM`` (NxMxK for a box),
+at most :data:`MAX_RESOLUTION` along each; a coordinate beyond :data:`MAX_COORDINATE` is refused
+(the kernels' powers of the distance would overflow to NaN). Without a box the extent is that of
+the bodies plus a margin (and down to the wall).
 """
 
 from __future__ import annotations
@@ -18,8 +20,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Grid", "PlaneSpec", "bodies_box", "grid_for", "parse_box", "parse_plane",
-           "parse_resolution"]
+from ..config.schema import MAX_FLOW_COORDINATE as MAX_COORDINATE
+from ..config.schema import MAX_FLOW_RESOLUTION as MAX_RESOLUTION
+
+__all__ = ["MAX_COORDINATE", "MAX_RESOLUTION", "Grid", "PlaneSpec", "bodies_box", "grid_for",
+           "parse_box", "parse_plane", "parse_resolution"]
 
 AXES = "xyz"
 
@@ -81,6 +86,9 @@ def parse_plane(text: str) -> PlaneSpec:
         value = math.nan
     if match is None or not math.isfinite(value):
         raise ValueError(f"--plane {text!r}: give AXIS=VALUE, e.g. --plane z=5 or --plane y=0")
+    if abs(value) > MAX_COORDINATE:
+        raise ValueError(f"--plane {text!r}: beyond ±{MAX_COORDINATE:g} μm, where the flow cannot "
+                         "be computed; give a plane near the bodies")
     return PlaneSpec(AXES.index(match.group(1).lower()), value)
 
 
@@ -89,6 +97,9 @@ def parse_box(values: list[float]) -> np.ndarray:
     box = np.asarray(values, dtype=float)
     if box.shape != (6,) or not np.all(np.isfinite(box)):
         raise ValueError(f"--box: give six numbers x0 x1 y0 y1 z0 z1, got {values}")
+    if np.abs(box).max() > MAX_COORDINATE:
+        raise ValueError(f"--box: {np.abs(box).max():g} is beyond ±{MAX_COORDINATE:g} μm, where "
+                         "the flow cannot be computed; give a box near the bodies")
     box = box.reshape(3, 2)
     bad = [AXES[i] for i in range(3) if not box[i, 0] < box[i, 1]]
     if bad:
@@ -103,9 +114,9 @@ def parse_resolution(text: str | int) -> tuple[int, ...]:
         counts = tuple(int(p) for p in parts)
     except ValueError:
         counts = ()
-    if not counts or len(counts) > 3 or min(counts) < 2:
-        raise ValueError(f"--resolution {text!r}: give N or NxM (NxMxK for a box), each >= 2, "
-                         "e.g. --resolution 128 or 128x64")
+    if not counts or len(counts) > 3 or not 2 <= min(counts) <= max(counts) <= MAX_RESOLUTION:
+        raise ValueError(f"--resolution {text!r}: give N or NxM (NxMxK for a box), each from 2 "
+                         f"to {MAX_RESOLUTION}, e.g. --resolution 128 or 128x64")
     return counts
 
 

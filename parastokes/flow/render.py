@@ -13,11 +13,10 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-from matplotlib.collections import LineCollection
 from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
 
-from ..plots import _edges
+from ..plots import draw_body
 from .grids import AXES, Grid
 
 __all__ = ["draw_bodies", "draw_plane", "speed_limits"]
@@ -26,18 +25,9 @@ __all__ = ["draw_bodies", "draw_plane", "speed_limits"]
 def draw_bodies(ax: Any, bodies: Mapping[str, Mapping[str, np.ndarray]], frame: int,
                 axes: tuple[int, int], color: str = "k") -> None:
     """Every body of ``bodies`` (as :func:`parastokes.io.read_trajectory` gives them) at
-    ``frame``, projected on the plane of ``axes``: its triangles' edges, its polyline, or its
-    points."""
-    i, j = axes
+    ``frame``, projected on the plane of ``axes`` (:func:`parastokes.plots.draw_body`)."""
     for body in bodies.values():
-        cells = np.asarray(body["connectivity"])
-        if cells.shape[1] == 1:
-            points = body["positions"][frame]
-            ax.plot(points[:, i], points[:, j], ".", color=color, ms=2)
-            continue
-        width = 2.0 if cells.shape[1] == 2 else 0.3
-        ax.add_collection(LineCollection(list(_edges(dict(body), frame, i, j)), colors=color,
-                                         linewidths=width))
+        draw_body(ax, body, frame, axes, color)
 
 
 def speed_limits(speed: np.ndarray) -> tuple[float, float] | None:

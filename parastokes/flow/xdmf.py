@@ -11,7 +11,8 @@ and ``stem.xdmf``: a temporal collection of F grids, each a ``3DRectMesh`` (``VX
 the three axes by name, so no axis-order convention is involved) with the node-centred
 ``velocity`` (Vector) and ``speed`` (Scalar). ParaView opens the ``.xdmf`` as is (the XDMF3 reader):
 Stream Tracer and Glyph work on it directly. Both files are written to temporary names and then
-renamed, so a reader never sees half a file.
+renamed (:class:`parastokes.files.Staging`), so a reader never sees half a file, and a full disk
+or a file-size limit is a :class:`~parastokes.files.FileWriteError` naming the file.
 """
 
 from __future__ import annotations
@@ -25,7 +26,8 @@ from typing import Any
 import h5py
 import numpy as np
 
-from ..files import write_text
+from ..files import Staging, staged
+from ..io import new_hdf5
 from .grids import Grid
 
 __all__ = ["FORMAT", "read_grid", "suffixed", "write_grid"]
@@ -83,33 +85,33 @@ def suffixed(stem: Path, suffix: str) -> Path:
 
 
 def write_grid(stem: str | os.PathLike, grid: Grid, times: np.ndarray, velocities: np.ndarray,
-               attrs: Mapping[str, Any] | None = None) -> tuple[Path, Path]:
+               attrs: Mapping[str, Any] | None = None,
+               staging: Staging | None = None) -> tuple[Path, Path]:
     """Write ``stem.h5`` and ``stem.xdmf`` (module text): ``velocities`` (F, points, 3) at the
-    grid's points at ``times`` (F,); returns the two paths."""
+    grid's points at ``times`` (F,); returns the two paths. Through ``staging`` (moved into
+    place when it commits), else moved into place at once."""
+    if staging is None:
+        with staged() as own:
+            return write_grid(stem, grid, times, velocities, attrs, own)
     stem = Path(stem)
     times = np.atleast_1d(np.asarray(times, dtype=float))
     nx, ny, nz = grid.shape
     fields = np.asarray(velocities, dtype=float).reshape(len(times), nz, ny, nx, 3)
     h5_path, xdmf_path = suffixed(stem, ".h5"), suffixed(stem, ".xdmf")
-    tmp = h5_path.with_name(f"{h5_path.name}.{os.getpid()}.tmp")
-    try:
-        with h5py.File(tmp, "w", locking=False) as f:
-            f.attrs["format"] = FORMAT
-            f.attrs["origin"] = np.asarray(grid.origin)
-            f.attrs["spacing"] = np.asarray(grid.spacing)
-            f.attrs["shape"] = np.asarray(grid.shape)
-            for key, value in (attrs or {}).items():
-                f.attrs[key] = value
-            for axis, values in zip("xyz", grid.axes(), strict=True):
-                f.create_dataset(axis, data=values)
-            f.create_dataset("time", data=times)
-            f.create_dataset("velocity", data=fields)
-            f.create_dataset("speed", data=np.linalg.norm(fields, axis=-1))
-        os.replace(tmp, h5_path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-    write_text(xdmf_path, _xdmf(h5_path.name, grid, times))
+    with new_hdf5(staging, h5_path) as f:
+        f.attrs["format"] = FORMAT
+        f.attrs["origin"] = np.asarray(grid.origin)
+        f.attrs["spacing"] = np.asarray(grid.spacing)
+        f.attrs["shape"] = np.asarray(grid.shape)
+        for key, value in (attrs or {}).items():
+            f.attrs[key] = value
+        for axis, values in zip("xyz", grid.axes(), strict=True):
+            f.create_dataset(axis, data=values)
+        f.create_dataset("time", data=times)
+        f.create_dataset("velocity", data=fields)
+        f.create_dataset("speed", data=np.linalg.norm(fields, axis=-1))
+    text = _xdmf(h5_path.name, grid, times).encode()
+    staging.write(xdmf_path, lambda handle: handle.write(text))
     return h5_path, xdmf_path
 
 

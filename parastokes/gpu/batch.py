@@ -76,7 +76,7 @@ def _run_group(
     first = where[0][1]
     limit = first.blowup_factor * first.system.monitor_limit
     try:
-        results = stepping.solve(integrate.SCHEMES[first.scheme], members, limit, launch)
+        results = stepping.solve(integrate.explicit_scheme(first.scheme), members, limit, launch)
     except Exception as exc:
         for index, _ in where:
             outcomes[index] = False, exc
@@ -121,5 +121,5 @@ def warm_up(system: System, launch: stepping.Launch | None = None) -> None:
     if gpu is None:
         return
     x = gpu.project(np.array(gpu.initial_state(), dtype=float))
-    stepping.solve(integrate.SCHEMES["rk2"], [stepping.Member(gpu, x, 0.0, 1e-12, 1)],
+    stepping.solve(integrate.explicit_scheme("rk2"), [stepping.Member(gpu, x, 0.0, 1e-12, 1)],
                    integrate.BLOWUP_FACTOR * gpu.monitor_limit, launch)

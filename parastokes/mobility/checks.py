@@ -11,6 +11,8 @@ from scipy.spatial import cKDTree
 #: Largest nearest-neighbour spacing allowed, in units of the local ε: with wider gaps between
 #: blobs the surface leaks (docs/validation.md, "Rigid bodies": the drag error against the
 #: spacing/ε ratio). The usual choice, ε = half the spacing (Khatri & Cortez), is a ratio of 2.
+#: The one "surface too coarse" rule: a rigid body of a configuration (its largest gap, the
+#: largest of these spacings) is held to it too.
 MAX_SPACING_OVER_EPS = 4.0
 
 

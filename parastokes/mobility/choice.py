@@ -1,12 +1,14 @@
 """Which solver a call uses: ``method="auto"`` picks the direct solver where it is cheap or
-reusable and GMRES otherwise (the crossover measured in docs/benchmarks.md, "Rigid bodies")."""
+reusable and GMRES otherwise (the crossover measured in docs/benchmarks.md, "Rigid bodies"); and
+the check of every solve's result (:func:`checked`): finite, with its residual within tolerance,
+else a :class:`SolveError` (a run's blow-up), never a result taken as it is."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from .direct import direct_solve
-from .errors import SolveInfo
+from .errors import OVERFLOW, SolveError, SolveInfo
 from .krylov import gmres_solve
 from .system import SurfaceSet
 from .threads import blas_threads
@@ -18,6 +20,10 @@ from .threads import blas_threads
 DENSE_MAX_POINTS = 200
 
 METHODS = ("auto", "dense", "gmres")
+#: Largest relative residual accepted from a direct solve: LU is backward stable, and M's
+#: conditioning is bounded (:data:`.selfsolve.MIN_RCOND`), so a larger one is a breakdown (a
+#: right-hand side that overflows, a matrix of NaN).
+DENSE_RESIDUAL = 1e-6
 
 
 def chosen_method(sset: SurfaceSet, method: str) -> str:
@@ -46,13 +52,34 @@ def solve(
     (:func:`.threads.blas_threads`)."""
     if not (np.isfinite(tol) and 0 < tol < 1):
         raise ValueError(f"tol: must lie in (0, 1), got {tol!r}")
-    with blas_threads(sset.n_threads):
+    # (overflow in a result is reported by checked(), not as numpy's warnings)
+    with blas_threads(sset.n_threads), np.errstate(over="ignore", invalid="ignore"):
         if chosen_method(sset, method) == "dense":
-            return direct_solve(sset, g, ft, y_known, g_body)
+            return checked(sset, *direct_solve(sset, g, ft, y_known, g_body), DENSE_RESIDUAL)
         if ft is None:
             assert y_known is not None
             f, _, info = gmres_solve(sset, g + sset.apply_motion(y_known), None, tol, precondition)
-            return f, y_known, info
+            return checked(sset, f, y_known, info, 10 * tol)
         f, y, info = gmres_solve(sset, g, ft, tol, precondition)
         assert y is not None
+        return checked(sset, f, y, info, 10 * tol)
+
+
+def checked(sset: SurfaceSet, f: np.ndarray, y: np.ndarray, info: SolveInfo,
+            limit: float) -> tuple[np.ndarray, np.ndarray, SolveInfo]:
+    """``(f, y, info)`` when the forces ``f`` and motions ``y`` are finite and the residual is at
+    most ``limit``; otherwise a :class:`SolveError` naming the bodies, the residual and the likely
+    cause (loads, slip or background too large for floating point; a system the solver cannot
+    resolve)."""
+    finite = bool(np.isfinite(f).all() and np.isfinite(y).all())
+    if finite and info.residual <= limit:
         return f, y, info
+    names = ", ".join(p.name for p in sset.placed)
+    if not (finite and np.isfinite(info.residual)):
+        cause = f"{'non-finite forces or motions' if not finite else 'a non-finite residual'}: " \
+                f"{OVERFLOW}"
+    else:
+        cause = ("the system is beyond what the solver resolves (bodies too close to each other "
+                 "or to the wall for their ε)")
+    raise SolveError(f"the {info.method} solve of {names} failed (relative residual "
+                     f"{info.residual:.3g}, limit {limit:.3g}): {cause}")

@@ -4,6 +4,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ..contracts import StepFailure
+
+#: The likely cause of a solve whose result is not finite.
+OVERFLOW = ("loads, slip or background flow beyond what floating point holds (check their "
+            "magnitudes and units)")
+
 
 @dataclass(frozen=True)
 class SolveInfo:
@@ -21,6 +27,8 @@ class SolveInfo:
     reused: bool = False
 
 
-class SolveError(RuntimeError):
+class SolveError(StepFailure):
     """A resistance or mobility solve that did not give a trustworthy answer: GMRES that did not
-    converge, or a singular / ill-conditioned system. The message says what to change."""
+    converge, a singular / ill-conditioned system, or a result that is not finite or whose
+    residual is beyond tolerance. The message says what to change; in a run's step it is a
+    blow-up (:class:`~parastokes.contracts.StepFailure`)."""

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.sparse.linalg import LinearOperator, gmres
 
-from .errors import SolveError, SolveInfo
+from .errors import OVERFLOW, SolveError, SolveInfo
 from .precondition import BlockSweep, block_factors
 from .rigid_modes import RigidModeSweep, use_rigid_modes
 from .scaling import Scaling, relative_residual
@@ -47,6 +47,9 @@ def _run(op: LinearOperator, b: np.ndarray, tol: float) -> tuple[np.ndarray, int
 
 
 def _fail(code: int, iterations: int, residual: float, tol: float) -> SolveError:
+    if not np.isfinite(residual):
+        return SolveError(f"GMRES gave a non-finite result (relative residual {residual:.3g}): "
+                          f"{OVERFLOW}")
     return SolveError(
         f"GMRES did not reach the relative residual {tol:g}: {residual:.3g} after {iterations} "
         f"iterations (scipy code {code}); try method='dense' for this size, "
@@ -71,7 +74,7 @@ def gmres_solve(
         z, code, its = _run(a, g, tol)
         f = pre.forces(z)
         residual = float(np.linalg.norm(op.matvec(f) - g) / np.linalg.norm(g))
-        if code != 0 or residual > 10 * tol:
+        if code != 0 or not residual <= 10 * tol:
             raise _fail(code, its, residual, tol)
         return f, None, SolveInfo("gmres", its, residual)
 
@@ -102,6 +105,6 @@ def gmres_solve(
     f, y = split(prec(z))
     r_v = op.matvec(f) - sset.apply_motion(y) - g
     residual = relative_residual(r_v, sset.reduce(f) - ft, g, ft, sc)
-    if code != 0 or residual > 10 * tol:
+    if code != 0 or not residual <= 10 * tol:
         raise _fail(code, its, residual, tol)
     return f, y, SolveInfo("gmres", its, residual)

@@ -9,11 +9,14 @@ import numpy as np
 
 from ..mrs.operator import StokesletOperator
 from .checks import check_placements
+from .errors import SolveError
 from .rigid import PlacedSurface
 
 
 def _vectors(name: str, value, shape: tuple[int, ...]) -> np.ndarray:
-    """``value`` (None: zeros) as float64 of ``shape``; one (3,) vector is taken for all rows."""
+    """``value`` (None: zeros) as float64 of ``shape``; one (3,) vector is taken for all rows.
+    Non-finite values (loads, slip or a background flow that went NaN in a run) are a
+    :class:`SolveError`: a blow-up of the step, not bad input."""
     if value is None:
         return np.zeros(shape)
     arr = np.asarray(value, dtype=np.float64)
@@ -22,7 +25,9 @@ def _vectors(name: str, value, shape: tuple[int, ...]) -> np.ndarray:
     if arr.shape != shape:
         raise ValueError(f"{name}: expected shape {shape}, got {arr.shape}")
     if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name}: contains non-finite values")
+        why = "; the other bodies' flow is not finite" if name == "background" else ""
+        raise SolveError(f"{name}: contains non-finite values ({int((~np.isfinite(arr)).sum())} "
+                         f"of {arr.size}){why}")
     return np.array(arr)
 
 

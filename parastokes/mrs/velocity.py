@@ -73,8 +73,10 @@ def _epsilon(value, batch: int, n_sources: int) -> np.ndarray:
     else:
         eps = _positive("epsilon", value, batch)
     if np.any(eps < 1.0 / SCALE_LIMIT) or np.any(eps > SCALE_LIMIT):
+        found = (f"{float(eps.min()):g}" if eps.min() == eps.max() else
+                 f"values from {float(eps.min()):g} to {float(eps.max()):g}")
         raise ValueError(
-            f"epsilon: must lie in [{1.0 / SCALE_LIMIT:g}, {SCALE_LIMIT:g}], got {value!r}"
+            f"epsilon: must lie in [{1.0 / SCALE_LIMIT:g}, {SCALE_LIMIT:g}], got {found}"
         )
     return eps
 

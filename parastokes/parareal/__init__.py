@@ -63,10 +63,15 @@ __all__ = [
 
 
 def __getattr__(name: str):
-    """``tune`` (:func:`parastokes.tuning.tune`), imported on first use: the tuner builds on
-    this package."""
+    """``tune`` (:func:`parastokes.tuning.tune`) and ``hodmd``
+    (:func:`parastokes.coarse.hodmd.dmd.expansion`), imported on first use: the tuner and
+    HODMD-Parareal build on this package."""
     if name == "tune":
         from ..tuning.search import tune
 
         return tune
+    if name == "hodmd":
+        from ..coarse.hodmd.dmd import expansion
+
+        return expansion
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

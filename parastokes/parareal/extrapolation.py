@@ -37,7 +37,7 @@ from ..parallel import Task, run_tasks
 from .transfer import OnCoarseGrid
 from .weights import check_nodes, lagrange_weights, step_weights, validate_richardson
 
-__all__ = ["Extrapolated", "RichardsonSpec", "extrapolated"]
+__all__ = ["Extrapolated", "RichardsonSpec", "adaptive_tolerances", "extrapolated"]
 
 
 class RichardsonSpec(TypedDict, total=False):
@@ -78,13 +78,17 @@ class Extrapolated:
         r: float,
         m: int,
         executor: Executor | None = None,
+        tolerances: tuple[float, float] | None = None,
     ) -> None:
         self.system = system
         self.order = integrate.scheme_order(scheme)
         self.thetas = thetas
         self.lagrange_weights = lagrange
         self.auxiliary = [
-            [integrate.Propagator(variant, scheme, dt * r**q) for q in range(m + 1)]
+            [integrate.Propagator(variant, scheme, dt * r**q,
+                                  **(dict(zip(("rtol", "atol"), tolerances, strict=True))
+                                     if tolerances else {}))
+             for q in range(m + 1)]
             for variant in (system.with_params(**theta) if theta else system for theta in thetas)
         ]
         self.executor = executor
@@ -261,6 +265,21 @@ def _lagrange_nodes(system: System, lagrange: Mapping[str, Sequence[float]] | No
     return thetas, weights.ravel()
 
 
+def adaptive_tolerances(scheme: str, rtol: float | None, atol: float | None, m: int
+                        ) -> tuple[float, float] | None:
+    """``(rtol, atol)`` of adaptive auxiliary solvers, checked (None without them): finite and
+    positive, a scheme with an error estimate, no Richardson extrapolation (ValueError naming the
+    key)."""
+    if rtol is None and atol is None:
+        return None
+    if rtol is None:
+        raise ValueError("rtol: required with atol (adaptive steps)")
+    if m:
+        raise ValueError("rtol: Richardson extrapolation (m >= 1) needs the fixed steps r^q tau "
+                         "of eq. 26; use m = 0 with adaptive steps")
+    return integrate.tolerances(scheme, rtol, atol)
+
+
 def extrapolated(
     system: System,
     scheme: str,
@@ -270,6 +289,8 @@ def extrapolated(
     grid: int | None = None,
     executor: Executor | None = None,
     allow_oversubscribe: bool = False,
+    rtol: float | None = None,
+    atol: float | None = None,
 ) -> Extrapolated | OnCoarseGrid:
     """The extrapolated coarse solver G of eq. 30 (section 4), a picklable propagator.
 
@@ -284,6 +305,9 @@ def extrapolated(
     - ``allow_oversubscribe``: with ``executor``, accept more auxiliary solvers N_G than workers
       N_c (batched per worker, ceil(N_G / N_c) rounds per coarse step); by default that is a
       ValueError (Algorithm 1 requires N_G <= N_c; see `check_workers`).
+    - ``rtol``, ``atol``: adaptive steps of every auxiliary solver (``dt`` the first step tried;
+      a scheme with an error estimate, docs/stiff.md); not with Richardson extrapolation, whose
+      weights (eq. 27) need the fixed steps r^q τ.
 
     Everything is validated before any solver is built; the message names the rule that failed.
     """
@@ -297,6 +321,7 @@ def extrapolated(
         raise ValueError(f"richardson takes the keys 'm' and 'r', got {sorted(spec)}")
     m, r = spec["m"], spec.get("r")
     validate_richardson(m, r)
+    tolerances = adaptive_tolerances(scheme, rtol, atol, m)
     check_workers(len(thetas) * (m + 1), executor, allow_oversubscribe)
     if grid is not None:
         if isinstance(grid, bool) or not isinstance(grid, int) or grid < 2:
@@ -304,6 +329,7 @@ def extrapolated(
         if not hasattr(system, "coarsened"):
             raise ValueError(f"grid: {type(system).__name__} has no coarsened(factor) method")
         coarse_system, transfer = system.coarsened(grid)
-        inner = Extrapolated(coarse_system, scheme, dt, thetas, weights, r or 1.0, m, executor)
+        inner = Extrapolated(coarse_system, scheme, dt, thetas, weights, r or 1.0, m, executor,
+                             tolerances)
         return OnCoarseGrid(inner, transfer)
-    return Extrapolated(system, scheme, dt, thetas, weights, r or 1.0, m, executor)
+    return Extrapolated(system, scheme, dt, thetas, weights, r or 1.0, m, executor, tolerances)

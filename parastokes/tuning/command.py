@@ -11,7 +11,6 @@ and writes TUNED.toml, TUNED.json and TUNED.png (predicted speedup against the t
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from dataclasses import replace
 from pathlib import Path
@@ -112,9 +111,11 @@ def _space(cfg: Any, args: argparse.Namespace, compare: tuple) -> Any:
 
 def outputs(out: str | Path, overwrite: bool) -> tuple[Path, Path, Path]:
     """The three files ``tune`` writes (TUNED.toml, its .json record and its .png figure),
-    checked before the search: distinct (``--out`` must not end in .json or .png), not a
-    directory, in a directory that can be written, and none of them an existing file unless
-    ``overwrite``; a TuningError (exit 2) says what to change."""
+    checked before the search: distinct (``--out`` must not end in .json or .png), and as every
+    command's files are (:func:`parastokes.rundir.check_files`): not a directory, in a directory
+    that can be written, none of them an existing file unless ``overwrite``, none a run's own
+    file even then; a TuningError (exit 2) says what to change."""
+    from .. import rundir
     from .space import TuningError
 
     toml = Path(out)
@@ -123,21 +124,10 @@ def outputs(out: str | Path, overwrite: bool) -> tuple[Path, Path, Path]:
         raise TuningError(f"--out {toml}: tune writes the configuration there and its record and "
                           f"figure beside it ({record.name}, {figure.name}), so it must not end "
                           f"in {toml.suffix}: give a name such as {toml.with_suffix('.toml')}")
-    if toml.is_dir():
-        raise TuningError(f"--out {toml} is a directory: give a file name, e.g. "
-                          f"{toml / 'tuned.toml'}")
-    existing = [str(path) for path in (toml, record, figure) if path.exists()]
-    if existing and not overwrite:
-        raise TuningError(f"--out {toml}: {', '.join(existing)} already exist(s); pass "
-                          "--overwrite to replace them, or choose another --out")
-    directory = toml.parent
     try:
-        directory.mkdir(parents=True, exist_ok=True)
-    except OSError as error:
-        raise TuningError(f"--out {toml}: cannot create {directory} "
-                          f"({error.strerror or error})") from None
-    if not os.access(directory, os.W_OK | os.X_OK):
-        raise TuningError(f"--out {toml}: {directory} is not writable; choose another --out")
+        rundir.check_files([toml, record, figure], overwrite=overwrite)
+    except rundir.RunDirectoryError as error:
+        raise TuningError(str(error)) from None
     return toml, record, figure
 
 
@@ -145,16 +135,16 @@ def main(args: argparse.Namespace, console: Any) -> int:
     """Run the command; returns 0, or 130, 143, 129 when Ctrl-C, SIGTERM or SIGHUP stopped the
     search (what was measured is written)."""
     from .. import config as configuration
-    from .. import integrate, io
-    from ..files import write_text
-    from .report import config_text, draw_curves, table
+    from .. import integrate, io, rundir
+    from .report import config_text, draw_curves
     from .search import tune
     from .space import TuningError, settings_from_config
 
     if args.cores < 2:
         raise TuningError(f"--cores must be at least 2 (one slice per core; Parareal needs two "
                           f"slices), got {args.cores}")
-    out, record, figure = outputs(args.out, getattr(args, "overwrite", False))
+    overwrite = getattr(args, "overwrite", False)
+    out, record, figure = outputs(args.out, overwrite)
     cfg, resolved = configuration.load(args.config, args.set)
     pilot_slices = _given(args.pilot_slices, cfg.tune.pilot_slices)
     points = _given(args.pilot_points, cfg.tune.pilot_points, PILOT_POINTS)
@@ -183,21 +173,40 @@ def main(args: argparse.Namespace, console: Any) -> int:
         console.print(f"pilot rod: {points} nodes per rod at the run's spacing σ_f (the run has "
                       f"{cfg.model.n_points})")
     bar = _Bar(console)
-    try:
-        result = tune(
-            fine, t0=cfg.time.t0, t1=cfg.time.t1, n_slices=args.cores, cores=args.cores,
-            target=args.target, space=space, budget=args.budget, pilot=pilot,
-            pilot_slices=pilot_slices, progress=bar, exhaustive=args.exhaustive,
-        )
-    except KeyboardInterrupt:  # before the search (Ctrl-C during it is handled by tune)
-        bar.finish()
-        print("interrupted before the search began (pilot reference or baseline): nothing was "
-              "written", file=sys.stderr)
-        return 130
-    report = result.report
-    report["config"] = str(args.config)
-    io.write_summary(record, report)
-    draw_curves(result, figure, args.cores)
+    with rundir.claim_files([out, record, figure], overwrite=overwrite) as staging:
+        try:
+            result = tune(
+                fine, t0=cfg.time.t0, t1=cfg.time.t1, n_slices=args.cores, cores=args.cores,
+                target=args.target, space=space, budget=args.budget, pilot=pilot,
+                pilot_slices=pilot_slices, progress=bar, exhaustive=args.exhaustive,
+            )
+        except KeyboardInterrupt:  # before the search (Ctrl-C during it is handled by tune)
+            bar.finish()
+            print("interrupted before the search began (pilot reference or baseline): nothing "
+                  "was written", file=sys.stderr)
+            return 130
+        report = result.report
+        report["config"] = str(args.config)
+        io.write_summary(record, report, staging)
+        draw_curves(result, figure, args.cores, staging=staging)
+        if result.chosen is not None:
+            dumped = {k: v for k, v in cfg.model_dump(mode="json", exclude_none=True).items()
+                      if k != "model"} | cfg.model.tables()
+            text = config_text(dumped, result, args.cores, args.config).encode()
+            staging.write(out, lambda handle: handle.write(text))
+    _print_report(console, report)
+    if result.chosen is None:
+        raise TuningError(f"no candidate is stable and reaches η* = {args.target:g}; see "
+                          f"{record} (raise --target or widen the search)")
+    console.print(f"wrote {out}, {record}, {figure}")
+    return {"interrupted": 130, "terminated": 143, "hung up": 129}.get(
+        report["search"]["stopped"], 0)
+
+
+def _print_report(console: Any, report: dict[str, Any]) -> None:
+    """The search's table, how it ended and what it cost."""
+    from .report import table
+
     console.print(table(report))
     search = report["search"]
     if search["stopped"]:
@@ -210,11 +219,3 @@ def main(args: argparse.Namespace, console: Any) -> int:
     console.print(report["extrapolation"]["note"])
     if report.get("caution"):
         console.print(report["caution"])
-    if result.chosen is None:
-        raise TuningError(f"no candidate is stable and reaches η* = {args.target:g}; see "
-                          f"{record} (raise --target or widen the search)")
-    dumped = {k: v for k, v in cfg.model_dump(mode="json", exclude_none=True).items()
-              if k != "model"} | cfg.model.tables()
-    write_text(out, config_text(dumped, result, args.cores, args.config))
-    console.print(f"wrote {out}, {record}, {figure}")
-    return {"interrupted": 130, "terminated": 143, "hung up": 129}.get(search["stopped"], 0)

@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from .. import integrate
+from ..files import Staging, atomic_write
 from .cost import caution
 from .pilot import Pilot
 
@@ -174,8 +175,10 @@ def table(report: Mapping[str, Any], rows: int = 8) -> str:
     return "\n".join(lines)
 
 
-def draw_curves(result: Any, path: str | Path, n_slices: int, best: int = 4) -> Path:
-    """Predicted speedup against the target error for the baseline and the best few candidates."""
+def draw_curves(result: Any, path: str | Path, n_slices: int, best: int = 4,
+                staging: Staging | None = None) -> Path:
+    """Predicted speedup against the target error for the baseline and the best few candidates,
+    written to ``path`` through ``staging`` (in place when it commits), else atomically."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -200,6 +203,11 @@ def draw_curves(result: Any, path: str | Path, n_slices: int, best: int = 4) -> 
     ax.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
     path = Path(path)
-    fig.savefig(path)
-    plt.close(fig)
+    try:
+        if staging is None:
+            atomic_write(path, lambda handle: fig.savefig(handle, format="png"))
+        else:
+            staging.write(path, lambda handle: fig.savefig(handle, format="png"))
+    finally:
+        plt.close(fig)
     return path

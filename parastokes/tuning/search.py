@@ -51,6 +51,10 @@ STOPPED_BY: dict[int | None, str] = {signal.SIGTERM: "terminated", signal.SIGHUP
 
 #: Fewest coarse steps per slice considered (the step-limit bisection starts below slice / 10).
 MIN_STEPS = 10
+#: The same for a linearly implicit scheme (docs/stiff.md): L-stable, its step is bounded by
+#: accuracy, not stability, so the search reaches up to two steps per slice; the stability of
+#: the slice map (ρ(DG)) and the pilot's η^k then judge it as any candidate.
+IMPLICIT_MIN_STEPS = 2
 
 #: A budget below this many fine slices of the pilot makes the search frugal: a two-slice pilot
 #: window (one iteration), reference growth 1 instead of a measured ρ(DG) (docs/tuning.md, the
@@ -300,7 +304,9 @@ class _Search:
                 system = system.with_params(**corner)
             # at least MIN_STEPS steps per slice: a test over fewer steps cannot see growth
             span = self.pilot.slice_length
-            lo, hi = self.pilot.fine.dt, span / MIN_STEPS
+            implicit = integrate.SCHEMES[settings.scheme].implicit
+            fewest = IMPLICIT_MIN_STEPS if implicit else MIN_STEPS
+            lo, hi = self.pilot.fine.dt, span / fewest
             try:
                 self.limits[key] = stability.step_limit(system, settings.scheme, x0,
                                                         self.pilot.t0, span, lo, max(hi, 2 * lo))
@@ -312,6 +318,8 @@ class _Search:
         """The step limit model that orders unscreened candidates: the baseline scheme's measured
         plain limit (no bisection for another scheme before one of its candidates is screened),
         scaled by the schemes' real stability intervals and the parameters (_LIMIT_MODEL)."""
+        if integrate.SCHEMES[settings.scheme].implicit:  # no stability interval to scale
+            return self.limit(settings) * settings.step_fraction
         plain = self.limit(Settings(self.base_scheme, grid=settings.grid))
         plain *= _INTERVAL.get(settings.scheme, 2.0) / _INTERVAL.get(self.base_scheme, 2.0)
         factor = math.prod((value / self.theta0[name]) ** _LIMIT_MODEL[name]

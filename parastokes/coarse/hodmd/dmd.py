@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Decomposition", "hodmd", "minimum_snapshots", "retained_rank"]
+__all__ = ["Decomposition", "expansion", "hodmd", "minimum_snapshots", "retained_rank"]
 
 
 def retained_rank(singular_values: np.ndarray, tolerance: float) -> int:
@@ -149,3 +149,14 @@ def hodmd(snapshots: np.ndarray, d: int, dt: float = 1.0, t0: float = 0.0,
     order = order[size[order] / size[order[0]] > amplitude_tolerance]
     return Decomposition(basis, scaled[:, order], rates.real[order], rates.imag[order],
                          size[order], float(t0), float(dt))
+
+
+def expansion(snapshots: np.ndarray, d: int, tol: float = 1e-8,
+              times: np.ndarray | float | None = None) -> np.ndarray:
+    """The public ``parastokes.parareal.hodmd(V, d, tol, times)`` (docs/design.md): the HODMD
+    expansion of ``snapshots`` V (features × K, at unit spacing from t = 0) with ``d`` delayed
+    copies and ``tol`` as both tolerances (ε1 and ε), evaluated, real, at ``times`` (default the
+    snapshots' own, 0 .. K - 1; beyond K - 1 an extrapolation): features × len(times)."""
+    decomposition = hodmd(snapshots, d, 1.0, 0.0, tol, tol)
+    return decomposition.reconstruct(np.arange(np.shape(snapshots)[1]) if times is None
+                                     else times)

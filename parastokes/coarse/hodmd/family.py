@@ -58,7 +58,7 @@ class Hodmd(CoarseSection):
     g2: Extrapolated = Field(description="The cheap coarse solver G2 (an extrapolated section).")
     snapshots: int = Field(ge=2, description="S: snapshot intervals per slice (authors: 125).")
     window: list[float] = Field(
-        default_factory=lambda: [0.5],
+        default_factory=lambda: [0.5], min_length=1,
         description="r_s: the fraction of each slice G1 runs over, per iteration (the last is "
         "repeated; the authors' rod: [0.48, 0.52, 0.96]).",
     )

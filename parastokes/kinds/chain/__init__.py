@@ -42,6 +42,7 @@ from ...fluid import MRS, Blocks
 from ...mrs.velocity import thread_count
 from ...stepping.loop import register_parts
 from ...stepping.registry import register_device
+from ...stiff.coloring import banded
 from .mechanics import bond_strain, chain_energy, chain_forces
 from .stepping import chain_data
 
@@ -117,6 +118,12 @@ class ChainSystem(PointsInShear):
         """Elastic forces plus the external load, on the fluid (N, 3)."""
         f = chain_forces(state, self.bond, self.stiffness, self.bending)
         return f + np.asarray(self.load, dtype=float)
+
+    def load_coupling(self):
+        """A bead's force depends on the beads within two bonds (its springs and the bending
+        of its own and its neighbours' angles): the pattern of :mod:`parastokes.stiff`'s
+        coloured finite-difference Jacobian."""
+        return banded(1, self.n_beads, 2)
 
     @property
     def params(self) -> dict[str, float]:

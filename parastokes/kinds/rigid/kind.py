@@ -26,14 +26,15 @@ from ...bodies.registry import (
     BodyLayout,
     BodyResolution,
     BodySection,
+    PlannedSize,
     Positive,
     axis_stretch,
     draw_over_time,
     point_layout,
 )
-from ...mobility import SolveError
+from ...contracts import StepFailure
 from .coarse import coarse_shape
-from .shapes import Bacterium, Helix, PointCloud, Rod, Sphere, Spheroid, spacing
+from .shapes import MOTOR_RATE, Bacterium, Helix, PointCloud, Rod, Sphere, Spheroid, spacing
 from .slip import Squirmer, UserSlip
 from .system import RigidBody
 
@@ -43,6 +44,8 @@ __all__ = ["BACTERIUM", "RIGID", "SQUIRMER", "BacteriumModel", "RigidModel", "Sq
 Finite = Annotated[float, Field(allow_inf_nan=False)]
 #: Largest relative residual of the trial solve that ``check`` accepts.
 SOLVE_TOLERANCE = 1e-6
+#: Bytes per (surface point)² of a rigid body's factorization: M, (3N)² doubles, and its LU.
+DENSE_BYTES = 2 * 9 * 8
 
 
 def _three(default: list[float], what: str) -> Any:
@@ -50,18 +53,20 @@ def _three(default: list[float], what: str) -> Any:
 
 
 def check_solvable(body: RigidBody, name: str = "model") -> None:
-    """ValueError naming ``name`` when the mobility system of ``body`` at its initial state is
-    singular or ill-conditioned (a trial solve with a residual above :data:`SOLVE_TOLERANCE`)."""
+    """ValueError naming ``name`` when the mobility solve of ``body`` at its initial state fails
+    (:class:`~parastokes.mobility.SolveError`: non-finite, or a residual beyond the solver's
+    tolerance) or its system is singular or ill-conditioned (a trial solve with a residual above
+    :data:`SOLVE_TOLERANCE`)."""
     try:
         solution = body.solve(0.0, body.initial_state())
-        residual = solution.residual
-        finite = bool(np.isfinite(solution.U).all() and np.isfinite(solution.Omega).all())
-    except (np.linalg.LinAlgError, SolveError) as error:
-        residual, finite = math.inf, False
-        reason = str(error)
+    except np.linalg.LinAlgError as error:
+        residual, reason = math.inf, str(error)
+    except StepFailure as error:  # a SolveError, or a slip that is not finite
+        raise ValueError(f"{name}: at the initial state, {error}") from None
     else:
+        residual = solution.residual
         reason = f"relative residual {residual:.3g}"
-    if not finite or residual > SOLVE_TOLERANCE:
+    if not residual <= SOLVE_TOLERANCE:
         raise ValueError(
             f"{name}: the mobility system is singular or ill-conditioned ({reason}): the surface "
             "cannot resist every rigid motion (e.g. points on one line cannot resist a turn "
@@ -98,7 +103,17 @@ class RigidBase(BodySection):
         return None
 
     def _epsilon(self, shape: Any) -> tuple[float, float]:
+        """ε⁰ in μm and the surface's largest gap; ValueError naming the keys of a surface
+        with fewer than 2 points or one too large for floating point."""
         gap = spacing(shape)
+        if not 0.0 < gap < math.inf:
+            count = self.planned_size().rows - 1
+            if count < 2:
+                raise ValueError(f"{self.size_keys()}: the surface has {count} point; a rigid "
+                                 "body needs at least 2 (and enough to cover it for its ε)")
+            raise ValueError(f"the surface's points are {gap:g} apart: its sizes (radius, "
+                             "length, ...) are beyond what floating point holds; give them in "
+                             "μm, e.g. radius = 1")
         return self.epsilon * (gap if self.epsilon_unit == "spacing" else 1.0), gap
 
     def build(self, threads: int = 1) -> RigidBody:
@@ -111,6 +126,22 @@ class RigidBase(BodySection):
                          viscosity=self.viscosity, wall=self.wall, shear_rate=self.shear_rate,
                          position=(x, y, z), orientation=(w, qx, qy, qz), force=(fx, fy, fz),
                          torque=(tx, ty, tz), n_threads=threads)
+
+    def size_keys(self) -> str:
+        """The keys that set the number of surface points (named when there are too many)."""
+        return "n_points"
+
+    def planned_size(self) -> PlannedSize:
+        """The pose row and the surface points, counted from the keys (nothing built): the
+        body-frame factorization of the surface is a dense (3N)² matrix."""
+        shape = self.surface_shape()
+        if isinstance(shape, Bacterium):
+            count = shape.head.n_points + shape.tail.n_points
+        elif isinstance(shape, PointCloud):
+            count = len(shape.points(0.0))
+        else:
+            count = int(shape.n_points)
+        return PlannedSize(1 + count, DENSE_BYTES * float(count) ** 2, self.size_keys())
 
     def coarse_points(self, factor: int) -> int:
         """Rows of the state on the coarse surface of ``coarse.grid_factor`` (the pose row and
@@ -163,6 +194,9 @@ class RigidModel(RigidBase):
     def surface_slip(self) -> UserSlip | None:
         return UserSlip(self.slip) if self.slip else None
 
+    def size_keys(self) -> str:
+        return {"rod": "rings, around", "points": "points"}.get(self.shape, "n_points")
+
 
 class SquirmerModel(RigidBase):
     """Blake's spherical squirmer: u_s = (B1 sin θ + B2 sin θ cos θ) e_θ, swimming along e1."""
@@ -195,7 +229,7 @@ class BacteriumModel(RigidBase):
     tail_points: int = Field(100, ge=2, description="Points on the flagellum's centre line.")
     handedness: Literal[1, -1] = Field(1, description="1 right-handed, -1 left-handed.")
     gap: Positive = Field(0.25, description="Gap between the head's rear and the flagellum.")
-    motor_rate: Finite = Field(2 * math.pi * 10, description="Flagellum's rotation rate about "
+    motor_rate: Finite = Field(MOTOR_RATE, description="Flagellum's rotation rate about "
                                "the body axis x relative to the head (rad/s).")
 
     def surface_shape(self) -> Bacterium:
@@ -204,6 +238,9 @@ class BacteriumModel(RigidBase):
             else Spheroid(self.head_axial, self.head_radius, self.head_points))
         tail = Helix(self.tail_radius, self.pitch, self.turns, self.tail_points, self.handedness)
         return Bacterium(head, tail, self.gap, self.motor_rate)
+
+    def size_keys(self) -> str:
+        return "head_points, tail_points"
 
 
 def layout(section: Any, system: RigidBody, frames: bool,

@@ -35,9 +35,12 @@ def multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
 
 
 def rotation_about(axis: np.ndarray, angle: float) -> np.ndarray:
-    """The unit quaternion of the rotation by ``angle`` about the (non-zero) ``axis``."""
+    """The unit quaternion of the rotation by ``angle`` about the (non-zero) ``axis``; NaN for a
+    non-finite angle or axis (a step that blew up: the integrator reports the state)."""
     axis = np.asarray(axis, dtype=float)
-    norm = float(np.linalg.norm(axis))
+    norm = math.hypot(*axis)  # (no overflow for large components, as the sum of squares has)
+    if not (math.isfinite(angle) and math.isfinite(norm)):
+        return np.full(4, math.nan)
     if norm == 0.0:
         return np.array(IDENTITY)
     half = 0.5 * angle
@@ -46,7 +49,7 @@ def rotation_about(axis: np.ndarray, angle: float) -> np.ndarray:
 
 def exp_rotate(q: np.ndarray, omega: np.ndarray, dt: float) -> np.ndarray:
     """q turned by the lab-frame angular velocity ``omega`` for ``dt``: exp(dt Ω/2) ⊗ q."""
-    angle = float(np.linalg.norm(omega)) * dt
+    angle = math.hypot(*np.asarray(omega, dtype=float)) * dt
     if angle == 0.0:
         return np.array(q, dtype=float)
     return multiply(rotation_about(omega, angle), q)

@@ -255,6 +255,11 @@ class PointCloud(_Rigid):
         return load_points(self.source) if self.source else np.array(self.points_, dtype=float)
 
 
+#: The default motor rate of a bacterium, rad/s: 10 turns a second relative to its head (the
+#: class's and a configuration's default; experiments/bacterium_wall.toml sets E. coli's 100).
+MOTOR_RATE = 2.0 * math.pi * 10
+
+
 @dataclass(frozen=True)
 class Bacterium:
     """A ``head`` (a :class:`Sphere` or :class:`Spheroid` about the origin) and a helical
@@ -266,7 +271,7 @@ class Bacterium:
     head: Sphere | Spheroid = Sphere(1.0, 200)
     tail: Helix = Helix(0.25, 2.0, 3.0, 100)
     gap: float = 0.25
-    motor_rate: float = 2.0 * math.pi
+    motor_rate: float = MOTOR_RATE
 
     def __post_init__(self) -> None:
         if not isinstance(self.head, Sphere | Spheroid):

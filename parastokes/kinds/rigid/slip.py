@@ -15,6 +15,7 @@ external load swims free of force and torque.
 
 from __future__ import annotations
 
+import inspect
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -23,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from ... import plugins
+from ...contracts import StepFailure
 
 __all__ = ["Squirmer", "UserSlip"]
 
@@ -56,23 +58,44 @@ class UserSlip:
     function: str | Callable[[float, np.ndarray], Any]
 
     def __post_init__(self) -> None:
-        self._callable()  # import errors now, not at the first step
+        self._callable()  # import and signature errors now, not at the first step
 
     def _callable(self) -> Callable[[float, np.ndarray], Any]:
         if isinstance(self.function, str):
             found = plugins.import_target(self.function, self.function, ValueError)
             if not callable(found):
                 raise ValueError(f"slip: {self.function!r} is not a function")
-            return found
-        if not callable(self.function):
+        elif callable(self.function):
+            found = self.function
+        else:
             raise ValueError(f"slip: need a function or \"module:function\", got "
                              f"{self.function!r}")
-        return self.function
+        try:
+            signature = inspect.signature(found)
+        except (TypeError, ValueError):  # a builtin without one: its call says
+            return found
+        try:
+            signature.bind(0.0, np.zeros((1, 3)))
+        except TypeError:
+            raise ValueError(f"slip: {self.function!r} takes {signature}, but a slip is called "
+                             "as function(t, points): write it as def slip(t, points) returning "
+                             "the (N, 3) body-frame velocities") from None
+        return found
 
     def velocity(self, t: float, points: np.ndarray) -> np.ndarray:
-        value = np.asarray(self._callable()(t, points), dtype=float)
-        if value.shape != points.shape or not np.isfinite(value).all():
+        """The body-frame slip at ``points``: ValueError for a result of another shape or
+        type, :class:`~parastokes.contracts.StepFailure` (a blow-up) for a non-finite one."""
+        try:
+            value = np.asarray(self._callable()(t, points), dtype=float)
+        except (TypeError, ValueError) as error:
+            raise ValueError(f"slip: {self.function!r} must return (N, 3) numbers for the N = "
+                             f"{len(points)} points ({error})") from None
+        if value.shape != points.shape:
             raise ValueError(
                 f"slip: {self.function!r} must return finite (N, 3) velocities for N = "
                 f"{len(points)} points, got shape {value.shape}")
+        if not np.isfinite(value).all():
+            raise StepFailure(f"slip: {self.function!r} returned non-finite velocities at "
+                              f"t = {t:.6g} ({int((~np.isfinite(value)).sum())} of "
+                              f"{value.size} values)")
         return value

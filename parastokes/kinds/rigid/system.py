@@ -37,7 +37,9 @@ import numpy as np
 from ...bodies.base import replace_params, require_positive
 from ...bodies.geometry import crossed_wall
 from ...bodies.sources import FluidSources
-from ...mobility import ResistanceResult, solve_resistance
+from ...mobility import ResistanceResult, SolveError, solve_resistance
+from ...mobility.checks import MAX_SPACING_OVER_EPS
+from ...mobility.errors import OVERFLOW
 from ...mrs.velocity import thread_count
 from . import rotation
 from .coarse import RigidTransfer, coarse_shape
@@ -45,14 +47,12 @@ from .shapes import Sphere, spacing
 from .slip import Squirmer, UserSlip
 from .solve import MobilitySolution, Surface, mobility, placed
 
-__all__ = ["COARSE_RATIO", "POSE_COLUMNS", "RATE_COLUMNS", "RigidBody"]
+__all__ = ["POSE_COLUMNS", "RATE_COLUMNS", "RigidBody"]
 
 #: Columns of the state: c (0-2), q (3-6), φ (7).
 POSE_COLUMNS = 8
 #: Columns of the rates: U (0-2), Ω (3-5), dφ/dt (6).
 RATE_COLUMNS = 7
-#: A surface whose largest gap between neighbours exceeds this many ε leaks between its blobs.
-COARSE_RATIO = 5.0
 
 
 def _vector(name: str, value: Any, n: int) -> tuple[float, ...]:
@@ -105,17 +105,34 @@ class RigidBody:
             raise ValueError("slip: the squirmer's slip is defined on a sphere; use "
                              f"shape = Sphere, not {type(self.shape).__name__}")
         thread_count(self.n_threads)
-        gap = spacing(self.shape)
-        if gap > COARSE_RATIO * self.epsilon:
+        gap = spacing(self.shape)  # (the one rule of mobility.checks.check_surface)
+        if gap > MAX_SPACING_OVER_EPS * self.epsilon:
             raise ValueError(
                 f"epsilon: the surface is too coarse for ε = {self.epsilon:g}: its largest gap "
-                f"between neighbouring points is {gap:.3g} > {COARSE_RATIO:g} ε, so the fluid "
-                f"leaks between the blobs; use more points or ε >= {gap / COARSE_RATIO:.3g}")
+                f"between neighbouring points is {gap:.3g} > {MAX_SPACING_OVER_EPS:g} ε, so the "
+                f"fluid leaks between the blobs; use more points or ε >= "
+                f"{gap / MAX_SPACING_OVER_EPS:.3g}")
         if self.wall and crossed_wall(self.initial_state(), True):
             low = float(self.initial_state()[:, 2].min())
             raise ValueError(
                 f"position: the body reaches z = {low:.3g} <= 0, on or below the wall z = 0; "
                 f"raise position[2] by more than {-low:.3g}")
+        if self.wall and self._inside_at_wall():
+            raise ValueError(
+                f"position: the body's shape reaches below the wall z = 0 between its surface "
+                f"points (its centre is at z = {self.position[2]:.4g}); raise position[2]")
+
+    def _inside_at_wall(self, samples: int = 41) -> bool:
+        """Whether the wall plane z = 0 cuts the body's shape (not only its points: a sphere of
+        radius 1 at z = 0.997 has all its points above the wall): the plane's points under the
+        body, on a grid as wide as the body, tested with the shape's ``contains``."""
+        state = self.initial_state()
+        c, q, _ = self.pose(state)
+        reach = float(np.max(np.linalg.norm(self.shape.points(0.0), axis=1)))
+        side = np.linspace(-reach, reach, samples)
+        u, v = np.meshgrid(side, side)
+        plane = np.stack([c[0] + u.ravel(), c[1] + v.ravel(), np.zeros(u.size)], axis=1)
+        return bool(self.shape.contains((plane - c) @ rotation.matrix(q)).any())
 
     # ---- geometry --------------------------------------------------------------------------
     @property
@@ -205,7 +222,11 @@ class RigidBody:
         return out
 
     def rates(self, t: float, state: np.ndarray) -> np.ndarray:
-        """(U, Ω) of the mobility solve, dφ/dt, and the surface velocities."""
+        """(U, Ω) of the mobility solve, dφ/dt, and the surface velocities; a state that is not
+        finite (a stage after a motion that overflowed) is a :class:`SolveError`."""
+        if not np.isfinite(state).all():
+            raise SolveError(f"the state of the rigid body is not finite at t = {t:.6g} (its "
+                             f"motion in the step overflowed): {OVERFLOW}")
         solution = self.solve(t, state)
         return self.motion_rates(state, solution.U[0], solution.Omega[0],
                                  self.surface(t, state).slip)

@@ -25,6 +25,7 @@ from ...bodies.geometry import crossed_wall
 from ...fluid import MRS, Blocks
 from ...mrs.velocity import thread_count
 from ...stepping import loop, registry
+from ...stiff.coloring import banded
 from . import mechanics as kirchhoff
 from .compiled import rod_data
 from .transfer import RodTransfer
@@ -133,6 +134,12 @@ class RodSystem(FluidBody):
         n_rods, ds, a, b, table, *wave = self.mechanics
         omega_hat = kirchhoff.preferred_strain(table, float(t), *wave)
         return kirchhoff.rod_loads(state, n_rods, ds, a, b, omega_hat)
+
+    def load_coupling(self):
+        """The loads at a node depend on the node and its two neighbours on its rod (eq. 12:
+        the segments on either side); the pattern of the coloured finite-difference Jacobian of
+        :mod:`parastokes.stiff`."""
+        return banded(self.n_rods, self.n_points, 1)
 
     #: Rates carry angular velocities (for :class:`parastokes.scene.Scene`).
     angular: ClassVar[bool] = True

@@ -22,6 +22,7 @@ from ...bodies.base import PointsInShear, replace_params, require_positive
 from ...fluid import MRS, Blocks
 from ...mrs.velocity import thread_count
 from ...stepping import loop, registry
+from ...stiff.coloring import from_edges
 from .compiled import vesicle_data
 from .mechanics import spring_forces
 
@@ -120,6 +121,11 @@ class VesicleSystem(PointsInShear):
     def forces(self, state: np.ndarray) -> np.ndarray:
         """Spring forces on the fluid (docs/physics.md (14))."""
         return spring_forces(state, self.edges, self.rest_lengths, self.stiffness)
+
+    def load_coupling(self):
+        """A vertex's force depends on itself and the vertices it shares a spring with: the
+        pattern of :mod:`parastokes.stiff`'s coloured finite-difference Jacobian."""
+        return from_edges(len(self.mesh[0]), self.edges)
 
     @property
     def params(self) -> dict[str, float]:

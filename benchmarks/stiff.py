@@ -1,0 +1,294 @@
+"""Work-precision of every scheme, explicit and linearly implicit, and implicit coarse solvers
+for Parareal (docs/benchmarks.md, "Stiff bodies"; docs/stiff.md).
+
+Run from the repository root (each part resumes from its JSON: a row already measured is kept)::
+
+    PYTHONPATH=. python benchmarks/stiff.py --parts rod vesicle parareal serial
+
+- ``rod``: the paper's rod (M = 301, ε = 5 σ_f, above the wall), one beat T = 0.05 s: the
+  error at T (largest position error over the largest displacement) against RK4 at 2e-6, and
+  the CPU time of one run, for every scheme at several steps;
+- ``vesicle``: the vesicle (642 points, shear rate 0.1, κ = 0.1), T = 10, against RK4 at a
+  quarter of the explicit limit, likewise;
+- ``parareal``: on the paper's rod over T = 0.01 (10 slices, fine RK2 at 1e-6), coarse solvers
+  G = the paper's Table 4 G¹ (36 auxiliary Euler solvers at 20 τ_f), ROS2 on the exact Jacobian
+  (ros2-krylov) and ROS2 on the local one (ros2) at several steps: η^k against the serial
+  fine solution, the CPU time of one coarse step (one auxiliary solve for G¹, whose 36 run at
+  once on 36 cores, as eq. 14 counts them) over that of one fine slice (γ_G/γ_F), and the
+  eq. 14 speedup at 40 slices on 40 cores with the first iteration reaching the target;
+- ``serial``: the paper's rod over T = 1 (Table 4's interval): the CPU time and the error
+  against the paper's fine solver (RK2 at 1e-6) of the serial candidates, to compare the
+  paper's speedups with the fastest serial run of the same accuracy.
+
+CPU times are ``time.process_time`` of one process with one kernel thread; ratios within one
+run are what to compare (the machine is shared). Results: ``docs/figures/stiff/*.json`` and
+``docs/figures/stiff/work_precision.png``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import pathlib
+import sys
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from parastokes import integrate, models, parareal
+from parastokes.parareal.speedup import speedup as eq14
+from parastokes.stiff import stepper
+
+OUT = pathlib.Path("docs/figures/stiff")
+#: Slices of the Parareal part (T = 0.01).
+N_SLICES = 10
+
+ROD_STEPS = {
+    "euler": [1.2e-5],
+    "rk2": [1.2e-5, 1e-5],
+    "rk4": [1.6e-5, 1.25e-5],
+    "lieuler": [2.5e-4, 1.25e-4],
+    "ros2": [5e-4, 2.5e-4, 1.25e-4, 6.25e-5],
+    "ros2-krylov": [5e-4, 2.5e-4, 1.25e-4, 6.25e-5],
+}
+
+
+def _load(path: pathlib.Path) -> dict[str, Any]:
+    return json.loads(path.read_text()) if path.exists() else {}
+
+
+def _save(path: pathlib.Path, data: dict[str, Any]) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(data, indent=1, sort_keys=True))
+    tmp.replace(path)
+
+
+def _timed(function: Callable[[], Any]) -> tuple[Any, float]:
+    start = time.process_time()
+    value = function()
+    return value, time.process_time() - start
+
+
+def _relative_error(x: np.ndarray, reference: np.ndarray, x0: np.ndarray) -> float:
+    scale = float(np.abs(reference[:, :3] - x0[:, :3]).max())
+    return float(np.abs(x[:, :3] - reference[:, :3]).max()) / scale
+
+
+def work_precision(name: str, system: Any, t1: float, reference_step: float,
+                   steps: dict[str, list[float]], refresh: dict[str, list[int]]
+                   ) -> dict[str, Any]:
+    """Rows ``{scheme, dt, refresh, error, cpu, steps}`` (resumed from the JSON); ``refresh``:
+    the Jacobian rebuild periods to measure per scheme (default: stiff.stepper.REFRESH)."""
+    path = OUT / f"{name}.json"
+    data = _load(path)
+    default = stepper.REFRESH
+    x0 = system.initial_state()
+    cache = OUT / f".{name}_reference.npy"
+    if cache.exists():
+        reference = np.load(cache)
+    else:
+        reference, cpu = _timed(lambda: integrate.propagate(system, x0, 0.0, t1, "rk4",
+                                                            reference_step))
+        np.save(cache, reference)
+        data["reference"] = {"scheme": "rk4", "dt": reference_step, "cpu": cpu}
+    rows = data.setdefault("rows", [])
+    done = {(r["scheme"], r["dt"], r.get("refresh")) for r in rows}
+    for scheme, dts in steps.items():
+        for dt in dts:
+            for every in refresh.get(scheme, [default]):
+                key = (scheme, dt, every)
+                if key in done:
+                    continue
+                stepper.REFRESH = every
+                try:
+                    result, cpu = _timed(lambda s=scheme, h=dt: integrate.run(system, x0, 0.0, t1,
+                                                                              s, h))
+                    row = {"error": _relative_error(result.state, reference, x0), "cpu": cpu,
+                           "steps": result.n_steps}
+                except integrate.BlowUpError as error:
+                    row = {"error": math.inf, "cpu": math.nan, "blowup": str(error)[:200]}
+                row.update(scheme=scheme, dt=dt, refresh=every)
+                rows.append(row)
+                print(name, row, flush=True)
+                _save(path, data)
+    stepper.REFRESH = default
+    return data
+
+
+def cheapest(rows: list[dict[str, Any]], target: float, implicit: bool) -> dict | None:
+    """The fastest row of explicit (or implicit) schemes whose error is at most ``target``."""
+    kind = {k for k, v in integrate.SCHEMES.items() if v.implicit == implicit}
+    ok = [r for r in rows if r["scheme"] in kind and r["error"] <= target]
+    return min(ok, key=lambda r: r["cpu"]) if ok else None
+
+
+def summary(data: dict[str, Any]) -> dict[str, Any]:
+    out = {}
+    for target in (1e-2, 1e-3, 1e-4):
+        e = cheapest(data["rows"], target, implicit=False)
+        i = cheapest(data["rows"], target, implicit=True)
+        out[f"{target:g}"] = {
+            "explicit": e and {k: e[k] for k in ("scheme", "dt", "cpu", "error")},
+            "implicit": i and {k: i[k] for k in ("scheme", "dt", "cpu", "error", "refresh")},
+            "ratio": e and i and e["cpu"] / i["cpu"],
+        }
+    return out
+
+
+def rod_part() -> dict[str, Any]:
+    rod = models.rod_swimmer(n_points=301, epsilon=1.0, n_threads=1)
+    data = work_precision("rod", rod, 0.05, 2e-6, ROD_STEPS, {"ros2": [stepper.REFRESH, 1]})
+    data["summary"] = summary(data)
+    _save(OUT / "rod.json", data)
+    return data
+
+
+def vesicle_part() -> dict[str, Any]:
+    ves = models.vesicle(subdivisions=3, n_threads=1)
+    path = OUT / "vesicle.json"
+    data = _load(path)
+    if "euler_limit" not in data:
+        data["euler_limit"] = integrate.largest_stable_step(ves, "euler", 1.0, 1e-5, 1e-1,
+                                                            relative=True)
+        _save(path, data)
+    limit = data["euler_limit"]
+    steps = {"euler": [0.95 * limit], "rk2": [0.95 * limit, 0.5 * limit],
+             "rk4": [1.3 * limit, 0.95 * limit],
+             "lieuler": [5 * limit, 2.5 * limit], "ros2": [20 * limit, 10 * limit, 5 * limit],
+             "ros2-krylov": [20 * limit, 10 * limit, 5 * limit]}
+    steps = {k: [float(f"{v:.3g}") for v in vs] for k, vs in steps.items()}
+    data = work_precision("vesicle", ves, 10.0, float(f"{0.25 * limit:.3g}"), steps, {})
+    data["summary"] = summary(data)
+    _save(path, data)
+    return data
+
+
+def parareal_part() -> dict[str, Any]:
+    path = OUT / "parareal.json"
+    data = _load(path)
+    rod = models.rod_swimmer(n_points=301, epsilon=1.0, n_threads=1)
+    x0 = rod.initial_state()
+    t1, n_slices, fine_dt = 0.01, N_SLICES, 1e-6
+    fine = integrate.Propagator(rod, "rk2", fine_dt)
+    slice_length = t1 / n_slices
+    if "fine_slice_cpu" not in data:
+        _, data["fine_slice_cpu"] = _timed(lambda: fine(0.0, slice_length, x0))
+        _save(path, data)
+    candidates: dict[str, Callable[[], Any]] = {
+        "table4_g1 (36 x euler, 20 tau_f)": lambda: parareal.extrapolated(
+            rod, "euler", 20 * fine_dt,
+            lagrange={"epsilon": [5.2 / 5, 5.25 / 5, 5.3 / 5, 5.35 / 5],
+                      "bending": [0.7, 0.75, 0.8], "viscosity": [1.3e-6, 1.45e-6, 1.6e-6]}),
+        **{f"ros2-krylov {dt:g}": (lambda dt=dt: integrate.Propagator(rod, "ros2-krylov", dt))
+           for dt in (1e-3, 5e-4, 2.5e-4)},
+        **{f"ros2 {dt:g}": (lambda dt=dt: integrate.Propagator(rod, "ros2", dt))
+           for dt in (5e-4, 2.5e-4)},
+    }
+    rows = data.setdefault("rows", {})
+    for label, make in candidates.items():
+        if label in rows:
+            continue
+        coarse = make()
+        n_aux = getattr(coarse, "n_auxiliary", 1)
+        _, cpu = _timed(lambda c=coarse: c(0.0, slice_length, x0))
+        result = parareal.run(fine, coarse, x0, t0=0.0, t1=t1, n_slices=n_slices, tol=0.0,
+                              max_iterations=3, reference=_serial(fine, x0, t1))
+        gamma = cpu / n_aux / data["fine_slice_cpu"]
+        rows[label] = {"gamma_ratio": gamma, "n_auxiliary": n_aux,
+                       "errors": result.errors, "increments": result.increments,
+                       "speedup_eq14_40_cores_k1": eq14(gamma, 1.0, 1, 40),
+                       "speedup_eq14_40_cores_k2": eq14(gamma, 1.0, 2, 40)}
+        print("parareal", label, rows[label], flush=True)
+        _save(path, data)
+    return data
+
+
+def _serial(fine: Any, x0: np.ndarray, t1: float) -> np.ndarray:
+    """The serial fine solution at ``t1`` (cached)."""
+    cache = OUT / ".parareal_serial.npy"
+    if not cache.exists():
+        np.save(cache, parareal.serial_solution(fine, x0, 0.0, t1, N_SLICES))
+    return np.load(cache)
+
+
+SERIAL_STEPS = {"rk2": [1.2e-5, 6e-6, 3e-6], "rk4": [1.6e-5, 8e-6],
+                "ros2-krylov": [2.5e-4, 1.25e-4, 6.25e-5], "ros2": [1.25e-4, 6.25e-5]}
+
+
+def serial_part() -> dict[str, Any]:
+    """T = 1 against the paper's fine solver RK2 at 1e-6 (its serial run: the reference)."""
+    rod = models.rod_swimmer(n_points=301, epsilon=1.0, n_threads=1)
+    path = OUT / "serial_t1.json"
+    data = _load(path)
+    x0 = rod.initial_state()
+    cache = OUT / ".serial_t1_reference.npy"
+    if not cache.exists():
+        reference, cpu = _timed(lambda: integrate.propagate(rod, x0, 0.0, 1.0, "rk2", 1e-6))
+        np.save(cache, reference)
+        data["reference"] = {"scheme": "rk2", "dt": 1e-6, "cpu": cpu}
+        _save(path, data)
+    reference = np.load(cache)
+    rows = data.setdefault("rows", [])
+    done = {(r["scheme"], r["dt"]) for r in rows}
+    for scheme, dts in SERIAL_STEPS.items():
+        for dt in dts:
+            if (scheme, dt) in done:
+                continue
+            try:
+                result, cpu = _timed(lambda s=scheme, h=dt: integrate.run(rod, x0, 0.0, 1.0, s, h))
+                row = {"error": _relative_error(result.state, reference, x0), "cpu": cpu}
+            except integrate.BlowUpError as error:
+                row = {"error": math.inf, "cpu": math.nan, "blowup": str(error)[:200]}
+            row.update(scheme=scheme, dt=dt)
+            rows.append(row)
+            print("serial", row, flush=True)
+            _save(path, data)
+    return data
+
+
+def figure() -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    parts = [p for p in ("rod", "vesicle") if (OUT / f"{p}.json").exists()]
+    if not parts:
+        return
+    fig, axes = plt.subplots(1, len(parts), figsize=(5.5 * len(parts), 4.2), squeeze=False)
+    for ax, part in zip(axes[0], parts, strict=True):
+        rows = _load(OUT / f"{part}.json")["rows"]
+        for scheme in integrate.SCHEMES:
+            pts = sorted((r["cpu"], r["error"]) for r in rows
+                         if r["scheme"] == scheme and math.isfinite(r["error"]))
+            if pts:
+                style = "-o" if integrate.SCHEMES[scheme].implicit else "--s"
+                ax.loglog(*zip(*pts, strict=True), style, label=scheme)
+        ax.set_xlabel("CPU time (s, one thread)")
+        ax.set_ylabel("error at T (relative)")
+        ax.set_title({"rod": "rod M = 301 above the wall, T = 0.05 s",
+                      "vesicle": "vesicle 642 points in shear, T = 10"}[part])
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(OUT / "work_precision.png", dpi=120)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--parts", nargs="+", default=["rod", "vesicle", "parareal"],
+                        choices=["rod", "vesicle", "parareal", "serial"])
+    args = parser.parse_args(argv)
+    for part in args.parts:
+        {"rod": rod_part, "vesicle": vesicle_part, "parareal": parareal_part,
+         "serial": serial_part}[part]()
+        figure()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

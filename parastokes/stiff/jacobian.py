@@ -1,0 +1,160 @@
+"""The approximate Jacobian ``A`` of a system's rates that the linearly implicit schemes use.
+
+In order of preference (docs/stiff.md, "Which Jacobian"):
+
+1. the system's own ``stiff_jacobian(t, state)``: a sparse (or dense) square matrix over the
+   rates, point-major (a :class:`parastokes.scene.Scene` composes its bodies' this way);
+2. for a body on the MRS fluid (``loads``, ``epsilon``, ``viscosity``): the near-pair mobility
+   (:func:`.local.near_mobility`, pairs within :data:`CUTOFF` ε) times the Jacobian of its loads,
+   ``A = M_near K``. ``K`` is the body's ``load_jacobian(t, state)`` if it has one (checked
+   against finite differences by ``parastokes.testing.check_system``), else coloured finite
+   differences (:mod:`.coloring`) over its declared ``load_coupling()`` pattern (the package's
+   rod, vesicle and chain declare theirs), else dense finite differences (a user body without
+   either: two loads evaluations per point and rate column);
+3. otherwise (a rigid or prescribed-motion body, whose velocity is already a solve; a system
+   with rates only): no ``A``, and the schemes step it as their explicit counterparts.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..bodies import contract
+from .coloring import fd_jacobian
+from .local import near_mobility
+
+__all__ = ["CUTOFF", "block_jacobian", "jacobian_check", "load_jacobian", "local_jacobian"]
+
+#: Pairs of points closer than CUTOFF ε enter the near mobility (docs/benchmarks.md, "Stiff
+#: bodies": 3 ε keeps ROS2 stable at 20x the explicit limit on the paper's rod).
+CUTOFF = 3.0
+
+
+def _rate_columns(body: Any) -> int:
+    return int(getattr(body, "rate_columns", 6 if getattr(body, "angular", False) else 3))
+
+
+def _sparse(system: Any, call: str, matrix: Any, size: int) -> sp.csr_array:
+    """``matrix`` as a CSR array, checked: square of ``size`` and finite (BodyError naming
+    ``Type.call`` otherwise)."""
+    name = f"{type(system).__name__}.{call}"
+    try:
+        out = sp.csr_array(matrix, dtype=float)
+    except (TypeError, ValueError) as error:
+        raise contract.BodyError(f"{name} returned {type(matrix).__name__} that is no matrix "
+                                 f"({error}); expected a sparse or dense matrix", name) from None
+    if out.shape != (size, size):
+        raise contract.BodyError(f"{name} returned shape {out.shape}; expected ({size}, {size}): "
+                                 "one row and column per rate, point-major", name)
+    if not np.isfinite(out.data).all():
+        raise contract.BodyError(f"{name} returned non-finite entries; expected finite values",
+                                 name)
+    return out
+
+
+def _loads_function(body: Any, t: float) -> Any:
+    """state -> the body's loads per point as one (n, 3) or (n, 6) array ``[f, n]``."""
+    angular = bool(getattr(body, "angular", False))
+
+    def loads(state: np.ndarray) -> np.ndarray:
+        forces, torques = body.loads(t, state)
+        if not angular:
+            return np.asarray(forces, dtype=float)
+        torques = np.zeros_like(forces) if torques is None else torques
+        return np.concatenate([forces, torques], axis=1)
+
+    return loads
+
+
+def _fd_step(x: np.ndarray) -> float:
+    return 1e-6 * max(1.0, float(np.abs(x[:, :3]).max(initial=0.0)))
+
+
+def load_jacobian(body: Any, t: float, x: np.ndarray, *, dense: bool = False) -> sp.csr_array:
+    """``K``: the Jacobian of the body's loads (rows ``[f, n]`` per point) with respect to its
+    rates' coordinates (columns per point): its ``load_jacobian`` if it has one, else coloured
+    finite differences over ``load_coupling()`` (``dense``, or without one: every point)."""
+    n, rc = len(x), _rate_columns(body)
+    width = 6 if getattr(body, "angular", False) else 3
+    own = getattr(body, "load_jacobian", None)
+    if own is not None and not dense:
+        matrix = own(t, x)
+        name = f"{type(body).__name__}.load_jacobian(t, state)"
+        out = sp.csr_array(matrix, dtype=float)
+        if out.shape != (n * width, n * rc) or not np.isfinite(out.data).all():
+            raise contract.BodyError(
+                f"{name} returned shape {out.shape} (finite: {np.isfinite(out.data).all()}); "
+                f"expected finite values of shape ({n * width}, {n * rc})", name)
+        return out
+    declared = getattr(body, "load_coupling", None)
+    if declared is None or dense:
+        coupling = sp.csr_array(np.ones((n, n), dtype=bool))
+    else:
+        coupling = declared()
+        if sp.csr_array(coupling).shape != (n, n):
+            name = f"{type(body).__name__}.load_coupling()"
+            raise contract.BodyError(f"{name} returned shape {sp.csr_array(coupling).shape}; "
+                                     f"expected ({n}, {n}): one row and column per point", name)
+    return fd_jacobian(_loads_function(body, t), body.advance, x, rc, coupling, _fd_step(x))
+
+
+def _is_fluid_body(system: Any) -> bool:
+    return all(hasattr(system, name) for name in ("loads", "epsilon", "viscosity")) and not (
+        hasattr(system, "surface") and hasattr(system, "motion_rates"))
+
+
+def local_jacobian(system: Any, t: float, x: np.ndarray, n_rates: int
+                   ) -> sp.csr_array | sp.bsr_array | None:
+    """``A`` of ``system`` at ``(t, x)`` over its ``n_rates`` rates flattened point-major, or
+    None (no stiff part known: the schemes step it explicitly); see the module docstring."""
+    x = np.asarray(x, dtype=float)
+    own = getattr(system, "stiff_jacobian", None)
+    if own is not None:
+        matrix = own(t, x)
+        if matrix is None:
+            return None
+        return _sparse(system, "stiff_jacobian(t, state)", matrix, n_rates)
+    if not _is_fluid_body(system):
+        return None
+    angular = bool(getattr(system, "angular", False))
+    if _rate_columns(system) != (6 if angular else 3):
+        return None  # rates that are not the fluid's velocities: no local model of them
+    k = load_jacobian(system, t, x)
+    m = near_mobility(system.positions(x), float(system.epsilon), float(system.viscosity),
+                      angular, CUTOFF * float(system.epsilon))
+    width = m.blocksize[0]
+    return m @ sp.bsr_array(k, blocksize=(width, _rate_columns(system)))
+
+
+def block_jacobian(parts: list[tuple[int, int, int, sp.csr_array | None]], rows: int,
+                   width: int) -> sp.csr_array:
+    """A block-diagonal ``A`` over rates padded to ``width`` columns (a scene's): ``parts`` are
+    ``(first row, rows, rate columns, A of the body or None)``."""
+    data: list[np.ndarray] = []
+    r_all: list[np.ndarray] = []
+    c_all: list[np.ndarray] = []
+    for first, _, rc, matrix in parts:
+        if matrix is None:
+            continue
+        coo = sp.coo_array(matrix)
+        for index, out in ((coo.row, r_all), (coo.col, c_all)):
+            out.append((first + index // rc) * width + index % rc)
+        data.append(coo.data)
+    if not data:
+        return sp.csr_array((rows * width, rows * width))
+    return sp.csr_array((np.concatenate(data), (np.concatenate(r_all), np.concatenate(c_all))),
+                        shape=(rows * width, rows * width))
+
+
+def jacobian_check(body: Any, t: float, x: np.ndarray) -> float:
+    """The largest difference between the load Jacobian the body provides (its
+    ``load_jacobian``, or the coloured finite differences over its ``load_coupling``) and dense
+    finite differences, relative to the largest entry: a wrong Jacobian or a coupling pattern
+    that misses a dependence shows as a difference of order one."""
+    given = load_jacobian(body, t, x).toarray()
+    dense = load_jacobian(body, t, x, dense=True).toarray()
+    scale = max(float(np.abs(dense).max()), 1e-300)
+    return float(np.abs(given - dense).max() / scale)

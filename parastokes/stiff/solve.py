@@ -1,0 +1,131 @@
+"""The stage solves of the linearly implicit schemes: ``(I - h γ A) k = r`` over the rates.
+
+- :class:`StageSolver` with ``krylov=False``: ``A`` is the approximate Jacobian of
+  :mod:`.jacobian`, factorized once (scipy's SuperLU with its fill-reducing ordering; the matrix
+  is sparse, O(points) entries) and reused for every stage and every step that keeps the same
+  ``A`` and step. No dense (3N)² matrix is ever formed.
+- ``krylov=True``: the exact Jacobian of the rates, applied matrix-free by a forward difference
+  of the rates (one evaluation of the compiled kernels per product), solved by GMRES to a
+  relative residual of :data:`GMRES_RTOL` (checked again after it within
+  :data:`GMRES_ACCEPT`), preconditioned by the LU of the approximate ``A``.
+
+A factorization of a singular matrix or a GMRES that does not converge is a
+:class:`StiffSolveError` naming the time, the residual and the iterations; the integrator
+reports it as a blow-up (``integrate.BlowUpError``, exit 3 of a run) with advice.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+__all__ = ["GMRES_ACCEPT", "GMRES_MAXITER", "GMRES_RTOL", "StageSolver", "StiffSolveError"]
+
+#: Relative residual of the GMRES stage solves, as scipy's GMRES measures it (W-methods keep
+#: their order with an inexact Jacobian, so the stage systems need not be solved to round-off).
+GMRES_RTOL = 1e-5
+#: The largest relative residual of a stage solve recomputed after GMRES (the finite-difference
+#: products carry noise of about 1e-8 relative, amplified by h γ |J|): above it the solve failed.
+GMRES_ACCEPT = 1e-3
+#: The most GMRES iterations of one stage solve.
+GMRES_MAXITER = 60
+
+
+class StiffSolveError(RuntimeError):
+    """A stage solve failed: ``t`` (time of the step), ``residual`` (relative, ``nan`` when the
+    matrix could not be factorized), ``iterations``; ``reason`` says what failed and what to
+    change."""
+
+    def __init__(self, t: float, residual: float, iterations: int, reason: str) -> None:
+        super().__init__(f"linear solve failed at t={t:.10g}: {reason} (relative residual "
+                         f"{residual:.3g} after {iterations} iterations)")
+        self.t = t
+        self.residual = residual
+        self.iterations = iterations
+        self.reason = reason
+
+    def __reduce__(self) -> tuple:
+        return type(self), (self.t, self.residual, self.iterations, self.reason)
+
+
+def _ordering(matrix: sp.sparray) -> str:
+    """SuperLU's column ordering: the natural one for a banded matrix (a rod's or chain's points
+    in order along it: no fill outside the band, measured 2x faster to factorize), else COLAMD."""
+    coo = matrix.tocoo()
+    band = int(np.abs(coo.row - coo.col).max(initial=0))
+    return "NATURAL" if band < matrix.shape[0] // 8 else "COLAMD"
+
+
+class StageSolver:
+    """Solves ``(I - hγ A) k = r`` at one step (see the module docstring).
+
+    ``matrix``: the approximate ``A`` (None: ``A = 0``); with ``krylov``, ``rates_at(y)`` gives
+    the rates at the step's time at a state ``y`` near ``x`` and ``advance`` moves ``x`` along
+    a rate perturbation, for the products of the exact Jacobian with ``f0 = rates_at(x)``.
+    """
+
+    def __init__(self, matrix: sp.sparray | None, hgamma: float, t: float, *,
+                 krylov: bool = False,
+                 rates_at: Callable[[np.ndarray], np.ndarray] | None = None,
+                 advance: Callable[[np.ndarray, np.ndarray, float], np.ndarray] | None = None,
+                 x: np.ndarray | None = None, f0: np.ndarray | None = None) -> None:
+        self.hgamma = hgamma
+        self.t = t
+        self.lu = None
+        self.iterations = 0
+        if matrix is not None and matrix.nnz:
+            system = sp.eye_array(matrix.shape[0], format="csc") - hgamma * matrix.tocsc()
+            try:
+                self.lu = spla.splu(system, permc_spec=_ordering(matrix))
+            except RuntimeError as error:  # "Factor is exactly singular"
+                raise StiffSolveError(t, float("nan"), 0, f"I - h*gamma*A is singular ({error}); "
+                                      "use a smaller step") from None
+        self.krylov = krylov
+        self.rates_at, self.advance, self.x, self.f0 = rates_at, advance, x, f0
+
+    def _precondition(self, v: np.ndarray) -> np.ndarray:
+        return v if self.lu is None else self.lu.solve(v)
+
+    def solve(self, r: np.ndarray) -> np.ndarray:
+        """``k`` of the shape of ``r``."""
+        b = np.ascontiguousarray(r, dtype=float).ravel()
+        if not self.krylov:
+            return self._precondition(b).reshape(r.shape)
+        return self._gmres(b).reshape(r.shape)
+
+    def _jacobian_product(self, v: np.ndarray) -> np.ndarray:
+        assert self.rates_at is not None and self.advance is not None
+        assert self.x is not None and self.f0 is not None
+        norm = float(np.linalg.norm(v))
+        if norm == 0.0:
+            return np.zeros_like(v)
+        sigma = 1e-7 * max(1.0, float(np.abs(self.x[:, :3]).max())) / norm
+        shifted = self.advance(self.x, (sigma * v).reshape(self.f0.shape), 1.0)
+        return (self.rates_at(shifted) - self.f0).ravel() / sigma
+
+    def _gmres(self, b: np.ndarray) -> np.ndarray:
+        n = b.size
+        operator = spla.LinearOperator(
+            (n, n), matvec=lambda v: v - self.hgamma * self._jacobian_product(v), dtype=float)
+        preconditioner = spla.LinearOperator((n, n), matvec=self._precondition, dtype=float)
+        count = [0]
+
+        def counted(_: object) -> None:
+            count[0] += 1
+
+        scale = float(np.linalg.norm(b))
+        if scale == 0.0:
+            return np.zeros_like(b)
+        k, info = spla.gmres(operator, b, x0=self._precondition(b), rtol=GMRES_RTOL,
+                             atol=0.0, restart=GMRES_MAXITER, maxiter=1, M=preconditioner,
+                             callback=counted, callback_type="pr_norm")
+        self.iterations += count[0]
+        residual = float(np.linalg.norm(operator.matvec(k) - b)) / scale
+        if info < 0 or not np.isfinite(residual) or residual > GMRES_ACCEPT:
+            raise StiffSolveError(self.t, residual, count[0],
+                                  "GMRES did not converge; use a smaller step, or the scheme "
+                                  "ros2 (approximate Jacobian, direct solve)")
+        return k
