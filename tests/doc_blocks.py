@@ -13,6 +13,7 @@ neither GitHub nor the site shows:
 - ``<!-- example: after COMMAND; COMMAND -->``: ``parastokes`` commands run first in the page's
   folder (the run whose output the block reads);
 - ``<!-- example: file NAME -->``: the block is a file of the reader's, written to NAME;
+- ``<!-- example: prints TEXT -->``: what the block prints contains TEXT (the page quotes it);
 - ``<!-- file: NAME -->``, ``<!-- append: NAME -->``, ``<!-- run: NAME -->``: docs/extending.md's
   walk-through, run by tests/test_extending.py.
 

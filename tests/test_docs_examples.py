@@ -31,14 +31,19 @@ SCRIPTS = sorted(GALLERY.glob("plot_*.py"))
 #: Runs blocks the way a reader pastes them: one namespace, tracebacks naming the page's lines;
 #: ``python -c`` (no script file), so that process pools do not import it again in each worker.
 _DRIVER = """
-import json, sys, traceback
+import contextlib, io, json, sys, traceback
 namespace = {"__name__": "__main__"}
+printed = {}
 for label, code in json.load(open("blocks.json")):
+    out = io.StringIO()
     try:
-        exec(compile(code, label, "exec"), namespace)
+        with contextlib.redirect_stdout(out):
+            exec(compile(code, label, "exec"), namespace)
     except BaseException:
         traceback.print_exc()
-        sys.exit(f"the example at {label} failed")
+        sys.exit(f"the example at {label} failed; it printed:\\n{out.getvalue()}")
+    printed[label] = out.getvalue()
+json.dump(printed, open("printed.json", "w"))
 """
 
 #: Runs a gallery script as sphinx-gallery does (as __main__) and saves the figures it leaves open.
@@ -70,7 +75,7 @@ def _pages_with_runnable_blocks() -> list[Path]:
 def test_every_python_block_is_run_or_marked():
     """A page's Python block runs, or says why not; walk-through markers only where
     tests/test_extending.py reads them; a marker of an unknown kind is a typo."""
-    known = {"skip", "quick", "setup", "after", "file", *WALK_THROUGH, "shell"}
+    known = {"skip", "quick", "setup", "after", "file", "prints", *WALK_THROUGH, "shell"}
     for block in python_blocks():
         assert set(block.markers) <= known, f"{block.label}: unknown marker {block.markers}"
         if set(block.markers) & set(WALK_THROUGH):
@@ -107,14 +112,17 @@ def test_the_static_check_finds_wrong_names_and_keywords():
                          ids=lambda p: str(p.relative_to(ROOT)))
 def test_page_examples_run(page: Path, tmp_path: Path):
     """A page's runnable blocks, in order, in an empty folder (``experiments/`` linked there,
-    as in a checkout), after the commands their ``after`` markers name."""
+    as in a checkout), after the commands their ``after`` markers name; what a block prints
+    contains the text of its ``prints`` markers."""
     (tmp_path / "experiments").symlink_to(ROOT / "experiments")
     batch: list[tuple[str, str]] = []
+    printed: dict[str, str] = {}
 
     def flush() -> None:
         if batch:
             (tmp_path / "blocks.json").write_text(json.dumps(batch))
             _run([sys.executable, "-c", _DRIVER], tmp_path)
+            printed.update(json.loads((tmp_path / "printed.json").read_text()))
             batch.clear()
 
     for block in blocks(page):
@@ -134,6 +142,10 @@ def test_page_examples_run(page: Path, tmp_path: Path):
                 _run([sys.executable, "-m", "parastokes", *words[1:]], tmp_path)
         batch.append((block.label, block.runnable_code()))
     flush()
+    for block in blocks(page):
+        for text in block.markers.get("prints", []):
+            assert text in printed[block.label], (
+                f"{block.label} should print {text!r}; it printed {printed[block.label]!r}")
 
 
 # ---- the gallery -------------------------------------------------------------------------------
