@@ -120,8 +120,8 @@ def fine_solver(
 @dataclass(frozen=True)
 class SpatialSpeedup:
     """Eq. 35 measured: ``serial_time`` (Upsilon_F), ``parallel_time`` (Upsilon_sp), both the
-    best of ``repeats`` runs, and ``difference``, the largest |x_sp - x_F| over the largest |x_F|
-    of the final states (0 when bit-identical)."""
+    best of ``repeats`` runs, and ``difference``, the largest ``|x_sp - x_F|`` over the largest
+    ``|x_F|`` of the final states (0 when bit-identical)."""
 
     serial_time: float
     parallel_time: float

@@ -5,7 +5,8 @@ here is compiled with numba and loops over rows inside the compiled code.
 
 - :func:`rodrigues`, :func:`rotate`: Rodrigues' formula, the exact rotation of a vector by an angle
   about an axis (unit, for :func:`rotate`).
-- :func:`advance_rod`: the rod's ``advance`` (eq. 13): X + dt u, frames rotated by |w| dt about w.
+- :func:`advance_rod`: the rod's ``advance`` (eq. 13): X + dt u, frames rotated by ``|w| dt``
+  about w.
 - :func:`orthonormalize`: the nearest rotation (polar factor) of every node's frame matrix, used by
   ``project`` after Parareal's linear combinations of states and after grid transfers.
 """
@@ -76,9 +77,10 @@ def advance_node(x, u, dt, out):
 
 @njit(**_OPTS)
 def advance_rod(state, rates, dt):
-    """New state: X + dt u and every frame vector rotated by the angle |w| dt about w (eq. 13).
+    """New state: X + dt u and every frame vector rotated by the angle ``|w| dt`` about w (eq. 13).
 
-    ``state`` is (n, 12) ``[X, D1, D2, D3]``, ``rates`` (n, 6) ``[u, w]``; |w| = 0 leaves the frame.
+    ``state`` is (n, 12) ``[X, D1, D2, D3]``, ``rates`` (n, 6) ``[u, w]``; ``|w| = 0`` leaves the
+    frame.
     """
     out = np.empty_like(state)
     for k in range(state.shape[0]):
@@ -130,7 +132,7 @@ def orthonormalize(state):
 
 
 def orthonormality_error(state: np.ndarray) -> float:
-    """max over nodes of |D^T D - I| (entrywise), with D the 3x3 frame matrix of a node."""
+    """max over nodes of ``|D^T D - I|`` (entrywise), with D the 3x3 frame matrix of a node."""
     d = np.asarray(state)[:, 3:12].reshape(-1, 3, 3)
     gram = np.einsum("kij,klj->kil", d, d)
     return float(np.abs(gram - np.eye(3)).max())

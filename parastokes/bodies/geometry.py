@@ -110,7 +110,7 @@ def icosphere(subdivisions: int = 3) -> tuple[np.ndarray, np.ndarray]:
 
 
 def edge_lengths(points: np.ndarray, edges: np.ndarray) -> np.ndarray:
-    """|X_j - X_i| for every edge (i, j)."""
+    """``|X_j - X_i|`` for every edge (i, j)."""
     return np.linalg.norm(points[edges[:, 1]] - points[edges[:, 0]], axis=1)
 
 

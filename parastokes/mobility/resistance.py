@@ -68,8 +68,12 @@ def solve_resistance(
         GMRES's block of each body (:mod:`parastokes.mobility.precondition`).
     n_threads : threads of the compiled kernels in GMRES's products.
 
-    Raises :class:`parastokes.mobility.SolveError` when the solve fails, ``ValueError`` for bad
-    input (before any solve).
+    Raises
+    ------
+    parastokes.mobility.SolveError
+        When the solve fails.
+    ValueError
+        For bad input (before any solve).
     """
     sset = SurfaceSet(surfaces, mu, wall, n_threads)
     y = np.concatenate([sset.body_vectors("U", U), sset.body_vectors("Omega", Omega)], axis=1)

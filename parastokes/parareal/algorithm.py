@@ -74,7 +74,7 @@ def time_points(t0: float, t1: float, n_slices: int) -> np.ndarray:
 def serial_solution(
     propagator: PropagatorLike, x0: np.ndarray, t0: float, t1: float, n_slices: int
 ) -> np.ndarray:
-    """The serial solution F(T_n, 0, x0) at every T_n, shape (n_slices + 1, *x0.shape).
+    """The serial solution F(T_n, 0, x0) at every T_n, shape ``(n_slices + 1, *x0.shape)``.
 
     With the fine propagator this is the ``reference`` of :func:`run` (the x^F of eq. 34), computed
     slice by slice on the same time points so that Parareal reproduces it to the last bit.

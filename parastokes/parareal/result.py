@@ -66,6 +66,7 @@ class PararealResult:
           measured serial fine time ``serial_time`` when given, else N_c gamma_F (eq. 13);
         - ``theoretical``: eq. 14 with Upsilon_oh = 0 and the measured gamma_G, gamma_F;
         - ``bound``: eq. 15;
+
         for a run of the pipelined schedule their counterparts for that schedule
         (:func:`~parastokes.parareal.speedup.schedule_speedups`).
         Also returned: gamma_G, gamma_F, their ratio, the overhead Upsilon_oh of eq. 12, whether

@@ -39,6 +39,7 @@ class Timings:
       coarse step, pipelined schedule only), times in seconds since the run started, worker the
       slot 0, 1, ... that ran it or ``MANAGER`` (-1); the data of the Gantt chart.
     - ``schedule``: ``"standard"`` (Algorithm 1) or ``"pipelined"``.
+
     In the pipelined schedule ``parallel_sweeps[k-1]`` and ``serial_sweeps[k]`` are the spans
     (first start to last end) of iteration k's fine and coarse tasks, which overlap.
     """

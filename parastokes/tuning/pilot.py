@@ -3,13 +3,14 @@
 :meth:`Pilot.prepare` computes the serial fine solution on P slices of the run's slice length (the
 reference; it also proves that the fine solver is stable there and measures γ_F), and estimates the
 fine solver's own time-discretization error over the first slice (one run at 2τ_f, Richardson's
-estimate |F_τ - F_2τ| / (2^p - 1), eq. 34's measure). :meth:`Pilot.screen` is one coarse call over
-the second slice from the reference: its defect against the reference, the cheap accuracy measure
-that orders the search. :meth:`Pilot.measure` runs Algorithm 1 itself (``parareal.run``) on the
-window for one coarse solver, giving η^k at T_P for k = 1..K and the measured cost of its coarse
-calls. Fine solves whose input is the reference (slices n <= k in iteration k) are taken from the
-reference instead of being recomputed, and the screen's coarse call is reused. Costs (γ_F, γ_G) are
-CPU times of this process: on a shared machine they do not depend on what else runs, wall times do.
+estimate ``|F_τ - F_2τ| / (2^p - 1)``, eq. 34's measure). :meth:`Pilot.screen` is one coarse call
+over the second slice from the reference: its defect against the reference, the cheap accuracy
+measure that orders the search. :meth:`Pilot.measure` runs Algorithm 1 itself (``parareal.run``)
+on the window for one coarse solver, giving η^k at T_P for k = 1..K and the measured cost of its
+coarse calls. Fine solves whose input is the reference (slices n <= k in iteration k) are taken
+from the reference instead of being recomputed, and the screen's coarse call is reused. Costs
+(γ_F, γ_G) are CPU times of this process: on a shared machine they do not depend on what else
+runs, wall times do.
 """
 
 from __future__ import annotations

@@ -119,11 +119,12 @@ def radius(probe: Probe, seed: int = 0, krylov: int = KRYLOV, tol: float = TOLER
     """ρ(DG) by ARPACK (``scipy.sparse.linalg.eigs``, largest modulus, one eigenvalue) on the
     probe's products, from the random start ``seed``, with a Krylov space of ``krylov`` vectors.
 
-    Converged means ARPACK's test: the Ritz pair (θ, v) has ‖DG v - θ v‖ <= ``tol`` |θ|, so θ is an
-    eigenvalue of DG + E with ‖E‖ <= tol |θ| (for a non-normal DG, ρ may differ from θ by more than
-    tol |θ|). ``max_calls`` (None: ARPACK's own limit) bounds the probe's calls of G, its base
-    call included; past it, or on ARPACK's no-convergence, the result has ``converged=False`` and
-    ``rho`` NaN. Raises :class:`Diverged` when a perturbed call returns a non-finite state.
+    Converged means ARPACK's test: the Ritz pair (θ, v) has ``‖DG v - θ v‖ <= tol |θ|``, so θ is
+    an eigenvalue of DG + E with ``‖E‖ <= tol |θ|`` (for a non-normal DG, ρ may differ from θ by
+    more than ``tol |θ|``). ``max_calls`` (None: ARPACK's own limit) bounds the probe's calls of G,
+    its base call included; past it, or on ARPACK's no-convergence, the result has
+    ``converged=False`` and ``rho`` NaN. Raises :class:`Diverged` when a perturbed call returns a
+    non-finite state.
     """
     if probe.size < 3:
         raise ValueError(f"slice map: {probe.size} unknowns; Arnoldi needs at least 3")

@@ -105,8 +105,8 @@ class Settings:
         return not self.lagrange and self.m == 0 and self.grid == 1
 
     def weight_sum(self, theta0: Mapping[str, float]) -> float:
-        """Σ_j Σ_q |w_j v_q| for geometric steps (eqs. 22, 27): how much the combination amplifies
-        what its members leave undamped."""
+        """``Σ_j Σ_q |w_j v_q|`` for geometric steps (eqs. 22, 27): how much the combination
+        amplifies what its members leave undamped."""
         w = 1.0
         if self.lagrange:
             names = [name for name, _ in self.lagrange]
@@ -204,7 +204,7 @@ class Space:
       ``nodes``: node counts of the first parameter (the others use at most 3);
     - ``richardson``: depths m to try, with ratio ``r``; ``grid_factors``: coarse grids (rods);
     - ``step_fractions``: coarse steps as fractions of the largest safe step;
-    - ``max_weight``: candidates with Σ|w_j v_q| above it are pruned before any measurement;
+    - ``max_weight``: candidates with ``Σ|w_j v_q|`` above it are pruned before any measurement;
     - ``extra``: solvers with their own step (e.g. the paper's, :func:`settings_from_config`),
       always measured, never pruned.
     """

@@ -7,7 +7,7 @@ steps (alone and in scenes) are in :mod:`.stepping`, its GPU device parts in :mo
 registered at the end of this module.
 
 Mechanics (forces only; docs/bodies.md). Beads X_0..X_{N-1}, bonds t_i = X_{i+1} - X_i with rest
-length b, unit tangents t̂_i. The elastic energy is
+length b, unit tangents t̂_i. The elastic energy is::
 
     E = (k/2) Σ_i (|t_i| - b)²  +  (κ/b) Σ_{i=1}^{N-2} (1 - t̂_{i-1}·t̂_i),
 

@@ -1,8 +1,8 @@
 """Unit quaternions for the orientation of rigid bodies (docs/bodies.md, "Rigid bodies").
 
-A quaternion q = (w, x, y, z) with |q| = 1 is the rotation R(q) taking body-frame vectors to the
+A quaternion q = (w, x, y, z) with ``|q| = 1`` is the rotation R(q) taking body-frame vectors to the
 lab frame. A body turning at the lab-frame angular velocity Ω for a time dt is rotated exactly
-(the exponential map, Rodrigues' formula in quaternion form):
+(the exponential map, Rodrigues' formula in quaternion form)::
 
     q(t + dt) = exp(dt Ω / 2) ⊗ q(t),  exp(v) = (cos |v|, sin |v| v / |v|),
 
@@ -56,7 +56,7 @@ def exp_rotate(q: np.ndarray, omega: np.ndarray, dt: float) -> np.ndarray:
 
 
 def normalized(q: np.ndarray) -> np.ndarray:
-    """q / |q| (ValueError for a zero quaternion, which is no rotation)."""
+    """``q / |q|`` (ValueError for a zero quaternion, which is no rotation)."""
     norm = float(np.linalg.norm(q))
     if not norm > 0.0 or not math.isfinite(norm):
         raise ValueError(f"orientation: a quaternion must be finite and non-zero, got {q!r}")

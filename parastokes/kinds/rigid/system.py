@@ -19,7 +19,7 @@ external force and torque (the augmented system of Khatri & Cortez).
 **advance**: c + dt U; q turned exactly by dt Ω (the exponential map); φ + dt dφ/dt; the
 surface rebuilt from the new pose. **project**: q renormalized, the surface rebuilt (as the
 rod re-orthonormalizes its frames). **bracket**: Ω1 × Ω2 on the pose row (RKMK4, as rods).
-**monitor**: the drift |‖q‖ − 1| (limit 1e-3); infinite when a point is on or below the wall.
+**monitor**: the drift ``|‖q‖ − 1|`` (limit 1e-3); infinite when a point is on or below the wall.
 
 **coarsened(factor)**: the same body on a surface of ``factor`` times fewer points, ε scaled with
 the spacing, and the exact grid transfer through the pose (:mod:`.coarse`; Remark 4).
@@ -284,12 +284,12 @@ class RigidBody:
 
     @property
     def monitor_limit(self) -> float:
-        """1e-3: the exponential map keeps |q| = 1 to round-off, but Parareal's corrections
+        """1e-3: the exponential map keeps ``|q| = 1`` to round-off, but Parareal's corrections
         (linear combinations of states, before ``project``) move it by about their error."""
         return 1e-3
 
     def monitor(self, state: np.ndarray) -> float:
-        """|‖q‖ − 1|; infinite when a point is on or below the wall."""
+        """``|‖q‖ − 1|``; infinite when a point is on or below the wall."""
         if crossed_wall(state, self.wall):
             return math.inf
         return abs(float(np.linalg.norm(state[0, 3:7])) - 1.0)

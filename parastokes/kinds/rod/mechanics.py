@@ -7,7 +7,7 @@ exert on the fluid. For each half point k+½ (k = 0..M-2) of each rod it forms
 - the half-point frame D_i^{k+½} = sqrt(A_k) D_i^k, A_k = Σ_i D_i^{k+1} (D_i^k)^T, as the rotation
   by half the angle of A_k about its axis (docs/physics.md (9)); the axis-angle of A_k comes from
   v = ½ Σ_i D_i^k × D_i^{k+1} = sin θ e and tr A_k = 1 + 2 cos θ, and the half rotation (cosine
-  ½ sqrt(tr A_k + 1), sine |v| over twice that) is applied with Rodrigues' formula;
+  ½ sqrt(tr A_k + 1), sine ``|v|`` over twice that) is applied with Rodrigues' formula;
 - the strains Ω_i (paper eq. 10; docs/physics.md (10));
 - the moment N and force F (paper eq. 11; docs/physics.md (11)) with the preferred strain Ω̂
   (eq. 36);
@@ -89,11 +89,11 @@ def rod_loads(state, n_rods, ds, a, b, omega_hat):
     Returns ``(f, n)``, two contiguous (n_rods * M, 3) arrays.
 
     The half-angle rotation needs no axis normalization: with v = sin θ e and
-    cos(θ/2) = ½ sqrt(tr A_k + 1), sin(θ/2)/|v| = 1/(2 cos(θ/2)) and
-    (1 - cos(θ/2))/|v|² = 1/(4 cos²(θ/2) (1 + cos(θ/2))), both finite at θ = 0 (|v| = 0 gives
-    H = D^k). One square root and one division per segment, no branch. A half turn between
-    neighbouring frames (θ = π, no unique square root) gives non-finite loads, which the
-    integrator reports as a blow-up.
+    cos(θ/2) = ½ sqrt(tr A_k + 1), ``sin(θ/2)/|v| = 1/(2 cos(θ/2))`` and
+    ``(1 - cos(θ/2))/|v|² = 1/(4 cos²(θ/2) (1 + cos(θ/2)))``, both finite at θ = 0
+    (``|v| = 0`` gives H = D^k). One square root and one division per segment, no branch. A half
+    turn between neighbouring frames (θ = π, no unique square root) gives non-finite loads, which
+    the integrator reports as a blow-up.
     """
     n = state.shape[0]
     m = n // n_rods
@@ -124,7 +124,7 @@ def rod_loads(state, n_rods, ds, a, b, omega_hat):
 
 @njit(**_OPTS)
 def rod_lengths(state, n_rods):
-    """Length Σ_k |X_{k+1} - X_k| of each rod (the stability monitor of section 5.1)."""
+    """Length ``Σ_k |X_{k+1} - X_k|`` of each rod (the stability monitor of section 5.1)."""
     n = state.shape[0]
     m = n // n_rods
     out = np.zeros(n_rods)
@@ -141,7 +141,8 @@ def rod_lengths(state, n_rods):
 
 @njit(**_OPTS)
 def length_change(state, n_rods, length):
-    """The rods' stability monitor (section 5.1): max over rods of |Σ_k |X_{k+1} - X_k| - L| / L."""
+    """The rods' stability monitor (section 5.1): max over rods of
+    ``|Σ_k |X_{k+1} - X_k| - L| / L``."""
     return np.abs(rod_lengths(state, n_rods) - length).max() / length
 
 

@@ -156,7 +156,7 @@ class RodSystem(FluidBody):
         return self.body_rates(u, w)
 
     def advance(self, state: np.ndarray, rates: np.ndarray, dt: float) -> np.ndarray:
-        """X + dt u; frames rotated by |w| dt about w (Rodrigues, eq. 13)."""
+        """X + dt u; frames rotated by ``|w| dt`` about w (Rodrigues, eq. 13)."""
         return frames.advance_rod(state, rates, dt)
 
     @staticmethod

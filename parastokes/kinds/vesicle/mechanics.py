@@ -2,7 +2,7 @@
 
 Every mesh edge is a Hookean spring of stiffness κ with rest length ℓ⁰ = its initial length; the
 point force on the fluid at vertex i is
-F_i = Σ_{j~i} κ (|X_j - X_i| - ℓ⁰_ij) (X_j - X_i)/|X_j - X_i|.
+``F_i = Σ_{j~i} κ (|X_j - X_i| - ℓ⁰_ij) (X_j - X_i)/|X_j - X_i|``.
 A stretched spring pulls its two ends toward each other, so the forces relax the shape; they sum to
 zero and have zero net torque about any point (each spring contributes an equal and opposite pair
 along the line joining its ends).
@@ -18,7 +18,7 @@ from numba import njit
 
 @njit(inline="always", cache=True, error_model="numpy")
 def spring_pull(points, i, j, rest, stiffness):
-    """κ (d - ℓ⁰) (X_j - X_i)/d, d = |X_j - X_i|: the force of the spring (i, j) on the fluid at
+    """κ (d - ℓ⁰) (X_j - X_i)/d, ``d = |X_j - X_i|``: the force of the spring (i, j) on the fluid at
     X_i (minus it at X_j). Also compiled as a CUDA device function by :mod:`parastokes.gpu`."""
     dx = points[j, 0] - points[i, 0]
     dy = points[j, 1] - points[i, 1]
