@@ -28,7 +28,8 @@ __all__ = ["GMRES_ACCEPT", "GMRES_MAXITER", "GMRES_RTOL", "StageSolver", "StiffS
 #: their order with an inexact Jacobian, so the stage systems need not be solved to round-off).
 GMRES_RTOL = 1e-5
 #: The largest relative residual of a stage solve recomputed after GMRES (the finite-difference
-#: products carry noise of about 1e-8 relative, amplified by h γ |J|): above it the solve failed.
+#: products carry noise of about 1e-8 relative, amplified by h γ times the Jacobian's norm):
+#: above it the solve failed.
 GMRES_ACCEPT = 1e-3
 #: The most GMRES iterations of one stage solve.
 GMRES_MAXITER = 60
