@@ -529,7 +529,8 @@ class Propagator:
         return n_steps(t_start, t_end, self.dt)
 
     def __call__(self, t_start: float, t_end: float, x: np.ndarray) -> np.ndarray:
-        return self.run(t_start, t_end, x).state
+        return propagate(self.system, x, t_start, t_end, self.scheme, self.dt,
+                         blowup_factor=self.blowup_factor, rtol=self.rtol, atol=self.atol)
 
     def run(self, t_start: float, t_end: float, x: np.ndarray) -> RunResult:
         """The :class:`RunResult` of the propagation (steps taken, and rejected with ``rtol``)."""
