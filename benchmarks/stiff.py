@@ -263,11 +263,17 @@ def figure() -> None:
     for ax, part in zip(axes[0], parts, strict=True):
         rows = _load(OUT / f"{part}.json")["rows"]
         for scheme in integrate.SCHEMES:
-            pts = sorted((r["cpu"], r["error"]) for r in rows
-                         if r["scheme"] == scheme and math.isfinite(r["error"]))
-            if pts:
-                style = "-o" if integrate.SCHEMES[scheme].implicit else "--s"
-                ax.loglog(*zip(*pts, strict=True), style, label=scheme)
+            implicit = integrate.SCHEMES[scheme].implicit
+            for every in sorted({r.get("refresh") for r in rows if r["scheme"] == scheme},
+                                key=lambda v: -(v or 0)):
+                pts = sorted((r["cpu"], r["error"]) for r in rows
+                             if r["scheme"] == scheme and r.get("refresh") == every
+                             and math.isfinite(r["error"]))
+                if not pts:
+                    continue
+                label = f"{scheme} (A every {every})" if implicit and every == 1 else scheme
+                ax.loglog(*zip(*pts, strict=True), "-o" if implicit else "--s", label=label)
+        ax.xaxis.set_minor_formatter(plt.NullFormatter())
         ax.set_xlabel("CPU time (s, one thread)")
         ax.set_ylabel("error at T (relative)")
         ax.set_title({"rod": "rod M = 301 above the wall, T = 0.05 s",
