@@ -255,12 +255,17 @@ def _stiff_blowup(error: stiff.StiffSolveError | stiff.StepSizeError, step: int,
     return BlowUpError(error.t, step, math.nan, x, reason)
 
 
+def _checked_stepper(system: System, scheme: Rosenbrock) -> stiff.Stepper:
+    """A :class:`parastokes.stiff.Stepper` on the checked ``rates`` and ``advance``."""
+    return stiff.Stepper(system, scheme, lambda t, y: _rates(system, t, y),
+                         lambda y, r, h: _advance(system, y, r, h))
+
+
 def _implicit_stepper(system: System, scheme: Rosenbrock):
     """``step(t, x, dt)`` of a linearly implicit scheme: a :class:`parastokes.stiff.Stepper`
     (it keeps the Jacobian and its factorization across the steps of one run) on the checked
     ``rates`` and ``advance``; a failed solve is a :class:`BlowUpError`."""
-    stepper = stiff.Stepper(system, scheme, lambda t, y: _rates(system, t, y),
-                            lambda y, r, h: _advance(system, y, r, h))
+    stepper = _checked_stepper(system, scheme)
 
     def take(t: float, x: np.ndarray, dt: float) -> np.ndarray:
         try:
@@ -460,8 +465,7 @@ def _adaptive(system: System, scheme: AnyScheme, x: np.ndarray, t0: float, t1: f
     limit = blowup_factor * system.monitor_limit
     x = projected(system, x, t0)
     worst = [_monitor(system, x)]
-    stepper = stiff.Stepper(system, scheme, lambda t, y: _rates(system, t, y),
-                            lambda y, r, h: _advance(system, y, r, h))
+    stepper = _checked_stepper(system, scheme)
 
     def accept(t: float, x_new: np.ndarray, index: int) -> bool:
         if not np.isfinite(x_new).all():

@@ -276,7 +276,7 @@ class Scene:
         prescribed-motion bodies), block-diagonal over the padded rates; the coupling between
         bodies stays out of it (W-methods keep their order with any approximation)."""
         cols = self.rate_columns
-        parts = [(first, rows, rc, local_jacobian(body, t, x, rows * rc))
+        parts = [(first, rc, local_jacobian(body, t, x, rows * rc))
                  for body, x, (first, rows, _), rc in zip(self.bodies, self.blocks(state),
                                                            self.shapes, cols, strict=True)]
         return block_jacobian(parts, len(state), max(cols))

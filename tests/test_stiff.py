@@ -250,7 +250,7 @@ def test_a_body_without_a_stiff_part_steps_as_the_explicit_scheme():
 
 
 # ---- Parareal with an implicit coarse solver ----------------------------------------------------
-STIFF_ROD = dict(n_points=201, epsilon=1.5)  # Euler's limit about 5.6e-5 s (anchors.md)
+STIFF_ROD = dict(n_points=201, epsilon=1.5)  # Euler's limit about 5.5e-5 s (docs/benchmarks.md)
 
 
 def _stiff_rod_parareal(executor=None, coarse_scheme="ros2-krylov"):

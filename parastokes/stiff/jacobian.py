@@ -37,18 +37,19 @@ def _rate_columns(body: Any) -> int:
     return int(getattr(body, "rate_columns", 6 if getattr(body, "angular", False) else 3))
 
 
-def _sparse(system: Any, call: str, matrix: Any, size: int) -> sp.csr_array:
-    """``matrix`` as a CSR array, checked: square of ``size`` and finite (BodyError naming
-    ``Type.call`` otherwise)."""
+def _sparse(system: Any, call: str, matrix: Any, shape: tuple[int, int], what: str
+            ) -> sp.csr_array:
+    """``matrix`` (what ``system.call`` returned) as a CSR array of ``shape``, finite
+    (BodyError naming ``Type.call`` otherwise; ``what`` says what the shape means)."""
     name = f"{type(system).__name__}.{call}"
     try:
         out = sp.csr_array(matrix, dtype=float)
     except (TypeError, ValueError) as error:
         raise contract.BodyError(f"{name} returned {type(matrix).__name__} that is no matrix "
                                  f"({error}); expected a sparse or dense matrix", name) from None
-    if out.shape != (size, size):
-        raise contract.BodyError(f"{name} returned shape {out.shape}; expected ({size}, {size}): "
-                                 "one row and column per rate, point-major", name)
+    if out.shape != shape:
+        raise contract.BodyError(f"{name} returned shape {out.shape}; expected {shape}: {what}",
+                                 name)
     if not np.isfinite(out.data).all():
         raise contract.BodyError(f"{name} returned non-finite entries; expected finite values",
                                  name)
@@ -81,14 +82,8 @@ def load_jacobian(body: Any, t: float, x: np.ndarray, *, dense: bool = False) ->
     width = 6 if getattr(body, "angular", False) else 3
     own = getattr(body, "load_jacobian", None)
     if own is not None and not dense:
-        matrix = own(t, x)
-        name = f"{type(body).__name__}.load_jacobian(t, state)"
-        out = sp.csr_array(matrix, dtype=float)
-        if out.shape != (n * width, n * rc) or not np.isfinite(out.data).all():
-            raise contract.BodyError(
-                f"{name} returned shape {out.shape} (finite: {np.isfinite(out.data).all()}); "
-                f"expected finite values of shape ({n * width}, {n * rc})", name)
-        return out
+        return _sparse(body, "load_jacobian(t, state)", own(t, x), (n * width, n * rc),
+                       "a row per load and a column per rate, point-major")
     declared = getattr(body, "load_coupling", None)
     if declared is None or dense:
         coupling = sp.csr_array(np.ones((n, n), dtype=bool))
@@ -116,7 +111,8 @@ def local_jacobian(system: Any, t: float, x: np.ndarray, n_rates: int
         matrix = own(t, x)
         if matrix is None:
             return None
-        return _sparse(system, "stiff_jacobian(t, state)", matrix, n_rates)
+        return _sparse(system, "stiff_jacobian(t, state)", matrix, (n_rates, n_rates),
+                       "one row and column per rate, point-major")
     if not _is_fluid_body(system):
         return None
     angular = bool(getattr(system, "angular", False))
@@ -129,14 +125,13 @@ def local_jacobian(system: Any, t: float, x: np.ndarray, n_rates: int
     return m @ sp.bsr_array(k, blocksize=(width, _rate_columns(system)))
 
 
-def block_jacobian(parts: list[tuple[int, int, int, sp.csr_array | None]], rows: int,
-                   width: int) -> sp.csr_array:
-    """A block-diagonal ``A`` over rates padded to ``width`` columns (a scene's): ``parts`` are
-    ``(first row, rows, rate columns, A of the body or None)``."""
+def block_jacobian(parts: list[tuple[int, int, Any]], rows: int, width: int) -> sp.csr_array:
+    """A block-diagonal ``A`` over ``rows`` rows of rates padded to ``width`` columns (a
+    scene's): ``parts`` are ``(first row, rate columns, A of the body or None)``."""
     data: list[np.ndarray] = []
     r_all: list[np.ndarray] = []
     c_all: list[np.ndarray] = []
-    for first, _, rc, matrix in parts:
+    for first, rc, matrix in parts:
         if matrix is None:
             continue
         coo = sp.coo_array(matrix)
