@@ -38,10 +38,11 @@ from pathlib import Path
 import numpy as np
 from numba import cuda
 
-from parastokes import config, integrate, models, mrs, parallel, parareal, session
+from parastokes import config, integrate, models, mrs, parallel, parareal
 from parastokes.gpu import batch, device, stepping
 from parastokes.gpu.velocity import Evaluation
-from parastokes.warmup import WarmUp
+from parastokes.run import session
+from parastokes.run.warmup import WarmUp
 
 ROOT = Path(__file__).resolve().parents[1]
 BATCHES = (1, 8, 40, 160)

@@ -56,7 +56,8 @@ from typing import Any
 import numba
 import numpy as np
 
-from parastokes import integrate, models, parallel, parareal, spatial
+from parastokes import integrate, models, parallel, parareal
+from parastokes.parallel import spatial
 
 SECTIONS = ("overhead", "speedup", "scaling", "fig10", "memo")
 TARGET = 0.9  # measured speedup >= 90 % of the theoretical one on 2 workers

@@ -58,8 +58,8 @@ from typing import Any
 import numpy as np
 
 from parastokes import cli, config, parallel, parareal
+from parastokes.output.plots import staircase
 from parastokes.parallel import Task
-from parastokes.plots import staircase
 
 ROOT = Path(__file__).resolve().parents[1]
 SECTIONS = ("emulation", "real", "p40")
@@ -264,7 +264,7 @@ def emulation_case(
 
 def gantt_figures(fine_s: float, out: Path) -> None:
     """EMULATION Gantt charts of both schedules: W = P = 8, alpha = 0.2, K = 2."""
-    from parastokes.plots_gantt import gantt
+    from parastokes.output.gantt import gantt
 
     out.mkdir(parents=True, exist_ok=True)
     fine, coarse = SleepingStep(fine_s, True), SleepingStep(0.2 * fine_s, False)

@@ -47,11 +47,11 @@ import numpy as np
 from kernels import matmul_rate
 
 from parastokes import integrate, models, mrs
+from parastokes.integrate import loop
 from parastokes.kinds.chain import ChainSystem
 from parastokes.mrs import compiled
 from parastokes.mrs.velocity import EIGHT_PI, kernel_threads
 from parastokes.scene import Scene
-from parastokes.stepping import loop
 
 FINE_STEPS = 1_000_000  # T = 1 with τ_f = 1e-6 (section 5.1)
 TARGET_RATIO = 1.3

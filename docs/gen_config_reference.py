@@ -18,10 +18,10 @@ from pydantic_core import PydanticUndefined
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from parastokes.bodies import registry  # noqa: E402
-from parastokes.coarse import registry as coarse_registry  # noqa: E402
 from parastokes.config import schema  # noqa: E402
 from parastokes.config.scene import SceneSettings  # noqa: E402
+from parastokes.registry import coarse as coarse_registry  # noqa: E402
+from parastokes.registry import kinds as registry  # noqa: E402
 
 HEADER = """\
 # Configuration reference

@@ -5,7 +5,7 @@
 
 :func:`check_system` raises ``AssertionError`` naming the part of the contract that is broken:
 
-- ``members``: every member of :class:`parastokes.contracts.System` is there;
+- ``members``: every member of :class:`parastokes.core.contracts.System` is there;
 - ``calls`` (and the part of each method below): every method can be called as the package calls
   it, and returns, at the initial state, real finite values of the shapes the package expects
   (:func:`parastokes.bodies.contract.probe`, as ``parastokes check`` and every run do);
@@ -42,8 +42,8 @@ import numpy as np
 
 from . import integrate
 from .bodies import contract
-from .contracts import System
-from .stepping.registry import compiled_loop
+from .core.contracts import System
+from .registry.loops import compiled_loop
 
 __all__ = ["check_system", "fitted_order"]
 

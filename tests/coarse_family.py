@@ -1,7 +1,7 @@
 """A coarse-solver family written outside the package (tests/test_coarse_family.py): G is one
 solver with the correct parameters Θ⁰ and its own step, no extrapolation (the "plain" coarse
 solver). Used as ``[coarse] kind = "tests.coarse_family:Plain"``; it imports only the public
-extension path, ``parastokes.coarse.registry`` and ``parastokes.integrate``."""
+extension path, ``parastokes.registry.coarse`` and ``parastokes.integrate``."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from typing import Any, Literal
 from pydantic import Field
 
 from parastokes import integrate
-from parastokes.coarse.registry import CoarseResolution, CoarseSection
+from parastokes.registry.coarse import CoarseResolution, CoarseSection
 
 
 class Plain(CoarseSection):

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from parastokes import config
-from parastokes.bodies import registry
 from parastokes.config import ConfigError
+from parastokes.registry import kinds as registry
 
 USER = """\
 [model]
@@ -130,7 +130,7 @@ def test_a_body_kind_found_under_another_string_takes_that_string(tmp_path, monk
     expecting the BodyKind's own name)."""
     _module(tmp_path, monkeypatch, "attached", """\
         from user_body import SedimentingCloud
-        from parastokes.bodies.registry import derived_kind
+        from parastokes.registry.kinds import derived_kind
 
         class Attached(SedimentingCloud):
             pass

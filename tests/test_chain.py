@@ -10,8 +10,10 @@ import math
 import numpy as np
 import pytest
 
-from parastokes import config, integrate, io, mrs, parareal, runner
+from parastokes import config, integrate, mrs, parareal
 from parastokes.kinds.chain import ChainSystem, chain_energy, chain_forces
+from parastokes.output import trajectory as io
+from parastokes.run import runner
 
 
 def bent(system: ChainSystem, seed: int = 0) -> np.ndarray:
@@ -204,7 +206,8 @@ def test_chain_parameters_extrapolate_like_any_other():
 
 def test_a_chain_in_a_blocked_fluid_moves_exactly_as_in_the_plain_one():
     """The fluid is a value: the process-block implementation gives the same bits (Remark 1)."""
-    from parastokes import parallel, spatial
+    from parastokes import parallel
+    from parastokes.parallel import spatial
 
     s = ChainSystem(n_beads=9, stiffness=20.0, bending=2.0, shear_rate=1.0, stretch=1.1,
                     wall=True, height=2.0, tilt=0.2)

@@ -15,8 +15,10 @@ import numpy as np
 import pytest
 from configs import small_rod
 
-from parastokes import cli, config, io, parareal, runner
+from parastokes import cli, config, parareal
+from parastokes.output import trajectory as io
 from parastokes.parallel import TaskError
+from parastokes.run import runner
 
 ROOT = Path(__file__).resolve().parents[1]
 FIXED_KEYS = {

@@ -7,9 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from parastokes import cli, config, io
-from parastokes.coarse import registry
+from parastokes import cli, config
 from parastokes.coarse.extrapolated import Extrapolated
+from parastokes.output import trajectory as io
+from parastokes.registry import coarse as registry
 
 # A 21-node rod, 4 slices; G: one forward-Euler solver at Θ⁰ with τ_c = 5 τ_f (tests/coarse_family).
 PLAIN = """

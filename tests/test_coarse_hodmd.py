@@ -7,10 +7,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from parastokes import cli, config, runner
-from parastokes.coarse import registry
+from parastokes import cli, config
 from parastokes.coarse.hodmd.family import Hodmd
 from parastokes.coarse.hodmd.solver import HodmdCoarse
+from parastokes.registry import coarse as registry
+from parastokes.run import runner
 
 HODMD = """
 [coarse]

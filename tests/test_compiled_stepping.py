@@ -18,9 +18,9 @@ from rods import helix_rod
 
 from parastokes import integrate, models
 from parastokes.fluid import MRS
-from parastokes.integrate import SCHEMES, BlowUpError
+from parastokes.integrate import SCHEMES, BlowUpError, loop
 from parastokes.kinds.rod.compiled import rod_data
-from parastokes.stepping import loop, registry
+from parastokes.registry import loops as registry
 
 
 def swimmers(**kw):

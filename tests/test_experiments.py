@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 from documented import check, values
 
-from parastokes import cli, config, integrate, io
+from parastokes import cli, config, integrate
 from parastokes.config.build import build_coarse, build_system
+from parastokes.output import trajectory as io
 
 EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
 FULL = sorted(EXPERIMENTS.glob("*.toml"))

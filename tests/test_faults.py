@@ -19,7 +19,11 @@ import pytest
 from configs import small_rod
 from test_run_directory import _config, _run
 
-from parastokes import cli, files, io, rundir, runner
+from parastokes import cli
+from parastokes.core import files
+from parastokes.output import rundir
+from parastokes.output import trajectory as io
+from parastokes.run import runner
 
 ROOT = Path(__file__).resolve().parents[1]
 ENV = {**os.environ, "PYTHONPATH": str(ROOT), "OMP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1"}
@@ -116,7 +120,7 @@ import sys
 sys.path.insert(0, {str(ROOT / 'tests')!r})
 from test_io import rod_layout, rod_state
 from parastokes import io
-from parastokes.files import FileWriteError
+from parastokes.core.files import FileWriteError
 writer = io.TrajectoryWriter({str(path)!r}, rod_layout(1, 50), config={{}})
 try:
     for i in range(1000):

@@ -20,10 +20,11 @@ from test_faults import TINY, finished  # noqa: F401  (the fixture: a finished T
 from test_flow import scene_run  # noqa: F401  (the fixture: a scene run of 5 frames)
 from test_run_directory import _config, _run
 
-from parastokes import cli, config, runner
+from parastokes import cli, config
 from parastokes.config import checks
 from parastokes.integrate import BlowUpError
 from parastokes.mobility import SolveError
+from parastokes.run import runner
 
 ROOT = Path(__file__).resolve().parents[1]
 ENV = {**os.environ, "PYTHONPATH": str(ROOT), "OMP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1"}
@@ -279,7 +280,7 @@ def test_out_of_memory_in_flow_names_what_to_make_smaller(capsys):
 def test_the_scene_figure_draws_a_rigid_surface_beside_a_rod():
     from matplotlib.figure import Figure
 
-    from parastokes import plots
+    from parastokes.output import plots
 
     times = np.linspace(0.0, 1.0, 4)
     rod = {"positions": np.tile(np.linspace([0, 0, 5], [4, 0, 5], 9), (4, 1, 1)),
@@ -340,7 +341,7 @@ def test_a_base_of_another_kind_gives_no_keys_of_its_kind(tmp_path):
 
 def test_a_background_flow_that_went_nan_is_a_solve_failure_not_a_configuration_error():
     from parastokes import rigid
-    from parastokes.contracts import StepFailure
+    from parastokes.core.contracts import StepFailure
     from parastokes.mobility import solve_mobility
 
     surface = rigid.sphere(1.0, 40).place((0.0, 0.0, 3.0))

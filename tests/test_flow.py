@@ -14,13 +14,14 @@ import numpy as np
 import pytest
 from documented import check
 
-from parastokes import config, flow, integrate, io, models
+from parastokes import config, flow, integrate, models
 from parastokes.bodies.sources import FluidSources, fluid_sources
 from parastokes.cli import main
 from parastokes.flow.evaluate import sources_velocity
 from parastokes.flow.grids import PlaneSpec, grid_for
 from parastokes.kinds.chain import ChainSystem
 from parastokes.mrs import reference
+from parastokes.output import trajectory as io
 from parastokes.scene import Scene
 
 RNG = np.random.default_rng(31)

@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 from gpu_setup import fast_simulator, gpu, small_rods, small_vesicle  # noqa: F401 (an autouse fixture)
 
-from parastokes import config, integrate, parallel, parareal, session
+from parastokes import config, integrate, parallel, parareal
+from parastokes.run import session
 
 pytestmark = pytest.mark.gpu
 

@@ -1,4 +1,4 @@
-"""HODMD (parastokes.coarse.hodmd.dmd) against closed forms and against PyDMD's HODMD."""
+"""HODMD (parastokes.parareal.dmd) against closed forms and against PyDMD's HODMD."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import warnings
 import numpy as np
 import pytest
 
-from parastokes.coarse.hodmd.dmd import hodmd, retained_rank
+from parastokes.parareal.dmd import hodmd, retained_rank
 
 X = np.linspace(0.0, 1.0, 40)
 DT = 0.1

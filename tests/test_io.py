@@ -11,8 +11,9 @@ import h5py
 import numpy as np
 import pytest
 
-from parastokes import files, io
-from parastokes.bodies import registry
+from parastokes.core import files
+from parastokes.output import trajectory as io
+from parastokes.registry import kinds as registry
 
 CONFIG = {"model": {"kind": "rod", "epsilon": 5.0, "shear": [0.6, 0.6, 0.6]}, "title": "t"}
 

@@ -1,6 +1,6 @@
 """The import layers (docs/design.md, "Layers"): the import-linter contract of pyproject.toml holds
-(`lint-imports`, as .ci/run runs it), it fails on an import from a lower layer to a higher one, and
-no import circle joins modules of different folders."""
+(`lint-imports`, as .ci/run runs it), it fails on an import from a lower layer to a higher one, no
+import circle joins modules of different folders, and no two folders reach each other."""
 
 from __future__ import annotations
 
@@ -31,9 +31,10 @@ def test_the_contract_refuses_an_import_from_the_fluid_up_into_the_executors(tmp
     shutil.copytree(ROOT / "parastokes", tmp_path / "parastokes",
                     ignore=shutil.ignore_patterns("__pycache__"))
     shutil.copy(ROOT / "pyproject.toml", tmp_path)
-    fluid = tmp_path / "parastokes" / "fluid.py"
-    fluid.write_text(fluid.read_text().replace("from . import mrs\n",
-                                               "from . import mrs, parallel  # noqa\n", 1))
+    fluid = tmp_path / "parastokes" / "fluid" / "__init__.py"
+    text = fluid.read_text()
+    assert "from .. import mrs\n" in text
+    fluid.write_text(text.replace("from .. import mrs\n", "from .. import mrs, parallel  # noqa\n"))
     done = _lint(tmp_path)
     assert done.returncode != 0
     assert "parastokes.fluid is not allowed to import parastokes.parallel" in done.stdout
@@ -93,3 +94,50 @@ def test_no_import_circle_joins_modules_of_different_folders():
     # the check sees circles: one within a folder is allowed (e.g. a kind's system and its
     # compiled parts)
     assert any("parastokes.kinds.rod.system" in c for c in _circles(graph))
+
+
+def top_folder(module: str) -> str:
+    """The top-level folder (or public module) of ``parastokes`` a module belongs to."""
+    return module.split(".")[1] if module.count(".") else module
+
+
+def mutual_folders(graph: grimp.ImportGraph, package: str = "parastokes") -> list[tuple[str, str]]:
+    """The pairs of top-level folders of ``package`` that reach each other through imports (each
+    directly or through other folders): what a layered tree must not have."""
+    edges: dict[str, set[str]] = {}
+    for module in graph.modules:
+        if not module.startswith(package + "."):
+            continue
+        for imported in graph.find_modules_directly_imported_by(module):
+            if imported.startswith(package + ".") and top_folder(imported) != top_folder(module):
+                edges.setdefault(top_folder(module), set()).add(top_folder(imported))
+    reach: dict[str, set[str]] = {}
+    for start in edges:
+        seen: set[str] = set()
+        todo = [start]
+        while todo:
+            for nxt in edges.get(todo.pop(), ()):
+                if nxt not in seen:
+                    seen.add(nxt)
+                    todo.append(nxt)
+        reach[start] = seen
+    return sorted((a, b) for a in reach for b in reach[a] if a < b and a in reach.get(b, ()))
+
+
+def test_no_two_folders_reach_each_other():
+    graph = grimp.build_graph("parastokes", cache_dir=None)
+    assert mutual_folders(graph) == []
+    # the folders are measured, not just the modules: every layer of the contract is seen
+    folders = {top_folder(m) for m in graph.modules if m.startswith("parastokes.")}
+    assert {"core", "registry", "integrate", "kinds", "run", "cli"} <= folders
+
+
+def test_the_folder_measure_finds_a_pair_through_a_third_folder():
+    graph = grimp.ImportGraph()
+    for module in ("p", "p.a", "p.a.x", "p.b", "p.b.y", "p.c", "p.c.z"):
+        graph.add_module(module)
+    graph.add_import(importer="p.a.x", imported="p.b.y")
+    graph.add_import(importer="p.b.y", imported="p.c.z")
+    assert mutual_folders(graph, "p") == []
+    graph.add_import(importer="p.c.z", imported="p.a.x")   # a -> b -> c -> a
+    assert mutual_folders(graph, "p") == [("a", "b"), ("a", "c"), ("b", "c")]

@@ -1,7 +1,7 @@
 """Every command that writes (flow, movie, tune, plot) claims its files the way a run claims its
-directory (parastokes.rundir.claim_files over parastokes.files.Staging): checked before any work,
-never onto a run's own files, not while a run holds the directory, written to a temporary file
-and moved into place whole, so that an interrupt, a full disk or a failing encoder leaves the
+directory (parastokes.output.rundir.claim_files over parastokes.core.files.Staging): checked before
+any work, never onto a run's own files, not while a run holds the directory, written to a temporary
+file and moved into place whole, so that an interrupt, a full disk or a failing encoder leaves the
 previous file intact and no partial one (issue 39; docs/validation.md, "Faults and bad input").
 """
 
@@ -22,9 +22,11 @@ import numpy as np
 import pytest
 from test_flow import scene_run  # noqa: F401  (the fixture: a scene's run directory of 5 frames)
 
-from parastokes import files, flow, rundir
+from parastokes import flow
 from parastokes.cli import main
+from parastokes.core import files
 from parastokes.flow.grids import grid_for
+from parastokes.output import rundir
 
 ROOT = Path(__file__).resolve().parents[1]
 ENV = {**os.environ, "PYTHONPATH": str(ROOT), "OMP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1"}

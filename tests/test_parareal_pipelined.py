@@ -26,10 +26,11 @@ from odes import (
     oscillator,
 )
 
-from parastokes import cli, config, integrate, io, models, parallel, parareal
+from parastokes import cli, config, integrate, models, parallel, parareal
+from parastokes.output import trajectory as io
+from parastokes.output.gantt import gantt
 from parastokes.parareal import checkpoint as ckpt
 from parastokes.parareal.timings import MANAGER
-from parastokes.plots_gantt import gantt
 
 T0, T1 = 0.0, 2.0
 PROBLEMS = {

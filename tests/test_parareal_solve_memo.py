@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 from odes import FailsOnSlice, Logistic, Recording, Sleeping, Stepper
 
-from parastokes import parallel, parareal, rundir
+from parastokes import parallel, parareal
+from parastokes.output import rundir
 from parastokes.parareal import checkpoint as ckpt
 from parastokes.parareal.solve_memo import SolveMemo, memo_directory
 

@@ -11,7 +11,7 @@ from odes import FailsOnSlice, LinearODE, Stepper
 
 from parastokes import parallel, parareal
 from parastokes.coarse.hodmd.solver import HodmdCoarse
-from parastokes.contracts import TracingCoarse
+from parastokes.core.contracts import TracingCoarse
 from parastokes.parareal import algorithm
 
 # three damped oscillators coupled weakly: dx/dt = A x, 6 unknowns

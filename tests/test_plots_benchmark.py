@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 from bench_modules import benchmark_module
 
-from parastokes import cli, plots
+from parastokes import cli
+from parastokes.output import plots
 
 FIGURES = ("spatial_vs_temporal", "scaling_benchmark")
 

@@ -10,7 +10,10 @@ import numpy as np
 import pytest
 from configs import small_rod
 
-from parastokes import cli, io, plots, runner
+from parastokes import cli
+from parastokes.output import plots
+from parastokes.output import trajectory as io
+from parastokes.run import runner
 
 TINY = small_rod(
     parareal="max_iterations = 2",

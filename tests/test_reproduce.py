@@ -15,7 +15,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from parastokes import config, io, parareal, runner
+from parastokes import config, parareal
+from parastokes.output import trajectory as io
+from parastokes.run import runner
 from validation import reproduce, reproduce_report
 
 REPO = Path(__file__).parents[1]

@@ -184,7 +184,7 @@ def test_resistance_inverts_mobility():
 def test_the_rigid_kinds_keep_the_contract_ci(name):
     """check_system on each kind's example with fewer steps than tests/test_system_contract.py
     (there marked slow): every part of the contract, orders fitted over 8-32 steps."""
-    from parastokes.bodies import registry
+    from parastokes.registry import kinds as registry
     from parastokes.testing import check_system
 
     system, state, horizon = registry.get(name).example()

@@ -11,8 +11,9 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from parastokes import config, flow, integrate, io
+from parastokes import config, flow, integrate
 from parastokes.cli import main
+from parastokes.output import trajectory as io
 
 WALL = "viscosity = 1.0\nwall = true\nshear_rate = 0.5\n"
 CELL = {"kind": "bacterium", "head": "sphere", "head_points": 30, "tail_radius": 0.2,

@@ -1,4 +1,4 @@
-"""Rigid bodies in scenes (parastokes/scene.py): one coupled solve per evaluation, the flow of
+"""Rigid bodies in scenes (parastokes/scene/): one coupled solve per evaluation, the flow of
 the explicit bodies as the rigid surfaces' background, the solved surface forces driving the
 explicit bodies; and the checks that refuse overlapping bodies and bad configurations."""
 

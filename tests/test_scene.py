@@ -1,4 +1,4 @@
-"""Scenes (parastokes/scene.py): several bodies of any kinds in one fluid, as one system."""
+"""Scenes (parastokes/scene/): several bodies of any kinds in one fluid, as one system."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""A scene on a coarser grid for the coarse solver (parastokes/scene_coarse.py, Remark 4):
+"""A scene on a coarser grid for the coarse solver (parastokes/scene/coarse.py, Remark 4):
 every body that has a coarser grid is coarsened (a rigid sphere's surface, a rod's nodes), the
 others are kept; the transfer composes the bodies' own and keeps a rigid body's pose exactly; the
 coupling through the coarser sphere changes the rod's rates by a few per cent of the sphere's
@@ -14,9 +14,10 @@ import numpy as np
 import pytest
 from configs import SERIAL_SOLVERS
 
-from parastokes import config, integrate, models, parallel, parareal, runner
+from parastokes import config, integrate, models, parallel, parareal
 from parastokes.kinds.chain import ChainSystem
 from parastokes.kinds.rigid import RigidBody, Sphere
+from parastokes.run import runner
 from parastokes.scene import Scene
 
 QUICK = Path(__file__).resolve().parents[1] / "experiments" / "quick"

@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 from configs import small_rod
 
-from parastokes import cli, integrate, io
+from parastokes import cli, integrate
 from parastokes.config import ConfigError, build, loads
+from parastokes.output import trajectory as io
 from parastokes.scene import Scene
 
 REST = """
@@ -225,7 +226,7 @@ def test_a_body_whose_viscosity_is_required_makes_the_scene_ask_for_it(tmp_path,
     # regression: the scene's viscosity was read from that field's missing default
     (tmp_path / "reqvisc.py").write_text(
         "from typing import Literal\n"
-        "from parastokes.bodies.registry import BodyKind, BodySection, point_layout\n"
+        "from parastokes.registry.kinds import BodyKind, BodySection, point_layout\n"
         "class Section(BodySection):\n"
         "    kind: Literal['reqvisc:KIND']\n"
         "    viscosity: float\n"

@@ -19,9 +19,9 @@ from user_body import SedimentingCloud
 from parastokes import integrate, models, mrs
 from parastokes.kinds.chain import ChainSystem
 from parastokes.parallel import make_executor
+from parastokes.parallel.spatial import TargetBlocks
+from parastokes.registry import loops as registry
 from parastokes.scene import Scene
-from parastokes.spatial import TargetBlocks
-from parastokes.stepping import registry
 from parastokes.testing import check_system
 
 MU, SHEAR = 1e-3, 0.2
@@ -161,9 +161,9 @@ def test_the_compiled_fluid_takes_torques_of_bodies_without_angular_rates(torque
     # the fluid); the compiled loops' fluid must take them too, bit for bit, and keep the
     # force-only kernel when there are none or all are zero (regression: mrs.velocity took the
     # full kernel for zero torques, the compiled fluid the force-only one; bits differed)
+    from parastokes.fluid.compiled import fluid_workspace, velocity_into
     from parastokes.mrs import compiled
     from parastokes.mrs.velocity import EIGHT_PI
-    from parastokes.stepping.fluid import fluid_workspace, velocity_into
 
     rng = np.random.default_rng(3)
     x = rng.normal(size=(17, 3))

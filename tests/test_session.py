@@ -1,4 +1,4 @@
-"""Config is pure data; the run layer (parastokes.session) starts the executor and warms up.
+"""Config is pure data; the run layer (parastokes.run.session) starts the executor and warms up.
 
 Building a configuration whose executor is a process pool starts no process; ``session.start``
 does, and stops it on exit; ``parastokes check`` starts nothing.
@@ -13,8 +13,9 @@ import sys
 import pytest
 from configs import small_rod
 
-from parastokes import cli, config, parallel, session
+from parastokes import cli, config, parallel
 from parastokes.parallel import ProcessExecutor
+from parastokes.run import session
 
 PROCESSES = small_rod(
     model="epsilon = 5",
@@ -99,7 +100,7 @@ def test_importing_and_building_a_config_loads_no_run_layer():
     code = (
         "import sys; from parastokes import config; "
         f"cfg, r = config.loads({PROCESSES!r}); config.build(cfg, r); "
-        "loaded = {'parastokes.session', 'parastokes.warmup'} & set(sys.modules); "
+        "loaded = {'parastokes.run.session', 'parastokes.run.warmup'} & set(sys.modules); "
         "assert not loaded, loaded"
     )
     subprocess.run([sys.executable, "-c", code], check=True, timeout=600)

@@ -13,9 +13,10 @@ import numpy as np
 import pytest
 from odes import ToySystem
 
-from parastokes import fluid, integrate, models, parallel, parareal, spatial
+from parastokes import fluid, integrate, models, parallel, parareal
 from parastokes.fluid import BlockedMRS
-from parastokes.stepping import registry
+from parastokes.parallel import spatial
+from parastokes.registry import loops as registry
 
 # two interacting rods above the wall (forces, torques, images) and a small vesicle in shear
 CASES = {

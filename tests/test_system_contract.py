@@ -11,7 +11,7 @@ from rods import helix_rod
 from user_body import SedimentingCloud
 
 from parastokes import integrate
-from parastokes.bodies import registry
+from parastokes.registry import kinds as registry
 from parastokes.testing import check_system
 
 #: Kinds whose every evaluation is a linear solve: their full check is slow (tests/test_rigid.py
@@ -89,8 +89,8 @@ class WrongCompiledLoop(SedimentingCloud):
 
 @pytest.fixture(autouse=True, scope="module")
 def _register_the_wrong_loop():
-    """A compiled loop is registered for an exact type (parastokes.stepping.registry)."""
-    from parastokes.stepping import registry as loops
+    """A compiled loop is registered for an exact type (parastokes.registry.loops)."""
+    from parastokes.registry import loops
 
     loops.register(WrongCompiledLoop, lambda system: system.wrong_steps)
 
@@ -118,9 +118,11 @@ def test_a_scheme_that_loses_its_order_is_named():
         check_system(LaggingAdvance(n_points=8), horizon=2.0)
 
 
-# ---- the typed contracts (parastokes.contracts) ------------------------------------------------
+# ---- the typed contracts (parastokes.core.contracts)
+# ------------------------------------------------
 def test_the_packages_parts_satisfy_the_protocols():
-    from parastokes import contracts, parareal
+    from parastokes import parareal
+    from parastokes.core import contracts
 
     for name in sorted(registry.BUILTIN):
         system, _, _ = registry.get(name).example()
@@ -148,7 +150,7 @@ def test_a_system_missing_members_is_named():
 )
 def test_the_rule_n_g_at_most_n_c_lives_in_one_place(n_auxiliary, workers, ok):
     """Config checks, the MPI build check and parareal.run all word it through this function."""
-    from parastokes.contracts import oversubscription
+    from parastokes.core.contracts import oversubscription
 
     problem = oversubscription(n_auxiliary, workers)
     assert (problem is None) == ok

@@ -1,4 +1,5 @@
-"""``parastokes tune`` / ``parareal.tune`` (docs/tuning.md) on small rods (21 nodes, σ_f = 0.2).
+"""``parastokes tune`` / ``parastokes.tuning.tune`` (docs/tuning.md) on small rods (21 nodes, σ_f =
+0.2).
 
 What is asserted: bad input stops before the search with a message naming the problem; a
 candidate whose every member is stable but whose combination amplifies perturbations is rejected
@@ -85,8 +86,10 @@ def test_bad_input_stops_before_the_search(changes, message):
     assert not spy.started
 
 
-def test_library_name_is_the_tuner():
-    assert parareal.tune is tuning.tune
+def test_the_parareal_facade_hands_out_nothing_from_above():
+    # the tuner builds on Parareal, so it lives above it: parastokes.tuning.tune, not parareal.tune
+    assert not hasattr(parareal, "tune")
+    assert parareal.hodmd.__module__ == "parastokes.parareal.dmd"
 
 
 # ---- stability of the combined slice map ---------------------------------------------------

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from parastokes import mrs
-from parastokes.stepping import registry
+from parastokes.registry import loops as registry
 
 
 @dataclass(frozen=True)

@@ -29,8 +29,10 @@ import math
 from pathlib import Path
 from typing import Any
 
-from parastokes import config, integrate, io, parallel, parareal, runner
+from parastokes import config, integrate, parallel, parareal
+from parastokes.output import trajectory as io
 from parastokes.parareal.speedup import speedup, speedup_pipelined, speedup_standard
+from parastokes.run import runner
 from validation.hodmd_rod import RUNS_ROOT
 
 CORES = 40

@@ -474,8 +474,10 @@ def serial_reference(cfg: Any, resolved: Any, directory: Path, reporter: Progres
     accepts in every run of that problem, whatever its coarse solver. Returns the wall time of
     the whole solve (summed over sessions).
     """
-    from parastokes import io, parareal, runner
+    from parastokes import parareal
     from parastokes.config import build
+    from parastokes.output import trajectory as io
+    from parastokes.run import runner
 
     path, partial = directory / runner.REFERENCE, directory / "partial.npz"
     if path.exists():
@@ -518,7 +520,7 @@ def _shown(path: Path) -> str:
 def run_job(job: Job, layout: Layout) -> None:
     """Do one job to the end, resuming whatever its directory holds (the runner's checkpoint, a
     finished reference, a finished probe)."""
-    from parastokes import runner
+    from parastokes.run import runner
 
     directory = layout.directory(job)
     directory.mkdir(parents=True, exist_ok=True)
@@ -546,7 +548,7 @@ def run_job(job: Job, layout: Layout) -> None:
 
 # ---- the scheduler -----------------------------------------------------------------------------
 def _alive(pid: int | None) -> bool:
-    from parastokes.rundir import process_alive
+    from parastokes.output.rundir import process_alive
 
     return pid is not None and pid > 0 and process_alive(pid)
 
@@ -598,7 +600,7 @@ def progress_text(job: Job, layout: Layout, state: str) -> str:
             "-" if r["error"] is None else f"{r['error']:.2e}" for r in progress["iterations"]
         )
     from parastokes.parareal.solve_memo import KINDS, memo_directory
-    from parastokes.runner import CHECKPOINT
+    from parastokes.run.runner import CHECKPOINT
 
     kept = memo_directory(layout.directory(job) / CHECKPOINT)  # the iteration in progress
     if state != "done" and kept.is_dir():

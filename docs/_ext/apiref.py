@@ -8,7 +8,7 @@
 - Summaries that do not stop at "eq.": autosummary's one-line summary of an object is its first
   sentence, and the docstrings cite the paper's equations as "eq. 30".
 - Sibling-relative references: ``:mod:`.registry``` in a docstring of ``parastokes.coarse.x``
-  means ``parastokes.coarse.registry``, as in a relative import; Sphinx alone searches every
+  means ``parastokes.registry.coarse``, as in a relative import; Sphinx alone searches every
   module ending in ``.registry`` and finds several.
 """
 

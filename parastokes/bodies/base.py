@@ -18,8 +18,8 @@ from typing import TYPE_CHECKING, Any, ClassVar, Protocol, TypeVar
 import numpy as np
 
 from ..fluid import MRS, BlockedMRS, Blocks
-from ..stepping import registry
-from ..stepping.registry import RunSteps
+from ..registry import loops as registry
+from ..registry.loops import RunSteps
 from . import contract
 
 __all__ = ["FluidBody", "PointsInShear", "replace_params", "require_positive"]
@@ -54,7 +54,7 @@ class FluidBody:
     def run_steps(self) -> RunSteps | None:
         """The compiled loop of :mod:`parastokes.stepping` registered for this exact type and
         fluid (None otherwise, e.g. for a subclass: it may compute other rates; see
-        :mod:`parastokes.stepping.registry`)."""
+        :mod:`parastokes.registry.loops`)."""
         return registry.compiled_loop(self)
 
 

@@ -1,5 +1,5 @@
 """What a body kind supplies to be solved batched on the GPU (:mod:`parastokes.gpu`): its device
-parts, as the compiled parts of :mod:`parastokes.stepping.loop` are its parts of the CPU's loop.
+parts, as the compiled parts of :mod:`parastokes.integrate.loop` are its parts of the CPU's loop.
 
 The GPU's batched Runge-Kutta driver (:mod:`parastokes.gpu.stepping`) advances B members of one
 system structure together (each its own start state, time, step, step count and Θ) and knows no
@@ -9,7 +9,7 @@ background shear u∞ = (γ̇ z, 0, 0) of a system's ``shear_rate`` (docs/physic
 the body's device functions for the rest: its loads, the advance of a point by the combined rates,
 the RKMK brackets of frames, and the monitor. A kind gives these as a :class:`DeviceParts` value in
 a module of its own folder (``kinds/<kind>/device.py``), registered for its exact system type by
-``stepping.registry.register_device(cls, "package.module:PARTS")`` when its system module is
+``registry.loops.register_device(cls, "package.module:PARTS")`` when its system module is
 imported; the module is imported only when a GPU solve needs it (it imports ``numba.cuda``).
 
 Device functions are plain Python compiled by ``numba.cuda.jit(device=True)`` in the kind's

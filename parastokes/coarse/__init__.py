@@ -1,5 +1,5 @@
 """Coarse-solver families: one module each, found by ``[coarse] kind``
-(:mod:`parastokes.coarse.registry`).
+(:mod:`parastokes.registry.coarse`).
 
 The package's own family is the extrapolated G of eq. 30 (:mod:`.extrapolated`).
 """

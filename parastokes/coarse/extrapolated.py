@@ -22,13 +22,13 @@ from typing import Any, Literal
 from pydantic import Field, field_validator
 
 from .. import integrate, parareal
-from ..bodies.registry import BodyResolution, Positive
 from ..config.checks import steps_on_slice
 from ..config.schema import LagrangeNodes, Richardson, Scheme
-from ..contracts import System, rounds
+from ..core.contracts import System, rounds
 from ..parareal import weights
 from ..parareal.extrapolation import adaptive_tolerances
-from .registry import CoarseResolution, CoarseSection
+from ..registry.coarse import CoarseResolution, CoarseSection
+from ..registry.kinds import BodyResolution, Positive
 
 __all__ = ["Extrapolated"]
 

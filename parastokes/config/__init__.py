@@ -10,7 +10,7 @@ raises :class:`ConfigError` whose lines each name a key path. :func:`build` make
 fine propagator and the coarse propagator of eq. 30; :func:`preflight` builds them and calls a
 user's body once (what ``parastokes check`` and every run do before any worker starts). This
 package is pure data: nothing here starts a process or an executor (the run layer does,
-:mod:`parastokes.session`). :data:`DEMO` is the built-in configuration of ``parastokes demo``.
+:mod:`parastokes.run.session`). :data:`DEMO` is the built-in configuration of ``parastokes demo``.
 """
 
 from __future__ import annotations
@@ -24,9 +24,9 @@ from typing import Any
 
 from pydantic import ValidationError
 
-from ..bodies import registry
-from ..coarse import registry as coarse_registry
-from ..files import describe_os_error
+from ..core.files import describe_os_error
+from ..registry import coarse as coarse_registry
+from ..registry import kinds as registry
 from .build import Setup, build, build_system
 from .checks import Resolved, resolve, resolved_dict
 from .errors import ConfigError, from_validation_error
@@ -344,8 +344,8 @@ def parse(data: dict[str, Any], source: str = "") -> Config:
     """Validate the schema of a configuration dictionary; raise :class:`ConfigError`.
 
     The ``[model]`` table is validated by the section of its kind
-    (:mod:`parastokes.bodies.registry`; an unknown kind is an error listing the registered ones),
-    the ``[coarse]`` table by the section of its family (:mod:`parastokes.coarse.registry`),
+    (:mod:`parastokes.registry.kinds`; an unknown kind is an error listing the registered ones),
+    the ``[coarse]`` table by the section of its family (:mod:`parastokes.registry.coarse`),
     ``[[bodies]]`` and ``[[suspensions]]`` tables and ``[scene]`` make one scene section
     (:mod:`.scene`), the rest is
     validated by :class:`Config`, and the issues of all are reported together.

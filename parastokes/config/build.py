@@ -1,12 +1,12 @@
 """From a validated configuration to the values of a run: the system, F and G (pure: starting the
-executor and warming up are the run layer's, :mod:`parastokes.session`)."""
+executor and warming up are the run layer's, :mod:`parastokes.run.session`)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 from .. import integrate
-from ..contracts import PropagatorLike, System
+from ..core.contracts import PropagatorLike, System
 from .checks import Resolved
 from .schema import Config
 
@@ -20,7 +20,7 @@ def build_system(cfg: Config, resolved: Resolved) -> System:
 
 def build_coarse(cfg: Config, resolved: Resolved, system: System) -> PropagatorLike:
     """The coarse solver G of ``cfg.coarse``, built by its family's section
-    (:mod:`parastokes.coarse.registry`)."""
+    (:mod:`parastokes.registry.coarse`)."""
     return cfg.coarse.build(cfg, resolved, system)
 
 
@@ -28,7 +28,8 @@ def build_coarse(cfg: Config, resolved: Resolved, system: System) -> PropagatorL
 class Setup:
     """What a configuration builds: values only (no process, thread or executor is started).
 
-    The run layer (:func:`parastokes.session.start`) starts the executor and warms up the workers.
+    The run layer (:func:`parastokes.run.session.start`) starts the executor and warms up the
+    workers.
     """
 
     config: Config
@@ -42,7 +43,7 @@ def build(cfg: Config, resolved: Resolved) -> Setup:
     """Build the system, the fine propagator F and the coarse propagator G of ``cfg``.
 
     Pure: constructs values and starts nothing (no workers, no warm-up); see
-    :func:`parastokes.session.start` for that.
+    :func:`parastokes.run.session.start` for that.
     """
     system = build_system(cfg, resolved)
     fine = integrate.Propagator(system, cfg.fine.scheme, cfg.fine.dt, rtol=cfg.fine.rtol,

@@ -18,7 +18,7 @@ And what cannot work or will not end in reasonable time:
 - a problem whose states (and the dense mobility matrices of its rigid bodies) cannot fit in this
   machine's memory (:func:`estimated_bytes`, a lower bound) is refused before anything is
   allocated: for a kind that builds its body to resolve it, from its keys alone
-  (:meth:`~parastokes.bodies.registry.BodySection.planned_size`).
+  (:meth:`~parastokes.registry.kinds.BodySection.planned_size`).
 """
 
 from __future__ import annotations
@@ -29,9 +29,9 @@ from dataclasses import asdict, dataclass, field
 from typing import Any
 
 from .. import integrate
-from ..bodies.registry import PlannedSize
-from ..contracts import oversubscription
+from ..core.contracts import oversubscription
 from ..parallel import available_cores
+from ..registry.kinds import PlannedSize
 from .errors import ConfigError
 from .schema import MAX_FLOW_COORDINATE, Config
 
@@ -59,7 +59,7 @@ class Resolved:
     G_{Θ, r^q τ} on one slice; ``grid_spacing`` is the length ε may be given in units of (σ_f for
     rods, l_max for vesicles; NaN for kinds without one); ``epsilon`` is ε⁰ (NaN for kinds without
     an ε in Θ). The coarse fields (``coarse_*``, ``lagrange``, ``n_auxiliary``, ``weight_sum``)
-    are the :class:`~parastokes.coarse.registry.CoarseResolution` of the ``[coarse]`` family.
+    are the :class:`~parastokes.registry.coarse.CoarseResolution` of the ``[coarse]`` family.
     """
 
     epsilon: float

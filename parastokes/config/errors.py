@@ -9,8 +9,8 @@ from typing import Any
 from pydantic import BaseModel, ValidationError
 from pydantic_core import ErrorDetails
 
-from ..bodies import registry
-from ..coarse import registry as coarse_registry
+from ..registry import coarse as coarse_registry
+from ..registry import kinds as registry
 from . import schema
 
 __all__ = ["ConfigError", "from_validation_error", "key_path"]

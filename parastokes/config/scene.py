@@ -24,8 +24,9 @@ from typing import TYPE_CHECKING, Any, Literal
 
 from pydantic import Field, PrivateAttr, SerializeAsAny, ValidationError
 
-from ..bodies import registry
-from ..bodies.registry import (
+from ..core.contracts import System
+from ..registry import kinds as registry
+from ..registry.kinds import (
     RESERVED_NAMES,
     BodyLayout,
     BodyResolution,
@@ -34,7 +35,6 @@ from ..bodies.registry import (
     Positive,
     Tracked,
 )
-from ..contracts import System
 from .errors import from_validation_error
 from .placement import PlacementError
 from .schema import SceneSettings, Suspension

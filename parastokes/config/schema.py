@@ -7,9 +7,9 @@ against the slice length, auxiliary solvers against workers) live in :mod:`.chec
 
 Units follow the paper: μm, s, g. Defaults are the paper's values (Table 2 for rods, section 5.2 for
 the vesicle). The ``[model]`` section is the section of its body kind, found through
-:mod:`parastokes.bodies.registry` (the package's own live in :mod:`parastokes.kinds`); the
+:mod:`parastokes.registry.kinds` (the package's own live in :mod:`parastokes.kinds`); the
 ``[coarse]`` section is the section of its coarse-solver family, found through
-:mod:`parastokes.coarse.registry` (the package's own: :mod:`parastokes.coarse.extrapolated`).
+:mod:`parastokes.registry.coarse` (the package's own: :mod:`parastokes.coarse.extrapolated`).
 """
 
 from __future__ import annotations
@@ -18,10 +18,10 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, SerializeAsAny, field_validator
 
-from ..bodies import registry
-from ..bodies.registry import BodySection, Positive
-from ..coarse import registry as coarse_registry
-from ..coarse.registry import CoarseSection
+from ..registry import coarse as coarse_registry
+from ..registry import kinds as registry
+from ..registry.coarse import CoarseSection
+from ..registry.kinds import BodySection, Positive
 
 __all__ = [
     "Config",

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from ..bodies.registry import BodySection
+from ..registry.kinds import BodySection
 from . import placement
 from .placement import PlacementError
 from .schema import Suspension

@@ -12,8 +12,8 @@ run to its flow").
 - :mod:`.fields`: a run's flow on a grid (shared by the commands); :mod:`.movie`: MP4/GIF;
 - :mod:`.command`: ``parastokes flow`` and ``parastokes movie``.
 
-This package sits at the output layer (beside :mod:`parastokes.io` and :mod:`parastokes.plots`):
-nothing below it imports it.
+This package sits at the output layer (beside :mod:`parastokes.output.trajectory` and
+:mod:`parastokes.output.plots`): nothing below it imports it.
 """
 
 from .average import time_average

@@ -77,7 +77,7 @@ def cmd_flow(args: argparse.Namespace, console: Any) -> int:
     """``parastokes flow``: the flow of a frame (or a window's mean) on a plane or a box."""
     import numpy as np
 
-    from .. import rundir
+    from ..output import rundir
     from .fields import frames_velocity, run_grid, save_png
     from .grids import parse_box, parse_plane, parse_resolution
     from .run import load_run
@@ -116,7 +116,7 @@ def cmd_flow(args: argparse.Namespace, console: Any) -> int:
 
 def cmd_movie(args: argparse.Namespace, console: Any) -> int:
     """``parastokes movie``: the bodies frame by frame, optionally over the flow."""
-    from .. import rundir
+    from ..output import rundir
     from .fields import frames_velocity, run_grid
     from .grids import parse_plane, parse_resolution
     from .movie import choose_frames, write_movie
@@ -169,7 +169,7 @@ def write_run_flow(directory: Path, every: int, plane: str | None, resolution: i
     plane as ``flow.h5`` + ``flow.xdmf`` (a time series) and ``flow.png`` (the last of them)."""
     import numpy as np
 
-    from ..files import staged
+    from ..core.files import staged
     from .fields import frames_velocity, run_grid, save_png
     from .grids import PlaneSpec, parse_plane
     from .run import load_run

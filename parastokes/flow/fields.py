@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from ..files import Staging, staged
+from ..core.files import Staging, staged
 from .average import window
 from .evaluate import velocity
 from .grids import Grid, PlaneSpec, bodies_box, grid_for

@@ -2,10 +2,10 @@
 
 MP4 through the ffmpeg binary that imageio-ffmpeg's wheel ships (the ``movie`` extra), fed the
 frames on a pipe; a GIF through Pillow when the name ends in ``.gif``. Either is written to a
-temporary file of a :class:`~parastokes.files.Staging` and moved into place only when complete:
+temporary file of a :class:`~parastokes.core.files.Staging` and moved into place only when complete:
 an encoder that fails (its exit status), writes nothing, or leaves an MP4 without its index (a
-full disk, a file-size limit) is a :class:`~parastokes.files.FileWriteError` naming the movie, and
-the previous movie stays.
+full disk, a file-size limit) is a :class:`~parastokes.core.files.FileWriteError` naming the movie,
+and the previous movie stays.
 Without the flow, each picture shows the bodies in the planes the figures use (x-y above, x-z,
 the distance to the wall, below), on fixed axes that hold every frame; with the flow, the x-z plane
 (or the given one) with the speed, the streamlines and the bodies (:mod:`.render`), the speed's
@@ -29,7 +29,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from ..files import FileWriteError, Staging
+from ..core.files import FileWriteError, Staging
 from .render import draw_bodies, draw_plane, speed_limits
 from .run import RunFrames
 

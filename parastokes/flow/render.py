@@ -16,7 +16,7 @@ import numpy as np
 from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
 
-from ..plots import draw_body
+from ..output.plots import draw_body
 from .grids import AXES, Grid
 
 __all__ = ["draw_bodies", "draw_plane", "speed_limits"]
@@ -24,8 +24,8 @@ __all__ = ["draw_bodies", "draw_plane", "speed_limits"]
 
 def draw_bodies(ax: Any, bodies: Mapping[str, Mapping[str, np.ndarray]], frame: int,
                 axes: tuple[int, int], color: str = "k") -> None:
-    """Every body of ``bodies`` (as :func:`parastokes.io.read_trajectory` gives them) at
-    ``frame``, projected on the plane of ``axes`` (:func:`parastokes.plots.draw_body`)."""
+    """Every body of ``bodies`` (as :func:`parastokes.output.trajectory.read_trajectory` gives them)
+    at ``frame``, projected on the plane of ``axes`` (:func:`parastokes.output.plots.draw_body`)."""
     for body in bodies.values():
         draw_body(ax, body, frame, axes, color)
 

@@ -4,8 +4,8 @@ as full states.
 ``trajectory.h5`` stores, per frame, every body's positions and its node vectors (a rod's frames
 ``D1``-``D3`` with ``output.frames = true``, the default; a rigid body's quaternion and phase on
 its centre), and as an attribute the resolved
-configuration the run was made from (:mod:`parastokes.io`). :func:`load_run` parses that
-configuration again (:func:`parastokes.config.parse`), builds the system by its kind's section,
+configuration the run was made from (:mod:`parastokes.output.trajectory`). :func:`load_run` parses
+that configuration again (:func:`parastokes.config.parse`), builds the system by its kind's section,
 gets the layout of its state rows by the kind (the registry), and puts the saved columns back into
 full states. A state whose columns were not saved (a rod run with ``output.frames = false``: no
 frames, so no torques) is refused with what to change.
@@ -20,8 +20,8 @@ from typing import Any
 
 import numpy as np
 
-from .. import io
-from ..bodies.registry import BodyLayout
+from ..output import trajectory as io
+from ..registry.kinds import BodyLayout
 
 __all__ = ["RunFrames", "load_run"]
 
@@ -53,7 +53,7 @@ def config_tables(stored: dict[str, Any]) -> dict[str, Any]:
 @dataclass
 class RunFrames:
     """A run's system, the layout of its state rows and its saved frames (``data``: what
-    :func:`parastokes.io.read_trajectory` returns)."""
+    :func:`parastokes.output.trajectory.read_trajectory` returns)."""
 
     directory: Path
     system: Any

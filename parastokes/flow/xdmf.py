@@ -11,8 +11,8 @@ and ``stem.xdmf``: a temporal collection of F grids, each a ``3DRectMesh`` (``VX
 the three axes by name, so no axis-order convention is involved) with the node-centred
 ``velocity`` (Vector) and ``speed`` (Scalar). ParaView opens the ``.xdmf`` as is (the XDMF3 reader):
 Stream Tracer and Glyph work on it directly. Both files are written to temporary names and then
-renamed (:class:`parastokes.files.Staging`), so a reader never sees half a file, and a full disk
-or a file-size limit is a :class:`~parastokes.files.FileWriteError` naming the file.
+renamed (:class:`parastokes.core.files.Staging`), so a reader never sees half a file, and a full
+disk or a file-size limit is a :class:`~parastokes.core.files.FileWriteError` naming the file.
 """
 
 from __future__ import annotations
@@ -26,8 +26,8 @@ from typing import Any
 import h5py
 import numpy as np
 
-from ..files import Staging, staged
-from ..io import new_hdf5
+from ..core.files import Staging, staged
+from ..output.trajectory import new_hdf5
 from .grids import Grid
 
 __all__ = ["FORMAT", "read_grid", "suffixed", "write_grid"]

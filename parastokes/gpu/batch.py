@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from .. import integrate
-from ..contracts import System
+from ..core.contracts import System
 from . import stepping
 
 __all__ = ["Outcome", "batch_key", "run_calls"]

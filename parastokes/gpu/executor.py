@@ -49,7 +49,7 @@ class GPUExecutor(Executor):
     Args:
         workers: the most calls one batch holds (a larger batch is run in consecutive parts);
             ``None``: no limit. Parareal reads it as the number of solves that run at once.
-        warmup: a callable run once now; when it is a :class:`parastokes.warmup.WarmUp`, the GPU
+        warmup: a callable run once now; when it is a :class:`parastokes.run.warmup.WarmUp`, the GPU
             kernels of its system are compiled too (:func:`parastokes.gpu.batch.warm_up`).
         launch: the thread-block shapes (:class:`parastokes.gpu.stepping.Launch`).
 

@@ -1,5 +1,5 @@
 """A scene's device parts, composed of its bodies' own (:class:`parastokes.scene.Scene` on the
-GPU), as :mod:`parastokes.stepping.scene` composes their compiled parts for the CPU's loop.
+GPU), as :mod:`parastokes.scene.compiled` composes their compiled parts for the CPU's loop.
 
 ``Scene`` registers :func:`scene_parts` for its type; a scene runs batched on the GPU when the
 exact type of every body has device parts, and otherwise :func:`scene_parts` raises

@@ -5,7 +5,7 @@ time, step h and step count, and its own parameters Θ (ε, μ and the body's ot
 bending a, the vesicle's spring constant κ); all members share the scheme and the rest of the
 system (points, rods, mesh, wave, wall). This module is the generic driver: what is specific to a
 body kind are its device parts (:class:`parastokes.bodies.device.DeviceParts`: loads, advance,
-brackets, monitor), found by the exact type of the system (``stepping.registry.register_device``)
+brackets, monitor), found by the exact type of the system (``registry.loops.register_device``)
 in the kind's own folder, so no module of this package names a body kind. The states stay on the
 device for the whole solve; the host only launches kernels and copies the final states back.
 
@@ -18,7 +18,7 @@ Every step of an s-stage scheme is 2s launches, each over all members at once:
   the block), the decision (keep, or stop the member: non-finite state, monitor beyond the blow-up
   limit), and the loads of the next step's first stage.
 
-This is :func:`parastokes.stepping.loop._run` spread over kernels: the same tableau (RKMK
+This is :func:`parastokes.integrate.loop._run` spread over kernels: the same tableau (RKMK
 brackets included), the same per-step checks and outcomes, and the bodies' own device functions
 (the rod's and the vesicle's are their CPU's compiled functions compiled a second time for the
 GPU). A member that stops is frozen (``mi[b, STATUS]`` leaves ``RUNNING``) and every kernel
@@ -35,13 +35,13 @@ from typing import Any
 import numpy as np
 from numba import cuda
 
-from .. import plugins
 from ..bodies.device import DeviceParts, rows
-from ..contracts import System
+from ..core import plugins
+from ..core.contracts import System
 from ..integrate import BEYOND, DONE, NON_FINITE, Scheme
+from ..integrate.loop import tableau_arrays
 from ..mrs.velocity import EIGHT_PI
-from ..stepping import registry
-from ..stepping.loop import tableau_arrays
+from ..registry import loops as registry
 from . import device
 from .kernels import (
     DENOM,
@@ -160,7 +160,7 @@ def _body_kernels(parts: DeviceParts, threads: int) -> tuple:
     @jit
     def combine(k, coefs, b, p, comb):
         """Σ_j coefs[j] k_j at point p, zero coefficients skipped, terms added in order (as
-        ``stepping.loop._combine``)."""
+        ``integrate._combine``)."""
         first = True
         for j in range(coefs.shape[0]):
             c = coefs[j]
@@ -278,7 +278,7 @@ def device_parts(system: System) -> DeviceParts:
     if target is None:
         raise NoDevicePartsError(
             f"{type(system).__name__} has no device parts: register them with "
-            "parastokes.stepping.registry.register_device (docs/extending.md, 'Running on the "
+            "parastokes.registry.loops.register_device (docs/extending.md, 'Running on the "
             "GPU'), or run it on a CPU executor"
         )
     parts = _load_parts(target)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ..contracts import StepFailure
+from ..core.contracts import StepFailure
 
 #: The likely cause of a solve whose result is not finite.
 OVERFLOW = ("loads, slip or background flow beyond what floating point holds (check their "
@@ -31,4 +31,4 @@ class SolveError(StepFailure):
     """A resistance or mobility solve that did not give a trustworthy answer: GMRES that did not
     converge, a singular / ill-conditioned system, or a result that is not finite or whose
     residual is beyond tolerance. The message says what to change; in a run's step it is a
-    blow-up (:class:`~parastokes.contracts.StepFailure`)."""
+    blow-up (:class:`~parastokes.core.contracts.StepFailure`)."""

@@ -225,7 +225,7 @@ def velocity(
     tp = _soa(t3, padded)
     denom = EIGHT_PI * visc
     # u from f in free space only; torques that are all zero count as none (as in the
-    # compiled loops' fluid, parastokes.stepping.fluid), so both give the same bits
+    # compiled loops' fluid, parastokes.fluid.compiled), so both give the same bits
     fast = not wall and not angular and (torques is None or not np.any(torques))
     u = np.empty((nb, m, 3))
     w = None if fast else np.empty((nb, m, 3))

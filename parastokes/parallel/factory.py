@@ -9,8 +9,8 @@ start_method)`` that checks the options of its kind and returns the executor (th
 - ``"package.module:make"``;
 - an entry point of the group :data:`ENTRY_POINT_GROUP` (installed packages).
 
-Its module is imported only when the kind is asked for (:mod:`parastokes.plugins`, as the body and
-coarse-solver registries do), so this module imports no backend: the GPU's lives in
+Its module is imported only when the kind is asked for (:mod:`parastokes.core.plugins`, as the body
+and coarse-solver registries do), so this module imports no backend: the GPU's lives in
 :mod:`parastokes.gpu.executor`, above the executors, and names no body kind.
 """
 
@@ -19,8 +19,8 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, TypeAlias
 
-from .. import plugins
-from ..values import is_integer
+from ..core import plugins
+from ..core.values import is_integer
 
 if TYPE_CHECKING:  # names for the type checker only: a kind's module is imported when asked for
     from ..gpu import GPUExecutor

@@ -5,6 +5,7 @@ The engine works on any propagators ``P(t_start, t_end, x) -> x`` over numpy arr
 """
 
 from .algorithm import SCHEDULES, IterationReport, run, serial_solution, time_points
+from .dmd import expansion as hodmd
 from .extrapolation import Extrapolated, extrapolated
 from .metrics import relative_change
 from .options import Checkpoint, Reporting, Stopping
@@ -41,6 +42,7 @@ __all__ = [
     "coarse_step_time",
     "extrapolated",
     "handover_latency",
+    "hodmd",
     "lagrange_weights",
     "measure_slice_costs",
     "parareal_runtime",
@@ -58,20 +60,4 @@ __all__ = [
     "speedup_standard",
     "step_weights",
     "time_points",
-    "tune",
 ]
-
-
-def __getattr__(name: str):
-    """``tune`` (:func:`parastokes.tuning.tune`) and ``hodmd``
-    (:func:`parastokes.coarse.hodmd.dmd.expansion`), imported on first use: the tuner and
-    HODMD-Parareal build on this package."""
-    if name == "tune":
-        from ..tuning.search import tune
-
-        return tune
-    if name == "hodmd":
-        from ..coarse.hodmd.dmd import expansion
-
-        return expansion
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

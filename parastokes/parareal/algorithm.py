@@ -26,11 +26,11 @@ from typing import Any
 
 import numpy as np
 
-from ..contracts import PropagatorLike, TracingCoarse, check_workers
-from ..contracts import with_executor as _with_executor
+from ..core.contracts import PropagatorLike, TracingCoarse, check_workers
+from ..core.contracts import with_executor as _with_executor
+from ..core.values import is_real
 from ..integrate import BlowUpError
 from ..parallel import SerialExecutor, TaskError, run_labelled
-from ..values import is_real
 from . import checkpoint as ckpt
 from . import options
 from .metrics import Positions, relative_change
@@ -197,10 +197,10 @@ def correct(
     """Eq. 11: X_n^k = F(X_{n-1}^{k-1}) + (G(X_{n-1}^k) - G(X_{n-1}^{k-1})), then ``project``.
 
     ``difference(new, old)`` replaces G(new) - G(old) for a tracing coarse solver
-    (:class:`~parastokes.contracts.TracingCoarse`, :func:`correction_of`). Both schedules correct
-    through this one function, so their iterates agree bit for bit. With ``where = (n, k, T_n)``,
-    a corrected state that ``project`` rejects (a ValueError: e.g. a rod's frame made singular by
-    a correction far larger than the state) is a numerical blow-up: a :class:`TaskError`
+    (:class:`~parastokes.core.contracts.TracingCoarse`, :func:`correction_of`). Both schedules
+    correct through this one function, so their iterates agree bit for bit. With ``where = (n, k,
+    T_n)``, a corrected state that ``project`` rejects (a ValueError: e.g. a rod's frame made
+    singular by a correction far larger than the state) is a numerical blow-up: a :class:`TaskError`
     labelled by :func:`correction_label` around a :class:`~parastokes.integrate.BlowUpError`
     whose last good state is F(X_{n-1}^{k-1}).
     """

@@ -3,8 +3,8 @@
 After iteration k, Algorithm 1 needs exactly: the iterate X_n^k (n = 0..N), the stored coarse
 values G(T_n, T_{n-1}, X_{n-1}^k) reused by the next correction (eq. 11), and the history. These are
 written to one ``.npz`` file through a temporary file and ``os.replace`` (atomic on POSIX,
-:func:`parastokes.files.atomic_write`), so an interrupted write never leaves a damaged checkpoint.
-Arrays and floats round-trip exactly, so a resumed run gives bit-identical results.
+:func:`parastokes.core.files.atomic_write`), so an interrupted write never leaves a damaged
+checkpoint. Arrays and floats round-trip exactly, so a resumed run gives bit-identical results.
 
 The checkpoint carries a fingerprint (:func:`fingerprint`): a digest of the problem (x0, t0, t1,
 N, reference) plus whatever the caller names as determining the iterates (``identity``: the command
@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from ..files import CorruptFileError, read_npz, write_npz
+from ..core.files import CorruptFileError, read_npz, write_npz
 from .timings import Timings
 
 __all__ = ["CheckpointMismatch", "Progress", "differences", "fingerprint", "load", "save"]
@@ -107,8 +107,8 @@ def load(path: str | os.PathLike, key: Mapping[str, Any]) -> Progress | None:
     """Read a checkpoint written by :func:`save`; None when ``path`` does not exist.
 
     Raises :class:`CheckpointMismatch` (a ValueError naming the differing keys) when the file
-    belongs to another problem, and :class:`~parastokes.files.CorruptFileError` when it is damaged,
-    of another format or not a checkpoint.
+    belongs to another problem, and :class:`~parastokes.core.files.CorruptFileError` when it is
+    damaged, of another format or not a checkpoint.
     """
     path = Path(path)
     if not path.exists():

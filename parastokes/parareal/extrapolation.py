@@ -32,7 +32,7 @@ from typing import Required, TypedDict
 import numpy as np
 
 from .. import integrate
-from ..contracts import System, check_workers
+from ..core.contracts import System, check_workers
 from ..parallel import Task, run_tasks
 from .transfer import OnCoarseGrid
 from .weights import check_nodes, lagrange_weights, step_weights, validate_richardson

@@ -21,7 +21,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from ..values import is_integer, is_real
+from ..core.values import is_integer, is_real
 
 if TYPE_CHECKING:
     from .algorithm import IterationReport

@@ -23,8 +23,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from ..contracts import rounds
-from ..values import is_integer, is_real
+from ..core.contracts import rounds
+from ..core.values import is_integer, is_real
 from .pipelined import AUXILIARY, FINE, priority
 
 __all__ = [

@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from ..contracts import TracingCoarse
+from ..core.contracts import TracingCoarse
 
 __all__ = ["SliceCosts", "auxiliary_solvers", "coarse_step_time", "measure_slice_costs"]
 

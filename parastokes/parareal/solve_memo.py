@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from ..files import CorruptFileError, read_npz, write_npz
+from ..core.files import CorruptFileError, read_npz, write_npz
 
 __all__ = ["SolveMemo", "memo_directory"]
 

@@ -17,7 +17,7 @@ from typing import Protocol
 
 import numpy as np
 
-from ..contracts import PropagatorLike
+from ..core.contracts import PropagatorLike
 
 __all__ = ["OnCoarseGrid", "Transfer"]
 

@@ -1,14 +1,9 @@
-"""Many Runge-Kutta steps in one compiled call.
+"""Import paths of round 2 and 3 for compiled bodies (docs/extending.md), kept so that their code
+runs unchanged; each module here *is* the module it names (no copy):
 
-- :mod:`.registry`: which system types have a compiled loop (exact type, no inheritance);
-- :mod:`.loop`: the generic loop (any :class:`parastokes.integrate.Scheme` tableau, the per-step
-  checks) over four compiled parts that each system supplies for its own data type.
+- ``parastokes.stepping.loop``: :mod:`parastokes.integrate.loop`;
+- ``parastokes.stepping.fluid``: :mod:`parastokes.fluid.compiled`;
+- ``parastokes.stepping.registry``: :mod:`parastokes.registry.loops`.
 
-A body's compiled parts live with the body (e.g. :mod:`parastokes.kinds.rod.compiled`); its
-system module registers its type here when imported. Importing this package loads only the
-registry, so the loop never names a body.
+The package itself imports none of them; new code imports the modules where they live.
 """
-
-from . import registry
-
-__all__ = ["registry"]

@@ -112,10 +112,10 @@ def _space(cfg: Any, args: argparse.Namespace, compare: tuple) -> Any:
 def outputs(out: str | Path, overwrite: bool) -> tuple[Path, Path, Path]:
     """The three files ``tune`` writes (TUNED.toml, its .json record and its .png figure),
     checked before the search: distinct (``--out`` must not end in .json or .png), and as every
-    command's files are (:func:`parastokes.rundir.check_files`): not a directory, in a directory
-    that can be written, none of them an existing file unless ``overwrite``, none a run's own
-    file even then; a TuningError (exit 2) says what to change."""
-    from .. import rundir
+    command's files are (:func:`parastokes.output.rundir.check_files`): not a directory, in a
+    directory that can be written, none of them an existing file unless ``overwrite``, none a run's
+    own file even then; a TuningError (exit 2) says what to change."""
+    from ..output import rundir
     from .space import TuningError
 
     toml = Path(out)
@@ -135,7 +135,9 @@ def main(args: argparse.Namespace, console: Any) -> int:
     """Run the command; returns 0, or 130, 143, 129 when Ctrl-C, SIGTERM or SIGHUP stopped the
     search (what was measured is written)."""
     from .. import config as configuration
-    from .. import integrate, io, rundir
+    from .. import integrate
+    from ..output import rundir
+    from ..output import trajectory as io
     from .report import config_text, draw_curves
     from .search import tune
     from .space import TuningError, settings_from_config

@@ -29,7 +29,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from .. import integrate
-from ..contracts import rounds
+from ..core.contracts import rounds
 from ..parareal.speedup import speedup as parareal_speedup
 from .space import Settings
 

@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from .. import integrate
-from ..contracts import System
+from ..core.contracts import System
 from ..parareal import algorithm, metrics
 from .space import TuningError
 

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from .. import integrate
-from ..files import Staging, atomic_write
+from ..core.files import Staging, atomic_write
 from .cost import caution
 from .pilot import Pilot
 

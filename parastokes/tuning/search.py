@@ -1,6 +1,6 @@
 """The tuner: search the coarse solvers of eq. 30 for the highest predicted speedup at η*.
 
-:func:`tune` (exported as ``parastokes.parareal.tune``) checks the input, computes the pilot
+:func:`tune` (exported as ``parastokes.tuning.tune``) checks the input, computes the pilot
 reference and measures the plain baseline, then searches the candidates of the
 :class:`~.space.Space` best first. Each candidate goes through two stages:
 
@@ -30,10 +30,10 @@ from typing import Any, Protocol, TypeVar
 import numpy as np
 
 from .. import integrate
-from ..contracts import System
+from ..core.contracts import System
+from ..core.values import is_integer, is_real
 from ..parallel import TaskError
 from ..parareal.transfer import Transfer
-from ..values import is_integer, is_real
 from . import cost, slice_map, stability
 from .pilot import Pilot, Screen
 from .space import Settings, Space, TuningError, reach_table

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from .. import integrate
-from ..contracts import System
+from ..core.contracts import System
 from ..parareal.extrapolation import extrapolated
 from ..parareal.weights import lagrange_weights, richardson_weights, validate_richardson
 

@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from .. import integrate
-from ..contracts import System
+from ..core.contracts import System
 from . import slice_map
 
 __all__ = ["GROWTH", "allowed_radius", "radius_tolerance", "spectral_radius", "step_limit",

@@ -14,7 +14,7 @@ import time
 import parallel_tasks
 
 from parastokes import parallel
-from parastokes.session import Session
+from parastokes.run.session import Session
 
 if __name__ == "__main__":
     out = pathlib.Path(sys.argv[1])

@@ -23,9 +23,9 @@ from typing import Any, Literal
 from pydantic import Field, field_validator
 
 from ... import integrate
-from ...contracts import System
+from ...core.contracts import System
+from ...registry.coarse import CoarseResolution, CoarseSection
 from ..extrapolated import Extrapolated
-from ..registry import CoarseResolution, CoarseSection
 from .solver import HodmdCoarse, as_windows, traced_window
 
 __all__ = ["PAIR_FLOPS", "Hodmd", "hodmd_flops"]

@@ -8,7 +8,7 @@ of length h = (T_n − T_{n-1}) / S:
 - G1, the accurate one, over the window of the first W = r_s S intervals only;
 
 and keeps their difference D_j = G1(x)_j − G2(x)_j at the snapshots j = 0..W. That record, with
-G2's end value, is the *trace* of the step (:class:`~parastokes.contracts.TracingCoarse`).
+G2's end value, is the *trace* of the step (:class:`~parastokes.core.contracts.TracingCoarse`).
 
 - Initial sweep (k = 0): X_n^0 = project(G2(x)_S + H[D](T_n)), H[·](t) the HODMD extrapolation of
   the window's snapshots to t (:func:`.dmd.hodmd`): G1's accuracy carried over the whole slice.
@@ -34,11 +34,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...contracts import PropagatorLike, System
+from ...core.contracts import PropagatorLike, System
 from ...mobility.threads import blas_threads
+from ...parareal.dmd import hodmd
 from ...parareal.extrapolation import Extrapolated
 from ...parareal.transfer import OnCoarseGrid
-from .dmd import hodmd
 
 __all__ = ["HodmdCoarse"]
 

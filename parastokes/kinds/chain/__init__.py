@@ -1,7 +1,7 @@
 """The bead-spring chain: a polymer of beads joined by Hookean springs with a bending penalty.
 
 This body is written only through the public extension path (docs/extending.md): this package and
-its one line in :data:`parastokes.bodies.registry.BUILTIN`; nothing else in the package names it.
+its one line in :data:`parastokes.registry.kinds.BUILTIN`; nothing else in the package names it.
 Its mechanics are compiled functions (:mod:`.mechanics`), its compiled parts for the loops of
 steps (alone and in scenes) are in :mod:`.stepping`, its GPU device parts in :mod:`.device`, both
 registered at the end of this module.
@@ -29,7 +29,10 @@ from pydantic import Field
 
 from ...bodies.base import PointsInShear, replace_params
 from ...bodies.geometry import crossed_wall
-from ...bodies.registry import (
+from ...fluid import MRS, Blocks
+from ...integrate.loop import register_parts
+from ...mrs.velocity import thread_count
+from ...registry.kinds import (
     BodyKind,
     BodyLayout,
     BodyResolution,
@@ -38,10 +41,7 @@ from ...bodies.registry import (
     draw_over_time,
     polyline,
 )
-from ...fluid import MRS, Blocks
-from ...mrs.velocity import thread_count
-from ...stepping.loop import register_parts
-from ...stepping.registry import register_device
+from ...registry.loops import register_device
 from ...stiff.coloring import banded
 from .mechanics import bond_strain, chain_energy, chain_forces
 from .stepping import chain_data

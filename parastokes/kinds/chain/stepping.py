@@ -1,18 +1,19 @@
-"""The chain's compiled parts for the loop of :mod:`parastokes.stepping.loop`, alone and in a
-scene (:mod:`parastokes.stepping.scene`).
+"""The chain's compiled parts for the loop of :mod:`parastokes.integrate.loop`, alone and in a
+scene (:mod:`parastokes.scene.compiled`).
 
 The same compiled functions as :class:`parastokes.kinds.chain.ChainSystem`'s Python methods, in
 the same order, so the loops give the same bits:
 
 - loads: :func:`.mechanics.chain_forces` plus the external load on every bead;
 - rates: the loads, the fluid's velocity as :class:`parastokes.fluid.MRS` computes it
-  (:func:`parastokes.stepping.fluid.velocity_into`: free-space Stokeslets, or with the wall's
+  (:func:`parastokes.fluid.compiled.velocity_into`: free-space Stokeslets, or with the wall's
   images), plus the shear flow γ̇ z e_x (docs/physics.md (15));
 - advance: ``x + dt * rates``; no bracket (positions commute);
 - monitor: :func:`.mechanics.bond_strain`.
 
 Registered for :class:`~parastokes.kinds.chain.ChainSystem` with the :class:`parastokes.fluid.MRS`
-fluid by :func:`parastokes.stepping.loop.register_parts` (the end of :mod:`parastokes.kinds.chain`).
+fluid by :func:`parastokes.integrate.loop.register_parts` (the end of
+:mod:`parastokes.kinds.chain`).
 """
 
 from __future__ import annotations
@@ -24,8 +25,8 @@ import numpy as np
 from numba.extending import overload
 
 from ...bodies.geometry import crossed_wall
-from ...stepping import loop
-from ...stepping.fluid import fluid_workspace, velocity_into
+from ...fluid.compiled import fluid_workspace, velocity_into
+from ...integrate import loop
 from .mechanics import bond_strain, chain_forces
 
 if TYPE_CHECKING:  # the package imports this module

@@ -21,7 +21,8 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import Field
 
-from ...bodies.registry import (
+from ...core.contracts import StepFailure
+from ...registry.kinds import (
     BodyKind,
     BodyLayout,
     BodyResolution,
@@ -32,7 +33,6 @@ from ...bodies.registry import (
     draw_over_time,
     point_layout,
 )
-from ...contracts import StepFailure
 from .coarse import coarse_shape
 from .shapes import MOTOR_RATE, Bacterium, Helix, PointCloud, Rod, Sphere, Spheroid, spacing
 from .slip import Squirmer, UserSlip

@@ -34,7 +34,7 @@ from typing import Any, Protocol
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ... import plugins
+from ...core import plugins
 
 __all__ = [
     "Bacterium",

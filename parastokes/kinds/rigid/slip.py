@@ -23,8 +23,8 @@ from typing import Any
 
 import numpy as np
 
-from ... import plugins
-from ...contracts import StepFailure
+from ...core import plugins
+from ...core.contracts import StepFailure
 
 __all__ = ["Squirmer", "UserSlip"]
 
@@ -84,7 +84,7 @@ class UserSlip:
 
     def velocity(self, t: float, points: np.ndarray) -> np.ndarray:
         """The body-frame slip at ``points``: ValueError for a result of another shape or
-        type, :class:`~parastokes.contracts.StepFailure` (a blow-up) for a non-finite one."""
+        type, :class:`~parastokes.core.contracts.StepFailure` (a blow-up) for a non-finite one."""
         try:
             value = np.asarray(self._callable()(t, points), dtype=float)
         except (TypeError, ValueError) as error:

@@ -4,13 +4,13 @@
   9-12; the preferred strain, eq. 36);
 - :mod:`.system`: :class:`~.system.RodSystem` (the System contract: rates, advance, Θ = (ε, μ, a))
   and its factories ``rod``/``rod_swimmer`` (public as :mod:`parastokes.models`);
-- :mod:`.compiled`: its parts for the compiled loop of steps (:mod:`parastokes.stepping.loop`),
+- :mod:`.compiled`: its parts for the compiled loop of steps (:mod:`parastokes.integrate.loop`),
   registered for the exact type ``RodSystem`` when :mod:`.system` is imported;
 - :mod:`.transfer`: the cubic-spline grid transfer between rod grids (Remark 4, eqs. 32-33);
 - :mod:`.kind`: the registered kind ``KIND``: config section ``RodModel`` (its own units and
   defaults), output layout and drawing;
 - :mod:`.reference`: plain-numpy oracles of the compiled mechanics (for tests).
 
-The registry loads :mod:`.kind` on demand (:data:`parastokes.bodies.registry.BUILTIN`); this
+The registry loads :mod:`.kind` on demand (:data:`parastokes.registry.kinds.BUILTIN`); this
 package imports nothing, so a module that needs only the mechanics (the GPU backend) loads only it.
 """

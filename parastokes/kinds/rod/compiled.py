@@ -1,4 +1,4 @@
-"""The rod system's compiled parts for the loop of :mod:`parastokes.stepping.loop`.
+"""The rod system's compiled parts for the loop of :mod:`parastokes.integrate.loop`.
 
 The same compiled functions as :class:`.system.RodSystem`'s Python methods, in the
 same order, so both loops give the same bits:
@@ -19,8 +19,8 @@ from numba.extending import overload
 
 from ...bodies.frames import advance_rod
 from ...bodies.geometry import crossed_wall
+from ...integrate import loop
 from ...mrs import compiled
-from ...stepping import loop
 from .mechanics import length_change, preferred_strain, rod_loads
 
 if TYPE_CHECKING:  # system imports this module
@@ -116,7 +116,7 @@ def _bracket_into(data, out, kp, kq, h):
         return impl
 
 
-# ---- the parts a scene composes (parastokes.stepping.scene) -----------------------------------
+# ---- the parts a scene composes (parastokes.scene.compiled) -----------------------------------
 @overload(loop.loads_into)
 def _loads_into(data, t, x, forces, torques):
     if loop.is_data(data, RodData):

@@ -14,7 +14,7 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import Field
 
-from ...bodies.registry import (
+from ...registry.kinds import (
     BodyKind,
     BodyLayout,
     BodyResolution,

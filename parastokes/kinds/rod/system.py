@@ -23,8 +23,9 @@ from ...bodies import frames, geometry
 from ...bodies.base import FluidBody, replace_params, require_positive
 from ...bodies.geometry import crossed_wall
 from ...fluid import MRS, Blocks
+from ...integrate import loop
 from ...mrs.velocity import thread_count
-from ...stepping import loop, registry
+from ...registry import loops as registry
 from ...stiff.coloring import banded
 from . import mechanics as kirchhoff
 from .compiled import rod_data

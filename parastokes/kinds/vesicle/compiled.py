@@ -1,4 +1,4 @@
-"""The vesicle's compiled parts for the loop of :mod:`parastokes.stepping.loop`.
+"""The vesicle's compiled parts for the loop of :mod:`parastokes.integrate.loop`.
 
 The same compiled functions as :class:`.system.VesicleSystem`'s Python methods, in
 the same order, so both loops give the same bits:
@@ -18,8 +18,8 @@ import numpy as np
 from numba.extending import overload
 
 from ...bodies.geometry import mesh_area
+from ...integrate import loop
 from ...mrs import compiled
-from ...stepping import loop
 from .mechanics import spring_forces
 
 if TYPE_CHECKING:  # system imports this module
@@ -111,7 +111,7 @@ def _bracket_into(data, out, kp, kq, h):
         return lambda data, out, kp, kq, h: None
 
 
-# ---- the parts a scene composes (parastokes.stepping.scene) -----------------------------------
+# ---- the parts a scene composes (parastokes.scene.compiled) -----------------------------------
 @overload(loop.loads_into)
 def _loads_into(data, t, x, forces, torques):
     if loop.is_data(data, VesicleData):

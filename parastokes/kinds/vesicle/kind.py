@@ -15,7 +15,7 @@ import numpy as np
 from pydantic import Field
 
 from ...bodies import geometry
-from ...bodies.registry import BodyKind, BodyLayout, BodyResolution, BodySection, Positive
+from ...registry.kinds import BodyKind, BodyLayout, BodyResolution, BodySection, Positive
 from .system import VesicleSystem, longest_edge, vesicle
 
 __all__ = ["KIND", "VesicleModel"]

@@ -20,8 +20,9 @@ import numpy as np
 from ...bodies import geometry
 from ...bodies.base import PointsInShear, replace_params, require_positive
 from ...fluid import MRS, Blocks
+from ...integrate import loop
 from ...mrs.velocity import thread_count
-from ...stepping import loop, registry
+from ...registry import loops as registry
 from ...stiff.coloring import from_edges
 from .compiled import vesicle_data
 from .mechanics import spring_forces

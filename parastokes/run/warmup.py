@@ -14,7 +14,7 @@ import pickle
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:  # numpy is not imported here (see above)
-    from .contracts import System
+    from ..core.contracts import System
 
 __all__ = ["WarmUp"]
 
@@ -28,7 +28,7 @@ class WarmUp:
         self.system = pickle.dumps(system)
 
     def __call__(self) -> None:
-        from .integrate import BlowUpError, run  # numba is imported only now (thread limits)
+        from ..integrate import BlowUpError, run  # numba is imported only now (thread limits)
 
         system = pickle.loads(self.system)
         x = system.initial_state()

@@ -14,7 +14,7 @@ From one run directory (:func:`draw_run`):
   the vesicle projected on the x-z plane at the first and last frame with its tracked points
   (Fig. 11); a scene of several kinds also gets ``structure`` itself: all bodies together in the
   x-z plane at four times, centred on the first body (``structure_<kind>`` per kind);
-- ``gantt``: which worker ran which task when (:mod:`parastokes.plots_gantt`), when the summary
+- ``gantt``: which worker ran which task when (:mod:`parastokes.output.gantt`), when the summary
   holds per-task timings.
 
 Legends sit beside the axes, never over the data; one run's legend names the curves only (its title
@@ -44,9 +44,9 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
-from . import io
-from .bodies import registry
-from .figure_files import save_figure as _save
+from ..registry import kinds as registry
+from . import trajectory as io
+from .figures import save_figure as _save
 
 __all__ = [
     "RunData",
@@ -399,9 +399,9 @@ def structure(
 
 def draw_body(ax: Any, body: Mapping[str, Any], frame: int, axes: tuple[int, int],
               color: str, label: str | None = None) -> None:
-    """One frame of ``body`` (as :func:`parastokes.io.read_trajectory` gives it) projected on
-    the plane of ``axes``: its triangles' edges, its polyline (thicker), or its points as dots (a
-    rigid surface, its centre)."""
+    """One frame of ``body`` (as :func:`parastokes.output.trajectory.read_trajectory` gives it)
+    projected on the plane of ``axes``: its triangles' edges, its polyline (thicker), or its points
+    as dots (a rigid surface, its centre)."""
     from matplotlib.collections import LineCollection
 
     i, j = axes
@@ -459,7 +459,7 @@ def draw_run(directory: str | Path, formats: Sequence[str] = FORMATS) -> list[Pa
 
 def _gantt_of(run: RunData, stem: Path, formats: Sequence[str]) -> list[Path]:
     """The Gantt chart of a run whose summary holds per-task timings (none for older runs)."""
-    from .plots_gantt import gantt_figure
+    from .gantt import gantt_figure
 
     timings = run.summary.get("timings") or {}
     if not timings.get("tasks"):

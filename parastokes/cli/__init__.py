@@ -184,17 +184,17 @@ def _causes(error: BaseException):
 def _body_error(error: BaseException) -> BaseException | None:
     """The :class:`~parastokes.bodies.contract.BodyError` that ``error`` is or wraps (a worker's
     task), if any: a user's body that broke the System contract."""
-    from .bodies.contract import BodyError
+    from ..bodies.contract import BodyError
 
     return next((e for e in _causes(error) if isinstance(e, BodyError)), None)
 
 
 def exit_code(error: BaseException) -> ExitCode:
     """The exit status for an error that ended a command."""
-    from .config import ConfigError
-    from .files import is_resource_error
-    from .integrate import BlowUpError
-    from .parallel import TaskError
+    from ..config import ConfigError
+    from ..core.files import is_resource_error
+    from ..integrate import BlowUpError
+    from ..parallel import TaskError
 
     causes = list(_causes(error))
     for cause in causes:
@@ -293,7 +293,7 @@ class Console:
 
 # ---- commands --------------------------------------------------------------------------------
 def _load(path: str | None, overrides: Sequence[str], text: str | None = None):
-    from . import config
+    from .. import config
 
     if text is not None:
         return config.loads(text, "demo configuration", overrides)
@@ -304,7 +304,7 @@ def _load(path: str | None, overrides: Sequence[str], text: str | None = None):
 def _execute(
     args: argparse.Namespace, cfg, resolved, console: Console, files: dict[str, str] | None = None
 ) -> ExitCode:
-    from . import runner
+    from ..run import runner
 
     for warning in resolved.warnings:
         console.print(f"note: {warning}")
@@ -351,7 +351,7 @@ def demo_text(overrides: Sequence[str]) -> str:
     """The demo's configuration file with ``overrides`` applied (the annotated text without)."""
     import tomllib
 
-    from .config import DEMO, apply_overrides
+    from ..config import DEMO, apply_overrides
 
     if not overrides:
         return DEMO
@@ -365,7 +365,7 @@ def demo_text(overrides: Sequence[str]) -> str:
 
 
 def cmd_demo(args: argparse.Namespace, console: Console) -> ExitCode:
-    from .config import DEMO
+    from ..config import DEMO
 
     cfg, resolved = _load(None, args.set, text=DEMO)
     console.print(cfg.title)
@@ -374,8 +374,8 @@ def cmd_demo(args: argparse.Namespace, console: Console) -> ExitCode:
 
 
 def cmd_check(args: argparse.Namespace, console: Console) -> ExitCode:
-    from .bodies.contract import BodyError
-    from .config import ConfigError, preflight
+    from ..bodies.contract import BodyError
+    from ..config import ConfigError, preflight
 
     status = ExitCode.OK
     for path in args.config:
@@ -404,7 +404,7 @@ def cmd_check(args: argparse.Namespace, console: Console) -> ExitCode:
 
 def estimated_gamma_ratio(cfg, resolved, cores: int) -> float:
     """γ_G/γ_F of one coarse solve with ``cores`` cores, estimated by the coarse-solver family
-    (:meth:`parastokes.coarse.registry.CoarseSection.gamma_ratio`; the extrapolated G counts
+    (:meth:`parastokes.registry.coarse.CoarseSection.gamma_ratio`; the extrapolated G counts
     rate evaluations times (points)²)."""
     return cfg.coarse.gamma_ratio(cfg, resolved, cores)
 
@@ -420,13 +420,14 @@ def measured_auxiliary_ratio(summary: dict) -> float:
         return ratio
     n_auxiliary = summary["config"]["resolved"]["n_auxiliary"]
     workers = summary.get("workers") or 1
-    from .contracts import rounds
+    from ..core.contracts import rounds
 
     return ratio / rounds(n_auxiliary, workers)
 
 
 def cmd_predict(args: argparse.Namespace, console: Console) -> ExitCode:
-    from . import io, parareal
+    from .. import parareal
+    from ..output import trajectory as io
 
     bad = [n for n in args.cores if n < 1]
     if bad:
@@ -473,7 +474,7 @@ def cmd_predict(args: argparse.Namespace, console: Console) -> ExitCode:
             f" {row['pipelined_formula']:>7.3f} {row['pipelined']:>9.3f}".replace("nan", "  -")
         )
     if skipped:
-        from .parareal.schedule_model import MAX_SIMULATED_TASKS
+        from ..parareal.schedule_model import MAX_SIMULATED_TASKS
 
         print(f"sim -: not simulated for N_c = {', '.join(map(str, skipped))} (more than "
               f"{MAX_SIMULATED_TASKS} tasks); the closed formulas std and pipe hold there")
@@ -481,13 +482,13 @@ def cmd_predict(args: argparse.Namespace, console: Console) -> ExitCode:
 
 
 def cmd_tune(args: argparse.Namespace, console: Console) -> ExitCode:
-    from .tuning import command
+    from ..tuning import command
 
     return ExitCode(command.main(args, console))
 
 
 def cmd_plot(args: argparse.Namespace, console: Console) -> ExitCode:
-    from . import plots, rundir
+    from ..output import plots, rundir
 
     formats = args.formats
     if args.benchmark is not None:
@@ -519,7 +520,7 @@ def _figures(out: Path, stems: Sequence[str], formats: Sequence[str]) -> list[Pa
 
 # ---- parser and main -------------------------------------------------------------------------
 def _parser() -> argparse.ArgumentParser:
-    from . import __version__
+    from .. import __version__
 
     parser = argparse.ArgumentParser(
         prog="parastokes",
@@ -595,7 +596,7 @@ def _parser() -> argparse.ArgumentParser:
         parents=[common, overrides],
         help="choose the coarse solver for a core count and a target error (docs/tuning.md)",
     )
-    from .tuning.command import add_arguments
+    from ..tuning.command import add_arguments
 
     add_arguments(p)
     p.set_defaults(func=cmd_tune)
@@ -615,7 +616,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--formats", nargs="+", choices=["png", "pdf"], default=["png", "pdf"])
     p.set_defaults(func=cmd_plot)
 
-    from .flow.command import add_commands as add_flow_commands
+    from ..flow.command import add_commands as add_flow_commands
 
     add_flow_commands(sub, [common])  # flow, movie
     return parser
@@ -678,7 +679,7 @@ def _reader_gone(error: BaseException) -> bool:
 def _machine_limit(error: BaseException, command: str = "run") -> str | None:
     """A line naming the machine's limit (memory, disk, open files) behind ``error`` when its
     own message does not; out of memory, what to make smaller for ``command``."""
-    from .files import describe_os_error, is_resource_error
+    from ..core.files import describe_os_error, is_resource_error
 
     for cause in _causes(error):
         if isinstance(cause, MemoryError):

@@ -1,7 +1,7 @@
 """One run of a configuration: the serial fine solution, Parareal (Algorithm 1), or both, with all
 outputs (summary.json, trajectory.h5 + .xdmf, figures) in one directory. Used by the CLI.
 
-The directory is owned by the run (:mod:`parastokes.rundir`: a lock naming PID and host, no
+The directory is owned by the run (:mod:`parastokes.output.rundir`: a lock naming PID and host, no
 silent overwrite, results written to ``DIR/.partial/`` and moved into place whole when the run has
 completed). Every resume file carries the run's identity (:func:`identity`: the resolved model,
 time, fine, coarse and slice settings, the mode and the package version); ``--resume`` with any
@@ -39,15 +39,19 @@ except ImportError:  # (not on Windows)
 
 import numpy as np
 
-from . import __version__, files, integrate, io, parareal, rundir, session
-from .config import Config, ConfigError, Resolved, Setup, preflight, resolved_dict
-from .config.checks import estimated_fine_seconds
-from .contracts import StepFailure, System
-from .files import CorruptFileError, write_text
-from .integrate import BlowUpError
-from .parallel import SerialExecutor, run_labelled
-from .parareal import checkpoint as ckpt
-from .parareal.speedup import schedule_speedups
+from .. import __version__, integrate, parareal
+from ..config import Config, ConfigError, Resolved, Setup, preflight, resolved_dict
+from ..config.checks import estimated_fine_seconds
+from ..core import files
+from ..core.contracts import StepFailure, System
+from ..core.files import CorruptFileError, write_text
+from ..integrate import BlowUpError
+from ..output import rundir
+from ..output import trajectory as io
+from ..parallel import SerialExecutor, run_labelled
+from ..parareal import checkpoint as ckpt
+from ..parareal.speedup import schedule_speedups
+from . import session
 
 __all__ = [
     "BLOWUP",
@@ -109,7 +113,8 @@ class Reporter:
         """The current phase is over."""
 
     def iteration(self, k: int, increment: float, error: float | None, elapsed: float) -> None:
-        """Iteration k of Parareal finished: η̃^k, η^k (None without reference), wall time so far."""
+        """Iteration k of Parareal finished: η̃^k, η^k (None without reference), wall time so
+        far."""
 
 
 def _flatten(prefix: str, value: Any, out: dict[str, Any]) -> None:
@@ -659,15 +664,15 @@ def execute(
 ) -> dict[str, Any]:
     """Run ``cfg`` into the directory ``out``; returns the summary (also written to summary.json).
 
-    The directory is claimed first (:func:`parastokes.rundir.claim`), before any work: a file, an
-    unwritable path, a directory in use by another run, or one holding a finished, interrupted or
-    foreign run (unless ``resume`` or ``overwrite``) raises a ValueError that says what to do.
-    With ``resume`` the serial solution and the Parareal checkpoint found there are continued; a
-    run of another configuration is refused (:class:`ConfigError` naming the keys). ``files``
-    (name -> text, the demo's ``config.toml``) are written into it once that check has passed.
-    Results go to the directory whole once complete; figures are drawn last (``output.figures``).
-    Raises ``integrate.BlowUpError`` on a numerical blow-up, after saving the last good state.
-    Before all of that (:func:`parastokes.rundir.check_path`, then
+    The directory is claimed first (:func:`parastokes.output.rundir.claim`), before any work: a
+    file, an unwritable path, a directory in use by another run, or one holding a finished,
+    interrupted or foreign run (unless ``resume`` or ``overwrite``) raises a ValueError that says
+    what to do. With ``resume`` the serial solution and the Parareal checkpoint found there are
+    continued; a run of another configuration is refused (:class:`ConfigError` naming the keys).
+    ``files`` (name -> text, the demo's ``config.toml``) are written into it once that check has
+    passed. Results go to the directory whole once complete; figures are drawn last
+    (``output.figures``). Raises ``integrate.BlowUpError`` on a numerical blow-up, after saving the
+    last good state. Before all of that (:func:`parastokes.output.rundir.check_path`, then
     :func:`parastokes.config.preflight`, as ``parastokes check``): the
     configuration is built and a user's body called once at its initial state; a body that breaks
     the System contract raises :class:`~parastokes.bodies.contract.BodyError` naming the method,
@@ -694,7 +699,7 @@ def _execute(
     setup: Setup, directory: rundir.RunDirectory, reporter: ReporterLike, files: dict[str, str],
     resume: bool = False,
 ) -> dict[str, Any]:
-    from . import plots
+    from ..output import plots
 
     cfg, resolved = setup.config, setup.resolved
     out, staging = directory.path, directory.staging
@@ -771,7 +776,7 @@ def _execute(
     if writer is not None:
         io.write_xdmf(staging / TRAJECTORY)
         if cfg.output.flow_every is not None:
-            from .flow.command import write_run_flow
+            from ..flow.command import write_run_flow
 
             write_run_flow(staging, cfg.output.flow_every, cfg.output.flow_plane,
                            cfg.output.flow_resolution)

@@ -16,8 +16,8 @@ from pathlib import Path
 from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 
-from .figure_files import save_figure
-from .parareal.timings import MANAGER
+from ..parareal.timings import MANAGER
+from .figures import save_figure
 
 __all__ = ["COLORS", "gantt", "gantt_figure"]
 

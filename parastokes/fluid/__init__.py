@@ -8,16 +8,16 @@ for bit:
 - :class:`MRS`: regularized Stokeslets through :func:`parastokes.mrs.velocity`, the targets in
   tiles over ``n_threads`` numba threads (the threaded spatial parallelization of Remark 1);
 - :class:`BlockedMRS`: the same sums split into contiguous blocks of targets by its
-  :class:`Blocks` (:class:`parastokes.spatial.TargetBlocks`: one task per block on an executor,
-  process pool or MPI ranks), the loads shipped with all sources to every block, as a
+  :class:`Blocks` (:class:`parastokes.parallel.spatial.TargetBlocks`: one task per block on an
+  executor, process pool or MPI ranks), the loads shipped with all sources to every block, as a
   distributed-memory code broadcasts them (the process-block spatial parallelization). The
-  executor part lives above the fluid, in :mod:`parastokes.spatial`; this module imports no
+  executor part lives above the fluid, in :mod:`parastokes.parallel.spatial`; this module imports no
   executor.
 
 The regularization ε belongs to the body (it is a parameter Θ that extrapolation varies) and is
 passed with each evaluation; the fluid holds μ, the wall and how the sums are computed.
 Compiled loops of steps are registered per (system type, fluid type)
-(:mod:`parastokes.stepping.registry`): only the :class:`MRS` fluid has them.
+(:mod:`parastokes.registry.loops`): only the :class:`MRS` fluid has them.
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from typing import Any, Literal, Protocol, overload
 
 import numpy as np
 
-from . import mrs
+from .. import mrs
 
 __all__ = ["MRS", "BlockedMRS", "Blocks", "TargetBlocks", "block_velocity"]
 
@@ -135,7 +135,7 @@ class Blocks(Protocol):
     """How a :class:`BlockedMRS` splits and runs its evaluations: ``n_blocks`` blocks of targets,
     and ``run``, the velocities of every block (in order) of ``points`` from all of them, each
     block's :func:`block_velocity` with ``options`` (ε, μ, wall, angular). Implemented by
-    :class:`parastokes.spatial.TargetBlocks` (one task per block on an executor)."""
+    :class:`parastokes.parallel.spatial.TargetBlocks` (one task per block on an executor)."""
 
     n_blocks: int
 
@@ -146,15 +146,15 @@ class Blocks(Protocol):
 #: The annotation of a body's ``target_blocks`` field as bodies written for earlier releases
 #: import it (``from parastokes.fluid import TargetBlocks``, docs/extending.md): the protocol, so
 #: that the fluid imports nothing above it; the executor-backed implementation is
-#: :class:`parastokes.spatial.TargetBlocks`.
+#: :class:`parastokes.parallel.spatial.TargetBlocks`.
 TargetBlocks = Blocks
 
 
 @dataclass(frozen=True)
 class BlockedMRS(MRS):
     """:class:`MRS` with every evaluation split into blocks of targets (:class:`Blocks`, e.g.
-    :class:`parastokes.spatial.TargetBlocks`); each target's sum is the same sum in the same
-    order, so the velocities are the same bits."""
+    :class:`parastokes.parallel.spatial.TargetBlocks`); each target's sum is the same sum in the
+    same order, so the velocities are the same bits."""
 
     blocks: Blocks | None = None
 

@@ -29,7 +29,7 @@ combination (Parareal's correction, extrapolation); for orthonormal input it cha
 round-off.
 
 A system type may also have the whole loop of steps in compiled code, registered for its exact
-type in :mod:`parastokes.stepping.registry` (rods and vesicles): the same tableau, the same parts,
+type in :mod:`parastokes.registry.loops` (rods and vesicles): the same tableau, the same parts,
 the same checks, without a Python call per stage. :func:`run` uses it when present;
 ``run(..., compiled=False)`` does not.
 
@@ -55,11 +55,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import stiff
-from .bodies import contract
-from .contracts import StepFailure, System
-from .stepping.registry import compiled_loop
-from .stiff import Rosenbrock
+from .. import stiff
+from ..bodies import contract
+from ..core.contracts import StepFailure, System
+from ..registry.loops import compiled_loop
+from ..stiff import Rosenbrock
 
 __all__ = [
     "SCHEMES",
@@ -362,7 +362,7 @@ def _stepping(
     """Take ``n`` steps of size ``dt``; stop early (``completed=False``) if monitor > stop_above.
 
     The steps run in the compiled loop registered for the exact type of ``system`` when there is
-    one and ``compiled`` (:mod:`parastokes.stepping.registry`: rods, vesicles), else in
+    one and ``compiled`` (:mod:`parastokes.registry.loops`: rods, vesicles), else in
     :func:`_python_steps`; both return the same.
     """
     limit = blowup_factor * system.monitor_limit

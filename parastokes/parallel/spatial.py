@@ -33,11 +33,11 @@ from typing import Any
 
 import numpy as np
 
-from . import integrate
-from .contracts import PropagatorLike
-from .fluid import block_velocity
-from .models import RodSystem, VesicleSystem
-from .parallel import Task, run_tasks
+from .. import integrate
+from ..core.contracts import PropagatorLike
+from ..fluid import block_velocity
+from ..models import RodSystem, VesicleSystem
+from . import Task, run_tasks
 
 __all__ = ["SpatialSpeedup", "TargetBlocks", "fine_solver", "measure_speedup", "threaded"]
 

@@ -24,7 +24,7 @@ files through the same rules (:func:`claim_files`): checked before any work (a d
 unwritable place, an existing file without ``--overwrite``); never one of a run's own files
 (:func:`is_run_file`); the lock of a run directory they write into held while they work, and one
 they read from refused while a run holds it; every file written to a temporary name and moved into
-place whole (:class:`parastokes.files.Staging`), so that an interrupt, a full disk or a failing
+place whole (:class:`parastokes.core.files.Staging`), so that an interrupt, a full disk or a failing
 writer leaves the previous file intact and no partial one.
 """
 
@@ -40,7 +40,7 @@ from collections.abc import Collection, Iterator, Sequence
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
-from .files import CorruptFileError, Staging, staged, temporary_owner, write_text
+from ..core.files import CorruptFileError, Staging, staged, temporary_owner, write_text
 
 __all__ = [
     "DirectoryInUse", "RunDirectory", "RunDirectoryError", "check_files", "check_free", "claim",
@@ -299,7 +299,7 @@ class RunDirectory:
 
 
 def _remove_orphans(path: Path, locked: bool = True) -> None:
-    """Remove the temporary files (``NAME.<pid>.tmp``, :func:`parastokes.files.temporary_name`)
+    """Remove the temporary files (``NAME.<pid>.tmp``, :func:`parastokes.core.files.temporary_name`)
     that a process killed while writing left in ``path``: with its lock held (``locked``), every
     one but this process's (no other process writes there); else those of processes gone from
     this host and untouched for a minute (one of another host sharing the folder still
@@ -470,7 +470,7 @@ def claim_files(paths: Sequence[str | os.PathLike], *, overwrite: bool = True,
     checked before any work: :func:`check_files`; the lock of every run directory among their
     folders held until the block ends (:class:`DirectoryInUse` if a run holds it), and the run
     directories ``reads`` (those the command reads) refused while a run holds them
-    (:func:`check_free`). Yields the :class:`~parastokes.files.Staging` to write them through:
+    (:func:`check_free`). Yields the :class:`~parastokes.core.files.Staging` to write them through:
     they are moved into place when the block ends normally (and listed with the results of a run
     directory they are in, so that its next ``--overwrite`` replaces them), and removed when it
     raises, so the previous files stay whole."""

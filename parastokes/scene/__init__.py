@@ -24,7 +24,7 @@ body's ``rate_columns``. Such a scene runs the Python loop (no compiled parts).
 The fluid is evaluated once per stage over all points (:func:`parastokes.mrs.velocity` with ε
 per source: each point's blob has its body's width). A scene whose bodies' exact types all have
 compiled parts (the rod, the vesicle, the chain) is stepped by a compiled loop composed of them
-(:mod:`parastokes.stepping.scene`), with the same bits; a scene with any other body (a user's
+(:mod:`parastokes.scene.compiled`), with the same bits; a scene with any other body (a user's
 Python body) runs the Runge-Kutta tableaux through the Python methods below.
 
 A body in a scene offers ``loads(t, state) -> (forces, torques or None)``, ``angular`` (whether
@@ -44,14 +44,15 @@ from typing import Any, NamedTuple
 import numpy as np
 from scipy.spatial import cKDTree
 
-from . import mrs, scene_coarse
-from .bodies import contract
-from .bodies.geometry import crossed_wall
-from .bodies.sources import FluidSources, fluid_sources
-from .scene_coarse import SceneTransfer
-from .stepping import registry
-from .stepping.scene import scene_loop
-from .stiff.jacobian import block_jacobian, local_jacobian
+from .. import mrs
+from ..bodies import contract
+from ..bodies.geometry import crossed_wall
+from ..bodies.sources import FluidSources, fluid_sources
+from ..registry import loops as registry
+from ..stiff.jacobian import block_jacobian, local_jacobian
+from . import coarse as scene_coarse
+from .coarse import SceneTransfer
+from .compiled import scene_loop
 
 __all__ = ["Scene"]
 
@@ -321,7 +322,7 @@ class Scene:
     def coupled(self, t: float, state: np.ndarray) -> Coupled:
         """One coupled evaluation (see the module): the explicit loads, the mobility solve of
         all implicit bodies in their background, the velocities at the explicit bodies."""
-        from .kinds.rigid.solve import mobility
+        from ..kinds.rigid.solve import mobility
 
         explicit = self._sources(t, state, [i for i in range(len(self.bodies))
                                             if i not in self.implicit_bodies])
@@ -362,7 +363,7 @@ class Scene:
         """The scene with every body that has a coarser grid on it (rods: σ_c = factor σ_f;
         rigid bodies: ``factor`` times fewer surface points), or the bodies ``coarse_bodies``
         names, the others kept, and the grid transfer that composes the bodies' own
-        (:mod:`parastokes.scene_coarse`)."""
+        (:mod:`parastokes.scene.coarse`)."""
         return scene_coarse.coarsened(self, factor)
 
     # ---- parameters and monitor ----------------------------------------------------------

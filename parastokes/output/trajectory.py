@@ -18,13 +18,13 @@ and once per file:
 - root attributes: the resolved configuration as JSON (``config``) and every parameter as its own
   attribute under its key path (``model.epsilon``, ``resolved.coarse_dt``, ...).
 
-Every file is written atomically (:mod:`parastokes.files`); reading a damaged or foreign file raises
-:class:`~parastokes.files.CorruptFileError` naming it.
+Every file is written atomically (:mod:`parastokes.core.files`); reading a damaged or foreign file
+raises :class:`~parastokes.core.files.CorruptFileError` naming it.
 
 ``trajectory.xdmf`` describes the same data for ParaView/VisIt (XDMF 3): one temporal collection per
 run, one grid per body with the topology of its layout (a Polyline per rod, a Triangle mesh per
 vesicle), with the node vectors as attributes. The layout of every body comes from its kind
-(:class:`parastokes.bodies.registry.BodyLayout`); this module knows no kind.
+(:class:`parastokes.registry.kinds.BodyLayout`); this module knows no kind.
 """
 
 from __future__ import annotations
@@ -42,8 +42,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from .bodies.registry import RESERVED_NAMES, BodyLayout
-from .files import (
+from ..core.files import (
     CorruptFileError,
     FileWriteError,
     GuardedFile,
@@ -52,6 +51,7 @@ from .files import (
     write_npz,
     write_text,
 )
+from ..registry.kinds import RESERVED_NAMES, BodyLayout
 
 __all__ = [
     "HistoryRecord",
@@ -104,7 +104,8 @@ SUMMARY_KEYS = ("config", "mode", "iterations", "increments", "errors", "timings
 
 
 def read_summary(path: str | os.PathLike) -> dict[str, Any]:
-    """Read a ``summary.json``; :class:`~parastokes.files.CorruptFileError` names a damaged one."""
+    """Read a ``summary.json``; :class:`~parastokes.core.files.CorruptFileError` names a damaged
+    one."""
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(
@@ -132,14 +133,14 @@ def load_arrays(
     path: str | os.PathLike, required: tuple[str, ...] = ()
 ) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
     """Read a file written by :func:`save_arrays`: ``(meta, arrays)`` (``required`` arrays must be
-    there); :class:`~parastokes.files.CorruptFileError` names a damaged or foreign file."""
+    there); :class:`~parastokes.core.files.CorruptFileError` names a damaged or foreign file."""
     return read_npz(path, required)
 
 
 @contextmanager
 def _reading(path: str | os.PathLike) -> Iterator[h5py.File]:
     """``path`` opened for reading; a damaged, foreign or incomplete file raises
-    :class:`~parastokes.files.CorruptFileError` naming it."""
+    :class:`~parastokes.core.files.CorruptFileError` naming it."""
     if not Path(path).exists():
         raise FileNotFoundError(f"{path} does not exist")
     try:
@@ -159,9 +160,9 @@ def _reading(path: str | os.PathLike) -> Iterator[h5py.File]:
 @contextmanager
 def new_hdf5(staging: Staging, path: str | os.PathLike) -> Iterator[h5py.File]:
     """A new HDF5 file that becomes ``path`` when ``staging`` commits, written to its temporary
-    file through a :class:`~parastokes.files.GuardedFile`: a full disk or a file-size limit
-    raises :class:`~parastokes.files.FileWriteError` naming ``path`` when the block ends (h5py's
-    own driver would crash the interpreter)."""
+    file through a :class:`~parastokes.core.files.GuardedFile`: a full disk or a file-size limit
+    raises :class:`~parastokes.core.files.FileWriteError` naming ``path`` when the block ends
+    (h5py's own driver would crash the interpreter)."""
     path = Path(path)
     try:
         sink = GuardedFile(staging.temporary(path))
@@ -195,7 +196,7 @@ class TrajectoryWriter:
     """Writes ``trajectory.h5``: frames of one or more runs, the history, all parameters.
 
     ``layout`` gives every body of the state: its rows, node vectors, topology and marks (from its
-    kind, :mod:`parastokes.bodies.registry`). Datasets are created on first use and extended frame
+    kind, :mod:`parastokes.registry.kinds`). Datasets are created on first use and extended frame
     by frame; the file is flushed after every frame, so an interrupted run leaves a readable file.
     """
 
@@ -219,7 +220,7 @@ class TrajectoryWriter:
             )
         self.path = Path(path)
         self.layout = list(layout)
-        # the run directory's lock (parastokes.rundir) keeps other runs out: HDF5's own file
+        # the run directory's lock (parastokes.output.rundir) keeps other runs out: HDF5's own file
         # locking, which many cluster file systems do not support, is not needed
         # written through a GuardedFile: a full disk or a file-size limit raises FileWriteError
         # naming the file, where h5py's own driver would crash the interpreter on close
@@ -253,7 +254,7 @@ class TrajectoryWriter:
         self._flush()
 
     def _flush(self) -> None:
-        """Flush the file; :class:`~parastokes.files.FileWriteError` if a write failed."""
+        """Flush the file; :class:`~parastokes.core.files.FileWriteError` if a write failed."""
         self._sink.check()
         self.file.flush()
         self._sink.check()
@@ -266,7 +267,7 @@ class TrajectoryWriter:
 
     def close(self) -> None:
         """Close the file; after a failed write, remove it and raise
-        :class:`~parastokes.files.FileWriteError` (once)."""
+        :class:`~parastokes.core.files.FileWriteError` (once)."""
         if self.file.id.valid:
             self.file.close()
         self._sink.close()
@@ -359,7 +360,7 @@ def read_trajectory(path: str | os.PathLike, run: str | None = None) -> dict[str
 
     ``run`` defaults to ``"parareal"`` when present, else ``"serial"``. A file that lacks a
     dataset, holds no frames, or whose frames disagree with its times or are not finite raises
-    :class:`~parastokes.files.CorruptFileError` naming what is wrong.
+    :class:`~parastokes.core.files.CorruptFileError` naming what is wrong.
     """
     with _reading(path) as f:
         available = [r for r in RUNS if r in f]
@@ -389,7 +390,7 @@ def read_trajectory(path: str | os.PathLike, run: str | None = None) -> dict[str
 
 def _check_frames(path: str | os.PathLike, data: dict[str, Any],
                   static: Mapping[str, set[str]]) -> None:
-    """:class:`~parastokes.files.CorruptFileError` unless every body of ``data`` (one run of a
+    """:class:`~parastokes.core.files.CorruptFileError` unless every body of ``data`` (one run of a
     trajectory) has finite positions (F, M, 3) and node vectors (F, M, k) for its F finite,
     increasing times, and its connectivity."""
     times = np.asarray(data["time"], dtype=float)

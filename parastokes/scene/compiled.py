@@ -1,15 +1,15 @@
-"""A scene's compiled parts for the loop of :mod:`parastokes.stepping.loop`, composed from its
+"""A scene's compiled parts for the loop of :mod:`parastokes.integrate.loop`, composed from its
 bodies' own.
 
 A :class:`parastokes.scene.Scene` is stepped in compiled code when every body's exact type has
-registered compiled parts (:func:`parastokes.stepping.loop.register_parts`); its data
+registered compiled parts (:func:`parastokes.integrate.loop.register_parts`); its data
 :class:`SceneData` holds every body's data with its rows, and each part runs its bodies' parts in
 turn (``numba.literal_unroll`` over the heterogeneous tuple of bodies: one compiled loop per mix
 of body types). The same steps as :meth:`Scene.rates` and the other Python methods, so both loops
 give the same bits:
 
 - rates: every body's loads (``loads_into``) into one array of all points, one kernel call over
-  all of them with each source's own ε (:func:`parastokes.stepping.fluid.velocity_into`), the
+  all of them with each source's own ε (:func:`parastokes.fluid.compiled.velocity_into`), the
   background shear u∞ = (γ̇ z, 0, 0) and w∞ = (0, γ̇/2, 0), then every body's rates from the
   velocities at its rows (``body_rates_into``), zero in the columns past a body's own;
 - advance, bracket: every body's on its rows and columns, the padding columns zero;
@@ -30,11 +30,12 @@ from numba import literal_unroll
 from numba.extending import overload
 
 from ..bodies.geometry import crossed_wall
+from ..fluid.compiled import fluid_workspace, velocity_into
+from ..integrate import loop
 from ..mrs import compiled
 from ..mrs.velocity import EIGHT_PI
-from . import loop, registry
-from .fluid import fluid_workspace, velocity_into
-from .registry import RunSteps
+from ..registry import loops as registry
+from ..registry.loops import RunSteps
 
 __all__ = ["SceneData", "scene_data", "scene_loop"]
 

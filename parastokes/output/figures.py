@@ -1,5 +1,5 @@
 """A matplotlib figure written as ``stem.FMT`` for every format, each file atomically (never half a
-file): what :mod:`parastokes.plots` and :mod:`parastokes.plots_gantt` share."""
+file): what :mod:`parastokes.output.plots` and :mod:`parastokes.output.gantt` share."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from typing import IO
 
 from matplotlib.figure import Figure
 
-from .files import atomic_write
+from ..core.files import atomic_write
 
 __all__ = ["save_figure"]
 

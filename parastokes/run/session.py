@@ -14,13 +14,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from . import parallel
-from .config import ConfigError, Setup
-from .contracts import oversubscription
+from .. import parallel
+from ..config import ConfigError, Setup
+from ..core.contracts import oversubscription
 from .warmup import WarmUp
 
 if TYPE_CHECKING:
-    from .parallel.factory import WorkerPool
+    from ..parallel.factory import WorkerPool
 
 __all__ = ["Session", "start"]
 

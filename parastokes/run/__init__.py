@@ -1,0 +1,2 @@
+"""One run of a configuration, from start-up to results (used by the command line).
+"""
