@@ -230,7 +230,7 @@ def test_a_body_error_in_a_worker_is_exit_2_in_one_line(capsys):
     error = TaskError("fine solve of slice 2", BodyError("X.rates(t, state) returned shape (7, 3)"
                                                          "; expected 2-dimensional with 8 rows"))
     assert cli.exit_code(error) == 2
-    assert cli._report(error, cli.Console(quiet=False)) == 2
+    assert cli.report(error, cli.Console(quiet=False)) == 2
     assert _error_lines(capsys) == ["error: X.rates(t, state) returned shape (7, 3); expected "
                                     "2-dimensional with 8 rows"]
 

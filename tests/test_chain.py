@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from parastokes import config, integrate, mrs, parareal
+from parastokes import run as runner
 from parastokes.kinds.chain import ChainSystem, chain_energy, chain_forces
 from parastokes.output import trajectory as io
-from parastokes.run import runner
 
 
 def bent(system: ChainSystem, seed: int = 0) -> np.ndarray:

@@ -16,9 +16,10 @@ import pytest
 from configs import small_rod
 
 from parastokes import cli, config, parareal
+from parastokes import run as runner
+from parastokes.cli import console as console_module
 from parastokes.output import trajectory as io
 from parastokes.parallel import TaskError
-from parastokes.run import runner
 
 ROOT = Path(__file__).resolve().parents[1]
 FIXED_KEYS = {
@@ -322,7 +323,7 @@ def test_demo_configuration_file_keeps_the_overrides():
 
 def test_progress_moves_inside_a_slice_by_the_expected_time(monkeypatch, capsys):
     clock = iter([100.0, 130.0, 190.0])  # start, end of slice 1, end of slice 2
-    monkeypatch.setattr(cli.time, "monotonic", lambda: next(clock))
+    monkeypatch.setattr(console_module.time, "monotonic", lambda: next(clock))
     console = cli.Console(quiet=False)
     console.start("serial", 4)
     assert console.progress(150.0) == 0.0  # no estimate yet: whole slices only

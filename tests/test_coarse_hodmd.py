@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from parastokes import cli, config
+from parastokes import run as runner
 from parastokes.coarse.hodmd.family import Hodmd
 from parastokes.coarse.hodmd.solver import HodmdCoarse
 from parastokes.registry import coarse as registry
-from parastokes.run import runner
 
 HODMD = """
 [coarse]

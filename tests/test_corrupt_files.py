@@ -12,10 +12,10 @@ import pytest
 from configs import small_rod
 
 from parastokes import cli
+from parastokes import run as runner
 from parastokes.core import files
 from parastokes.output import trajectory as io
 from parastokes.parareal import checkpoint as ckpt
-from parastokes.run import runner
 
 TINY = small_rod(
     parareal="max_iterations = 2",

@@ -20,10 +20,10 @@ from configs import small_rod
 from test_run_directory import _config, _run
 
 from parastokes import cli
+from parastokes import run as runner
 from parastokes.core import files
 from parastokes.output import rundir
 from parastokes.output import trajectory as io
-from parastokes.run import runner
 
 ROOT = Path(__file__).resolve().parents[1]
 ENV = {**os.environ, "PYTHONPATH": str(ROOT), "OMP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1"}

@@ -21,10 +21,11 @@ from test_flow import scene_run  # noqa: F401  (the fixture: a scene run of 5 fr
 from test_run_directory import _config, _run
 
 from parastokes import cli, config
+from parastokes import run as runner
 from parastokes.config import checks
 from parastokes.integrate import BlowUpError
 from parastokes.mobility import SolveError
-from parastokes.run import runner
+from parastokes.run import advice
 
 ROOT = Path(__file__).resolve().parents[1]
 ENV = {**os.environ, "PYTHONPATH": str(ROOT), "OMP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1"}
@@ -198,17 +199,17 @@ def test_a_step_that_drives_the_body_into_the_wall_is_told_to_shrink(tmp_path, c
 
 def test_the_advice_names_the_keys_of_the_kind_and_of_the_coarse_family(tmp_path):
     rigid, _ = config.loads(_sphere())
-    assert runner._height_keys(rigid) == "model.position (its z)"
+    assert advice.height_keys(rigid) == "model.position (its z)"
     hodmd, _ = config.load(ROOT / "experiments" / "hodmd" / "authors_rod.toml")
-    advice = runner._fix(hodmd, "coarse solve of slice 2 in iteration 1")
-    assert "coarse.g1 and coarse.g2" in advice and "coarse.dt_ratio or" not in advice
+    text = advice.fix(hodmd, "coarse solve of slice 2 in iteration 1")
+    assert "coarse.g1 and coarse.g2" in text and "coarse.dt_ratio or" not in text
     cfg, resolved = config.loads(TINY)
     setup = config.preflight(cfg, resolved)
     x = setup.system.initial_state()
     nan = BlowUpError(0.01, 3, math.nan, x, "non-finite state; LateNaN.rates(t, state) "
                                             "returned NaN at the last good state (t = 0.01)")
-    advice = runner._advice(setup, "serial", nan, "the serial run", None)
-    assert "does not help" in advice and "reduce" not in advice  # (was "reduce fine.dt")
+    text = advice.advice(setup, "serial", nan, "the serial run", None)
+    assert "does not help" in text and "reduce" not in text  # (was "reduce fine.dt")
 
 
 # ---- 12: a pipe as configuration -----------------------------------------------------------------
@@ -271,7 +272,7 @@ def test_a_closed_standard_output_ends_the_command_quietly(tmp_path):
 
 def test_out_of_memory_in_flow_names_what_to_make_smaller(capsys):
     error = MemoryError()
-    assert cli._report(error, cli.Console(quiet=False), "flow") == cli.ExitCode.CONFIG
+    assert cli.report(error, cli.Console(quiet=False), "flow") == cli.ExitCode.CONFIG
     err = capsys.readouterr().err
     assert "use a smaller --resolution or --dpi" in err and "slices or workers" not in err
 

@@ -11,9 +11,9 @@ import pytest
 from configs import small_rod
 
 from parastokes import cli
+from parastokes import run as runner
 from parastokes.output import plots
 from parastokes.output import trajectory as io
-from parastokes.run import runner
 
 TINY = small_rod(
     parareal="max_iterations = 2",

@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from parastokes import config, parareal
+from parastokes import run as runner
 from parastokes.output import trajectory as io
-from parastokes.run import runner
 from validation import reproduce, reproduce_report
 
 REPO = Path(__file__).parents[1]

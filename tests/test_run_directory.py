@@ -20,9 +20,9 @@ from mpi_scripts.launch import SKIP_REASON, mpiexec
 from test_io import rod_layout
 
 from parastokes import cli
+from parastokes import run as runner
 from parastokes.output import rundir
 from parastokes.output import trajectory as io
-from parastokes.run import runner
 
 ROOT = Path(__file__).resolve().parents[1]
 ENV = {**os.environ, "PYTHONPATH": str(ROOT), "OMP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1"}

@@ -15,9 +15,9 @@ import pytest
 from configs import SERIAL_SOLVERS
 
 from parastokes import config, integrate, models, parallel, parareal
+from parastokes import run as runner
 from parastokes.kinds.chain import ChainSystem
 from parastokes.kinds.rigid import RigidBody, Sphere
-from parastokes.run import runner
 from parastokes.scene import Scene
 
 QUICK = Path(__file__).resolve().parents[1] / "experiments" / "quick"

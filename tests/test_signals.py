@@ -14,8 +14,8 @@ import pytest
 from configs import small_rod
 
 from parastokes import cli
+from parastokes import run as runner
 from parastokes.output import trajectory as io
-from parastokes.run import runner
 
 ROOT = Path(__file__).resolve().parents[1]
 ENV = {**os.environ, "PYTHONPATH": str(ROOT), "OMP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1"}

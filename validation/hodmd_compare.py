@@ -30,9 +30,9 @@ from pathlib import Path
 from typing import Any
 
 from parastokes import config, integrate, parallel, parareal
+from parastokes import run as runner
 from parastokes.output import trajectory as io
 from parastokes.parareal.speedup import speedup, speedup_pipelined, speedup_standard
-from parastokes.run import runner
 from validation.hodmd_rod import RUNS_ROOT
 
 CORES = 40

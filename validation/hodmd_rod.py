@@ -24,8 +24,8 @@ import json
 from pathlib import Path
 
 from parastokes import config
+from parastokes import run as runner
 from parastokes.output import trajectory as io
-from parastokes.run import runner
 
 #: Where the runs go by default: ``hodmd_runs`` in the folder that holds the checkout (not in git).
 RUNS_ROOT = Path(__file__).resolve().parents[2] / "hodmd_runs"

@@ -475,9 +475,9 @@ def serial_reference(cfg: Any, resolved: Any, directory: Path, reporter: Progres
     the whole solve (summed over sessions).
     """
     from parastokes import parareal
+    from parastokes import run as runner
     from parastokes.config import build
     from parastokes.output import trajectory as io
-    from parastokes.run import runner
 
     path, partial = directory / runner.REFERENCE, directory / "partial.npz"
     if path.exists():
@@ -520,7 +520,7 @@ def _shown(path: Path) -> str:
 def run_job(job: Job, layout: Layout) -> None:
     """Do one job to the end, resuming whatever its directory holds (the runner's checkpoint, a
     finished reference, a finished probe)."""
-    from parastokes.run import runner
+    from parastokes import run as runner
 
     directory = layout.directory(job)
     directory.mkdir(parents=True, exist_ok=True)
@@ -599,8 +599,9 @@ def progress_text(job: Job, layout: Layout, state: str) -> str:
         detail += "  η^k: " + " ".join(
             "-" if r["error"] is None else f"{r['error']:.2e}" for r in progress["iterations"]
         )
-    from parastokes.parareal.solve_memo import KINDS, memo_directory
     from parastokes.run.runner import CHECKPOINT
+
+    from parastokes.parareal.solve_memo import KINDS, memo_directory
 
     kept = memo_directory(layout.directory(job) / CHECKPOINT)  # the iteration in progress
     if state != "done" and kept.is_dir():

@@ -1,0 +1,90 @@
+"""``parastokes predict``: the speedup of eq. 14 predicted for a configuration on given
+numbers of cores, from the coarse family's estimate of γ_G/γ_F or a measured run."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from .console import Console
+from .exits import ExitCode
+from .run import load
+
+
+def estimated_gamma_ratio(cfg, resolved, cores: int) -> float:
+    """γ_G/γ_F of one coarse solve with ``cores`` cores, estimated by the coarse-solver family
+    (:meth:`parastokes.registry.coarse.CoarseSection.gamma_ratio`; the extrapolated G counts
+    rate evaluations times (points)²)."""
+    return cfg.coarse.gamma_ratio(cfg, resolved, cores)
+
+
+def measured_auxiliary_ratio(summary: dict) -> float:
+    """γ of one auxiliary solve over γ_F, from a Parareal run's ``summary``: its γ_G is a
+    whole coarse step, whose N_G auxiliary solves ran in ceil(N_G / W) rounds on its W workers
+    (one worker without an executor); the pipelined schedule records one round already (the
+    longest auxiliary solve plus the combination). The combination's share is divided with the
+    rounds, a small part of a step."""
+    ratio = float(summary["speedup"]["gamma_ratio"])
+    if summary["timings"].get("schedule") == "pipelined":
+        return ratio
+    n_auxiliary = summary["config"]["resolved"]["n_auxiliary"]
+    workers = summary.get("workers") or 1
+    from ..core.contracts import rounds
+
+    return ratio / rounds(n_auxiliary, workers)
+
+
+def cmd_predict(args: argparse.Namespace, console: Console) -> ExitCode:
+    from .. import parareal
+    from ..output import trajectory as io
+
+    bad = [n for n in args.cores if n < 1]
+    if bad:
+        raise ValueError(f"predict: --cores must be at least 1, got {bad}")
+    if args.workers is not None and args.workers < 1:
+        raise ValueError(f"predict: --workers must be at least 1, got {args.workers}")
+    if args.iterations is not None and args.iterations < 1:
+        raise ValueError(f"predict: --iterations must be at least 1, got {args.iterations}")
+    cfg, resolved = load(args.config, args.set)
+    measured = io.read_summary(Path(args.measured) / "summary.json") if args.measured else None
+    if measured is not None and not measured.get("speedup"):
+        raise ValueError(f"{args.measured} holds no Parareal run")
+    iterations = args.iterations or (
+        measured["iterations"] if measured else cfg.parareal.max_iterations
+    )
+    n_aux = resolved.n_auxiliary
+    if args.ratio is not None:
+        source, auxiliary = "given", args.ratio
+    elif measured is not None:
+        source = f"measured in {args.measured}"
+        auxiliary = measured_auxiliary_ratio(measured)
+    else:
+        source = f"estimated by the coarse-solver family ({cfg.coarse.kind!r})"
+        auxiliary = estimated_gamma_ratio(cfg, resolved, n_aux)  # one auxiliary solve
+    workers = "W = N_c" if args.workers is None else f"W = {args.workers}"
+    print(
+        f"γ_G/γ_F {source} (one auxiliary solve: {auxiliary:.4g}; N_G = {n_aux} in ceil(N_G/W) "
+        f"rounds); N_it = {iterations}; {workers} workers; std/pipe: closed formulas, "
+        "sim: simulated schedules (docs/parareal.md)"
+    )
+    print(
+        f"{'N_c':>6} {'N_it':>5} {'γ_G/γ_F':>9} {'speedup (eq. 14)':>17} {'bound (eq. 15)':>15}"
+        f" {'std':>7} {'std sim':>8} {'pipe':>7} {'pipe sim':>9}"
+    )
+    skipped = []
+    for n in args.cores:
+        (row,) = parareal.predict_schedules(auxiliary, iterations, [n], n_aux, args.workers)
+        ((_, theory, bound),) = parareal.predict(row["alpha"], iterations, [n])
+        if not row["simulated"]:
+            skipped.append(n)
+        print(
+            f"{n:>6} {row['iterations']:>5} {row['alpha']:>9.4f} {theory:>17.3f} {bound:>15.3f}"
+            f" {row['standard_formula']:>7.3f} {row['standard']:>8.3f}"
+            f" {row['pipelined_formula']:>7.3f} {row['pipelined']:>9.3f}".replace("nan", "  -")
+        )
+    if skipped:
+        from ..parareal.schedule_model import MAX_SIMULATED_TASKS
+
+        print(f"sim -: not simulated for N_c = {', '.join(map(str, skipped))} (more than "
+              f"{MAX_SIMULATED_TASKS} tasks); the closed formulas std and pipe hold there")
+    return ExitCode.OK

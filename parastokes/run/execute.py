@@ -1,0 +1,173 @@
+"""One run of a configuration, end to end: claim the directory, check what is resumed, start
+the session, run serial and/or Parareal, write the summary, trajectory, flow and figures,
+and move the results into place whole."""
+
+from __future__ import annotations
+
+import os
+import platform
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .. import __version__, parareal
+from ..config import Config, Resolved, Setup, preflight, resolved_dict
+from ..core.contracts import System
+from ..core.files import write_text
+from ..output import rundir
+from ..output import trajectory as io
+from . import session
+from .advice import previous_blow_up
+from .frames import append_frames, check_room, trajectory_writer
+from .identity import check_resumable, fine_identity, identity
+from .layout import BLOWUP, CHECKPOINT, SUMMARY, TRAJECTORY
+from .parareal import parareal_run
+from .report import Reporter, ReporterLike
+from .serial import serial_run
+from .speedups import run_speedups
+
+
+def _monitor(system: System, states: np.ndarray) -> dict[str, float]:
+    """The stability monitor (rod length / vesicle area change) over the slice boundaries."""
+    values = [system.monitor(state) for state in states]
+    return {"max": float(max(values)), "final": float(values[-1]), "limit": system.monitor_limit}
+
+
+def execute(
+    cfg: Config,
+    resolved: Resolved,
+    out: str | Path,
+    *,
+    resume: bool = False,
+    overwrite: bool = False,
+    reporter: ReporterLike | None = None,
+    files: dict[str, str] | None = None,
+) -> dict[str, Any]:
+    """Run ``cfg`` into the directory ``out``; returns the summary (also written to summary.json).
+
+    The directory is claimed first (:func:`parastokes.output.rundir.claim`), before any work: a
+    file, an unwritable path, a directory in use by another run, or one holding a finished,
+    interrupted or foreign run (unless ``resume`` or ``overwrite``) raises a ValueError that says
+    what to do. With ``resume`` the serial solution and the Parareal checkpoint found there are
+    continued; a run of another configuration is refused (:class:`ConfigError` naming the keys).
+    ``files`` (name -> text, the demo's ``config.toml``) are written into it once that check has
+    passed. Results go to the directory whole once complete; figures are drawn last
+    (``output.figures``). Raises ``integrate.BlowUpError`` on a numerical blow-up, after saving the
+    last good state. Before all of that (:func:`parastokes.output.rundir.check_path`, then
+    :func:`parastokes.config.preflight`, as ``parastokes check``): the
+    configuration is built and a user's body called once at its initial state; a body that breaks
+    the System contract raises :class:`~parastokes.bodies.contract.BodyError` naming the method,
+    before the directory is claimed or a worker started.
+    """
+    reporter = reporter or Reporter()
+    rundir.check_path(out)  # a bad --out before any work, and the body before the claim
+    setup = preflight(cfg, resolved)
+    with rundir.claim(out, resume=resume, overwrite=overwrite) as directory:
+        found = directory.entries()
+        if resume and not found["state"] and not found["results"]:
+            reporter.note(f"--resume: {out} holds no run to continue; starting afresh")
+        return _execute(setup, directory, reporter, files or {}, resume)
+
+
+def _kernels_cached() -> bool:
+    """Whether numba's cache holds compiled kernels of this package (else the first run compiles
+    them, which takes up to a minute)."""
+    root = os.environ.get("NUMBA_CACHE_DIR") or Path(__file__).parents[1]
+    return next(Path(root).rglob("*.nbi"), None) is not None
+
+
+def _execute(
+    setup: Setup, directory: rundir.RunDirectory, reporter: ReporterLike, files: dict[str, str],
+    resume: bool = False,
+) -> dict[str, Any]:
+    from ..output import plots
+
+    cfg, resolved = setup.config, setup.resolved
+    out, staging = directory.path, directory.staging
+    conf = resolved_dict(cfg, resolved)
+    key = identity(cfg)
+    check_resumable(out, cfg, resume)
+    previous = previous_blow_up(out)  # (an earlier run's, to compare a new blow-up with)
+    for name, text in files.items():
+        write_text(out / name, text)
+    mode = cfg.run.mode
+    start = time.perf_counter()
+    if not _kernels_cached():
+        reporter.note("compiling the numerical kernels (first run only; up to a minute) ...")
+    with session.start(setup) as running:
+        system = setup.system
+        x0 = system.initial_state()
+        times = parareal.time_points(cfg.time.t0, cfg.time.t1, cfg.parareal.n_slices)
+        writer = trajectory_writer(cfg, setup, conf, staging) if cfg.output.trajectory else None
+        try:
+            if writer is not None:
+                check_room(setup, writer)
+            reference = serial_time = result = record = None
+            if mode in ("serial", "both"):
+                reference, serial_time = serial_run(
+                    setup, x0, times, out, fine_identity(cfg), reporter, previous
+                )
+                if writer is not None:
+                    append_frames(writer, "serial", running, times, reference)
+            if mode in ("parareal", "both"):
+                result, record = parareal_run(
+                    running, x0, times, reference, out, key, reporter, previous
+                )
+                if writer is not None:
+                    append_frames(writer, "parareal", running, times, result.states)
+                    writer.write_history(record)
+        except BaseException:
+            running.abort()
+            raise
+        finally:
+            if writer is not None:
+                writer.close()
+        final_states = result.states if result is not None else reference
+        assert final_states is not None  # run.mode is serial, parareal or both
+        summary = {
+            "title": cfg.title,
+            "mode": mode,
+            "config": conf,
+            "iterations": 0 if result is None else result.iterations,
+            "stop_reason": None if result is None else result.stop_reason,
+            "converged": None if result is None else result.converged,
+            "increments": [] if result is None else result.increments,
+            "errors": None if result is None else result.errors,
+            "timings": {
+                "serial_fine": serial_time,
+                **({} if result is None else result.timings.to_dict()),
+                "elapsed_by_iteration": [] if record is None else record.elapsed,
+            },
+            "speedup": None
+            if result is None or record is None  # (both or neither)
+            else run_speedups(result, list(record.elapsed), serial_time),
+            "workers": None if running.executor is None else running.executor.workers,
+            "monitor": _monitor(system, final_states),
+            "final_time": float(times[-1]),
+            "final_positions": system.positions(final_states[-1]),
+            "warnings": resolved.warnings,
+            "versions": {
+                "parastokes": __version__,
+                "numpy": np.__version__,
+                "python": platform.python_version(),
+            },
+        }
+    summary["wall_time"] = time.perf_counter() - start
+    io.write_summary(staging / SUMMARY, summary)
+    if writer is not None:
+        io.write_xdmf(staging / TRAJECTORY)
+        if cfg.output.flow_every is not None:
+            from ..flow.command import write_run_flow
+
+            write_run_flow(staging, cfg.output.flow_every, cfg.output.flow_plane,
+                           cfg.output.flow_resolution)
+    if cfg.output.figures:
+        written = plots.draw_run(staging, formats=cfg.output.formats)
+        reporter.note(f"figures: {', '.join(sorted({p.stem for p in written}))}")
+    directory.commit()  # the new results replace the old ones whole
+    (out / BLOWUP).unlink(missing_ok=True)
+    if result is not None and not cfg.parareal.checkpoint:
+        (out / CHECKPOINT).unlink(missing_ok=True)
+    return summary
