@@ -12,3 +12,16 @@ Subpackages (import them as ``from parastokes import mrs, models, integrate, par
 """
 
 __version__ = "0.1.0"
+
+#: Modules that moved into a folder, under the names the documentation of earlier rounds imported
+#: them by (``from parastokes import io``): loaded on first use, each the module itself.
+_MOVED = {"io": "parastokes.output.trajectory", "spatial": "parastokes.parallel.spatial"}
+
+
+def __getattr__(name: str):
+    """``parastokes.io`` and ``parastokes.spatial``: the modules of :data:`_MOVED`."""
+    if name in _MOVED:
+        import importlib
+
+        return importlib.import_module(_MOVED[name])
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -23,6 +23,7 @@ from parastokes import cli
 from parastokes import run as runner
 from parastokes.output import rundir
 from parastokes.output import trajectory as io
+from parastokes.run import execution as execute_module
 
 ROOT = Path(__file__).resolve().parents[1]
 ENV = {**os.environ, "PYTHONPATH": str(ROOT), "OMP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1"}
@@ -266,7 +267,7 @@ def test_bad_out_fails_before_any_work(tmp_path, monkeypatch, capsys, case):
     def no_work(*args, **kwargs):
         raise AssertionError("work started")
 
-    monkeypatch.setattr(runner, "preflight", no_work)
+    monkeypatch.setattr(execute_module, "preflight", no_work)
     path = _config(tmp_path, TINY + "trajectory = false\n")
     blocker = tmp_path / "blocker"
     blocker.write_text("a file")

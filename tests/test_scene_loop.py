@@ -1,4 +1,4 @@
-"""The compiled loops of scenes (parastokes/stepping/scene.py) and of the chain
+"""The compiled loops of scenes (parastokes/scene/compiled.py) and of the chain
 (parastokes/kinds/chain/stepping.py): chosen by the exact types involved, and equal to the Python
 loop bit for bit.
 

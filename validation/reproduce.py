@@ -599,9 +599,8 @@ def progress_text(job: Job, layout: Layout, state: str) -> str:
         detail += "  η^k: " + " ".join(
             "-" if r["error"] is None else f"{r['error']:.2e}" for r in progress["iterations"]
         )
-    from parastokes.run.runner import CHECKPOINT
-
     from parastokes.parareal.solve_memo import KINDS, memo_directory
+    from parastokes.run import CHECKPOINT
 
     kept = memo_directory(layout.directory(job) / CHECKPOINT)  # the iteration in progress
     if state != "done" and kept.is_dir():

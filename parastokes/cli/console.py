@@ -31,7 +31,7 @@ class Console:
         else:
             print(text, flush=True)
 
-    # the interface of runner.Reporter
+    # the interface of parastokes.run.Reporter
     def note(self, text: str) -> None:
         self.print(text)
 

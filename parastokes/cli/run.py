@@ -25,11 +25,11 @@ def load(path: str | None, overrides: Sequence[str], text: str | None = None):
 def run_and_report(
     args: argparse.Namespace, cfg, resolved, console: Console, files: dict[str, str] | None = None
 ) -> ExitCode:
-    from ..run import runner
+    from ..run import execute, speedup_table
 
     for warning in resolved.warnings:
         console.print(f"note: {warning}")
-    summary = runner.execute(
+    summary = execute(
         cfg,
         resolved,
         args.out,
@@ -39,7 +39,7 @@ def run_and_report(
         files=files,
     )
     if summary["speedup"] is not None:
-        console.print(runner.speedup_table(summary))
+        console.print(speedup_table(summary))
     monitor = summary["monitor"]
     console.print(
         f"stability monitor: max {monitor['max']:.3g} at the slice boundaries "

@@ -1,6 +1,6 @@
 """Before a run's workers start: the configuration built, and a user's body called once.
 
-:func:`preflight` is what ``parastokes check`` and every run (:func:`parastokes.run.runner.execute`,
+:func:`preflight` is what ``parastokes check`` and every run (:func:`parastokes.run.execute`,
 before its run directory is claimed) do after the checks of :mod:`.checks`, so that a
 configuration one accepts the other does not refuse:
 

@@ -5,7 +5,7 @@ The directory is owned by the run (:mod:`parastokes.output.rundir`: a lock namin
 silent overwrite, results written to ``DIR/.partial/`` and moved into place whole when the run has
 completed). One module per concern:
 
-- :mod:`.execute`: :func:`execute`, the run end to end;
+- :mod:`.execution`: :func:`execute`, the run end to end;
 - :mod:`.identity`: what determines a run (``--resume`` with any difference is refused);
 - :mod:`.serial` and :mod:`.parareal`: the two solves, saved as they go so that ``--resume``
   continues them;
@@ -16,7 +16,7 @@ completed). One module per concern:
 - :mod:`.session`: the executor started and warmed up (:mod:`.warmup`) for the run.
 """
 
-from .execute import execute
+from .execution import execute
 from .identity import fine_identity, identity
 from .layout import BLOWUP, CHECKPOINT, HISTORY, REFERENCE, SUMMARY, TRAJECTORY
 from .report import Reporter, ReporterLike
