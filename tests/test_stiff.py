@@ -310,3 +310,67 @@ def test_adaptive_auxiliary_solvers_of_an_extrapolated_coarse_solver():
         parareal.extrapolated(rod, "ros2", 1e-4, richardson={"m": 1, "r": 0.5}, rtol=1e-3)
     with pytest.raises(ValueError, match=r"rtol: the scheme 'euler' has no error estimate"):
         parareal.extrapolated(rod, "euler", 1e-4, rtol=1e-3)
+
+
+# ---- the cost of an implicit step in predict's estimate of γ_G/γ_F -----------------------------
+def _counting_rates(monkeypatch, system) -> list[int]:
+    """Count the calls of ``system``'s rates (its class's method, wrapped)."""
+    calls = [0]
+    original = type(system).rates
+
+    def rates(self, t, x):
+        calls[0] += 1
+        return original(self, t, x)
+
+    monkeypatch.setattr(type(system), "rates", rates)
+    return calls
+
+
+@pytest.mark.parametrize("scheme", ["ros2", "ros2-krylov"])
+def test_an_implicit_step_costs_at_least_the_evaluations_it_makes(monkeypatch, scheme):
+    """The measured cost of a step, in rate evaluations, is at least the evaluations the step
+    makes (counted: two stages and f_t for ROS2 on the beating rod, plus one per GMRES
+    iteration), since the Jacobian, factorization and solves come on top."""
+    from parastokes.coarse.step_cost import measured_evaluations
+
+    rod = models.rod_swimmer(n_points=41, length=8.0, n_threads=1)
+    calls = _counting_rates(monkeypatch, rod)
+    integrate.run(rod, rod.initial_state(), 0.0, 2e-3, scheme, 2.5e-4)
+    counted = calls[0] / 8
+    assert counted >= 3  # f0, stage 2, f_t
+    measured = measured_evaluations(rod, scheme, 0.0, 2e-3, 8)
+    assert measured >= 0.8 * counted, (measured, counted)
+    assert measured < 50 * counted  # the sparse algebra of 41 points is not a hundred sums
+
+
+def test_predict_counts_stages_for_explicit_schemes_and_measures_implicit_ones(monkeypatch):
+    from parastokes import config
+    from parastokes.coarse import extrapolated, step_cost
+
+    text = (
+        'title = "stiff"\n[model]\nkind = "rod"\nn_points = 41\nlength = 8.0\n'
+        '[time]\nt1 = 4e-3\n[fine]\nscheme = "rk2"\ndt = 2e-5\n'
+        '[coarse]\nscheme = "euler"\ndt_ratio = 10\n[parareal]\nn_slices = 2\n'
+    )
+    cfg, resolved = config.loads(text)
+
+    def no_body(*args, **kwargs):
+        raise AssertionError("an explicit estimate builds no body")
+
+    monkeypatch.setattr(extrapolated, "build_system", no_body)
+    counted = cfg.coarse.gamma_ratio(cfg, resolved, 1)
+    # eq.: N_G = 1, 10 coarse Euler steps (1 stage) against 100 fine RK2 steps (2 stages)
+    assert counted == pytest.approx(10 * 1 / (100 * 2))
+    monkeypatch.undo()
+    cfg, resolved = config.loads(text, overrides=['coarse.scheme="ros2"'])
+    seen = []
+    real = step_cost.measured_evaluations
+
+    def spy(system, scheme, *args, **kwargs):
+        seen.append(scheme)
+        return real(system, scheme, *args, **kwargs)
+
+    monkeypatch.setattr(step_cost, "measured_evaluations", spy)
+    implicit = cfg.coarse.gamma_ratio(cfg, resolved, 1)
+    assert seen == ["ros2"]  # the fine RK2 at a fixed step is still counted, not timed
+    assert implicit > 1.5 * counted  # ≥ 3 evaluations per step against Euler's 1

@@ -17,11 +17,13 @@ rules, checked before any solver is built:
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any, Literal
 
 from pydantic import Field, field_validator
 
 from .. import integrate, parareal
+from ..config.build import build_system
 from ..config.checks import steps_on_slice
 from ..config.schema import LagrangeNodes, Richardson, Scheme
 from ..core.contracts import System, rounds
@@ -29,6 +31,7 @@ from ..parareal import weights
 from ..parareal.extrapolation import adaptive_tolerances
 from ..registry.coarse import CoarseResolution, CoarseSection
 from ..registry.kinds import BodyResolution, Positive
+from .step_cost import FINE_PROBE_STEPS, evaluations_per_step
 
 __all__ = ["Extrapolated"]
 
@@ -219,8 +222,30 @@ class Extrapolated(CoarseSection):
 
     def gamma_ratio(self, cfg: Any, resolved: Any, cores: int) -> float:
         """γ_G/γ_F from operation counts: rate evaluations per slice times (points)² (the O(N²)
-        Stokeslet sums dominate), with the N_G auxiliary solvers in ceil(N_G / cores) waves."""
-        stages = integrate.SCHEMES
-        fine = resolved.fine_steps * stages[cfg.fine.scheme].stages * resolved.n_points**2
-        slowest = max(resolved.coarse_steps) * stages[self.scheme].stages
+        Stokeslet sums dominate), with the N_G auxiliary solvers in ceil(N_G / cores) waves. An
+        implicit or adaptive scheme's evaluations per step are measured on the body
+        (:mod:`..step_cost`: its Jacobians, factorizations and GMRES iterations included)."""
+        fine, (slowest,) = operation_counts(cfg, resolved, [(self, resolved)])
         return rounds(resolved.n_auxiliary, cores) * slowest * resolved.coarse_points**2 / fine
+
+
+
+def operation_counts(cfg: Any, resolved: Any, sections: Sequence[tuple[Extrapolated, Any]]
+                     ) -> tuple[float, list[float]]:
+    """The operation counts of one slice: F's rate evaluations times (points)², and for each
+    (section, its resolution) the evaluations of its slowest auxiliary solver
+    (:func:`~.step_cost.evaluations_per_step`; the body is built once, when a count is measured)."""
+    schemes = [cfg.fine.scheme, *(section.scheme for section, _ in sections)]
+    measured = any(integrate.SCHEMES[name].implicit for name in schemes) or any(
+        rtol is not None for rtol in (cfg.fine.rtol, *(section.rtol for section, _ in sections)))
+    body = build_system(cfg, resolved) if measured else None
+    per_fine = evaluations_per_step(cfg, resolved, cfg.fine.scheme, resolved.fine_steps,
+                                    rtol=cfg.fine.rtol, atol=cfg.fine.atol, system=body,
+                                    probe=FINE_PROBE_STEPS)
+    coarse = []
+    for section, res in sections:
+        steps = max(res.coarse_steps)
+        coarse.append(steps * evaluations_per_step(cfg, res, section.scheme, steps,
+                                                   section.grid_factor, section.rtol,
+                                                   section.atol, system=body))
+    return resolved.fine_steps * per_fine * resolved.n_points**2, coarse

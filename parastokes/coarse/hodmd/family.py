@@ -22,10 +22,9 @@ from typing import Any, Literal
 
 from pydantic import Field, field_validator
 
-from ... import integrate
 from ...core.contracts import System
 from ...registry.coarse import CoarseResolution, CoarseSection
-from ..extrapolated import Extrapolated
+from ..extrapolated import Extrapolated, operation_counts
 from .solver import HodmdCoarse, as_windows, traced_window
 
 __all__ = ["PAIR_FLOPS", "Hodmd", "hodmd_flops"]
@@ -192,14 +191,9 @@ class Hodmd(CoarseSection):
         iterations = cfg.parareal.max_iterations or 3
         traced = statistics.mean(traced_window(self.windows(), k)
                                  for k in range(1, iterations + 1))
-        stages = integrate.SCHEMES
-        fine = resolved.fine_steps * stages[cfg.fine.scheme].stages * resolved.n_points**2
-
-        def cost(section: Extrapolated, res: Any, intervals: float) -> float:
-            steps = max(res.coarse_steps) * intervals * stages[section.scheme].stages
-            return res.n_auxiliary * steps * res.coarse_points**2
-
-        solves = cost(self.g1, g1, traced) + cost(self.g2, g2, self.snapshots)
+        fine, (one, two) = operation_counts(cfg, resolved, [(self.g1, g1), (self.g2, g2)])
+        solves = (g1.n_auxiliary * one * traced * g1.coarse_points**2
+                  + g2.n_auxiliary * two * self.snapshots * g2.coarse_points**2)
         rows = resolved.n_points * 3  # one column group of three (rods: X, D1, D2, D3)
         groups = 4 if cfg.model.kind == "rod" else 1
         svd = hodmd_flops(rows, self.windows()[-1] + 1, self.d)
