@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import signal
@@ -336,3 +337,39 @@ def test_progress_moves_inside_a_slice_by_the_expected_time(monkeypatch, capsys)
     assert console.progress(190.0 + 9.0) == pytest.approx(2.2)
     console.finish()
     assert "serial fine run over 4 slices" in capsys.readouterr().out
+
+
+def test_predict_against_the_fastest_serial_run_of_the_same_accuracy(tiny_runs, tmp_path, capsys):
+    path, (out, _) = tiny_runs
+    runs = {"cases": {"tiny": {
+        "t1": 0.002, "reference": {"scheme": "rk2", "dt": 1e-6, "cpu": 10.0},
+        "rows": [{"scheme": "rk2", "dt": 4e-6, "error": 1e-7, "cpu": 2.5, "fine_cpu": 10.0},
+                 {"scheme": "euler", "dt": 2e-6, "error": 1e-4, "cpu": 1.0, "fine_cpu": 10.0}]}}}
+    serial = tmp_path / "serial.json"
+    serial.write_text(json.dumps(runs))
+    base = ["predict", str(path), "--cores", "4", "--ratio", "0.05", "--iterations", "2",
+            "--serial", str(serial)]
+
+    def last_row(target: str) -> tuple[str, float, float]:
+        assert cli.main([*base, "--target", target]) == 0
+        text = capsys.readouterr().out
+        row = text.splitlines()[-1].split()
+        return text, float(row[3]), float(row[-1])
+
+    text, speedup, against = last_row("1e-6")  # RK2 at 4x the step reaches it at 4x less CPU
+    assert "rk2 at dt = 4e-06 (error 1e-07), 4x less CPU than F" in text
+    assert against == pytest.approx(speedup / 4, abs=1e-3)
+    text, speedup, against = last_row("1e-3")  # Euler reaches a loose target at 10x less
+    assert "euler at dt = 2e-06" in text and against == pytest.approx(speedup / 10, abs=1e-3)
+    text, speedup, against = last_row("1e-9")  # no faster run reaches it: F itself
+    assert "F itself" in text and against == speedup
+    # the default target is the measured run's last error η^K
+    assert cli.main(["predict", str(path), "--cores", "4", "--serial", str(serial),
+                     "--measured", str(out)]) == 0
+    eta = io.read_summary(out / "summary.json")["errors"][-1]
+    assert f"reaching η* = {eta:.3g}" in capsys.readouterr().out
+    # a configuration of another F is refused: its speedups are against another solver
+    assert cli.main([*base, "--target", "1e-6", "--set", "fine.dt=2e-6"]) == cli.ExitCode.CONFIG
+    assert "measured against F = rk2 at dt = 1e-06 over T = 0.002" in capsys.readouterr().err
+    assert cli.main(["predict", str(path), "--cores", "4", "--target", "1e-6"]) == 2
+    assert "--target go with --serial" in capsys.readouterr().err

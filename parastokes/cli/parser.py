@@ -80,6 +80,14 @@ def parser() -> argparse.ArgumentParser:
     source.add_argument("--measured", metavar="DIR",
                         help="take it from a run directory (its coarse step over its rounds)")
     p.add_argument("--iterations", type=int, help="N_it (default: measured, else max_iterations)")
+    p.add_argument("--serial", metavar="FILE.json",
+                   help="measured serial runs of this problem (benchmarks/stiff.py's "
+                        "best_serial.json): also the speedup against the fastest serial run "
+                        "that reaches --target")
+    p.add_argument("--case", help="the case of --serial (needed when it holds several)")
+    p.add_argument("--target", type=float, metavar="ETA",
+                   help="the accuracy at T to compare at (default with --measured: the run's "
+                        "last error η^K)")
     p.set_defaults(func=cmd_predict)
 
     p = sub.add_parser(

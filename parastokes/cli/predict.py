@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import Any
 
 from .console import Console
 from .exits import ExitCode
@@ -45,10 +46,13 @@ def cmd_predict(args: argparse.Namespace, console: Console) -> ExitCode:
         raise ValueError(f"predict: --workers must be at least 1, got {args.workers}")
     if args.iterations is not None and args.iterations < 1:
         raise ValueError(f"predict: --iterations must be at least 1, got {args.iterations}")
+    if (args.case is not None or args.target is not None) and args.serial is None:
+        raise ValueError("predict: --case and --target go with --serial FILE.json")
     cfg, resolved = load(args.config, args.set)
     measured = io.read_summary(Path(args.measured) / "summary.json") if args.measured else None
     if measured is not None and not measured.get("speedup"):
         raise ValueError(f"{args.measured} holds no Parareal run")
+    against = best_serial(args, cfg, measured)
     iterations = args.iterations or (
         measured["iterations"] if measured else cfg.parareal.max_iterations
     )
@@ -67,9 +71,12 @@ def cmd_predict(args: argparse.Namespace, console: Console) -> ExitCode:
         f"rounds); N_it = {iterations}; {workers} workers; std/pipe: closed formulas, "
         "sim: simulated schedules (docs/parareal.md)"
     )
+    if against is not None:
+        print(against[1])
     print(
         f"{'N_c':>6} {'N_it':>5} {'γ_G/γ_F':>9} {'speedup (eq. 14)':>17} {'bound (eq. 15)':>15}"
         f" {'std':>7} {'std sim':>8} {'pipe':>7} {'pipe sim':>9}"
+        + ("" if against is None else f" {'vs best serial':>15}")
     )
     skipped = []
     for n in args.cores:
@@ -81,6 +88,7 @@ def cmd_predict(args: argparse.Namespace, console: Console) -> ExitCode:
             f"{n:>6} {row['iterations']:>5} {row['alpha']:>9.4f} {theory:>17.3f} {bound:>15.3f}"
             f" {row['standard_formula']:>7.3f} {row['standard']:>8.3f}"
             f" {row['pipelined_formula']:>7.3f} {row['pipelined']:>9.3f}".replace("nan", "  -")
+            + ("" if against is None else f" {theory / against[0]:>15.3f}")
         )
     if skipped:
         from ..parareal.schedule_model import MAX_SIMULATED_TASKS
@@ -88,3 +96,30 @@ def cmd_predict(args: argparse.Namespace, console: Console) -> ExitCode:
         print(f"sim -: not simulated for N_c = {', '.join(map(str, skipped))} (more than "
               f"{MAX_SIMULATED_TASKS} tasks); the closed formulas std and pipe hold there")
     return ExitCode.OK
+
+
+def best_serial(args: argparse.Namespace, cfg: Any, measured: dict | None
+                ) -> tuple[float, str] | None:
+    """With ``--serial``: F's CPU time over that of the fastest measured serial run reaching the
+    target (:mod:`parastokes.parareal.best_serial`), and the line that says which run it is."""
+    if args.serial is None:
+        return None
+    from ..parareal.best_serial import load_serial_runs
+
+    runs = load_serial_runs(args.serial, args.case)
+    runs.check_fine(cfg.fine.scheme, cfg.fine.dt, cfg.time.t1 - cfg.time.t0)
+    target = args.target
+    if target is None:
+        errors = (measured or {}).get("errors") or []
+        if not errors:
+            raise ValueError("predict: --serial needs --target ETA (the accuracy at T of the "
+                             "Parareal result), or --measured DIR of a run with a reference")
+        target = float(errors[-1])
+    if not target > 0:
+        raise ValueError(f"predict: --target must be positive, got {target:g}")
+    best = runs.best(target)
+    who = ("F itself (no faster measured run reaches it)" if best is runs.reference else
+           f"{best.describe()} (error {best.error:.3g}), {best.fine_over:.3g}x less CPU than F")
+    return best.fine_over, (f"the fastest serial run reaching η* = {target:.3g} at T (case "
+                            f"{runs.case!r} of {args.serial}): {who}; vs best serial = eq. 14 "
+                            "over that factor")
