@@ -26,6 +26,7 @@ class Speedups(TypedDict):
     gamma_G: float
     gamma_F: float
     gamma_ratio: float
+    coarse_setup: float
     overhead: float
     serial_time: float
     serial_time_estimated: bool
@@ -69,7 +70,8 @@ class PararealResult:
 
         for a run of the pipelined schedule their counterparts for that schedule
         (:func:`~parastokes.parareal.speedup.schedule_speedups`).
-        Also returned: gamma_G, gamma_F, their ratio, the overhead Upsilon_oh of eq. 12, whether
+        Also returned: gamma_G, gamma_F, their ratio, G's one-off setup (``coarse_setup``, the
+        excess of its first call, left out of gamma_G), the overhead Upsilon_oh of eq. 12, whether
         the serial time was estimated and the schedule.
         """
         t = self.timings
@@ -84,6 +86,7 @@ class PararealResult:
             "gamma_G": t.gamma_g,
             "gamma_F": t.gamma_f,
             "gamma_ratio": t.gamma_g / t.gamma_f,
+            "coarse_setup": t.coarse_setup,
             "overhead": t.overhead(n),
             "serial_time": serial,
             "serial_time_estimated": estimated,
