@@ -27,7 +27,7 @@ def _toml(table: dict, inline: bool = False) -> str:
 
 SQUIRMER = f"""
 [model]
-{_toml({"kind": "squirmer", "n_points": 40, "b1": 1.0, "b2": 2.0})}{WALL}
+{_toml({"kind": "squirmer", "n_points": 50, "b1": 1.0, "b2": 2.0})}{WALL}
 position = [0.0, 0.0, 2.0]
 orientation = [0.95, 0.0, 0.3, 0.1]
 """

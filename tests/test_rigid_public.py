@@ -75,4 +75,6 @@ def test_one_rule_for_a_surface_too_coarse():
 def test_the_motor_rate_has_one_default():
     model = BacteriumModel(kind="bacterium")
     default = Bacterium(Sphere(0.5, 30), Helix(0.2, 1.0, 1.5, 24))
-    assert model.motor_rate == default.motor_rate == 2 * math.pi * 10
+    # 10 turns a second about -e1: counter-clockwise seen from behind, as E. coli's in a run
+    assert model.motor_rate == default.motor_rate == -2 * math.pi * 10
+    assert model.handedness == Bacterium().tail.handedness == -1  # left-handed, as E. coli's

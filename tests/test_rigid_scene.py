@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,6 +16,8 @@ from parastokes import cli, config
 from parastokes.bodies.sources import FluidSources, fluid_sources
 from parastokes.kinds.chain import ChainSystem
 from parastokes.kinds.rigid import RigidBody, Sphere, Squirmer
+from parastokes.kinds.rigid.kind import SQUIRMER_MIN_POINTS
+from parastokes.kinds.rigid.shapes import spacing
 from parastokes.scene import Scene
 
 
@@ -123,6 +126,44 @@ def test_check_rejects_bad_rigid_bodies_before_the_run(tmp_path, capsys):
     good.write_text('[model]\nkind = "squirmer"\nn_points = 60\n' + base)
     assert cli.main(["check", str(good)]) == 0
     assert "squirmer, 61 points" in capsys.readouterr().out
+
+
+def test_a_squirmer_with_too_few_points_is_refused_before_any_work(tmp_path, capsys):
+    """A 4-point squirmer (its speed 16 % off Blake's, its direction off) is refused by check and
+    run, exit 2, with one line naming the key and the minimum, before the run directory is made;
+    the shipped squirmer passes."""
+    few = tmp_path / "few.toml"
+    few.write_text('[model]\nkind = "squirmer"\nn_points = 4\n' + SERIAL_SOLVERS)
+    capsys.readouterr()
+    for command in (["check", str(few)], ["run", str(few), "--out", str(tmp_path / "out")]):
+        assert cli.main(command) == 2
+        lines = [line for line in capsys.readouterr().err.splitlines() if "n_points" in line]
+        assert len(lines) == 1
+        assert ("model.n_points: a squirmer needs at least n_points = "
+                f"{SQUIRMER_MIN_POINTS} surface points") in lines[0]
+        assert "got 4" in lines[0]
+    assert not (tmp_path / "out").exists()
+    shipped = Path(__file__).resolve().parents[1] / "experiments" / "squirmer.toml"
+    assert cli.main(["check", str(shipped)]) == 0
+
+
+def test_the_squirmer_minimum_is_where_its_free_speed_starts_to_converge():
+    """docs/validation.md, "A squirmer's fewest points" (ε = 0.5 h): below the minimum the
+    free speed's error does not fall with more points and the surface's asymmetry drives a
+    sideways speed of over 1 % of U (B2 = 2 B1); from the minimum on the error falls with N and
+    the sideways speed is below 1 %."""
+    def motion(n):
+        shape = Sphere(1.0, n)  # the shipped ε rule: 0.5 x the largest gap
+        body = RigidBody(shape=shape, slip=Squirmer(1.0, 2.0), epsilon=0.5 * spacing(shape))
+        u = body.rates(0.0, body.initial_state())[0]
+        return u[0] / (2.0 / 3.0) - 1.0, math.hypot(u[1], u[2]) / u[0]
+
+    below = [motion(n) for n in (12, 20, 30)]
+    at, double = motion(SQUIRMER_MIN_POINTS), motion(2 * SQUIRMER_MIN_POINTS)
+    assert below[0][0] < below[1][0] < below[2][0]  # more points, a larger error
+    assert max(side for _, side in below) > 0.01
+    assert 0 < double[0] < at[0] < below[2][0]  # the error falls from the minimum on
+    assert at[1] < 0.01 and double[1] < 0.01
 
 
 def collinear():

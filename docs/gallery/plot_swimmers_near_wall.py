@@ -8,9 +8,10 @@ evaluation (docs/bodies.md, "Rigid and prescribed-motion bodies"):
 - a **squirmer** (``squirmer.toml``: Blake's B1 = 1 μm/s, a puller with B2 = 2 μm/s) started
   2.5 radii above the wall and tilted 20° toward it: it turns as it nears the wall and leaves it
   again;
-- a **bacterium** (``bacterium_wall.toml``: a prolate head and a right-handed helical flagellum
-  turning at 100 Hz, the head counter-rotating): near a wall the two rotations roll it sideways in
-  opposite directions and it swims in circles (Lauga et al. 2006), the tighter the closer it is.
+- a **bacterium** (``bacterium_wall.toml``: E. coli's left-handed helical flagellum turning
+  counter-clockwise seen from behind at 100 Hz, the head counter-rotating): near a wall the two
+  rotations roll it sideways in opposite directions and it swims in circles, clockwise seen from
+  above (Lauga et al. 2006), the tighter the closer it is.
 """
 
 # %%

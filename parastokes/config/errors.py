@@ -114,6 +114,8 @@ def _message(error: ErrorDetails, loc: tuple[Any, ...], data: Any) -> str:
         return f"unknown key ({hint})"
     if kind == "missing":
         return "required key is missing"
+    if kind == "value_error" and "error" in error.get("ctx", {}):
+        return str(error["ctx"]["error"])  # a validator's own message, which says what it got
     return f"{error['msg']} (got {_describe(error.get('input'))})"
 
 

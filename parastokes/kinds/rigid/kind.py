@@ -19,7 +19,7 @@ from collections.abc import Mapping, Sequence
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import Field
+from pydantic import Field, field_validator
 
 from ...core.contracts import StepFailure
 from ...registry.kinds import (
@@ -34,18 +34,31 @@ from ...registry.kinds import (
     point_layout,
 )
 from .coarse import coarse_shape
-from .shapes import MOTOR_RATE, Bacterium, Helix, PointCloud, Rod, Sphere, Spheroid, spacing
+from .shapes import (
+    MOTOR_RATE,
+    Bacterium,
+    Helix,
+    PointCloud,
+    Rod,
+    Sphere,
+    Spheroid,
+    spacing,
+)
 from .slip import Squirmer, UserSlip
 from .system import RigidBody
 
-__all__ = ["BACTERIUM", "RIGID", "SQUIRMER", "BacteriumModel", "RigidModel", "SquirmerModel",
-           "check_solvable"]
+__all__ = ["BACTERIUM", "RIGID", "SQUIRMER", "SQUIRMER_MIN_POINTS", "BacteriumModel", "RigidModel",
+           "SquirmerModel", "check_solvable"]
 
 Finite = Annotated[float, Field(allow_inf_nan=False)]
 #: Largest relative residual of the trial solve that ``check`` accepts.
 SOLVE_TOLERANCE = 1e-6
 #: Bytes per (surface point)² of a rigid body's factorization: M, (3N)² doubles, and its LU.
 DENSE_BYTES = 2 * 9 * 8
+#: Fewest surface points of a squirmer: below it the free speed is off Blake's 2 B1 / 3 by an
+#: amount that does not fall as points are added, and the points' asymmetry makes it drift
+#: sideways and turn (measured in docs/validation.md, "A squirmer's fewest points").
+SQUIRMER_MIN_POINTS = 50
 
 
 def _three(default: list[float], what: str) -> Any:
@@ -203,9 +216,20 @@ class SquirmerModel(RigidBase):
 
     kind: Literal["squirmer"] = Field(description='"squirmer" for a spherical squirmer.')
     radius: Positive = Field(1.0, description="Radius a (μm).")
-    n_points: int = Field(400, ge=4, description="Surface points.")
+    n_points: int = Field(400, description="Surface points, at least 50 (fewer cannot "
+                          "represent the slip: docs/validation.md).")
     b1: Finite = Field(1.0, description="First mode B1 (μm/s): free speed 2 B1 / 3.")
     b2: Finite = Field(0.0, description="Second mode B2 (μm/s): > 0 puller, < 0 pusher.")
+
+    @field_validator("n_points")
+    @classmethod
+    def _enough_points(cls, n: int) -> int:
+        if n < SQUIRMER_MIN_POINTS:
+            raise ValueError(
+                f"a squirmer needs at least n_points = {SQUIRMER_MIN_POINTS} surface points to "
+                f"represent its slip and its sphere, got {n} (its swimming speed and direction "
+                "would be wrong)")
+        return n
 
     def surface_shape(self) -> Sphere:
         return Sphere(self.radius, self.n_points)
@@ -216,7 +240,9 @@ class SquirmerModel(RigidBase):
 
 class BacteriumModel(RigidBase):
     """A head and a helical flagellum turning at ``motor_rate`` relative to it, free of force
-    and torque (the head counter-rotates)."""
+    and torque (the head counter-rotates); by default E. coli's: a left-handed flagellum turning
+    counter-clockwise seen from behind, so that it swims head first and, above a wall, circles
+    clockwise seen from above."""
 
     kind: Literal["bacterium"] = Field(description='"bacterium" for a head with a flagellum.')
     head: Literal["sphere", "spheroid"] = Field("spheroid", description="Head shape.")
@@ -227,10 +253,14 @@ class BacteriumModel(RigidBase):
     pitch: Positive = Field(2.0, description="Flagellum helix pitch (μm).")
     turns: Positive = Field(3.0, description="Flagellum turns.")
     tail_points: int = Field(100, ge=2, description="Points on the flagellum's centre line.")
-    handedness: Literal[1, -1] = Field(1, description="1 right-handed, -1 left-handed.")
+    handedness: Literal[1, -1] = Field(
+        -1, description="Flagellum helix: -1 left-handed (E. coli's), 1 right-handed.")
     gap: Positive = Field(0.25, description="Gap between the head's rear and the flagellum.")
-    motor_rate: Finite = Field(MOTOR_RATE, description="Flagellum's rotation rate about "
-                               "the body axis x relative to the head (rad/s).")
+    motor_rate: Finite = Field(MOTOR_RATE, description="Flagellum's rotation rate about the "
+                               "body axis x relative to the head (rad/s, right-hand rule; x "
+                               "points from the flagellum to the head): < 0 turns it "
+                               "counter-clockwise seen from behind the cell, as E. coli's motor "
+                               "in a run (with handedness = -1 it then swims head first).")
 
     def surface_shape(self) -> Bacterium:
         head: Sphere | Spheroid = (

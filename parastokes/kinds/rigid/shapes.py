@@ -16,7 +16,9 @@ origin.
   text file or a ``"module:function"`` that returns an (N, 3) array;
 - :class:`Bacterium`: a head (sphere or spheroid) and a helical flagellum behind it on the
   axis, the flagellum turning about x at ``motor_rate`` relative to the head (its phase φ is a
-  state column); the body frame is the head's.
+  state column); the body frame is the head's. Its default is E. coli's: a left-handed
+  flagellum turning counter-clockwise seen from behind (docs/bodies.md, "Bacterium: sign
+  conventions").
 
 A shape offers ``points(phase) -> (N, 3)``, ``moving(phase) -> (N, 3)`` (the surface velocity
 relative to the body frame of its own parts, e.g. a rotating flagellum; zero for a rigid
@@ -180,8 +182,10 @@ class Rod(_Rigid):
 
 def helix_line(radius: float, pitch: float, turns: float, n: int, handedness: int,
                start: float) -> np.ndarray:
-    """``n`` points evenly spaced in arc length on the helix (s, R cos ks, ±R sin ks), k = 2π/λ,
-    s from ``start`` over ``turns`` pitches (its axis along x)."""
+    """``n`` points evenly spaced in arc length on the helix (s, R cos ks, h R sin ks), k = 2π/λ,
+    h = ``handedness``, s from ``start`` over ``turns`` pitches (its axis along x). For h = 1
+    the curve turns counter-clockwise about +x as it advances along +x, a right-handed screw
+    (its torsion τ = h k / (1 + k²R²) is positive); h = -1 is its mirror image, left-handed."""
     s = start + np.linspace(0.0, turns * pitch, n)
     k = 2.0 * math.pi / pitch
     return np.stack([s, radius * np.cos(k * s), handedness * radius * np.sin(k * s)], axis=1)
@@ -255,21 +259,29 @@ class PointCloud(_Rigid):
         return load_points(self.source) if self.source else np.array(self.points_, dtype=float)
 
 
-#: The default motor rate of a bacterium, rad/s: 10 turns a second relative to its head (the
-#: class's and a configuration's default; experiments/bacterium_wall.toml sets E. coli's 100).
-MOTOR_RATE = 2.0 * math.pi * 10
+#: The default motor rate of a bacterium, rad/s: 10 turns a second relative to its head, about
+#: -e1 (counter-clockwise seen from behind the cell, E. coli's run; the class's and a
+#: configuration's default; experiments/bacterium_wall.toml sets 100 turns a second).
+MOTOR_RATE = -2.0 * math.pi * 10
+#: The default handedness of a bacterium's flagellum: -1, left-handed (E. coli's normal form).
+LEFT_HANDED = -1
 
 
 @dataclass(frozen=True)
 class Bacterium:
     """A ``head`` (a :class:`Sphere` or :class:`Spheroid` about the origin) and a helical
     flagellum (``tail``, a :class:`Helix` whose axis is the body's x axis) behind it: the
-    flagellum starts ``gap`` behind the head's rear (x = -axial - gap) and turns about x at
-    ``motor_rate`` (rad/s) relative to the head; the head counter-rotates so that the whole is
-    free of torque (the mobility solve finds Ω). The flagellum's rows follow the head's."""
+    flagellum starts ``gap`` behind the head's rear (x = -axial - gap) and turns relative to the
+    head at the angular velocity ``motor_rate`` e1 (rad/s, right-hand rule about the body axis
+    e1, which points from the flagellum to the head): ``motor_rate`` < 0 turns it
+    counter-clockwise seen from behind the cell (looking from the tail toward the head), as
+    E. coli's motor does in a run. The head counter-rotates so that the whole is free of torque
+    (the mobility solve finds Ω). The default, a left-handed flagellum at -2π·10 rad/s, is
+    E. coli's: it swims head first (along +e1). The flagellum's rows follow the head's; at phase
+    φ the flagellum is turned by φ about e1."""
 
     head: Sphere | Spheroid = Sphere(1.0, 200)
-    tail: Helix = Helix(0.25, 2.0, 3.0, 100)
+    tail: Helix = Helix(0.25, 2.0, 3.0, 100, LEFT_HANDED)
     gap: float = 0.25
     motor_rate: float = MOTOR_RATE
 
