@@ -20,7 +20,7 @@ Run from the repository root (the solves limit BLAS to the fluid's threads thems
   surfaces 2, 3 and 4 times coarser (``coarse.grid_factor``): γ_G / γ_F, iterations, errors,
   eq. 14 at 40 cores.
 - ``coarse_scene`` (not run by default): the same on the scene of
-  experiments/quick/scene_sphere_and_rod.toml (a rigid sphere of 150 points beside a rod of 31
+  experiments/scene_sphere_and_rod.toml (a rigid sphere of 150 points beside a rod of 31
   nodes; T = 4e-4 over 8 slices): :meth:`Scene.coarsened` coarsening both (the sphere's surface,
   the rod's nodes), and only the sphere (``coarse_bodies``).
 - ``parareal``: a bacterium near the wall (80 head points, a 40-point flagellum): the serial fine
@@ -172,8 +172,7 @@ QUICK_BACTERIUM = os.path.join(os.path.dirname(__file__), "..", "experiments", "
                                "bacterium_wall.toml")
 
 
-QUICK_SCENE = os.path.join(os.path.dirname(__file__), "..", "experiments", "quick",
-                           "scene_sphere_and_rod.toml")
+SCENE = os.path.join(os.path.dirname(__file__), "..", "experiments", "scene_sphere_and_rod.toml")
 
 
 def _points(system: object) -> int:
@@ -299,7 +298,7 @@ def main(argv: list[str] | None = None) -> None:
                                         [1, 2] if args.quick else [1, 2, 3, 4])
     if "coarse_scene" in args.sections:
         lines += coarse_surface_section(2e-4 if args.quick else 4e-4, 4 if args.quick else 8,
-                                        [1, 2] if args.quick else [1, 2, 3], QUICK_SCENE,
+                                        [1, 2] if args.quick else [1, 2, 3], SCENE,
                                         only=("sphere",), interleave=True)
     lines.append(f"load average after: {os.getloadavg()[0]:.2f}")
     text = "\n".join(lines)

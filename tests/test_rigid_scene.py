@@ -190,3 +190,23 @@ def test_the_flow_at_a_rigid_surface_is_its_prescribed_motion():
     r = scene.rates(0.0, y)
     np.testing.assert_allclose(flow.velocity(scene, y, y[7:, :3]), r[7:, :3], atol=1e-8)
     np.testing.assert_allclose(flow.velocity(scene, y, y[:6, :3]), r[:6, :3], atol=1e-12)
+
+
+def test_the_quick_sphere_and_rod_scene_shows_the_sphere_sedimenting(tmp_path):
+    """Its comment's physics: the sphere falls at most of its Stokes speed F / (6 pi mu a) in every
+    frame interval (the wall and the rod's flow take the rest), rather than being carried up by the
+    rod's switch-on flow as with the full run's force over so short a time."""
+    import h5py
+
+    path = Path(__file__).parents[1] / "experiments" / "quick" / "scene_sphere_and_rod.toml"
+    cfg, _ = config.load(path)
+    scene = cfg.model
+    sphere_table = scene.bodies[scene.names.index("sphere")]
+    stokes = -sphere_table.force[2] / (6 * math.pi * scene.viscosity * sphere_table.radius)
+    assert cli.main(["run", str(path), "--out", str(tmp_path / "run"), "--set",
+                     "run.mode=serial"]) == 0
+    with h5py.File(tmp_path / "run" / "trajectory.h5") as f:
+        t, z = f["serial/time"][:], f["serial/sphere_center/positions"][:, 0, 2]
+    fall = -np.diff(z) / np.diff(t)
+    assert len(fall) >= 4
+    assert np.all((0.75 * stokes < fall) & (fall < stokes))

@@ -20,15 +20,15 @@ from parastokes.kinds.chain import ChainSystem
 from parastokes.kinds.rigid import RigidBody, Sphere
 from parastokes.scene import Scene
 
-QUICK = Path(__file__).resolve().parents[1] / "experiments" / "quick"
+EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
 N_SLICES = 4
 
 
 @pytest.fixture(scope="module")
 def quick_scene():
-    """The sphere (150 points) and the rod (31 nodes) of the quick scene, the rod bent by 20 fine
+    """The sphere (150 points) and the rod (31 nodes) of the scene, the rod bent by 20 fine
     steps (the wave switched on), as a state of the fine scene."""
-    cfg, _ = config.load(QUICK / "scene_sphere_and_rod.toml")
+    cfg, _ = config.load(EXPERIMENTS / "scene_sphere_and_rod.toml")
     scene = cfg.model.build(1)
     x = integrate.propagate(scene, scene.initial_state(), 0.0, 2e-5, "rk2", 1e-6)
     return scene, x
@@ -67,7 +67,7 @@ def test_the_coarse_scene_coarsens_each_body_and_keeps_the_others():
 
 
 def test_a_scene_config_with_a_grid_factor_resolves_the_coarse_rows():
-    quick = QUICK / "scene_sphere_and_rod.toml"
+    quick = EXPERIMENTS / "scene_sphere_and_rod.toml"
     _, resolved = config.load(quick, ["coarse.grid_factor=2"])
     assert (resolved.n_points, resolved.coarse_points) == (31 + 151, 16 + 76)
     cfg, resolved = config.load(quick, ["coarse.grid_factor=3",
