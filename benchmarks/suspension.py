@@ -4,7 +4,7 @@
 Run from the repository root, one kernel thread (the solves limit BLAS to the kernels' count)::
 
     NUMBA_NUM_THREADS=1 PYTHONPATH=. python benchmarks/suspension.py \
-        [--parts scaling scene64 coarse] [--counts 1 10 100 1000] [--points 42] \
+        [--parts scaling scene64 coarse rods] [--counts 1 10 100 1000] [--points 42] \
         [--fraction 0.05] [--rounds 3] [--json PATH]
 
 (scaling) B spheres of radius 1 and ``--points`` surface points sedimenting above the wall, placed
@@ -26,6 +26,10 @@ Run from the repository root, one kernel thread (the solves limit BLAS to the ke
     of its unit rigid motions alone with the motions), on the 12 B vectors of those forces and
     motions apart, and on each body's five strain modes (the blocks' response to a straining
     flow E (x - c) on it alone).
+(rods) 1, 5, 10 and 25 rods of 51 points above the wall (experiments/rods_25.toml with
+    ``model.n_rods``): one rate evaluation (the rods' forces, one product of the fluid operator
+    for u and w from f and n, the rods' frames; no solve), least of ``--rounds``, and its peak
+    allocation (tracemalloc) per point.
 """
 
 from __future__ import annotations
@@ -228,9 +232,35 @@ def coarse_corrections(points: int = 42, side: int = 3, spacing: float = 3.0) ->
     }
 
 
+RODS_25 = "experiments/rods_25.toml"
+
+
+def rods(counts: list[int], rounds: int) -> list[dict]:
+    """One rate evaluation of ``n`` rods of experiments/rods_25.toml for each ``n`` in
+    ``counts``: its CPU time (least of ``rounds``), points and peak allocation."""
+    out = []
+    for count in counts:
+        cfg, resolved = config.load(RODS_25, [f"model.n_rods={count}", "execution.threads=1"])
+        system = config.build_system(cfg, resolved)
+        x0 = system.initial_state()
+        system.rates(0.0, x0)  # compiled
+        best = cpu_best(lambda s=system, x=x0: s.rates(0.0, x), rounds)
+        tracemalloc.start()
+        system.rates(0.0, x0)
+        peak = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+        points = len(system.positions(x0))
+        row = {"rods": count, "points": points, "evaluation_s": best, "peak_bytes": peak,
+               "bytes_per_point": peak / points, "per_point_squared_ns": best / points**2 * 1e9}
+        out.append(row)
+        print(f"    {count:4d} | {points:6d} | {best * 1e3:9.3f} | {peak / 2**20:8.2f} | "
+              f"{peak / points:7.0f} | {row['per_point_squared_ns']:6.2f}", flush=True)
+    return out
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--parts", nargs="+", choices=("scaling", "scene64", "coarse"),
+    parser.add_argument("--parts", nargs="+", choices=("scaling", "scene64", "coarse", "rods"),
                         default=["scaling", "scene64", "coarse"])
     parser.add_argument("--counts", nargs="+", type=int, default=[1, 10, 100, 1000])
     parser.add_argument("--points", type=int, default=42)
@@ -255,6 +285,10 @@ def main() -> None:
         print(f"(coarse) {c['bodies']} spheres, GMRES iterations to 1e-10: blocks alone "
               f"{c['jacobi']}, + rigid modes [Z; I] {c['rigid_modes']}, + forces and motions "
               f"apart {c['rigid_apart']}, + strain modes {c['strain']}")
+    if "rods" in args.parts:
+        print("(rods) rods of 51 points above the wall (experiments/rods_25.toml); CPU, one thread")
+        print("    rods | points | evaluation (ms) | peak MiB | B/point | ns per point pair")
+        out["rods"] = rods([1, 5, 10, 25], max(args.rounds, 5))
     if args.json:
         with open(args.json, "w") as fh:
             json.dump(out, fh, indent=1)
