@@ -313,18 +313,23 @@ class TrajectoryWriter:
             raise ValueError(f"run must be one of {RUNS}, got {run!r}")
         state = np.asarray(state, dtype=float)
         motion = None if self.rates is None else np.asarray(self.rates(float(t), state), float)
-        group = self.file.require_group(run)
-        self._extend(group, "time", np.asarray(float(t)))
+        frame: list[tuple[str, dict[str, np.ndarray]]] = []  # (all of it, before any is written)
         for layout in self.layout:
-            body = group.require_group(layout.name)
             rows = slice(layout.first, layout.first + layout.rows)
             part = state[rows]
-            self._extend(body, "positions", np.ascontiguousarray(part[:, :3]))
+            data = {"positions": np.ascontiguousarray(part[:, :3])}
             for label, columns in layout.vectors.items():
-                self._extend(body, label, np.ascontiguousarray(part[:, columns]))
+                data[label] = np.ascontiguousarray(part[:, columns])
             for label, columns in layout.rate_vectors.items():
                 assert motion is not None  # (required by __init__ when a body has rate_vectors)
-                self._extend(body, label, _rate_columns(motion, rows, columns, layout.name, label))
+                data[label] = _rate_columns(motion, rows, columns, layout.name, label)
+            frame.append((layout.name, data))
+        group = self.file.require_group(run)
+        self._extend(group, "time", np.asarray(float(t)))
+        for name, data in frame:
+            body = group.require_group(name)
+            for label, value in data.items():
+                self._extend(body, label, value)
         self._flush()
 
     def write_history(self, history: HistoryRecord) -> None:
