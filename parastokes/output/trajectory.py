@@ -395,8 +395,8 @@ def read_history(path: str | os.PathLike) -> dict[str, Any] | None:
 
 def read_trajectory(path: str | os.PathLike, run: str | None = None) -> dict[str, Any]:
     """Frames of one run of a ``trajectory.h5``: ``{"run", "kind", "time", "bodies": {name:
-    {"kind", "positions", "connectivity", marks ("tracked"), node vectors ("D1"...)}},
-    "config"}``.
+    {"kind", "positions", "connectivity", marks ("tracked"), node vectors ("D1"..., a rigid
+    centre's "orientation", "phase", "velocity", "angular_velocity")}}, "config"}``.
 
     ``run`` defaults to ``"parareal"`` when present, else ``"serial"``. A file that lacks a
     dataset, holds no frames, or whose frames disagree with its times or are not finite raises
