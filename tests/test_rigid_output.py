@@ -68,7 +68,8 @@ def _run(directory, text):
                                           dt=0.01))
     layout = cfg.model.layout(system, cfg.output.frames, None)
     with io.TrajectoryWriter(directory / "trajectory.h5", layout,
-                             config=config.resolved_dict(cfg, resolved)) as writer:
+                             config=config.resolved_dict(cfg, resolved),
+                             rates=system.rates) as writer:
         for t, x in zip(times, states, strict=True):
             writer.append("serial", t, x)
     return system, times, states

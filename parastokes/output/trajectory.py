@@ -5,7 +5,9 @@
 - ``/<run>/time``: the frame times, shape (F,);
 - ``/<run>/<body>/positions``: one extendible dataset per body, shape (F, M, 3), appended frame by
   frame (a serial run writes as it goes), and the body's node vectors, e.g. a rod's frames ``D1``,
-  ``D2``, ``D3`` (F, M, 3);
+  ``D2``, ``D3`` (F, M, 3), a rigid centre's pose ``orientation`` (F, 1, 4) and ``phase``
+  (F, 1, 1), and its motion at the frame, which the state does not hold, from the system's rates
+  at the frame: ``velocity`` U and ``angular_velocity`` Ω (F, 1, 3);
 
 and once per file:
 
@@ -33,7 +35,7 @@ import json
 import math
 import os
 import xml.etree.ElementTree as ET
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -196,8 +198,12 @@ class TrajectoryWriter:
     """Writes ``trajectory.h5``: frames of one or more runs, the history, all parameters.
 
     ``layout`` gives every body of the state: its rows, node vectors, topology and marks (from its
-    kind, :mod:`parastokes.registry.kinds`). Datasets are created on first use and extended frame
-    by frame; the file is flushed after every frame, so an interrupted run leaves a readable file.
+    kind, :mod:`parastokes.registry.kinds`). ``rates``: the system's ``rates(t, state)``, which
+    the node vectors of a body's motion (its layout's ``rate_vectors``, e.g. a rigid body's
+    ``velocity`` and ``angular_velocity``) are columns of; evaluated once per frame, and only when
+    a body has such vectors (then it is required). Datasets are created on first use and extended
+    frame by frame; the file is flushed after every frame, so an interrupted run leaves a readable
+    file.
     """
 
     def __init__(
@@ -206,9 +212,20 @@ class TrajectoryWriter:
         layout: Sequence[BodyLayout],
         *,
         config: Mapping[str, Any],
+        rates: Callable[[float, np.ndarray], np.ndarray] | None = None,
     ) -> None:
         if not layout:
             raise ValueError("layout: need at least one body")
+        for body in layout:
+            labels = ["positions", *body.vectors, *body.rate_vectors]
+            twice = sorted({label for label in labels if labels.count(label) > 1})
+            if twice:
+                raise ValueError(f"body {body.name!r}: its node vectors {twice} are named twice "
+                                 "(positions, vectors and rate_vectors share the body's group)")
+        moving = [body.name for body in layout if body.rate_vectors]
+        if moving and rates is None:
+            raise ValueError(f"bodies {moving} write node vectors of their motion (rate_vectors): "
+                             "pass the system's rates, rates=system.rates")
         names = [body.name for body in layout]
         bad = sorted({n for n in names
                       if names.count(n) > 1 or "/" in n or n in RESERVED_NAMES or not n})
@@ -220,6 +237,7 @@ class TrajectoryWriter:
             )
         self.path = Path(path)
         self.layout = list(layout)
+        self.rates = rates if moving else None
         # the run directory's lock (parastokes.output.rundir) keeps other runs out: HDF5's own file
         # locking, which many cluster file systems do not support, is not needed
         # written through a GuardedFile: a full disk or a file-size limit raises FileWriteError
@@ -294,14 +312,24 @@ class TrajectoryWriter:
         if run not in RUNS:
             raise ValueError(f"run must be one of {RUNS}, got {run!r}")
         state = np.asarray(state, dtype=float)
+        motion = None if self.rates is None else np.asarray(self.rates(float(t), state), float)
+        frame: list[tuple[str, dict[str, np.ndarray]]] = []  # (all of it, before any is written)
+        for layout in self.layout:
+            rows = slice(layout.first, layout.first + layout.rows)
+            part = state[rows]
+            data = {"positions": np.ascontiguousarray(part[:, :3])}
+            for label, columns in layout.vectors.items():
+                data[label] = np.ascontiguousarray(part[:, columns])
+            for label, columns in layout.rate_vectors.items():
+                assert motion is not None  # (required by __init__ when a body has rate_vectors)
+                data[label] = _rate_columns(motion, rows, columns, layout.name, label)
+            frame.append((layout.name, data))
         group = self.file.require_group(run)
         self._extend(group, "time", np.asarray(float(t)))
-        for layout in self.layout:
-            body = group.require_group(layout.name)
-            part = state[layout.first : layout.first + layout.rows]
-            self._extend(body, "positions", np.ascontiguousarray(part[:, :3]))
-            for label, columns in layout.vectors.items():
-                self._extend(body, label, np.ascontiguousarray(part[:, columns]))
+        for name, data in frame:
+            body = group.require_group(name)
+            for label, value in data.items():
+                self._extend(body, label, value)
         self._flush()
 
     def write_history(self, history: HistoryRecord) -> None:
@@ -324,6 +352,18 @@ class TrajectoryWriter:
             group.create_dataset(key, data=np.asarray(history.timings.get(key, []), dtype=float))
         group.attrs["timings"] = json.dumps(_plain(history.timings))
         self._flush()
+
+
+def _rate_columns(rates: np.ndarray, rows: slice, columns: slice, body: str,
+                  label: str) -> np.ndarray:
+    """``rates[rows, columns]`` (one body's node vector of its motion); ValueError naming it when
+    the rates have too few rows or columns."""
+    value = rates[rows, columns] if rates.ndim == 2 else None
+    if value is None or value.shape != (rows.stop - rows.start, columns.stop - columns.start):
+        raise ValueError(f"body {body!r}: its {label} is columns {columns.start}:{columns.stop} "
+                         f"of rows {rows.start}:{rows.stop} of the rates, which have shape "
+                         f"{rates.shape}")
+    return np.ascontiguousarray(value)
 
 
 @dataclass
@@ -355,8 +395,8 @@ def read_history(path: str | os.PathLike) -> dict[str, Any] | None:
 
 def read_trajectory(path: str | os.PathLike, run: str | None = None) -> dict[str, Any]:
     """Frames of one run of a ``trajectory.h5``: ``{"run", "kind", "time", "bodies": {name:
-    {"kind", "positions", "connectivity", marks ("tracked"), node vectors ("D1"...)}},
-    "config"}``.
+    {"kind", "positions", "connectivity", marks ("tracked"), node vectors ("D1"..., a rigid
+    centre's "orientation", "phase", "velocity", "angular_velocity")}}, "config"}``.
 
     ``run`` defaults to ``"parareal"`` when present, else ``"serial"``. A file that lacks a
     dataset, holds no frames, or whose frames disagree with its times or are not finite raises

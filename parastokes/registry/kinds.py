@@ -175,7 +175,11 @@ class BodyLayout:
     """One body's rows of the state and how to write and show them.
 
     ``first``/``rows``: its rows of the state (positions in the columns 0-2); ``vectors``: further
-    node vectors by name (column slices, e.g. a rod's frames ``D1`` = 3:6); ``cells`` and
+    node vectors by name (column slices, e.g. a rod's frames ``D1`` = 3:6); ``rate_vectors``: node
+    vectors of its motion by name, column slices of its rows of the system's rates
+    ``rates(t, state)`` at the frame (a rigid centre's ``velocity`` U = 0:3 and
+    ``angular_velocity`` Ω = 3:6), which the state does not hold: the writer evaluates the rates
+    once per frame for all bodies (in a scene the coupled solve gives every body's); ``cells`` and
     ``topology``: the XDMF topology (``"Polyline"``, ``"Triangle"``, ``"Polyvertex"``) and its
     connectivity; ``marks``: static per-node integer arrays (e.g. ``tracked``).
     """
@@ -188,6 +192,7 @@ class BodyLayout:
     cells: np.ndarray
     vectors: Mapping[str, slice] = field(default_factory=dict)
     marks: Mapping[str, np.ndarray] = field(default_factory=dict)
+    rate_vectors: Mapping[str, slice] = field(default_factory=dict)
 
 
 def point_layout(name: str, kind: str, first: int, rows: int) -> BodyLayout:

@@ -57,7 +57,8 @@ def check_room(setup: Setup, writer: io.TrajectoryWriter) -> None:
     frames, parts = _frame_plan(setup)
     runs = 2 if setup.config.run.mode == "both" else 1
     count = runs * (len(frames) + (parts - 1) * setup.config.parareal.n_slices)
-    columns = sum(body.rows * (3 + sum(c.stop - c.start for c in body.vectors.values()))
+    columns = sum(body.rows * (3 + sum(c.stop - c.start for c in body.vectors.values())
+                               + sum(c.stop - c.start for c in body.rate_vectors.values()))
                   for body in writer.layout)
     # its header as written, and the frames' data: a lower bound on the file's size
     needed = writer.path.stat().st_size + 8.0 * count * columns
@@ -113,6 +114,7 @@ def append_frames(
 def trajectory_writer(
     cfg: Config, setup: Setup, conf: dict[str, Any], out: Path
 ) -> io.TrajectoryWriter:
-    """The trajectory writer of the layout that the body's kind gives (registry)."""
+    """The trajectory writer of the layout that the body's kind gives (registry); the node
+    vectors of a body's motion (a rigid body's U and Ω) from the system's rates at each frame."""
     layout = cfg.model.layout(setup.system, cfg.output.frames, cfg.output.tracked_points)
-    return io.TrajectoryWriter(out / TRAJECTORY, layout, config=conf)
+    return io.TrajectoryWriter(out / TRAJECTORY, layout, config=conf, rates=setup.system.rates)

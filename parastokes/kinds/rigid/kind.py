@@ -276,13 +276,20 @@ class BacteriumModel(RigidBase):
 def layout(section: Any, system: RigidBody, frames: bool,
            tracked: Sequence[int] | None) -> list[BodyLayout]:
     """The centre (row 0, with the quaternion and the phase of the pose as node data: written
-    whatever ``frames`` says, since the state cannot be rebuilt without them) and the surface
-    (rows 1..M), each a cloud of points."""
+    whatever ``frames`` says, since the state cannot be rebuilt without them; and the body's
+    motion at the frame, its ``velocity`` U and ``angular_velocity`` Ω, the columns 0:3 and 3:6
+    of the rates' row 0, which the state does not hold) and the surface (rows 1..M), each a cloud
+    of points."""
     kind = system_kind(section)
     center = point_layout("center", kind, 0, 1)
     pose = {"orientation": slice(3, 7), "phase": slice(7, 8)}
-    return [dataclasses.replace(center, vectors=pose),
+    return [dataclasses.replace(center, vectors=pose, rate_vectors=MOTION),
             point_layout("surface", kind, 1, system.n_surface)]
+
+
+#: The centre's motion written with every frame: U and Ω, columns of the rates' row 0
+#: (:class:`~.system.RigidBody`'s ``rates``).
+MOTION = {"velocity": slice(0, 3), "angular_velocity": slice(3, 6)}
 
 
 def system_kind(section: Any) -> str:

@@ -12,6 +12,8 @@
 
 **Rates**, (1 + M, 7): row 0 ``[U, Ω, dφ/dt]``, rows 1..M the velocity of each surface point,
 U + Ω × (x − c) + its prescribed surface velocity (informative: ``advance`` does not use them).
+The trajectory writes U and Ω of every frame from row 0 (the kind's layout: ``velocity`` and
+``angular_velocity`` of the centre), since the state holds the pose only.
 Each evaluation solves the mobility problem (:func:`.solve.mobility`): the surface forces and
 (U, Ω) such that the surface moves with the body plus its slip and the forces balance the
 external force and torque (the augmented system of Khatri & Cortez).
