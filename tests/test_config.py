@@ -326,3 +326,21 @@ def test_adaptive_coarse_solvers_are_keys_checked_before_any_work():
         "coarse.richardson.r=0.5")["coarse.rtol"]
     assert issues_of(VESICLE, "coarse.atol=1e-3")["coarse.rtol"] == (
         "required with atol (adaptive steps)")
+
+
+def test_a_serial_mode_run_without_threads_evaluates_on_every_core(monkeypatch):
+    """No workers share the cores of a run of run.mode = "serial": unless execution.threads says
+    otherwise, its system's kernels use them all, and give the numbers of one thread."""
+    from parastokes.config import checks
+
+    monkeypatch.setattr(checks, "available_cores", lambda: 2)
+    serial = small_rod(model="epsilon = 5", rest='[run]\nmode = "serial"\n')
+    cfg, resolved = config.loads(serial)
+    assert resolved.threads == 2 and config.build_system(cfg, resolved).fluid.n_threads == 2
+    one_cfg, one = config.loads(serial + "[execution]\nthreads = 1\n")
+    assert one.threads == 1 and config.build_system(one_cfg, one).fluid.n_threads == 1
+    assert config.loads(BASE)[1].threads == 1  # Parareal's workers occupy the cores
+    systems = [config.build_system(cfg, resolved), config.build_system(one_cfg, one)]
+    x0 = systems[0].initial_state()
+    two_threads, one_thread = (s.rates(0.0, x0) for s in systems)
+    np.testing.assert_array_equal(two_threads, one_thread)

@@ -78,6 +78,15 @@ class Resolved:
     workers: int | None
     warnings: list[str] = field(default_factory=list)
     weight_sum: float = 1.0
+    threads: int = 1
+
+
+def kernel_threads(cfg: Config) -> int:
+    """The kernel threads of the system this process builds: ``execution.threads``, or, for a
+    run of ``run.mode = "serial"`` that does not set it, every available core (no workers share
+    them then; the kernels give the same numbers on any thread count)."""
+    given = "threads" in cfg.execution.model_fields_set
+    return cfg.execution.threads if given or cfg.run.mode != "serial" else available_cores()
 
 
 def steps_on_slice(slice_length: float, dt: float, path: str, what: str,
@@ -321,6 +330,7 @@ def resolve(cfg: Config, source: str = "") -> Resolved:
         fine_steps=fine_steps,
         workers=workers,
         warnings=warnings,
+        threads=kernel_threads(cfg),
         **asdict(coarse),
     )
 

@@ -130,7 +130,8 @@ class Execution(_Section):
         description="Workers; default: min(n_slices, available cores // threads) (mpi: all "
         "ranks; gpu: the most solves per batch, default max(n_slices, N_G)).",
     )
-    threads: int = Field(1, ge=1, description="Kernel threads per worker (spatial parallelism).")
+    threads: int = Field(1, ge=1, description="Kernel threads per worker (spatial parallelism); "
+                         'unset, a run of run.mode = "serial" uses every available core.')
     allow_oversubscribe: bool = Field(
         False,
         description="Allow more auxiliary coarse solvers N_G than workers, run in batches (the "
