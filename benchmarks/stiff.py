@@ -360,7 +360,7 @@ def figure() -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    parts = [p for p in ("rod", "vesicle") if (OUT / f"{p}.json").exists()]
+    parts = [p for p in ("rod", "rod601", "vesicle") if (OUT / f"{p}.json").exists()]
     if not parts:
         return
     fig, axes = plt.subplots(1, len(parts), figsize=(5.5 * len(parts), 4.2), squeeze=False)
@@ -376,11 +376,14 @@ def figure() -> None:
                 if not pts:
                     continue
                 label = f"{scheme} (A every {every})" if implicit and every == 1 else scheme
-                ax.loglog(*zip(*pts, strict=True), "-o" if implicit else "--s", label=label)
+                style = ":o" if implicit and every == 1 else "-o" if implicit else "--s"
+                ax.loglog(*zip(*pts, strict=True), style, label=label,
+                          color=f"C{list(integrate.SCHEMES).index(scheme)}")
         ax.xaxis.set_minor_formatter(plt.NullFormatter())
         ax.set_xlabel("CPU time (s, one thread)")
         ax.set_ylabel("error at T (relative)")
         ax.set_title({"rod": "rod M = 301 above the wall, T = 0.05 s",
+                      "rod601": "rod M = 601 above the wall, T = 0.01 s",
                       "vesicle": "vesicle 642 points in shear, T = 10"}[part])
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8)
