@@ -16,11 +16,18 @@ what is compared is the interaction.
 2. A horizontal row of ``count`` spheres ``spacing`` apart, falling across it: each sphere's
    speed against the Rotne–Prager sum, and for two spheres against the two-sphere mobility
    functions (:func:`parastokes.mobility.two_spheres.pair_mobility`).
+3. The circulation inside a cloud: relative to the cloud, its spheres move as the inside of a
+   Hadamard–Rybczynski drop of viscosity ratio 1 (:func:`drop_flow`); each sphere's velocity
+   less the mean regressed on it (:func:`circulation`).
+4. The cloud in time (``--tail``): 100 spheres falling some 25 cloud radii (RK2; the spheres
+   kept apart by a short-range :func:`repulsion`), where the spheres that leave it go
+   (:func:`tail_shape`; Nitsche & Batchelor: from its rear into a vertical tail).
 
 Usage (from the repository root): ``python -m validation.many_bodies [--full] [--toml]``: the
 tables of docs/validation.md (``--full``: also the sizes of the slow tests; half a minute, two
 minutes with ``--full`` on an idle core); ``--toml``: the values of docs/numbers.toml's
-[many_cloud] and [many_row] instead.
+[many_cloud], [many_row] and [many_circulation] instead. ``--tail [--until T]``: the cloud in
+time (about 10 minutes of CPU), written to docs/figures/cloud_tail.json and cloud_tail.png.
 """
 
 from __future__ import annotations
@@ -245,7 +252,7 @@ def tail_shape(centers: np.ndarray, radius: float) -> dict:
     have left it; each of those lies above (behind: within 45° of the upward vertical through
     the centroid), below (ahead) or beside. Also the cloud's shape: the rms vertical offset over
     the rms horizontal one (1 for a ball, below 1 oblate), and the least distance between two
-    centres (2 at contact)."""
+    centres (2 at contact). ``highest``: the farthest sphere above the centroid, over R."""
     inside = np.ones(len(centers), dtype=bool)
     for _ in range(50):
         middle = centers[inside].mean(axis=0)
@@ -269,33 +276,40 @@ def tail_shape(centers: np.ndarray, radius: float) -> dict:
 
 
 def tail(count: int = 100, radius: float = 12.0, seed: int = 1, until: float = 30.0,
-         every: float = 2.5, dt: float = 0.05, path: Path | None = None) -> dict:
+         every: float = 2.5, dt: float = 0.05, path: Path | None = None,
+         resume: dict | None = None) -> dict:
     """The cloud of ``count`` spheres falling until ``until`` a/U_0 (:func:`fall`), and
     :func:`tail_shape` every ``every``: the distance fallen in R, how many spheres have left
     and where. Also the circulation over the first ``every`` (:func:`circulation` of the
     displacements over the time). With ``path``, the summary is written there (JSON) after
-    every record."""
-    times = list(np.arange(0.0, until + every / 2, every))
-    summary: dict = {"count": count, "radius": radius, "seed": seed, "dt": dt, "reach":
-                     TAIL_REACH, "repulsion": [REPULSION_RANGE, REPULSION_FORCE], "times": [],
-                     "records": [], "seconds": []}
-    start = time.process_time()
-    centres: list[np.ndarray] = []
+    every record; ``resume``: such a summary to go on from (its last state and time, the same
+    steps as one run)."""
+    summary: dict = resume or {
+        "count": count, "radius": radius, "seed": seed, "dt": dt,
+        "reach": TAIL_REACH, "repulsion": [REPULSION_RANGE, REPULSION_FORCE], "times": [],
+        "records": [], "seconds": []}
+    begin = summary["times"][-1] if resume else 0.0
+    times = list(np.arange(begin, until + every / 2, every))
+    offset = len(summary["times"]) - 1 if resume else 0
+    cpu = time.process_time() - (summary["seconds"][-1] if resume else 0.0)
 
     def record(i: int, x: np.ndarray) -> None:
-        centres.append(x)
+        if resume and i == 0:
+            return
+        first = np.array(summary.get("first", x))
         shape = tail_shape(x, radius)
-        shape["fallen"] = float(centres[0][:, 2].mean() - shape["centroid"][2]) / radius
+        shape["fallen"] = float(first[:, 2].mean() - shape["centroid"][2]) / radius
         summary["times"].append(times[i])
         summary["records"].append(shape)
-        summary["seconds"].append(time.process_time() - start)
-        if i == 1:
-            summary["circulation"] = circulation(centres[0], (x - centres[0]) / times[1])
+        summary["seconds"].append(time.process_time() - cpu)
+        if i + offset == 1:
+            summary["circulation"] = circulation(first, (x - first) / times[i])
+        summary["first"], summary["last"] = first.tolist(), x.tolist()
         if path is not None:
-            summary["first"], summary["last"] = centres[0].tolist(), x.tolist()
-            path.write_text(json.dumps(summary, indent=1) + "\n")
+            path.write_text(json.dumps(summary) + "\n")
 
-    fall(cloud_centers(count, radius, seed), times, dt, report=record)
+    x0 = np.array(resume["last"]) if resume else cloud_centers(count, radius, seed)
+    fall(x0, times, dt, report=record)
     return summary
 
 
@@ -419,16 +433,20 @@ def main() -> None:
                         help="the 100-sphere cloud falling (about 10 minutes): the step check, "
                         "docs/figures/cloud_tail.json and .png, the table")
     parser.add_argument("--until", type=float, default=30.0, help="--tail: the time in a/U_0")
+    parser.add_argument("--resume", action="store_true",
+                        help="--tail: go on from docs/figures/cloud_tail.json to --until")
     args = parser.parse_args()
     if args.tail:
         figures = Path(__file__).resolve().parents[1] / "docs" / "figures"
-        check = step_check()
+        path = figures / "cloud_tail.json"
+        before = json.loads(path.read_text()) if args.resume else None
+        check = before["step_check"] if args.resume else step_check()
         print(f"step check over {check['span']:g} a/U_0: dt = {check['dt']:g} against "
               f"{check['dt'] / 2:g}: {check['difference']:.2e} a apart, relative motion "
               f"{check['relative_motion']:.3f} a", flush=True)
-        summary = tail(until=args.until, path=figures / "cloud_tail.json")
+        summary = tail(until=args.until, path=path, resume=before)
         summary["step_check"] = check
-        (figures / "cloud_tail.json").write_text(json.dumps(summary, indent=1) + "\n")
+        path.write_text(json.dumps(summary) + "\n")
         plot_tail(summary, figures / "cloud_tail.png")
         print_table(TAIL_COLUMNS, {"time": summary["times"], **{
             key: [r[key] for r in summary["records"]] for key in summary["records"][0]}})
