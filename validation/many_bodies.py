@@ -298,7 +298,8 @@ def tail(count: int = 100, radius: float = 12.0, seed: int = 1, until: float = 3
             return
         first = np.array(summary.get("first", x))
         shape = tail_shape(x, radius)
-        shape["fallen"] = float(first[:, 2].mean() - shape["centroid"][2]) / radius
+        top = summary["records"][0]["centroid"][2] if summary["records"] else shape["centroid"][2]
+        shape["fallen"] = (top - shape["centroid"][2]) / radius
         summary["times"].append(times[i])
         summary["records"].append(shape)
         summary["seconds"].append(time.process_time() - cpu)
@@ -392,7 +393,7 @@ def plot_tail(summary: dict, path: Path) -> None:
     import matplotlib.pyplot as plt
 
     radius = summary["radius"]
-    fig, axes = plt.subplots(1, 2, figsize=(7.0, 4.2), sharex=True, sharey=True)
+    fig, axes = plt.subplots(1, 2, figsize=(4.6, 5.0), sharex=True, sharey=True)
     for ax, key, i in zip(axes, ("first", "last"), (0, -1), strict=True):
         x = np.array(summary[key]) - summary["records"][i]["centroid"]
         left = np.linalg.norm(x, axis=1) > TAIL_REACH * radius
@@ -402,8 +403,8 @@ def plot_tail(summary: dict, path: Path) -> None:
         ax.add_patch(plt.Circle((0, 0), TAIL_REACH, fill=False, ls="--", color="0.5"))
         ax.set_aspect("equal")
         ax.set_xlabel("x / R")
-        ax.set_title(f"t = {summary['times'][i]:g} a/U₀, fallen "
-                     f"{summary['records'][i]['fallen']:.1f} R")
+        ax.set_title(f"t = {summary['times'][i]:g} a/U₀\nfallen "
+                     f"{summary['records'][i]['fallen']:.1f} R", fontsize=10)
     axes[0].set_ylabel("z / R (up; gravity down)")
     fig.tight_layout()
     fig.savefig(path, dpi=90)
