@@ -19,7 +19,7 @@ what is compared is the interaction.
 3. The circulation inside a cloud: relative to the cloud, its spheres move as the inside of a
    Hadamard–Rybczynski drop of viscosity ratio 1 (:func:`drop_flow`); each sphere's velocity
    less the mean regressed on it (:func:`circulation`).
-4. The cloud in time (``--tail``): 100 spheres falling some 25 cloud radii (RK2; the spheres
+4. The cloud in time (``--tail``): 100 spheres falling some 28 cloud radii (RK2; the spheres
    kept apart by a short-range :func:`repulsion`), where the spheres that leave it go
    (:func:`tail_shape`; Nitsche & Batchelor: from its rear into a vertical tail).
 
@@ -215,16 +215,16 @@ def repulsion(centers: np.ndarray) -> np.ndarray:
     r = np.linalg.norm(d, axis=-1)
     np.fill_diagonal(r, np.inf)
     push = REPULSION_FORCE * np.clip(1 - (r - 2.0) / REPULSION_RANGE, 0.0, None) ** 2
-    push[r == np.inf] = 0.0
     return np.einsum("ij,ijk->ik", push / r, d)
 
 
 def fall(centers: np.ndarray, times: Sequence[float], dt: float, n: int = 42,
          report=None) -> list[np.ndarray]:
     """The sphere centres (m, 3) of a cloud starting at ``centers`` at ``times`` (in a/U_0, the
-    first 0) as it falls: RK2 (Heun) steps of about ``dt`` a/U_0, each sphere of ``n`` points
-    moved by the mobility solve of all under its weight -e_z and :func:`repulsion`
-    (:func:`velocities`). ``report(i, centres)`` is called as each time is reached."""
+    first the start's) as it falls: RK2 (Heun) steps of about ``dt`` a/U_0, each sphere of
+    ``n`` points moved by the mobility solve of all under its weight -e_z and
+    :func:`repulsion` (:func:`velocities`). ``report(i, centres)`` is called as each time is
+    reached."""
     surface = sphere(n)
 
     def rates(x: np.ndarray) -> np.ndarray:
