@@ -465,7 +465,8 @@ def main() -> None:
         print("[many_row]")
         print(toml_values(rows))
         print("[many_circulation]")
-        print(toml_values({k: v for k, v in circulations.items() if k != "points"}))
+        print(toml_values({k: v for k, v in circulations.items()
+                          if k not in ("points", "count", "seed")}))
         return
     print_table(CLOUD_COLUMNS, clouds)
     print()
