@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 
 from parastokes import integrate, models, parareal
+from parastokes.parallel import TaskError
 from parastokes.parareal.speedup import speedup as eq14
 from parastokes.stiff import stepper
 
@@ -253,7 +254,7 @@ def _parareal(name: str, rod: Any, t1: float, fine_dt: float,
             _, cpu = _timed(lambda c=coarse: c(0.0, slice_length, x0))
             result = parareal.run(fine, coarse, x0, t0=0.0, t1=t1, n_slices=N_SLICES, tol=0.0,
                                   max_iterations=3, reference=reference)
-        except integrate.BlowUpError as error:
+        except (integrate.BlowUpError, TaskError) as error:  # (a coarse step's, wrapped)
             rows[label] = {"blowup": str(error)[:300], "n_auxiliary": n_aux}
         else:
             gamma = cpu / n_aux / fine_cpu
