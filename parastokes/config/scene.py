@@ -8,7 +8,9 @@ omits one of these keys gets the scene's; one that states a different value is a
 both keys. A ``[scene]`` key left out is taken from the bodies (the first that states it, else the
 first whose section has it, with that section's default), else ``wall = false`` and
 ``shear_rate = 0``. ``[scene] coarse_bodies`` names the bodies that ``coarse.grid_factor`` puts on
-their coarser grid (default: every body that has one, :meth:`Scene.coarsened`).
+their coarser grid (default: every body that has one, :meth:`Scene.coarsened`); ``[scene]
+repulsion = { range, force }`` a short-range push apart between the rigid bodies (and from the
+wall; off by default, :mod:`parastokes.scene.repulsion`).
 
 :func:`scene_section` turns the tables into one :class:`SceneModel`, the ``model`` of the
 configuration: its Θ⁰ names parameters as :attr:`parastokes.scene.Scene.params` does
@@ -37,7 +39,7 @@ from ..registry.kinds import (
 )
 from .errors import from_validation_error
 from .placement import PlacementError
-from .schema import SceneSettings, Suspension
+from .schema import RepulsionSettings, SceneSettings, Suspension
 from .suspension import expand
 
 if TYPE_CHECKING:  # the scene (and the fluid's kernels) are imported on use
@@ -60,6 +62,7 @@ class SceneModel(BodySection):
     wall: bool
     shear_rate: float = Field(allow_inf_nan=False)
     coarse_bodies: list[str] | None = None
+    repulsion: RepulsionSettings | None = None
     #: For each body, the index of the body it copies (a suspension's copies differ in their
     #: poses only: one of them is resolved for all); None: every body on its own.
     _copy_of: list[int] | None = PrivateAttr(None)
@@ -88,13 +91,15 @@ class SceneModel(BodySection):
                            "bodies")
 
     def build(self, threads: int = 1) -> Scene:
-        from ..scene import Scene
+        from ..scene import Repulsion, Scene
 
         coarse = None if self.coarse_bodies is None else tuple(self.coarse_bodies)
+        repulsion = (None if self.repulsion is None
+                     else Repulsion(self.repulsion.range, self.repulsion.force))
         return Scene(tuple(self._built(i, threads) for i in range(len(self.bodies))),
                      self.viscosity,
                      self.wall, self.shear_rate, tuple(self.names), n_threads=threads,
-                     coarse_bodies=coarse)
+                     coarse_bodies=coarse, repulsion=repulsion)
 
     def _built(self, index: int, threads: int) -> System:
         """Body ``index`` built; its ValueError (a body on the wall, too coarse a surface)
@@ -146,6 +151,8 @@ class SceneModel(BodySection):
         fluid = {key: getattr(self, key) for key in FLUID}
         if self.coarse_bodies is not None:
             fluid["coarse_bodies"] = list(self.coarse_bodies)
+        if self.repulsion is not None:
+            fluid["repulsion"] = self.repulsion.model_dump()
         bodies = [{"name": name, **body.tables()["model"]}
                   for name, body in zip(self.names, self.bodies, strict=True)]
         return {"scene": fluid, "bodies": bodies}
@@ -345,7 +352,8 @@ def scene_section(data: dict[str, Any], issues: list[tuple[str, str]], source: s
                                               f"the bodies: {_listed(all_names)}"))
         return None
     model = SceneModel(bodies=bodies + placed, names=all_names,
-                       coarse_bodies=settings.coarse_bodies, **fluid)
+                       coarse_bodies=settings.coarse_bodies, repulsion=settings.repulsion,
+                       **fluid)
     model._copy_of = list(range(len(bodies))) + copied
     return model
 

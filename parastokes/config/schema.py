@@ -222,11 +222,24 @@ class Tune(_Section):
     )
 
 
+class RepulsionSettings(BaseModel):
+    """`[scene] repulsion`: a short-range push apart between the rigid bodies (and from the wall),
+    F0 (1 - h/range)^2 on each along the line of closest approach when their surfaces come a gap
+    h < range apart (docs/bodies.md, "Suspensions": keeping bodies apart)."""
+
+    model_config = ConfigDict(extra="forbid", strict=True, validate_default=True)
+
+    range: Positive = Field(description="The gap δ below which the repulsion acts (μm).")
+    force: Positive = Field(description="Its strength F0 at contact (pN, the units of a rigid "
+                            "body's `force`).")
+
+
 class SceneSettings(BaseModel):
     """The fluid all `[[bodies]]` share; body tables that omit these keys get them. A key left out
     here is taken from the bodies (the first that states it, else the first whose kind has it, with
     that kind's default), else wall = false and shear_rate = 0. Besides the fluid: coarse_bodies,
-    the bodies that coarse.grid_factor coarsens."""
+    the bodies that coarse.grid_factor coarsens; repulsion, a short-range push between the rigid
+    bodies (off by default)."""
 
     model_config = ConfigDict(extra="forbid", strict=True, validate_default=True)
 
@@ -238,6 +251,12 @@ class SceneSettings(BaseModel):
     coarse_bodies: list[str] | None = Field(
         None, description="With coarse.grid_factor > 1: the names of the bodies put on their "
         "coarser grid (default: every body that has one: rods, rigid bodies)."
+    )
+    repulsion: RepulsionSettings | None = Field(
+        None, description="A short-range repulsion between the rigid bodies, e.g. "
+        "`{ range = 0.5, force = 7.5e-5 }`: F0 (1 - h/range)^2 apart along the line of closest "
+        "approach for surfaces a gap h < range apart; with a wall, also up from it (default: "
+        "none)."
     )
 
 

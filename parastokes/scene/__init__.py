@@ -19,7 +19,10 @@ explicit bodies' loads are known; their velocity (and u∞) at the implicit surf
 background of one mobility solve of all implicit bodies together (wall included); the explicit
 bodies then move with the velocity of their own loads plus the implicit surface forces. Its
 rows: an implicit body's centre row and surface rows (docs/contracts.md); its rates take the
-body's ``rate_columns``. Such a scene runs the Python loop (no compiled parts).
+body's ``rate_columns``. Such a scene runs the Python loop (no compiled parts). With
+``repulsion`` (:class:`Repulsion`, off by default) the implicit bodies also push each other (and
+the wall) apart when their surfaces come within its range: extra external forces and torques of
+the coupled solve, a function of the state (:mod:`parastokes.scene.repulsion`).
 
 The fluid is evaluated once per stage over all points (:func:`parastokes.mrs.velocity` with ε
 per source: each point's blob has its body's width). A scene whose bodies' exact types all have
@@ -53,8 +56,9 @@ from ..stiff.jacobian import block_jacobian, local_jacobian
 from . import coarse as scene_coarse
 from .coarse import SceneTransfer
 from .compiled import scene_loop
+from .repulsion import Repulsion, repulsion_loads
 
-__all__ = ["Scene"]
+__all__ = ["Repulsion", "Scene"]
 
 
 #: What a body offers a scene beside the System contract (docs/contracts.md).
@@ -104,10 +108,16 @@ class Scene:
     #: The names of the bodies that :meth:`coarsened` puts on their coarser grid (None: every
     #: body that has one).
     coarse_bodies: tuple[str, ...] | None = None
+    #: The short-range repulsion between its rigid bodies (and the wall), None: none
+    #: (:mod:`parastokes.scene.repulsion`).
+    repulsion: Repulsion | None = None
 
     def __post_init__(self) -> None:
         if not self.bodies:
             raise ValueError("bodies: a scene needs at least one body")
+        if self.repulsion is not None and not isinstance(self.repulsion, Repulsion):
+            raise ValueError(f"repulsion: a Repulsion(range, force) or None, got "
+                             f"{self.repulsion!r}")
         object.__setattr__(self, "bodies", tuple(self.bodies))
         if not self.names:
             kinds = [_name(b) for b in self.bodies]
@@ -328,6 +338,10 @@ class Scene:
                                             if i not in self.implicit_bodies])
         blocks = self.blocks(state)
         surfaces = [self.bodies[i].surface(t, blocks[i]) for i in self.implicit_bodies]
+        if self.repulsion is not None:
+            force, torque = repulsion_loads(surfaces, self.repulsion, self.wall)
+            surfaces = [dataclasses.replace(s, force=s.force + f, torque=s.torque + q)
+                        for s, f, q in zip(surfaces, force, torque, strict=True)]
         rigid_points = np.concatenate([s.points for s in surfaces])
         background, _ = self._flow(rigid_points, explicit, False)
         solution = mobility(surfaces, self.viscosity, self.wall, background, self.n_threads)
