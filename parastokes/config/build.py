@@ -15,7 +15,7 @@ __all__ = ["Setup", "build", "build_system"]
 
 def build_system(cfg: Config, resolved: Resolved) -> System:
     """The system of ``cfg.model`` with the correct parameters Θ⁰ (its kind's section builds it),
-    on the kernel threads of ``resolved.threads`` (:func:`~parastokes.config.checks.kernel_threads`)."""
+    on ``resolved.threads`` kernel threads (:func:`~parastokes.config.checks.kernel_threads`)."""
     return cfg.model.build(resolved.threads)
 
 
