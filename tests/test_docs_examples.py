@@ -189,7 +189,7 @@ def _swimmers_near_wall(out: str) -> None:
     assert 1.0 < closest < 1.5 and 0.6 < speed < 1.0  # turned before touching the wall
     free, blake = _numbers(r"in free space: (\S+) μm/s \(Blake: 2 B1/3 = (\S+) μm/s\)", out)
     assert free == pytest.approx(blake, rel=0.2)  # 200 points: +15 %; 1200 points: within 4.3 %
-    radii = [float(r) for r in re.findall(r"circles of radius (\S+) μm, counterclockwise", out)]
+    radii = [float(r) for r in re.findall(r"circles of radius (\S+) μm, clockwise", out)]
     assert len(radii) == 4 and radii == sorted(radii)  # the closer, the tighter
 
 

@@ -441,7 +441,7 @@ def main() -> None:
         figures = Path(__file__).resolve().parents[1] / "docs" / "figures"
         path = figures / "cloud_tail.json"
         before = json.loads(path.read_text()) if args.resume else None
-        check = before["step_check"] if args.resume else step_check()
+        check = before["step_check"] if before is not None else step_check()
         print(f"step check over {check['span']:g} a/U_0: dt = {check['dt']:g} against "
               f"{check['dt'] / 2:g}: {check['difference']:.2e} a apart, relative motion "
               f"{check['relative_motion']:.3f} a", flush=True)
