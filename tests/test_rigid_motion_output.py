@@ -5,15 +5,15 @@ resistance solve, through the CLI (alone, and in a scene), read back and in the 
 
 from __future__ import annotations
 
-import itertools
 import math
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
 import pytest
+from written_frames import write_frames
 
-from parastokes import config, flow, integrate
+from parastokes import config, flow
 from parastokes.cli import main
 from parastokes.kinds.rigid.rotation import multiply
 from parastokes.output import trajectory as io
@@ -50,20 +50,10 @@ workers = 1
 
 def _frames(directory: Path, text: str):
     """Three frames of the model of ``text``, written as the runner writes them, read back."""
-    cfg, resolved = config.loads(text)
-    system = cfg.model.build(1)
     times = np.array([0.0, 0.1, 0.2])
-    states = [system.initial_state()]
-    for t0, t1 in itertools.pairwise(times):
-        states.append(integrate.propagate(system, states[-1], t0=t0, t1=t1, scheme="rk2",
-                                          dt=0.1))
-    path = directory / "trajectory.h5"
-    with io.TrajectoryWriter(path, cfg.model.layout(system, False, None),
-                             config=config.resolved_dict(cfg, resolved),
-                             rates=system.rates) as writer:
-        for t, x in zip(times, states, strict=True):
-            writer.append("serial", t, x)
-    return system, times, states, io.read_trajectory(path)["bodies"]["center"]
+    system, states = write_frames(directory, text, times, 0.1)
+    bodies = io.read_trajectory(directory / "trajectory.h5")["bodies"]
+    return system, times, states, bodies["center"]
 
 
 def test_a_sphere_under_a_force_saves_its_stokes_velocity_and_no_turn(tmp_path):

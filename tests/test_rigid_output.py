@@ -4,14 +4,14 @@ state at the surface equal to the body's motion plus its slip, and the movie of 
 
 from __future__ import annotations
 
-import itertools
 import json
 import xml.etree.ElementTree as ET
 
 import numpy as np
 import pytest
+from written_frames import write_frames
 
-from parastokes import config, flow, integrate
+from parastokes import flow
 from parastokes.cli import main
 from parastokes.output import trajectory as io
 
@@ -59,19 +59,8 @@ workers = 1
 
 def _run(directory, text):
     """A run directory of three frames of the model of ``text``, as the runner writes them."""
-    cfg, resolved = config.loads(text + TIMES)
-    system = cfg.model.build(1)
     times = np.array([0.0, 0.02, 0.06])
-    states = [system.initial_state()]
-    for t0, t1 in itertools.pairwise(times):
-        states.append(integrate.propagate(system, states[-1], t0=t0, t1=t1, scheme="rk2",
-                                          dt=0.01))
-    layout = cfg.model.layout(system, cfg.output.frames, None)
-    with io.TrajectoryWriter(directory / "trajectory.h5", layout,
-                             config=config.resolved_dict(cfg, resolved),
-                             rates=system.rates) as writer:
-        for t, x in zip(times, states, strict=True):
-            writer.append("serial", t, x)
+    system, states = write_frames(directory, text + TIMES, times, 0.01)
     return system, times, states
 
 
