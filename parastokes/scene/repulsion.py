@@ -16,7 +16,7 @@ the same law, h the height of its lowest point, applied there.
 The gap and the closest points:
 
 - two spheres (a :class:`~parastokes.kinds.rigid.shapes.Sphere` shape, reference point its
-  centre): exact, h = |c₁ − c₂| − a₁ − a₂ along the line of centres (the same on a coarse
+  centre): exact, h = ‖c₁ − c₂‖ − a₁ − a₂ along the line of centres (the same on a coarse
   surface, so the coarse scene of Parareal feels the same force);
 - a sphere and another body: the other's surface point closest to the sphere's centre, h its
   distance less the radius;
