@@ -409,3 +409,36 @@ def test_too_many_open_files_while_reading_is_not_called_damage(tmp_path, monkey
     monkeypatch.setattr(np, "load", exhausted)
     with pytest.raises(files.FileWriteError, match=f"cannot read {path}: Too many open files"):
         files.read_npz(path)
+
+
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")
+def test_a_sigterm_lost_in_a_finalizer_still_stops_the_run_before_its_results_move(
+        tmp_path, monkeypatch, capsys):
+    """SIGTERM delivered while a finalizer runs (the garbage collector's work, at any moment) is
+    printed as "Exception ignored" and dropped by Python; the run went on and exited 0 with its
+    results in place. The handler's record makes the next safe point raise it again."""
+    import weakref
+
+    from parastokes.run import execution
+
+    frames = execution.append_frames
+
+    def lost_then_frames(*args, **kwargs):
+        class Garbage:
+            pass
+
+        def collected():  # the handler runs inside this finalizer: its exception is ignored
+            os.kill(os.getpid(), signal.SIGTERM)
+            for _ in range(10_000):
+                pass
+
+        thing = Garbage()
+        weakref.finalize(thing, collected)
+        del thing
+        return frames(*args, **kwargs)
+
+    monkeypatch.setattr(execution, "append_frames", lost_then_frames)
+    path = _config(tmp_path, TINY)
+    assert _run(path, "--out", tmp_path / "out") == 143
+    assert not (tmp_path / "out" / "summary.json").exists()
+    assert "Exception ignored" not in capsys.readouterr().err  # no traceback of the first raise

@@ -264,3 +264,24 @@ def test_warmup_that_loads_numba_before_the_thread_limits_can_compile():
     # not change it after the warm-up (unpickled first) has loaded numba
     with parallel.make_executor("processes", 1, warmup=CompilesInWorker()) as executor:
         assert executor.submit(CompilesInWorker()).result() == 2
+
+
+def test_aborting_with_cancelled_queued_tasks_leaves_no_traceback_in_the_pool_thread(monkeypatch):
+    """Ctrl-C or SIGTERM in a parallel sweep: the queued tasks are cancelled, then the workers
+    killed. CPython 3.11's pool then marks every queued task failed, the cancelled ones too,
+    which raised InvalidStateError in its manager thread: a traceback under the one-line message."""
+    import threading
+    import time
+
+    from parastokes.parallel import ProcessExecutor
+
+    seen: list[BaseException] = []
+    monkeypatch.setattr(threading, "excepthook", lambda args: seen.append(args.exc_value))
+    executor = ProcessExecutor(2)
+    futures = [executor.submit(time.sleep, 30) for _ in range(10)]
+    time.sleep(0.5)  # two running, one in the call queue, the rest queued
+    cancelled = [f for f in futures if f.cancel()]
+    executor.abort()
+    executor.shutdown()
+    assert len(cancelled) >= 5
+    assert not seen, seen

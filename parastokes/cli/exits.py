@@ -14,6 +14,7 @@ from collections.abc import Callable
 from concurrent.futures.process import BrokenProcessPool
 from typing import TYPE_CHECKING, Any, TypeAlias
 
+from ..core.signals import Terminated, terminate
 from .console import Console
 from .launch import is_manager, mpi_processes
 
@@ -54,19 +55,6 @@ class ExitCode(enum.IntEnum):
     HANGUP = 129
     INTERRUPTED = 130
     TERMINATED = 143
-
-
-class Terminated(KeyboardInterrupt):
-    """SIGTERM or SIGHUP arrived: stop like Ctrl-C (a KeyboardInterrupt, so every clean-up that
-    an interrupt runs runs too); ``signum`` is the signal."""
-
-    def __init__(self, signum: int) -> None:
-        super().__init__(signal.Signals(signum).name)
-        self.signum = signum
-
-
-def _terminate(signum: int, _frame: object) -> None:
-    raise Terminated(signum)
 
 
 def _causes(error: BaseException):
@@ -121,7 +109,7 @@ def catch_termination() -> dict[int, _Handler]:
     if threading.current_thread() is not threading.main_thread():
         return {}
     handlers: dict[int, _Handler] = {
-        signum: signal.signal(signum, _terminate) for signum in _TERMINATING
+        signum: signal.signal(signum, terminate) for signum in _TERMINATING
     }
     if hasattr(signal, "SIGXFSZ"):  # past a file-size limit a write fails (EFBIG), not the process
         handlers[signal.SIGXFSZ] = signal.signal(signal.SIGXFSZ, signal.SIG_IGN)

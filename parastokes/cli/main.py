@@ -7,6 +7,7 @@ import signal
 import sys
 from collections.abc import Sequence
 
+from ..core import signals
 from .console import Console
 from .exits import PIPE_CLOSED, catch_termination, reader_gone, report
 from .launch import check_launch, check_shadowing
@@ -23,9 +24,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     console = Console(args.quiet)
     check_shadowing()
     handlers = catch_termination()
+    unraisable = sys.unraisablehook
+    sys.unraisablehook = signals.quiet(unraisable)
     try:
         check_launch(sys.argv[1:] if argv is None else argv)
-        return int(args.func(args, console))
+        status = int(args.func(args, console))
+        signals.honour()  # a stop asked for during the command and lost on the way
+        return status
     except BaseException as error:  # map every failure to a documented exit status
         if isinstance(error, SystemExit):
             raise
@@ -33,5 +38,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             return PIPE_CLOSED
         return int(report(error, console, args.command))
     finally:
+        signals.clear()
+        sys.unraisablehook = unraisable
         for signum, handler in handlers.items():
             signal.signal(signum, handler)

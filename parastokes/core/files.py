@@ -30,6 +30,8 @@ from typing import IO, Any
 
 import numpy as np
 
+from . import signals
+
 __all__ = [
     "CorruptFileError", "FileWriteError", "GuardedFile", "Staging", "atomic_write",
     "describe_os_error", "is_resource_error", "read_npz", "staged", "temporary_name",
@@ -155,7 +157,8 @@ class Staging:
     def commit(self) -> list[Path]:
         """Move every written file into place; returns the destinations. A temporary file that
         is missing or empty (a writer that failed without saying so) is a FileWriteError, and
-        then nothing is moved."""
+        then nothing is moved; nor is anything after a stop asked for (:mod:`.signals`)."""
+        signals.honour()
         for path in self._unchecked:
             tmp = self._files[path]
             if not (tmp.is_file() and tmp.stat().st_size > 0):

@@ -40,6 +40,7 @@ from collections.abc import Collection, Iterator, Sequence
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
+from ..core import signals
 from ..core.files import CorruptFileError, Staging, staged, temporary_owner, write_text
 
 __all__ = [
@@ -273,7 +274,9 @@ class RunDirectory:
 
     def commit(self) -> list[str]:
         """Move every file of the staging directory into place, remove the previous results
-        that the new ones do not replace; returns the names of the new results."""
+        that the new ones do not replace; returns the names of the new results. Nothing moves
+        after a stop was asked for (:func:`parastokes.core.signals.honour`)."""
+        signals.honour()
         names = sorted(p.name for p in self.staging.iterdir() if not p.name.endswith(".tmp"))
         _write_names(self.staging / _COMMIT, names)
         self._roll_forward()

@@ -78,6 +78,21 @@ def _tracked(task_id: int, fn: Callable[..., Any], args: tuple, kwargs: dict) ->
         _WORKER["slots"][slot] = -1
 
 
+class _Forgotten(Future):
+    """A cancelled task's stand-in in the pool's table (:meth:`ProcessExecutor.abort`): cancelled,
+    so the pool never runs it, and deaf to the failure the pool reports for it."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.cancel()
+
+    def set_exception(self, exception: BaseException | None) -> None:
+        """Nothing: the task was cancelled before the pool broke."""
+
+    def set_result(self, result: Any) -> None:
+        """Nothing: the task was cancelled."""
+
+
 class _PoolFuture(Future):
     """The caller's view of a pool future: cancels through to the pool, explains broken pools."""
 
@@ -240,15 +255,24 @@ class ProcessExecutor(Executor):
                     process.join(_ABORT_SECONDS)
 
     def abort(self) -> None:
-        """Stop now: cancel the queued tasks, kill the workers (running tasks are lost) and
-        release the pool. For an interrupted or failed run; :meth:`shutdown` may follow."""
+        """Stop now: kill the workers (running tasks are lost; the queued ones fail with a broken
+        pool) and release the pool. For an interrupted or failed run; :meth:`shutdown` may
+        follow."""
         self._slots[2 * self.workers] = 1
+        # When a worker dies, CPython 3.11's pool marks every queued task failed, a cancelled one
+        # too, which raises InvalidStateError in its manager thread (a traceback under the run's
+        # message; 3.12 ignores it): the cancelled tasks leave its table first, and nothing is
+        # cancelled after the kill.
+        pending = getattr(self._pool, "_pending_work_items", {})
+        for item in list(pending.values()):
+            if item.future.cancelled():
+                item.future = _Forgotten()
         for process in self._processes.values():
             if process.is_alive():
                 process.kill()
         for process in self._processes.values():
             process.join(_ABORT_SECONDS)
-        self._pool.shutdown(wait=True, cancel_futures=True)
+        self._pool.shutdown(wait=True)
 
 
 def make_processes(

@@ -13,6 +13,7 @@ from concurrent.futures import FIRST_EXCEPTION, BrokenExecutor, Future, wait
 from dataclasses import dataclass
 from typing import Any, Protocol
 
+from ..core import signals
 from .errors import TaskError, WorkerDiedError
 
 
@@ -58,6 +59,7 @@ def run_tasks(executor: Submitter, tasks: Iterable[Task]) -> list[Any]:
                 if future.done() and future.exception() is not None:
                     break  # an in-process executor already failed: do not run the rest
         index = _first_failure(futures)
+        signals.honour()  # a stop lost while waiting (docs: core.signals)
     except BaseException:
         for future in futures:
             future.cancel()

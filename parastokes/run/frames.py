@@ -16,7 +16,7 @@ except ImportError:  # (not on Windows)
 import numpy as np
 
 from ..config import Config, Setup
-from ..core import files
+from ..core import files, signals
 from ..output import trajectory as io
 from ..parallel import SerialExecutor, run_labelled
 from . import session
@@ -103,6 +103,7 @@ def append_frames(
         )
         inner = dict(zip(slices, values, strict=True))
     for n in range(n_slices + 1):
+        signals.honour()
         if n in frames:
             writer.append(run, times[n], states[n])
         if n + 1 in inner:

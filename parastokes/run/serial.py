@@ -11,6 +11,7 @@ import numpy as np
 
 from ..config import Setup
 from ..config.checks import estimated_fine_seconds
+from ..core import signals
 from ..core.files import CorruptFileError
 from ..integrate import BlowUpError
 from ..output import trajectory as io
@@ -67,6 +68,7 @@ def serial_run(
         wall += time.perf_counter() - start
         io.save_arrays(path, {"key": key, "done": n, "wall_time": wall}, states=states)
         reporter.advance()
+        signals.honour()
     reporter.finish()
     if setup.config.fine.rtol is not None:
         reporter.note(f"serial fine run: adaptive steps ({setup.config.fine.scheme}, rtol "

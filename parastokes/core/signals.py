@@ -1,0 +1,59 @@
+"""A stop that was asked for and must not be lost.
+
+SIGTERM and SIGHUP are raised as :class:`Terminated` (a ``KeyboardInterrupt``, so every clean-up
+that Ctrl-C runs runs too) wherever Python delivers them. One delivered while a finalizer or a
+weakref callback runs (the garbage collector's work, at any moment) is printed as "Exception
+ignored" and dropped, and the command would go on as if nothing had happened. So the handler
+records the signal first, and the places where a command can stop cleanly (between parallel
+tasks, between slices and frames, before results are moved into place, at the end of a command)
+call :func:`honour`, which raises it again; :func:`quiet` keeps Python's "Exception ignored"
+traceback of the first raise off the terminal.
+"""
+
+from __future__ import annotations
+
+import signal
+from collections.abc import Callable
+from typing import Any
+
+__all__ = ["Terminated", "clear", "honour", "quiet", "terminate"]
+
+#: The signal asked for and not yet ended the command with (at most one).
+_pending: list[int] = []
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM or SIGHUP arrived: stop like Ctrl-C; ``signum`` is the signal."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+def terminate(signum: int, _frame: object = None) -> None:
+    """The signal handler: record ``signum``, then raise :class:`Terminated`."""
+    _pending[:] = [signum]
+    raise Terminated(signum)
+
+
+def honour() -> None:
+    """Raise :class:`Terminated` again if a stop was asked for (its first raise may have been
+    lost in a finalizer); nothing otherwise."""
+    if _pending:
+        raise Terminated(_pending[0])
+
+
+def quiet(previous: Callable[[Any], object]) -> Callable[[Any], object]:
+    """A ``sys.unraisablehook`` that drops a :class:`Terminated` (recorded, to be raised again
+    by :func:`honour`, not a traceback to show) and passes everything else to ``previous``."""
+
+    def hook(unraisable: Any) -> None:
+        if not isinstance(unraisable.exc_value, Terminated):
+            previous(unraisable)
+
+    return hook
+
+
+def clear() -> None:
+    """Forget the stop asked for (the command it ended is over)."""
+    _pending.clear()
