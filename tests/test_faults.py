@@ -412,11 +412,12 @@ def test_too_many_open_files_while_reading_is_not_called_damage(tmp_path, monkey
 
 
 @pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")
+@pytest.mark.parametrize("signum, code", [(signal.SIGTERM, 143), (signal.SIGINT, 130)])
 def test_a_sigterm_lost_in_a_finalizer_still_stops_the_run_before_its_results_move(
-        tmp_path, monkeypatch, capsys):
-    """SIGTERM delivered while a finalizer runs (the garbage collector's work, at any moment) is
-    printed as "Exception ignored" and dropped by Python; the run went on and exited 0 with its
-    results in place. The handler's record makes the next safe point raise it again."""
+        tmp_path, monkeypatch, capsys, signum, code):
+    """SIGTERM (or Ctrl-C) delivered while a finalizer runs (the garbage collector's work, at any
+    moment) is printed as "Exception ignored" and dropped by Python; the run went on and exited
+    0 with its results in place. The handler's record makes the next safe point raise it again."""
     import weakref
 
     from parastokes.run import execution
@@ -428,7 +429,7 @@ def test_a_sigterm_lost_in_a_finalizer_still_stops_the_run_before_its_results_mo
             pass
 
         def collected():  # the handler runs inside this finalizer: its exception is ignored
-            os.kill(os.getpid(), signal.SIGTERM)
+            os.kill(os.getpid(), signum)
             for _ in range(10_000):
                 pass
 
@@ -439,6 +440,6 @@ def test_a_sigterm_lost_in_a_finalizer_still_stops_the_run_before_its_results_mo
 
     monkeypatch.setattr(execution, "append_frames", lost_then_frames)
     path = _config(tmp_path, TINY)
-    assert _run(path, "--out", tmp_path / "out") == 143
+    assert _run(path, "--out", tmp_path / "out") == code
     assert not (tmp_path / "out" / "summary.json").exists()
     assert "Exception ignored" not in capsys.readouterr().err  # no traceback of the first raise

@@ -14,7 +14,7 @@ from collections.abc import Callable
 from concurrent.futures.process import BrokenProcessPool
 from typing import TYPE_CHECKING, Any, TypeAlias
 
-from ..core.signals import Terminated, terminate
+from ..core.signals import Terminated, interrupt, terminate
 from .console import Console
 from .launch import is_manager, mpi_processes
 
@@ -105,12 +105,15 @@ def exit_code(error: BaseException) -> ExitCode:
 
 
 def catch_termination() -> dict[int, _Handler]:
-    """Handle SIGTERM and SIGHUP like Ctrl-C (main thread only); returns the previous handlers."""
+    """Handle SIGTERM and SIGHUP like Ctrl-C, and record each and Ctrl-C for
+    :func:`~parastokes.core.signals.honour` (main thread only); returns the previous handlers."""
     if threading.current_thread() is not threading.main_thread():
         return {}
     handlers: dict[int, _Handler] = {
         signum: signal.signal(signum, terminate) for signum in _TERMINATING
     }
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:  # (recorded as well)
+        handlers[signal.SIGINT] = signal.signal(signal.SIGINT, interrupt)
     if hasattr(signal, "SIGXFSZ"):  # past a file-size limit a write fails (EFBIG), not the process
         handlers[signal.SIGXFSZ] = signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
     return handlers

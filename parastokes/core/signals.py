@@ -1,13 +1,14 @@
 """A stop that was asked for and must not be lost.
 
 SIGTERM and SIGHUP are raised as :class:`Terminated` (a ``KeyboardInterrupt``, so every clean-up
-that Ctrl-C runs runs too) wherever Python delivers them. One delivered while a finalizer or a
-weakref callback runs (the garbage collector's work, at any moment) is printed as "Exception
-ignored" and dropped, and the command would go on as if nothing had happened. So the handler
-records the signal first, and the places where a command can stop cleanly (between parallel
-tasks, between slices and frames, before results are moved into place, at the end of a command)
-call :func:`honour`, which raises it again; :func:`quiet` keeps Python's "Exception ignored"
-traceback of the first raise off the terminal.
+that Ctrl-C runs runs too), and Ctrl-C as ``KeyboardInterrupt``, wherever Python delivers them.
+One delivered while a finalizer or a weakref callback runs (the garbage collector's work, at any
+moment) is printed as "Exception ignored" and dropped, and the command would go on as if nothing
+had happened. So the handlers record the signal first, and the places where a command can stop
+cleanly (between parallel tasks, between slices and frames, while an encoder finishes, before
+results are moved into place, at the end of a command) call :func:`honour`, which raises it
+again; :func:`quiet` keeps Python's "Exception ignored" traceback of the first raise off the
+terminal.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ import signal
 from collections.abc import Callable
 from typing import Any
 
-__all__ = ["Terminated", "clear", "honour", "quiet", "terminate"]
+__all__ = ["Terminated", "clear", "honour", "interrupt", "quiet", "terminate"]
 
 #: The signal asked for and not yet ended the command with (at most one).
 _pending: list[int] = []
@@ -36,10 +37,20 @@ def terminate(signum: int, _frame: object = None) -> None:
     raise Terminated(signum)
 
 
+def interrupt(signum: int, _frame: object = None) -> None:
+    """The handler of Ctrl-C (SIGINT): record it, then raise ``KeyboardInterrupt`` as Python's
+    own handler does."""
+    _pending[:] = [signum]
+    raise KeyboardInterrupt
+
+
 def honour() -> None:
-    """Raise :class:`Terminated` again if a stop was asked for (its first raise may have been
-    lost in a finalizer); nothing otherwise."""
+    """Raise the stop asked for again (its first raise may have been lost in a finalizer):
+    ``KeyboardInterrupt`` for Ctrl-C, :class:`Terminated` for SIGTERM and SIGHUP; nothing when
+    none was asked for."""
     if _pending:
+        if _pending[0] == signal.SIGINT:
+            raise KeyboardInterrupt
         raise Terminated(_pending[0])
 
 
@@ -48,7 +59,7 @@ def quiet(previous: Callable[[Any], object]) -> Callable[[Any], object]:
     by :func:`honour`, not a traceback to show) and passes everything else to ``previous``."""
 
     def hook(unraisable: Any) -> None:
-        if not isinstance(unraisable.exc_value, Terminated):
+        if not isinstance(unraisable.exc_value, KeyboardInterrupt) or not _pending:
             previous(unraisable)
 
     return hook

@@ -29,6 +29,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from ..core import signals
 from ..core.files import FileWriteError, Staging
 from .render import draw_bodies, draw_plane, speed_limits
 from .run import RunFrames
@@ -124,6 +125,18 @@ def check_mp4(path: Path, written: Path) -> None:
         raise _failed(path, f"the encoder left an incomplete MP4 ({len(data)} bytes, no index)")
 
 
+def _wait(process: subprocess.Popen) -> int:
+    """The encoder's exit status, a stop asked for meanwhile raised again (:mod:`core.signals`:
+    one lost while the frames were drawn would otherwise wait for the encoder and then report
+    its half-written file)."""
+    while True:
+        signals.honour()
+        try:
+            return process.wait(timeout=0.2)
+        except subprocess.TimeoutExpired:
+            continue
+
+
 @contextmanager
 def _encoder(path: Path, written: Path, fps: float) -> Iterator[Callable[[np.ndarray], None]]:
     """A function that pipes an RGB picture to ffmpeg, which encodes them as the H.264 MP4
@@ -157,7 +170,7 @@ def _encoder(path: Path, written: Path, fps: float) -> Iterator[Callable[[np.nda
                     process.stdin.close()
                 except BrokenPipeError:
                     pass
-                code = process.wait()
+                code = _wait(process)
         finally:
             if process is not None and process.poll() is None:  # interrupted: stop it
                 process.kill()
