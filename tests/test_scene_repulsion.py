@@ -9,6 +9,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from test_suspensions import SPHERE
 
 from parastokes import config
 from parastokes.config import ConfigError
@@ -164,12 +165,7 @@ radius = 6.0
 center = [0.0, 0.0, 0.0]
 count = 30
 seed = 1
-[suspensions.body]
-kind = "rigid"
-shape = "sphere"
-radius = 1.0
-n_points = 42
-force = [0.0, 0.0, -1.0]
+""" + SPHERE.strip("\n") + """
 [time]
 t1 = {t1}
 [fine]
