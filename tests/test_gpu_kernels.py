@@ -66,6 +66,18 @@ def test_free_force_kernel_matches_cpu_kernel_with_other_targets(batch):
     _close(u, mrs.velocity(targets, x, batch["forces"], epsilon=batch["eps"], mu=batch["mu"]))
 
 
+@pytest.mark.parametrize("wall", [False, True])
+def test_epsilon_per_source_matches_the_cpu_kernel(batch, wall):
+    """Each source with its own blob (a scene's bodies, a rigid surface's points)."""
+    x, f = batch["points"], batch["forces"]
+    eps = np.random.default_rng(3).uniform(0.2, 0.9, x.shape[:2])
+    for kw in (dict(), dict(torques=batch["torques"], angular=True)):
+        got = gpu.velocity(x, x, f, epsilon=eps, mu=batch["mu"], wall=wall, **kw)
+        want = mrs.velocity(x, x, f, epsilon=eps, mu=batch["mu"], wall=wall, **kw)
+        for g, c in zip(got if kw else [got], want if kw else [want], strict=True):
+            _close(g, c)
+
+
 def test_a_member_does_not_depend_on_its_batch(batch):
     """Every target sums its sources in the same order whatever the batch: bit-identical."""
     x, f, n = batch["points"], batch["forces"], batch["torques"]
@@ -85,7 +97,7 @@ def test_a_member_does_not_depend_on_its_batch(batch):
         (dict(forces=np.zeros((3, 6, 3))), "forces"),
         (dict(wall=True, targets=-np.ones((3, 7, 3))), "targets: points below the wall"),
         (dict(targets=np.full((3, 7, 3), 1e19)), "targets: coordinates beyond"),
-        (dict(epsilon=np.full((3, 7), 0.3)), "epsilon: one per source is not supported"),
+        (dict(epsilon=np.full((3, 6), 0.3)), "epsilon: one per source needs shape"),
     ],
 )
 def test_bad_input_is_refused_naming_the_argument(batch, change, message):

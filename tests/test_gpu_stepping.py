@@ -68,7 +68,7 @@ def test_blow_up_fails_its_member_only_at_the_cpu_step():
     assert np.abs(error.last_state - cpu.value.last_state).max() <= 1e-12
 
 
-def test_other_calls_run_on_the_cpu():
+def test_other_calls_run_hosted_or_on_the_cpu():
     class Custom(type(small_rods())):
         pass
 
@@ -78,8 +78,12 @@ def test_other_calls_run_on_the_cpu():
              (np.add, (1.0, 2.0), {}),
              (integrate.Propagator(small_rods(), "rk2", 1e-2), (0.0, 0.0, x0), {})]
     assert gpu_batch.batch_key(calls[0][0], calls[0][1]) is None  # a subclass may differ
-    outcomes = gpu_batch.run_calls(calls)
-    assert np.array_equal(outcomes[0][1], calls[0][0](0.0, 0.02, x0))
+    assert gpu_batch.hosted_call(*calls[0])  # its own code on the host, products on the GPU
+    launches = []
+    outcomes = gpu_batch.run_calls(calls, launches=launches)
+    cpu = calls[0][0](0.0, 0.02, x0)
+    assert np.abs(outcomes[0][1] - cpu).max() <= 1e-12 * np.abs(cpu - x0).max()
+    assert launches == [1, 1, 1, 1]  # 2 RK2 steps of 2 stages, alone in its batch
     assert outcomes[1] == (True, 3.0)
     assert np.array_equal(outcomes[2][1], x0)  # no step: the projected start state
 

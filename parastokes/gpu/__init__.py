@@ -7,6 +7,8 @@ batches Parareal's parallel work. Optional: ``pip install "parastokes[gpu]"``; w
   generic driver: each kind's device parts come from its own folder, found by exact type);
 - :mod:`.scene`: a scene's device parts, composed of its bodies';
 - :mod:`.batch`: which submitted calls form a batch;
+- :mod:`.hosted`: the solves of systems without device parts (rigid bodies: GMRES), run on the
+  host with their fluid products batched in GPU launches;
 - :mod:`.executor`: :class:`GPUExecutor` (``parallel.make_executor("gpu")``);
 - :func:`velocity`: the batched kernels on host arrays (for checks and benchmarks).
 

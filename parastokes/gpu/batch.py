@@ -7,8 +7,13 @@ system that the GPU path reproduces (its exact type has device parts,
 ``fn(t_start, t_end, x)``: the fine solves of a parallel sweep, the auxiliary solvers of an
 extrapolated coarse step (on the coarse grid too). Each member follows :func:`integrate.run`
 exactly: ``n_steps`` equal steps of ``(t_end - t_start)/n``, the start state projected, the result
-projected, :class:`integrate.BlowUpError` on a blow-up. Any other call runs here, on the CPU, as
-the serial executor would run it.
+projected, :class:`integrate.BlowUpError` on a blow-up.
+
+A propagator call ``fn(t_start, t_end, x)`` of any other system (a rigid or prescribed-motion
+body, a scene with one, a user's body without device parts) is *hosted* (:func:`hosted_call`):
+all such calls of a batch run on the host together, each its own CPU solve, with their fluid
+products evaluated on the GPU in batched launches (:mod:`.hosted`). Any other call runs here, on
+the CPU, in order, as the serial executor would run it.
 """
 
 from __future__ import annotations
@@ -21,9 +26,9 @@ import numpy as np
 
 from .. import integrate
 from ..core.contracts import System
-from . import stepping
+from . import hosted, stepping
 
-__all__ = ["Outcome", "batch_key", "run_calls"]
+__all__ = ["Outcome", "batch_key", "hosted_call", "run_calls"]
 
 #: ``(True, value)`` or ``(False, exception)`` for one call.
 Outcome = tuple[bool, Any]
@@ -41,6 +46,13 @@ def batch_key(fn: Any, args: tuple) -> tuple | None:
     if "n_threads" in getattr(structure, "__dataclass_fields__", {}):
         structure = dataclasses.replace(structure, n_threads=None)
     return structure, fn.scheme, fn.blowup_factor
+
+
+def hosted_call(fn: Any, args: tuple, kwargs: dict) -> bool:
+    """Whether the call runs hosted (see the module): a propagator call ``fn(t_start, t_end, x)``
+    that :func:`batch_key` does not batch."""
+    return (isinstance(fn, integrate.Propagator) and len(args) == 3 and not kwargs
+            and batch_key(fn, args) is None)
 
 
 def _prepare(fn: integrate.Propagator, args: tuple) -> stepping.Member | Outcome:
@@ -93,14 +105,20 @@ def _run_group(
 def run_calls(
     calls: Sequence[tuple[Callable[..., Any], tuple, dict]],
     launch: stepping.Launch | None = None,
+    launches: list[int] | None = None,
 ) -> list[Outcome]:
     """Run ``fn(*args, **kwargs)`` for every call: batched on the GPU where possible (one batch
-    per :func:`batch_key`), the rest in order on the CPU. Returns the outcomes in call order."""
+    per :func:`batch_key`), hosted with batched fluid products (:func:`hosted_call`), the rest in
+    order on the CPU. Returns the outcomes in call order; ``launches`` (a list) gets the batch
+    size of each launch of the hosted calls' products."""
     outcomes: list[Outcome | None] = [None] * len(calls)
     groups: dict[tuple, list] = {}
+    host: list[int] = []
     for index, (fn, args, kwargs) in enumerate(calls):
         key = None if kwargs else batch_key(fn, args)
-        if key is None:
+        if key is None and hosted_call(fn, args, kwargs):
+            host.append(index)
+        elif key is None:
             try:
                 outcomes[index] = True, fn(*args, **kwargs)
             except Exception as exc:
@@ -109,16 +127,23 @@ def run_calls(
             groups.setdefault(key, []).append((index, fn, args))
     for group in groups.values():
         _run_group(group, outcomes, launch)
+    if host:
+        results, sizes = hosted.run_calls([calls[i][:2] for i in host], launch)
+        for index, outcome in zip(host, results, strict=True):
+            outcomes[index] = outcome
+        if launches is not None:
+            launches.extend(sizes)
     done = [outcome for outcome in outcomes if outcome is not None]
     assert len(done) == len(calls)  # (every call has its outcome)
     return done
 
 
 def warm_up(system: System, launch: stepping.Launch | None = None) -> None:
-    """Compile the GPU kernels that solves of ``system`` use (one tiny RK2 step), so that timings
-    that follow measure work; nothing happens for a system without a GPU path."""
+    """Compile the GPU kernels that solves of ``system`` use (one tiny RK2 step; for a hosted
+    system, the velocity kernels of its products), so that timings that follow measure work."""
     gpu = stepping.gpu_system(system)
     if gpu is None:
+        hosted.warm_up(bool(getattr(system, "wall", False)), launch)
         return
     x = gpu.project(np.array(gpu.initial_state(), dtype=float))
     stepping.solve(integrate.explicit_scheme("rk2"), [stepping.Member(gpu, x, 0.0, 1e-12, 1)],

@@ -68,6 +68,8 @@ class GPUExecutor(Executor):
         self.workers = workers
         self.launch = launch
         self.batches: list[int] = []  # how many GPU solves each batch held, so far
+        #: how many products each launch of the hosted solves' products held, so far
+        self.launches: list[int] = []
         self._held: list[tuple[_HeldFuture, Callable[..., Any], tuple, dict]] = []
         self._depth = 0
         self._lock = threading.RLock()
@@ -138,12 +140,13 @@ class GPUExecutor(Executor):
         for start in range(0, len(held), size):
             part = held[start : start + size]
             try:
-                outcomes = batch.run_calls([h[1:] for h in part], self.launch)
+                outcomes = batch.run_calls([h[1:] for h in part], self.launch, self.launches)
             except BaseException as exc:  # e.g. Ctrl-C: fail what has not finished, re-raise
                 for h in held[start:]:
                     h[0].set_exception(exc)
                 raise
-            gpu_calls = sum(batch.batch_key(fn, args) is not None for _, fn, args, _ in part)
+            gpu_calls = sum(batch.batch_key(fn, args) is not None
+                            or batch.hosted_call(fn, args, kwargs) for _, fn, args, kwargs in part)
             if gpu_calls:
                 self.batches.append(gpu_calls)
             for (future, *_), (ok, value) in zip(part, outcomes, strict=True):

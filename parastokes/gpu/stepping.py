@@ -286,9 +286,17 @@ def device_parts(system: System) -> DeviceParts:
 
 
 def gpu_system(system: System) -> Any:
-    """``system`` itself when the GPU path reproduces it (its exact type has device parts), or
-    None (another class, or a subclass, whose physics may differ)."""
-    return None if registry.device_target(system) is None else system
+    """``system`` itself when the GPU path reproduces it (its exact type has device parts, and a
+    scene's bodies all have theirs), or None (another class, or a subclass, whose physics may
+    differ; a rigid body; a scene with a body without device parts: hosted,
+    :mod:`parastokes.gpu.hosted`)."""
+    if registry.device_target(system) is None:
+        return None
+    try:
+        device_parts(system)
+    except NoDevicePartsError:
+        return None
+    return system
 
 
 #: Steps launched between two looks at the members' status (to stop once all have finished).

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import contextlib
 import math
-from collections.abc import Iterator
+import threading
+from collections.abc import Callable, Iterator
 
 import numba
 import numpy as np
@@ -102,6 +103,28 @@ def kernel_threads(n_threads: int | None) -> Iterator[int]:
     finally:
         if n != previous:
             numba.set_num_threads(previous)
+
+
+#: This thread's :func:`routed` destination, if any.
+_ROUTE = threading.local()
+
+#: ``route(targets, sources, forces, torques, eps, mu, wall, angular) -> u or (u, w)``: the
+#: validated arrays of one unbatched call (``eps`` (1,) or (1, N) per source, ``mu`` (1,)).
+Route = Callable[..., object]
+
+
+@contextlib.contextmanager
+def routed(route: Route) -> Iterator[None]:
+    """Within it, this thread's unbatched :func:`velocity` calls (the ψ torque blob) go to
+    ``route`` instead of the compiled kernels, with their validated arguments (:data:`Route`):
+    how :mod:`parastokes.gpu.hosted` batches the fluid products of solves that run on the host
+    (rigid bodies' GMRES) into GPU launches. Other threads are not affected."""
+    previous = getattr(_ROUTE, "route", None)
+    _ROUTE.route = route
+    try:
+        yield
+    finally:
+        _ROUTE.route = previous
 
 
 def _soa(points: np.ndarray, padded: int) -> np.ndarray:
@@ -216,6 +239,9 @@ def velocity(
             eps[:] = epsilon
         visc = np.empty(max(batch, 1))
         visc[:] = mu
+    route = getattr(_ROUTE, "route", None)
+    if route is not None and not batch and torque_blob == "psi":
+        return route(targets, sources, forces, torques, eps, visc, bool(wall), angular)
 
     t3 = targets if batch else targets[None]
     s3 = np.ascontiguousarray(sources if batch else sources[None], dtype=np.float64)
