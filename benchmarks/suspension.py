@@ -30,11 +30,16 @@ Run from the repository root, one kernel thread (the solves limit BLAS to the ke
     ``model.n_rods``): one rate evaluation (the rods' forces, one product of the fluid operator
     for u and w from f and n, the rods' frames; no solve), least of ``--rounds``, and its peak
     allocation (tracemalloc) per point.
+(hosted) The host's share of the GPU executor's hosted solves (docs/parallel.md, ``gpu``),
+    measured without a device: 1, 2 and 4 evaluations of the 64-sphere scene (lattice 4a) and of
+    100 spheres of 42 points as hosted solves, their batched products computed by the CPU kernels
+    in the router's thread; wall time less the products' time is the host's work per round.
 """
 
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import math
 import time
@@ -45,7 +50,7 @@ import numpy as np
 import scipy.linalg as sla
 from scipy.sparse.linalg import LinearOperator, gmres
 
-from parastokes import config
+from parastokes import config, mrs
 from parastokes.mobility import RigidSurface
 from parastokes.mobility.sphere import fibonacci_sphere, sphere_spacing
 from parastokes.mobility.system import SurfaceSet
@@ -258,9 +263,67 @@ def rods(counts: list[int], rounds: int) -> list[dict]:
     return out
 
 
+class _CpuProducts:
+    """A stand-in for :class:`parastokes.gpu.velocity.Evaluation` (same arguments): the batched
+    products on the CPU kernels (one thread), their time added to ``seconds``."""
+
+    seconds = 0.0
+
+    def __init__(self, targets, sources, forces, torques, epsilon, mu, wall, launch=None):
+        self.args = (targets, sources, forces)
+        self.kw = dict(epsilon=epsilon, mu=mu, torques=torques, wall=wall,
+                       angular=torques is not None or wall)
+
+    def launch(self) -> None:
+        t = time.perf_counter()
+        out = mrs.velocity(*self.args, **self.kw)
+        self.out = out if isinstance(out, tuple) else (out, None)
+        _CpuProducts.seconds += time.perf_counter() - t
+
+    def result(self):
+        return self.out
+
+
+def hosted(batches: list[int]) -> list[dict]:
+    """The host's share of hosted solves (parastokes.gpu.hosted) without a device: B evaluations
+    of a suspension as B hosted solves whose batched products are computed by the CPU kernels in
+    the router's thread (:class:`_CpuProducts`). The products run only while every solve waits,
+    so the wall time less the products' time is the host's work (GMRES, the body blocks, the
+    threads' hand-over) that a device round cannot go below."""
+    from parastokes.gpu import hosted as hosted_module
+
+    hosted_module.Evaluation = _CpuProducts  # (this process only: a benchmark's stand-in)
+    out = []
+    cases = {"64 spheres x 150, lattice 4a": scene_config(lattice_placement(4.0), 150),
+             "100 spheres x 42, random 0.05": scene_config(random_placement(100, 0.05), 42)}
+    for label, setup in cases.items():
+        scene = config.build(*setup).system
+        x0 = scene.initial_state()
+        scene.rates(0.0, x0)  # compiled, factorized
+        for count in batches:
+            router = hosted_module.Router()
+            _CpuProducts.seconds = 0.0
+            t = time.perf_counter()
+            outcomes = router.run([functools.partial(scene.rates, 0.0, x0)] * count)
+            wall = time.perf_counter() - t
+            assert all(ok for ok, _ in outcomes)
+            rounds = len(router.launches)
+            host = wall - _CpuProducts.seconds
+            row = {"case": label, "solves": count, "rounds": rounds, "wall_s": wall,
+                   "products_s": _CpuProducts.seconds, "host_s": host,
+                   "host_ms_per_solve_round": host / rounds / count * 1e3,
+                   "product_ms_per_solve_round": _CpuProducts.seconds / rounds / count * 1e3}
+            out.append(row)
+            print(f"    {label} | {count:2d} | {rounds:3d} | {wall:7.2f} | "
+                  f"{_CpuProducts.seconds:7.2f} | {row['host_ms_per_solve_round']:6.2f} | "
+                  f"{row['product_ms_per_solve_round']:7.2f}", flush=True)
+    return out
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--parts", nargs="+", choices=("scaling", "scene64", "coarse", "rods"),
+    parser.add_argument("--parts", nargs="+",
+                        choices=("scaling", "scene64", "coarse", "rods", "hosted"),
                         default=["scaling", "scene64", "coarse"])
     parser.add_argument("--counts", nargs="+", type=int, default=[1, 10, 100, 1000])
     parser.add_argument("--points", type=int, default=42)
@@ -289,6 +352,12 @@ def main() -> None:
         print("(rods) rods of 51 points above the wall (experiments/rods_25.toml); CPU, one thread")
         print("    rods | points | evaluation (ms) | peak MiB | B/point | ns per point pair")
         out["rods"] = rods([1, 5, 10, 25], max(args.rounds, 5))
+    if "hosted" in args.parts:
+        print("(hosted) B evaluations as hosted solves, products on the CPU kernels in the "
+              "router's thread; seconds of wall time")
+        print("    case | solves | rounds | wall | products | host ms per solve and round | "
+              "product ms per solve and round")
+        out["hosted"] = hosted([1, 2, 4])
     if args.json:
         with open(args.json, "w") as fh:
             json.dump(out, fh, indent=1)

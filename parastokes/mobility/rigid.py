@@ -10,10 +10,14 @@
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+
+#: Held while a surface makes its body-frame factorization (threads of hosted solves share it).
+_FACTORING = threading.Lock()
 
 
 def rigid_motion(points: np.ndarray, center: np.ndarray) -> np.ndarray:
@@ -112,9 +116,10 @@ class RigidSurface:
         from .selfsolve import BodyFrameFactor
 
         key = float(mu)
-        if key not in self._factors:
-            self._factors[key] = BodyFrameFactor(self, key)
-        return self._factors[key]
+        with _FACTORING:  # one factorization per viscosity, whatever the threads asking
+            if key not in self._factors:
+                self._factors[key] = BodyFrameFactor(self, key)
+            return self._factors[key]
 
 
 @dataclass(frozen=True)

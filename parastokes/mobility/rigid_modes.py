@@ -29,6 +29,7 @@ from ..mrs.operator import StokesletOperator
 from .precondition import BlockSweep
 from .selfsolve import LabFactor, RotatedFactor
 from .system import SurfaceSet
+from .threads import LAPACK
 
 #: Fewest bodies given the correction. Its setup costs about seven products of the whole
 #: operator (measured, docs/benchmarks.md "Rigid bodies" (b)); rows of 2 spheres save 3-4
@@ -65,7 +66,8 @@ class RigidModeSweep:
             )
             for j in range(6):
                 self.mz[:, 6 * b + j] = op.matvec(np.ascontiguousarray(self.minv_k[b][:, j]))
-        self._lu = sla.lu_factor(self._moments(self.mz), check_finite=False)  # C = Kᵀ M Z
+        with LAPACK:
+            self._lu = sla.lu_factor(self._moments(self.mz), check_finite=False)  # C = Kᵀ M Z
 
     def _moments(self, rv: np.ndarray) -> np.ndarray:
         """Kᵀ rv (6B,) or (6B, k): each body's total velocity moments (of each column)."""
@@ -73,7 +75,9 @@ class RigidModeSweep:
 
     def forces(self, rv: np.ndarray) -> np.ndarray:
         """P⁻¹ rv (3N,) for velocity residual ``rv``."""
-        c = sla.lu_solve(self._lu, self._moments(rv), check_finite=False)
+        moments = self._moments(rv)
+        with LAPACK:
+            c = sla.lu_solve(self._lu, moments, check_finite=False)
         f = self.sweep.forces(rv - self.mz @ c)
         for b, r in enumerate(self.rows):
             f[r] += self.minv_k[b] @ c[6 * b : 6 * b + 6]

@@ -13,6 +13,7 @@ resistance Kᵀ M⁻¹ K that the direct solver and the block preconditioner use
 
 from __future__ import annotations
 
+import threading
 import warnings
 
 import numpy as np
@@ -21,6 +22,7 @@ import scipy.linalg as sla
 from ..mrs.operator import StokesletOperator
 from .errors import SolveError
 from .rigid import PlacedSurface, RigidSurface, rigid_motion
+from .threads import LAPACK
 
 #: Smallest reciprocal condition number (1-norm estimate, LAPACK gecon) accepted for M.
 MIN_RCOND = 1e-12
@@ -32,10 +34,10 @@ def lu_checked(matrix: np.ndarray, what: str) -> tuple:
     """``scipy.linalg.lu_factor`` of ``matrix``; :class:`SolveError` when it is singular or its
     estimated reciprocal condition number is below :data:`MIN_RCOND`."""
     anorm = float(np.max(np.sum(np.abs(matrix), axis=0)))
-    with warnings.catch_warnings():
+    with warnings.catch_warnings(), LAPACK:
         warnings.simplefilter("ignore", sla.LinAlgWarning)
         lu = sla.lu_factor(matrix, check_finite=False)
-    rcond, _ = sla.lapack.dgecon(lu[0], anorm, norm="1")
+        rcond, _ = sla.lapack.dgecon(lu[0], anorm, norm="1")
     if not rcond >= MIN_RCOND:
         raise SolveError(
             f"{what}: the regularized Stokeslet matrix is singular or ill-conditioned "
@@ -71,7 +73,8 @@ class LabFactor:
         self.resistance = motion.T @ self.minv_k
 
     def solve(self, b: np.ndarray) -> np.ndarray:
-        return sla.lu_solve(self._lu, b, check_finite=False)
+        with LAPACK:
+            return sla.lu_solve(self._lu, b, check_finite=False)
 
     def apply_minv_k(self, y: np.ndarray) -> np.ndarray:
         return self.minv_k @ y
@@ -92,18 +95,21 @@ class BodyFrameFactor:
         )
         self.lab.matrix = np.empty((0, 0))  # only the LU is kept: half the memory
         self._recent: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        self._lock = threading.Lock()
 
     def solve_cached(self, b_body: np.ndarray) -> np.ndarray:
         """M0⁻¹ b_body, remembered for the last :data:`CACHED_SOLVES` right-hand sides (a slip
         fixed in the body frame, as a squirmer's, is solved once; hits are checked bit for bit)."""
         key = hash(b_body.tobytes())
-        hit = self._recent.get(key)
+        with self._lock:
+            hit = self._recent.get(key)
         if hit is not None and np.array_equal(hit[0], b_body):
             return hit[1]
         x = self.lab.solve(b_body)
-        if len(self._recent) >= CACHED_SOLVES:
-            self._recent.pop(next(iter(self._recent)))
-        self._recent[key] = (b_body.copy(), x)
+        with self._lock:  # (threads of hosted solves share the factorization)
+            if len(self._recent) >= CACHED_SOLVES:
+                self._recent.pop(next(iter(self._recent)))
+            self._recent[key] = (b_body.copy(), x)
         return x
 
 

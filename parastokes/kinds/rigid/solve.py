@@ -17,6 +17,7 @@ pose; a surface with a moving part (a bacterium's flagellum) is a new one at eve
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 from typing import Any
 
@@ -66,19 +67,21 @@ class MobilitySolution:
 #: Rigid surfaces (with their kept factorizations) by (key, ε), newest last; a few per process.
 _SURFACES: dict[tuple[Any, float], RigidSurface] = {}
 _KEEP = 4
+_KEPT = threading.Lock()
 
 
 def _rigid_surface(s: Surface) -> RigidSurface:
     if s.key is None:
         return RigidSurface(s.body, float(s.epsilon), name=s.name, check=False)
     name = (s.key, float(s.epsilon))
-    found = _SURFACES.pop(name, None)
-    if found is None:
-        found = RigidSurface(s.body, float(s.epsilon), name=s.name, check=False)
-        while len(_SURFACES) >= _KEEP:
-            _SURFACES.pop(next(iter(_SURFACES)))
-    _SURFACES[name] = found
-    return found
+    with _KEPT:  # (threads of hosted solves share the surfaces)
+        found = _SURFACES.pop(name, None)
+        if found is None:
+            found = RigidSurface(s.body, float(s.epsilon), name=s.name, check=False)
+            while len(_SURFACES) >= _KEEP:
+                _SURFACES.pop(next(iter(_SURFACES)))
+        _SURFACES[name] = found
+        return found
 
 
 def placed(s: Surface) -> PlacedSurface:
