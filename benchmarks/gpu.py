@@ -154,22 +154,29 @@ def _sweep_calls(system, n_slices: int, steps: int, dt: float) -> list:
     return [(fine, (times[i], times[i + 1], x0), {}) for i in range(n_slices)]
 
 
-def sweep_section(n_points: int, n_slices: int, steps: int, cpu_workers: int) -> dict:
-    system = models.rod_swimmer(n_points=n_points, length=60.0 * (n_points - 1) / 300)
-    calls = _sweep_calls(system, n_slices, steps, 1e-6)
+def _gpu_against_pool(system, calls: list, cpu_workers: int,
+                      launches: list[int] | None = None) -> tuple[float, float, float, float]:
+    """The ``calls`` as one batch of the GPU path, then on a process pool of ``cpu_workers``:
+    (GPU seconds, pool seconds, largest difference of the end states, the motion)."""
     batch.warm_up(system)
     t = time.perf_counter()
-    outcomes = batch.run_calls(calls)
+    outcomes = batch.run_calls(calls, launches=launches)
     gpu_seconds = time.perf_counter() - t
     assert all(ok for ok, _ in outcomes), [v for ok, v in outcomes if not ok]
     gpu_states = np.array([v for _, v in outcomes])
     with parallel.make_executor("processes", cpu_workers, warmup=WarmUp(system)) as ex:
         t = time.perf_counter()
         cpu_states = np.array(parallel.run_labelled(
-            ex, calls[0][0], [c[1] for c in calls], [f"slice {i}" for i in range(n_slices)]))
+            ex, calls[0][0], [c[1] for c in calls], [f"call {i}" for i in range(len(calls))]))
         cpu_seconds = time.perf_counter() - t
     motion = np.abs(cpu_states - calls[0][1][2]).max()
-    diff = np.abs(gpu_states - cpu_states).max()
+    return gpu_seconds, cpu_seconds, float(np.abs(gpu_states - cpu_states).max()), motion
+
+
+def sweep_section(n_points: int, n_slices: int, steps: int, cpu_workers: int) -> dict:
+    system = models.rod_swimmer(n_points=n_points, length=60.0 * (n_points - 1) / 300)
+    calls = _sweep_calls(system, n_slices, steps, 1e-6)
+    gpu_seconds, cpu_seconds, diff, motion = _gpu_against_pool(system, calls, cpu_workers)
     out = {"n_points": n_points, "slices": n_slices, "steps_per_slice": steps,
            "gpu_seconds": gpu_seconds, "cpu_seconds": cpu_seconds, "cpu_workers": cpu_workers,
            "gpu_over_cpu": cpu_seconds / gpu_seconds, "max_abs_diff": float(diff),
@@ -203,20 +210,9 @@ def rigid_section(counts: list[int], points: int, members: int, steps: int,
                   cpu_workers: int) -> dict:
     scene = suspension(counts, points, 4.0)
     calls = _sweep_calls(scene, members, steps, 0.05)
-    batch.warm_up(scene)
     launches: list[int] = []
-    t = time.perf_counter()
-    outcomes = batch.run_calls(calls, launches=launches)
-    gpu_seconds = time.perf_counter() - t
-    assert all(ok for ok, _ in outcomes), [v for ok, v in outcomes if not ok]
-    gpu_states = np.array([v for _, v in outcomes])
-    with parallel.make_executor("processes", cpu_workers, warmup=WarmUp(scene)) as ex:
-        t = time.perf_counter()
-        cpu_states = np.array(parallel.run_labelled(
-            ex, calls[0][0], [c[1] for c in calls], [f"solve {i}" for i in range(members)]))
-        cpu_seconds = time.perf_counter() - t
-    motion = np.abs(cpu_states - calls[0][1][2]).max()
-    diff = np.abs(gpu_states - cpu_states).max()
+    gpu_seconds, cpu_seconds, diff, motion = _gpu_against_pool(scene, calls, cpu_workers,
+                                                               launches)
     n_points = sum(len(block) - 1 for block in scene.blocks(scene.initial_state()))
     out = {"bodies": len(scene.bodies), "surface_points": n_points, "members": members,
            "steps": steps, "gpu_seconds": gpu_seconds, "cpu_seconds": cpu_seconds,

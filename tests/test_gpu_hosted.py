@@ -220,3 +220,58 @@ def test_concurrent_hosted_solves_equal_the_serial_solve_bit_for_bit(monkeypatch
             assert solution.info.iterations == serial.info.iterations
             assert np.array_equal(solution.forces, serial.forces)
     assert set(router.launches) == {4}
+
+
+def test_ctrl_c_while_solves_wait_closes_the_router_and_releases_them():
+    """Ctrl-C reaches the calling thread while it waits for the solves: it is raised there, and
+    every solve thread waiting on a product gets an error instead of waiting forever."""
+    import _thread
+
+    x = np.array([[0.0, 0.0, 1.0], [0.0, 0.6, 1.2]])
+    errors = []
+
+    def interrupting():
+        _thread.interrupt_main()  # Ctrl-C, while the router waits for this solve
+        return mrs.velocity(x, x, x, epsilon=0.3, mu=1.0)
+
+    def waiting():
+        try:
+            return mrs.velocity(x, x, x, epsilon=0.3, mu=1.0)
+        except RuntimeError as exc:
+            errors.append(str(exc))
+            raise
+
+    router = gpu.hosted.Router()
+    with pytest.raises(KeyboardInterrupt):
+        router.run([interrupting, waiting])
+    for _ in range(50):  # the released threads end (they are daemons: never a hang at exit)
+        if not [t for t in threading.enumerate() if t.name.startswith("parastokes-gpu-host")]:
+            break
+        threading.Event().wait(0.1)
+    assert not [t for t in threading.enumerate() if t.name.startswith("parastokes-gpu-host")]
+    assert errors in ([], ["the GPU router was closed"])
+
+
+def test_a_rigid_configuration_runs_on_the_gpu_executor_as_on_the_serial(iterative, tmp_path):
+    """``parastokes run`` of a rigid sphere with ``executor = "gpu"`` (hosted) against the serial
+    executor: the same Parareal result to round-off."""
+    from parastokes import config
+    from parastokes.run import execution
+
+    def run(kind):
+        cfg = config.parse({
+            "model": {"kind": "rigid", "shape": "sphere", "n_points": 12, "wall": True,
+                      "viscosity": 1.0, "position": [0.0, 0.0, 2.0], "force": [0.3, 0.0, -1.0]},
+            "time": {"t1": 0.4}, "fine": {"dt": 0.05},
+            "coarse": {"dt_ratio": 2, "lagrange": {"epsilon": [1.05, 1.1]}},
+            "parareal": {"n_slices": 2, "max_iterations": 1}, "run": {"mode": "parareal"},
+            "output": {"figures": False}, "execution": {"executor": kind}})
+        return execution.execute(cfg, config.resolve(cfg), tmp_path / kind)
+
+    serial, hosted = run("serial"), run("gpu")
+    start = np.array([[0.0, 0.0, 2.0]])
+    motion = np.abs(np.array(serial["final_positions"])[:1] - start).max()
+    assert motion > 1e-3
+    diff = np.abs(np.array(hosted["final_positions"]) - np.array(serial["final_positions"]))
+    assert diff.max() <= RTOL * motion
+    assert hosted["increments"] == pytest.approx(serial["increments"], rel=1e-6)
