@@ -439,7 +439,13 @@ def test_a_sigterm_lost_in_a_finalizer_still_stops_the_run_before_its_results_mo
         return frames(*args, **kwargs)
 
     monkeypatch.setattr(execution, "append_frames", lost_then_frames)
+    # Python's own Ctrl-C handler, even when this suite runs with SIGINT ignored (a background
+    # job of a shell without job control), which the command leaves as it is
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     path = _config(tmp_path, TINY)
-    assert _run(path, "--out", tmp_path / "out") == code
+    try:
+        assert _run(path, "--out", tmp_path / "out") == code
+    finally:
+        signal.signal(signal.SIGINT, previous)
     assert not (tmp_path / "out" / "summary.json").exists()
     assert "Exception ignored" not in capsys.readouterr().err  # no traceback of the first raise

@@ -72,6 +72,9 @@ def _command(*args: object, limit: int | None = None, env: dict | None = None,
     bytes)."""
 
     def limited() -> None:
+        # SIGINT at its default in the child, even when this suite runs with it ignored (a
+        # background job of a shell without job control): Ctrl-C must reach the command
+        signal.signal(signal.SIGINT, signal.SIG_DFL)
         if limit is not None:
             resource.setrlimit(resource.RLIMIT_FSIZE, (limit, resource.RLIM_INFINITY))
 
