@@ -122,7 +122,8 @@ class Execution(_Section):
     executor: Literal["serial", "processes", "mpi", "gpu"] = Field(
         "processes",
         description="serial (reference), processes (one machine), mpi (clusters) or gpu (one "
-        "CUDA GPU: each parallel sweep and each coarse step runs as one batch; parastokes[gpu]).",
+        "CUDA GPU: each parallel sweep and each coarse step runs as one batch; rigid bodies' "
+        "solves on the host with their fluid products batched on the GPU; parastokes[gpu]).",
     )
     workers: int | None = Field(
         None,
