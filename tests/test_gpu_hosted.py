@@ -82,13 +82,15 @@ def test_route_sends_this_threads_velocity_calls_only():
 
 
 def test_router_batches_the_products_of_all_waiting_solves():
-    """Three solves, two shapes: each round is one launch per shape; results as the CPU's."""
+    """Four solves, two shapes: each round is one launch per shape and kind of ε; results as
+    the CPU's."""
     rng = np.random.default_rng(2)
     cases = []
-    for n, wall, torques in ((6, True, False), (6, True, True), (4, False, False)):
+    for n, wall, torques, per_source in ((6, True, False, True), (6, True, True, True),
+                                         (4, False, False, True), (4, False, False, False)):
         x = rng.uniform(0.5, 2.0, (n, 3))
         cases.append((x, rng.normal(size=(n, 3)), rng.normal(size=(n, 3)) if torques else None,
-                      rng.uniform(0.2, 0.6, n), wall))
+                      rng.uniform(0.2, 0.6, n) if per_source else 0.4, wall))
 
     def job(x, f, n, eps, wall):
         return [mrs.velocity(x, x, (k + 1) * f, epsilon=eps, mu=1.5, torques=n, wall=wall,
@@ -96,8 +98,9 @@ def test_router_batches_the_products_of_all_waiting_solves():
 
     router = gpu.hosted.Router()
     outcomes = router.run([lambda c=c: job(*c) for c in cases])
-    # per round: one launch of the two 6-point solves, one of the 4-point one
-    assert sorted(router.launches) == [1, 1, 1, 2, 2, 2]
+    # per round: one launch of the two 6-point solves, one for each 4-point one (ε per source,
+    # one ε)
+    assert sorted(router.launches) == [1] * 6 + [2] * 3
     for (ok, values), case in zip(outcomes, cases, strict=True):
         assert ok
         for got, want in zip(values, job(*case), strict=True):

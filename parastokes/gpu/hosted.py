@@ -47,7 +47,7 @@ Outcome = tuple[bool, Any]
 @dataclass
 class _Product:
     """One waiting product: the validated arguments of one :func:`parastokes.mrs.velocity` call
-    (unbatched), and its result once evaluated."""
+    (unbatched; ``eps`` one number, or one per source), and its result once evaluated."""
 
     targets: np.ndarray
     sources: np.ndarray
@@ -70,7 +70,7 @@ class _Product:
     def key(self) -> tuple:
         """What products of one launch share: shapes, the wall, the kernel, ε per source."""
         return (self.targets.shape[0], self.sources.shape[0], self.wall, self.fast,
-                self.eps.ndim == 2)
+                self.eps.ndim == 1)
 
 
 @dataclass
