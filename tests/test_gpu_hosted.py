@@ -11,6 +11,7 @@ running. Measured in the simulator: max |GPU - CPU| over the iterates 3.3e-15 (s
 (GMRES to 1e-10 propagates the products' round-off).
 """
 
+import signal
 import threading
 
 import numpy as np
@@ -245,8 +246,14 @@ def test_ctrl_c_while_solves_wait_closes_the_router_and_releases_them():
             raise
 
     router = gpu.hosted.Router()
-    with pytest.raises(KeyboardInterrupt):
-        router.run([interrupting, waiting])
+    # Python's own Ctrl-C handler, even when this suite runs with SIGINT ignored (a background
+    # job of a shell without job control: interrupt_main then does nothing)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            router.run([interrupting, waiting])
+    finally:
+        signal.signal(signal.SIGINT, previous)
     for _ in range(50):  # the released threads end (they are daemons: never a hang at exit)
         if not [t for t in threading.enumerate() if t.name.startswith("parastokes-gpu-host")]:
             break
