@@ -285,3 +285,25 @@ def test_a_rigid_configuration_runs_on_the_gpu_executor_as_on_the_serial(iterati
     diff = np.abs(np.array(hosted["final_positions"]) - np.array(serial["final_positions"]))
     assert diff.max() <= RTOL * motion
     assert hosted["increments"] == pytest.approx(serial["increments"], rel=1e-6)
+
+
+@pytest.mark.parametrize("kw", [dict(scheme="ros2", dt=1e-2), dict(scheme="lieuler", dt=1e-2),
+                                dict(scheme="ros2-krylov", dt=1e-2),
+                                dict(scheme="ros2", dt=1e-2, rtol=1e-6)])
+def test_implicit_and_adaptive_solves_run_hosted(kw, monkeypatch):
+    """The device loop runs fixed steps of explicit tableaux; a linearly implicit or adaptive
+    propagator (docs/stiff.md) of a body with device parts runs hosted instead (it failed
+    before): on the simulator as on the CPU to round-off; four at once with the CPU kernels in
+    place of the launches, bit for bit as one alone (their threads share nothing unsafe)."""
+    rods = small_rods()
+    x0 = rods.initial_state()
+    fine = integrate.Propagator(rods, **kw)
+    assert gpu.batch.batch_key(fine, (0.0, 0.04, x0)) is None
+    cpu = fine(0.0, 0.04, x0)
+    launches = []
+    (ok, value), = gpu.batch.run_calls([(fine, (0.0, 0.04, x0), {})], launches=launches)
+    assert ok and launches
+    assert np.abs(value - cpu).max() <= RTOL * np.abs(cpu - x0).max()
+    monkeypatch.setattr(gpu.hosted, "Evaluation", _CpuEvaluation)
+    outcomes = gpu.hosted.Router().run([lambda: fine(0.0, 0.04, x0)] * 4)
+    assert all(ok and np.array_equal(value, cpu) for ok, value in outcomes)

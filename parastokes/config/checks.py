@@ -224,8 +224,9 @@ def _workers(cfg: Config, n_auxiliary: int, issues: list, warnings: list) -> int
 
 
 def _stiff_issues(cfg: Config) -> list[tuple[str, str]]:
-    """The adaptive steps' tolerances (finite, positive, a scheme with an error estimate) and the
-    executor of linearly implicit schemes (their stage solves run on the CPU only)."""
+    """The adaptive steps' tolerances (finite, positive, a scheme with an error estimate). (Any
+    executor runs the linearly implicit schemes: the GPU's hosts their solves,
+    :mod:`parastokes.gpu.hosted`.)"""
     issues = []
     fine = cfg.fine
     if fine.rtol is not None or fine.atol is not None:
@@ -237,11 +238,6 @@ def _stiff_issues(cfg: Config) -> list[tuple[str, str]]:
             except ValueError as error:
                 key, _, text = str(error).partition(": ")
                 issues.append((f"fine.{key}", text))
-    schemes = {fine.scheme, getattr(cfg.coarse, "scheme", fine.scheme)}
-    implicit = sorted(s for s in schemes if integrate.SCHEMES[s].implicit)
-    if implicit and cfg.execution.executor == "gpu":
-        issues.append(("execution.executor", f"the GPU solves explicit schemes only; "
-                       f"{', '.join(implicit)} runs on processes, mpi or serial"))
     return issues
 
 

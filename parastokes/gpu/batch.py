@@ -10,7 +10,8 @@ exactly: ``n_steps`` equal steps of ``(t_end - t_start)/n``, the start state pro
 projected, :class:`integrate.BlowUpError` on a blow-up.
 
 A propagator call ``fn(t_start, t_end, x)`` of any other system (a rigid or prescribed-motion
-body, a scene with one, a user's body without device parts) is *hosted* (:func:`hosted_call`):
+body, a scene with one, a user's body without device parts), or with a linearly implicit scheme
+or adaptive steps (``rtol``/``atol``: :mod:`parastokes.stiff`), is *hosted* (:func:`hosted_call`):
 all such calls of a batch run on the host together, each its own CPU solve, with their fluid
 products evaluated on the GPU in batched launches (:mod:`.hosted`). Any other call runs here, on
 the CPU, in order, as the serial executor would run it.
@@ -38,6 +39,8 @@ def batch_key(fn: Any, args: tuple) -> tuple | None:
     """What members of one batch share, or None when the call is not batched on the GPU."""
     if not isinstance(fn, integrate.Propagator) or len(args) != 3:
         return None
+    if integrate.SCHEMES[fn.scheme].implicit or fn.rtol is not None or fn.atol is not None:
+        return None  # the device loop runs fixed steps of explicit tableaux: hosted instead
     system = stepping.gpu_system(fn.system)
     if system is None:
         return None
