@@ -307,3 +307,18 @@ def test_implicit_and_adaptive_solves_run_hosted(kw, monkeypatch):
     monkeypatch.setattr(gpu.hosted, "Evaluation", _CpuEvaluation)
     outcomes = gpu.hosted.Router().run([lambda: fine(0.0, 0.04, x0)] * 4)
     assert all(ok and np.array_equal(value, cpu) for ok, value in outcomes)
+
+
+def test_a_stop_lost_in_a_finalizer_ends_the_batch_at_the_next_round():
+    """A SIGTERM whose raise was lost (recorded by core.signals) stops the router before its
+    next launch, releasing the solves."""
+    from parastokes.core import signals
+
+    x = np.array([[0.0, 0.0, 1.0], [0.0, 0.6, 1.2]])
+    with pytest.raises(signals.Terminated):
+        signals.terminate(signal.SIGTERM)  # the handler's raise, "lost"
+    try:
+        with pytest.raises(signals.Terminated):
+            gpu.hosted.Router().run([lambda: mrs.velocity(x, x, x, epsilon=0.3, mu=1.0)])
+    finally:
+        signals.clear()

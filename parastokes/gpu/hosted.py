@@ -34,6 +34,7 @@ from typing import Any
 
 import numpy as np
 
+from ..core import signals
 from ..mrs.velocity import routed
 from .stepping import Launch
 from .velocity import Evaluation
@@ -157,6 +158,7 @@ class Router:
                     if not self._running:
                         break
                     batch, self._waiting = self._waiting, []
+                signals.honour()  # a stop lost in a finalizer ends the batch here
                 groups: dict[tuple, list[_Product]] = {}
                 for item in batch:
                     groups.setdefault(item.key(), []).append(item)
