@@ -129,7 +129,9 @@ def test_a_failed_solve_fails_alone_and_a_failed_launch_fails_its_products(monke
 
     monkeypatch.setattr(gpu.hosted.Evaluation, "launch", refuse)
     outcomes = gpu.hosted.Router().run([fine, fine])
-    assert [str(value) for _, value in outcomes] == ["launch failed"] * 2
+    assert [str(value) for _, value in outcomes] == [
+        "the GPU launch of 2 products failed: RuntimeError: launch failed"] * 2
+    assert outcomes[0][1] is not outcomes[1][1]
 
 
 def test_rigid_sphere_by_the_wall_matches_the_cpu(iterative):

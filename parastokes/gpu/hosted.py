@@ -120,8 +120,10 @@ class Router:
             evaluation.launch()
             u, w = evaluation.result()
         except Exception as exc:
-            for p in items:
-                p.result = exc
+            for p in items:  # (one exception per thread: each raises and annotates its own)
+                p.result = RuntimeError(f"the GPU launch of {len(items)} products failed: "
+                                        f"{type(exc).__name__}: {exc}")
+                p.result.__cause__ = exc
             return
         self.launches.append(len(items))
         for b, p in enumerate(items):
