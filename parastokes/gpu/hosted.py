@@ -2,7 +2,8 @@
 
 A system without device parts (:mod:`.stepping`), such as a rigid or prescribed-motion body
 (:mod:`parastokes.kinds.rigid`: every rate evaluation is a mobility solve, GMRES on the fluid
-operator) or a scene with one, cannot be stepped by the device kernels. Its solves still spend
+operator) or a scene with one, cannot be stepped by the device kernels; nor can a solve with a
+linearly implicit scheme or adaptive steps (:mod:`parastokes.stiff`). Its solves still spend
 nearly all their time in products of the fluid operator: the direct sums of
 :func:`parastokes.mrs.velocity`, O(N²) for N surface points, against O(N) for GMRES's vectors and
 the bodies' own blocks. :func:`run_calls` runs B such solves (the fine solves of a parallel
@@ -20,8 +21,10 @@ solve's products equal the CPU's to round-off, so its result equals the CPU's up
 propagated through GMRES (its iterates depend continuously on the products); each target's sum
 runs in a fixed order whatever the batch, so a solve's result does not depend on what it is
 batched with. Everything else (the Runge-Kutta loop, GMRES, the per-body blocks, the checks and
-their errors) is the CPU's own code. The host parts of the B solves share the GIL (numpy and
-LAPACK release it); launches, transfers and the waits run in the calling thread only.
+their errors) is the CPU's own code. The host parts of the B solves share the GIL (numpy
+releases it in its larger operations; scipy's LAPACK calls are serialized,
+:data:`parastokes.mobility.threads.LAPACK`); launches, transfers and the waits run in the calling
+thread only.
 """
 
 from __future__ import annotations
