@@ -44,6 +44,7 @@ from pathlib import Path
 import numpy as np
 from numba import cuda
 
+from benchmarks.suspension import lattice_placement, scene_config
 from parastokes import config, integrate, models, mrs, parallel, parareal
 from parastokes.gpu import batch, device, stepping
 from parastokes.gpu.velocity import Evaluation
@@ -187,28 +188,9 @@ def sweep_section(n_points: int, n_slices: int, steps: int, cpu_workers: int) ->
     return out
 
 
-def suspension(counts: list[int], points: int, spacing: float):
-    """Spheres of radius 1 and ``points`` points on a lattice of ``counts`` and ``spacing``
-    above the wall (lowest layer at height 3), sedimenting at a Stokes speed of 1."""
-    mu = 1e-6
-    data = {
-        "title": "GPU rigid benchmark",
-        "scene": {"viscosity": mu, "wall": True},
-        "suspensions": [{"name": "s", "placement": "lattice", "counts": counts,
-                         "spacing": spacing,
-                         "center": [0.0, 0.0, 3 + (counts[2] - 1) / 2 * spacing],
-                         "body": {"kind": "rigid", "radius": 1.0, "n_points": points,
-                                  "force": [0.0, 0.0, -6 * np.pi * mu]}}],
-        "time": {"t1": 0.1}, "fine": {"dt": 0.05}, "coarse": {"dt_ratio": 2},
-        "parareal": {"n_slices": 2}, "execution": {"executor": "serial"},
-    }
-    cfg = config.parse(data)
-    return config.build(cfg, config.resolve(cfg)).system
-
-
-def rigid_section(counts: list[int], points: int, members: int, steps: int,
+def rigid_section(counts: tuple[int, int, int], points: int, members: int, steps: int,
                   cpu_workers: int) -> dict:
-    scene = suspension(counts, points, 4.0)
+    scene = config.build(*scene_config(lattice_placement(4.0, counts), points)).system
     calls = _sweep_calls(scene, members, steps, 0.05)
     launches: list[int] = []
     gpu_seconds, cpu_seconds, diff, motion = _gpu_against_pool(scene, calls, cpu_workers,
@@ -299,7 +281,7 @@ def main(argv: list[str] | None = None) -> int:
             "coarse": {"lagrange": {"epsilon": {"nodes": [5.02, 5.04], "unit": "sigma_f"}},
                        "richardson": {"m": 0}}})}
         full = {}
-        rigid = ([2, 1, 1], 12, 2, 1)
+        rigid = ((2, 1, 1), 12, 2, 1)
         # the GMRES path of large suspensions on 24 points (in this process: the pool's workers
         # solve them densely, so the end states differ by about GMRES's tolerance, 1e-10)
         choice.DENSE_MAX_POINTS = 0
@@ -313,7 +295,7 @@ def main(argv: list[str] | None = None) -> int:
         }
         full = {"rod Table 4 G^3": ("table4_g3.toml", {}),
                 "vesicle Table 7 G^1": ("table7_g1.toml", {})}
-        rigid = ([4, 4, 4], 150, cores, 2)
+        rigid = ((4, 4, 4), 150, cores, 2)
 
     def save() -> None:
         if args.json is not None:

@@ -85,10 +85,10 @@ def random_placement(count: int, fraction: float) -> dict:
             "center": [0.0, 0.0, 0.5 + edge / 2], "seed": 1}
 
 
-def lattice_placement(spacing: float) -> dict:
-    """4 x 4 x 4 spheres ``spacing`` apart, the lowest layer at height 3."""
-    return {"placement": "lattice", "counts": [4, 4, 4], "spacing": spacing,
-            "center": [0.0, 0.0, 3 + 1.5 * spacing]}
+def lattice_placement(spacing: float, counts: tuple[int, int, int] = (4, 4, 4)) -> dict:
+    """``counts`` spheres (4 x 4 x 4) ``spacing`` apart, the lowest layer at height 3."""
+    return {"placement": "lattice", "counts": list(counts), "spacing": spacing,
+            "center": [0.0, 0.0, 3 + (counts[2] - 1) / 2 * spacing]}
 
 
 def cpu_best(fn: Callable[[], object], rounds: int) -> float:
@@ -292,7 +292,6 @@ def hosted(batches: list[int]) -> list[dict]:
     threads' hand-over) that a device round cannot go below."""
     from parastokes.gpu import hosted as hosted_module
 
-    hosted_module.Evaluation = _CpuProducts  # (this process only: a benchmark's stand-in)
     out = []
     cases = {"64 spheres x 150, lattice 4a": scene_config(lattice_placement(4.0), 150),
              "100 spheres x 42, random 0.05": scene_config(random_placement(100, 0.05), 42)}
@@ -301,7 +300,7 @@ def hosted(batches: list[int]) -> list[dict]:
         x0 = scene.initial_state()
         scene.rates(0.0, x0)  # compiled, factorized
         for count in batches:
-            router = hosted_module.Router()
+            router = hosted_module.Router(evaluation=_CpuProducts)
             _CpuProducts.seconds = 0.0
             t = time.perf_counter()
             outcomes = router.run([functools.partial(scene.rates, 0.0, x0)] * count)

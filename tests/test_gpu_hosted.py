@@ -185,7 +185,8 @@ def test_the_device_scripts_rigid_section_runs_and_checks(tmp_path):
 
 
 class _CpuEvaluation:
-    """The CPU kernels in place of the GPU launch (as benchmarks/suspension.py's part hosted)."""
+    """The CPU kernels in place of the GPU launch (``Router(evaluation=...)``, as
+    benchmarks/suspension.py's part hosted)."""
 
     def __init__(self, targets, sources, forces, torques, epsilon, mu, wall, launch=None):
         self.u, self.w = mrs.velocity(targets, sources, forces, epsilon=epsilon, mu=mu,
@@ -198,7 +199,7 @@ class _CpuEvaluation:
         return self.u, self.w
 
 
-def test_concurrent_hosted_solves_equal_the_serial_solve_bit_for_bit(monkeypatch):
+def test_concurrent_hosted_solves_equal_the_serial_solve_bit_for_bit():
     """Four hosted mobility solves of 64 spheres at once (their threads share the sphere's
     body-frame factorization and its caches) against one serial solve. Before scipy's LAPACK
     calls were serialized (mobility.threads.LAPACK) they corrupted each other: 14 GMRES
@@ -217,8 +218,7 @@ def test_concurrent_hosted_solves_equal_the_serial_solve_bit_for_bit(monkeypatch
     scene = config.build(cfg, config.resolve(cfg)).system
     x0 = scene.initial_state()
     serial = scene.coupled(0.0, x0).solution
-    monkeypatch.setattr(gpu.hosted, "Evaluation", _CpuEvaluation)
-    router = gpu.hosted.Router()
+    router = gpu.hosted.Router(evaluation=_CpuEvaluation)
     for _ in range(3):
         outcomes = router.run([lambda: scene.coupled(0.0, x0).solution] * 4)
         for ok, solution in outcomes:
@@ -292,7 +292,7 @@ def test_a_rigid_configuration_runs_on_the_gpu_executor_as_on_the_serial(iterati
 @pytest.mark.parametrize("kw", [dict(scheme="ros2", dt=1e-2), dict(scheme="lieuler", dt=1e-2),
                                 dict(scheme="ros2-krylov", dt=1e-2),
                                 dict(scheme="ros2", dt=1e-2, rtol=1e-6)])
-def test_implicit_and_adaptive_solves_run_hosted(kw, monkeypatch):
+def test_implicit_and_adaptive_solves_run_hosted(kw):
     """The device loop runs fixed steps of explicit tableaux; a linearly implicit or adaptive
     propagator (docs/stiff.md) of a body with device parts runs hosted instead (it failed
     before): on the simulator as on the CPU to round-off; four at once with the CPU kernels in
@@ -306,8 +306,7 @@ def test_implicit_and_adaptive_solves_run_hosted(kw, monkeypatch):
     (ok, value), = gpu.batch.run_calls([(fine, (0.0, 0.04, x0), {})], launches=launches)
     assert ok and launches
     assert np.abs(value - cpu).max() <= RTOL * np.abs(cpu - x0).max()
-    monkeypatch.setattr(gpu.hosted, "Evaluation", _CpuEvaluation)
-    outcomes = gpu.hosted.Router().run([lambda: fine(0.0, 0.04, x0)] * 4)
+    outcomes = gpu.hosted.Router(evaluation=_CpuEvaluation).run([lambda: fine(0.0, 0.04, x0)] * 4)
     assert all(ok and np.array_equal(value, cpu) for ok, value in outcomes)
 
 

@@ -29,7 +29,7 @@ from .. import integrate
 from ..core.contracts import System
 from . import hosted, stepping
 
-__all__ = ["Outcome", "batch_key", "hosted_call", "run_calls"]
+__all__ = ["Outcome", "batch_key", "gpu_call", "hosted_call", "run_calls"]
 
 #: ``(True, value)`` or ``(False, exception)`` for one call.
 Outcome = tuple[bool, Any]
@@ -51,11 +51,16 @@ def batch_key(fn: Any, args: tuple) -> tuple | None:
     return structure, fn.scheme, fn.blowup_factor
 
 
+def gpu_call(fn: Any, args: tuple, kwargs: dict) -> bool:
+    """Whether the call runs on the GPU, batched or hosted: a propagator call
+    ``fn(t_start, t_end, x)``."""
+    return isinstance(fn, integrate.Propagator) and len(args) == 3 and not kwargs
+
+
 def hosted_call(fn: Any, args: tuple, kwargs: dict) -> bool:
-    """Whether the call runs hosted (see the module): a propagator call ``fn(t_start, t_end, x)``
-    that :func:`batch_key` does not batch."""
-    return (isinstance(fn, integrate.Propagator) and len(args) == 3 and not kwargs
-            and batch_key(fn, args) is None)
+    """Whether the call runs hosted (see the module): a GPU call (:func:`gpu_call`) that
+    :func:`batch_key` does not batch."""
+    return gpu_call(fn, args, kwargs) and batch_key(fn, args) is None
 
 
 def _prepare(fn: integrate.Propagator, args: tuple) -> stepping.Member | Outcome:
@@ -118,16 +123,16 @@ def run_calls(
     groups: dict[tuple, list] = {}
     host: list[int] = []
     for index, (fn, args, kwargs) in enumerate(calls):
-        key = None if kwargs else batch_key(fn, args)
-        if key is None and hosted_call(fn, args, kwargs):
+        key = batch_key(fn, args) if gpu_call(fn, args, kwargs) else None
+        if key is not None:
+            groups.setdefault(key, []).append((index, fn, args))
+        elif gpu_call(fn, args, kwargs):
             host.append(index)
-        elif key is None:
+        else:
             try:
                 outcomes[index] = True, fn(*args, **kwargs)
             except Exception as exc:
                 outcomes[index] = False, exc
-        else:
-            groups.setdefault(key, []).append((index, fn, args))
     for group in groups.values():
         _run_group(group, outcomes, launch)
     if host:

@@ -145,8 +145,7 @@ class GPUExecutor(Executor):
                 for h in held[start:]:
                     h[0].set_exception(exc)
                 raise
-            gpu_calls = sum(batch.batch_key(fn, args) is not None
-                            or batch.hosted_call(fn, args, kwargs) for _, fn, args, kwargs in part)
+            gpu_calls = sum(batch.gpu_call(fn, args, kwargs) for _, fn, args, kwargs in part)
             if gpu_calls:
                 self.batches.append(gpu_calls)
             for (future, *_), (ok, value) in zip(part, outcomes, strict=True):

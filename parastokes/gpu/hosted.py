@@ -80,9 +80,13 @@ class _Product:
 @dataclass
 class Router:
     """Collects the products of the solve threads and evaluates them in batched launches (see
-    the module). ``launches`` records, per launch, how many products it held."""
+    the module). ``launches`` records, per launch, how many products it held; ``evaluation``
+    makes a launch (:class:`.velocity.Evaluation`'s arguments, ``launch()`` and ``result()``;
+    a stand-in on the CPU kernels measures the host's share without a device,
+    benchmarks/suspension.py)."""
 
     launch: Launch | None = None
+    evaluation: Callable[..., Any] = Evaluation
     launches: list[int] = field(default_factory=list)
     _cond: threading.Condition = field(default_factory=threading.Condition)
     _waiting: list[_Product] = field(default_factory=list)
@@ -115,11 +119,10 @@ class Router:
         try:
             torques = None if first.fast else np.stack([
                 np.zeros_like(p.sources) if p.torques is None else p.torques for p in items])
-            evaluation = Evaluation(np.stack([p.targets for p in items]),
-                                    np.stack([p.sources for p in items]),
-                                    np.stack([p.forces for p in items]), torques,
-                                    np.stack([p.eps for p in items]),
-                                    np.array([p.mu for p in items]), first.wall, self.launch)
+            evaluation = self.evaluation(
+                np.stack([p.targets for p in items]), np.stack([p.sources for p in items]),
+                np.stack([p.forces for p in items]), torques, np.stack([p.eps for p in items]),
+                np.array([p.mu for p in items]), first.wall, self.launch)
             evaluation.launch()
             u, w = evaluation.result()
         except Exception as exc:
