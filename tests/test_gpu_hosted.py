@@ -323,3 +323,18 @@ def test_a_stop_lost_in_a_finalizer_ends_the_batch_at_the_next_round():
             gpu.hosted.Router().run([lambda: mrs.velocity(x, x, x, epsilon=0.3, mu=1.0)])
     finally:
         signals.clear()
+
+
+def test_a_hosted_solve_does_not_depend_on_its_batch(iterative):
+    """Each target sums its sources in a fixed order whatever the launch holds: a rigid solve
+    alone and beside another one (another ε, another start) give the same bits."""
+    body = _sphere()
+    x0 = body.initial_state()
+    fine = integrate.Propagator(body, "rk2", 0.05)
+    other = integrate.Propagator(body.with_params(epsilon=0.55), "rk2", 0.05)
+    (_, alone), = gpu.batch.run_calls([(fine, (0.0, 0.1, x0), {})])
+    launches = []
+    (_, together), _ = gpu.batch.run_calls([(fine, (0.0, 0.1, x0), {}),
+                                            (other, (0.1, 0.2, x0), {})], launches=launches)
+    assert max(launches) == 2  # they shared launches
+    assert np.array_equal(alone, together)
