@@ -1,5 +1,6 @@
 """One step of a linearly implicit scheme (:mod:`.schemes`) over the System interface, and the
-error estimate of its embedded solution for adaptive steps.
+step with its embedded solution (:meth:`Stepper.step_with_estimate`), which the step-size
+controller of :mod:`parastokes.integrate.controller` calls for adaptive steps.
 
 A :class:`Stepper` belongs to one run: it keeps the approximate Jacobian ``A`` of
 :mod:`.jacobian` and the factorization of ``I - hγA``, rebuilding ``A`` every ``refresh`` steps
@@ -11,7 +12,6 @@ deterministic function of its input (Parareal stays bit-reproducible).
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -20,21 +20,10 @@ from .jacobian import local_jacobian
 from .schemes import Rosenbrock
 from .solve import StageSolver
 
-__all__ = ["REFRESH", "AdaptiveResult", "StepSizeError", "Stepper", "adaptive_steps"]
+__all__ = ["REFRESH", "Stepper"]
 
 Rates = Callable[[float, np.ndarray], np.ndarray]
 Advance = Callable[[np.ndarray, np.ndarray, float], np.ndarray]
-
-
-class StepSizeError(RuntimeError):
-    """The adaptive steps shrank below 1e-12 of the interval at time ``t``."""
-
-    def __init__(self, t: float, step: float) -> None:
-        super().__init__(f"step size {step:.3g} too small at t={t:.10g}")
-        self.t, self.step = t, step
-
-    def __reduce__(self) -> tuple:
-        return type(self), (self.t, self.step)
 
 
 #: Steps between rebuilds of the approximate Jacobian (docs/benchmarks.md, "Stiff bodies").
@@ -118,59 +107,3 @@ class Stepper:
         return (self.advance(x, self._combine(self.scheme.b, k), h),
                 self.advance(x, self._combine(self.scheme.b_low, k), h))
 
-
-def error_norm(x: np.ndarray, x_new: np.ndarray, x_low: np.ndarray, rtol: float,
-               atol: float) -> float:
-    """The RMS over the state's entries of ``(x_new - x_low) / (atol + rtol max(|x|, |x_new|))``
-    (the norm of Hairer, Nørsett & Wanner, *Solving ODEs I*, II.4; scipy's solve_ivp)."""
-    scale = atol + rtol * np.maximum(np.abs(x), np.abs(x_new))
-    return float(np.sqrt(np.mean(((x_new - x_low) / scale) ** 2)))
-
-
-@dataclass(frozen=True)
-class AdaptiveResult:
-    """Steps accepted and rejected by :func:`adaptive_steps`, and the last step size tried."""
-
-    accepted: int
-    rejected: int
-    last_step: float
-
-
-#: Step-size controller: safety factor, smallest and largest change of a step.
-SAFETY, SHRINK, GROW = 0.9, 0.2, 5.0
-
-
-def adaptive_steps(stepper: Stepper, x: np.ndarray, t0: float, t1: float, h0: float,
-                   rtol: float, atol: float,
-                   accept: Callable[[float, np.ndarray, int], bool]
-                   ) -> tuple[np.ndarray, AdaptiveResult]:
-    """Steps from ``(t0, x)`` to ``t1`` whose estimated local error stays within ``rtol`` and
-    ``atol`` (:func:`error_norm` <= 1), the first of size ``h0``, the next ones by the
-    elementary controller ``h (SAFETY / err)^(1/2)`` (the estimate is of first order), within
-    ``[SHRINK h, GROW h]``, the last one cut to end at ``t1``.
-
-    ``accept(t, x_new, step)`` sees every step whose error is small enough; it returns False for
-    a state the run cannot keep (its monitor beyond the limit: the step is halved and redone)
-    and may raise to end the run. Returns the state at ``t1`` and the counts.
-    """
-    t, h = t0, min(h0, t1 - t0)
-    accepted = rejected = 0
-    while t < t1:
-        last = t + h >= t1 * (1 - 1e-14) if t1 else t + h >= t1
-        step = t1 - t if last else h
-        x_new, x_low = stepper.step_with_estimate(t, x, step)
-        err = error_norm(x, x_new, x_low, rtol, atol)
-        if not np.isfinite(err):
-            err = np.inf
-        if err <= 1.0 and accept(t + step, x_new, accepted):
-            t = t1 if last else t + step
-            x = x_new
-            accepted += 1
-            factor = GROW if err == 0 else min(GROW, max(SHRINK, SAFETY * err ** -0.5))
-        else:
-            rejected += 1
-            factor = SHRINK if not np.isfinite(err) else max(SHRINK, min(0.5, SAFETY * err ** -0.5))
-        h = step * factor
-        if h < 1e-12 * max(abs(t1 - t0), abs(t1)):
-            raise StepSizeError(t, h)
-    return x, AdaptiveResult(accepted, rejected, h)
