@@ -38,8 +38,13 @@ The linearly implicit schemes of :mod:`parastokes.stiff` (``lieuler``, ``ros2``,
 :data:`SCHEMES` too, usable wherever the explicit ones are; they always take their steps in
 Python (:class:`parastokes.stiff.Stepper`), since the stage solves are scipy's. With ``rtol``
 (and ``atol``) in place of a fixed step, :func:`run` takes adaptive steps from the embedded
-error estimate of a scheme that has one (``ros2``); the step sequence is a deterministic
-function of the input.
+error estimate of a scheme that has one (``SCHEMES[name].adaptive``: the explicit pairs ``rk23``
+of Bogacki & Shampine and ``rk45`` of Dormand & Prince, ``ros2``, ``ros2-krylov``), all sized
+by the one controller of :mod:`.controller`; the step sequence is a deterministic function of
+the input. A pair on a fixed step (no ``rtol``) runs its high-order tableau (the compiled loop
+too); a config refuses that (``parastokes check``), since ``rk4`` is cheaper there. The states
+at given times (a run's frames) come from runs that end there, the last step cut to land on
+the time: no interpolation between steps.
 
 Blow-up is an error: after every step the state must be finite and ``system.monitor`` must stay
 below ``blowup_factor * system.monitor_limit``; otherwise :class:`BlowUpError` names the time, the

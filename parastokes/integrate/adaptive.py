@@ -14,6 +14,7 @@ from ..core.contracts import StepFailure, System
 from ..stiff import Rosenbrock
 from .base import BlowUpError, RunResult, monitor, projected
 from .controller import StepSizeError, adaptive_steps, estimate_order
+from .explicit import PairStepper
 from .implicit import checked_stepper, solve_blowup
 from .schemes import AnyScheme
 
@@ -27,11 +28,11 @@ def adaptive_run(system: System, scheme: AnyScheme, x: np.ndarray, t0: float, t1
     """:func:`parastokes.integrate.run` with adaptive steps (see there): every accepted state is
     checked as the fixed steps' are (finite, monitor within ``blowup_factor`` times the limit;
     a state beyond it is a rejected step)."""
-    assert isinstance(scheme, Rosenbrock)
     limit = blowup_factor * system.monitor_limit
     x = projected(system, x, t0)
     worst = [monitor(system, x)]
-    stepper = checked_stepper(system, scheme)
+    stepper = (checked_stepper(system, scheme) if isinstance(scheme, Rosenbrock)
+               else PairStepper(system, scheme))
 
     def accept(t: float, x_new: np.ndarray, index: int) -> bool:
         if not np.isfinite(x_new).all():

@@ -9,7 +9,7 @@ from ..core.contracts import System
 from .base import advance, rates
 from .schemes import Bracket, Scheme
 
-__all__ = ["combine", "explicit_step", "stage_rates"]
+__all__ = ["PairStepper", "combine", "explicit_step", "stage_rates"]
 
 
 def combine(
@@ -51,3 +51,33 @@ def explicit_step(system: System, s: Scheme, t: float, x: np.ndarray, dt: float)
     """One step of the tableau ``s`` from ``(t, x)`` to ``t + dt`` (no projection)."""
     k = stage_rates(system, s, t, x, dt)
     return advance(system, x, combine(system, s.b, k, s.final_brackets, dt), dt)
+
+
+class PairStepper:
+    """Steps of an embedded pair with their embedded solutions, for the controller of
+    :mod:`.controller`; a first-same-as-last pair reuses the last stage of the step that ended
+    at ``(t, x)`` (the same array) as the first stage of the step from there, and the first
+    stage of a rejected step for its retry, so that only the new stages are evaluated."""
+
+    def __init__(self, system: System, scheme: Scheme) -> None:
+        assert scheme.b_low is not None
+        self.system, self.scheme = system, scheme
+        self.steps = 0
+        #: rates known at (t, state): the start of the last step tried and, for a pair that is
+        #: first same as last, its end
+        self._known: list[tuple[float, np.ndarray, np.ndarray]] = []
+
+    def _first(self, t: float, x: np.ndarray) -> np.ndarray | None:
+        return next((k for tk, xk, k in self._known if tk == t and xk is x), None)
+
+    def step_with_estimate(self, t: float, x: np.ndarray, h: float
+                           ) -> tuple[np.ndarray, np.ndarray]:
+        """The state at ``t + h`` and the embedded lower-order one."""
+        s, system = self.scheme, self.system
+        assert s.b_low is not None
+        k = stage_rates(system, s, t, x, h, self._first(t, x))
+        x_new = advance(system, x, combine(system, s.b, k, s.final_brackets, h), h)
+        x_low = advance(system, x, combine(system, s.b_low, k, s.low_brackets, h), h)
+        self._known = [(t, x, k[0])] + ([(t + h, x_new, k[-1])] if s.fsal else [])
+        self.steps += 1
+        return x_new, x_low

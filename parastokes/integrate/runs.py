@@ -34,6 +34,9 @@ __all__ = ["Propagator", "n_steps", "propagate", "run", "run_result", "step", "t
 
 log = logging.getLogger(__name__)
 
+#: The smallest ``rtol`` accepted: 100 machine epsilons.
+RTOL_MIN = 100 * float(np.finfo(float).eps)
+
 
 def step(system: System, scheme: str | AnyScheme, t: float, x: np.ndarray, dt: float
          ) -> np.ndarray:
@@ -159,8 +162,9 @@ def run(
 ) -> RunResult:
     """Integrate from ``t0`` to ``t1`` with equal steps closest to ``dt``; report the worst monitor.
 
-    With ``rtol`` (``atol`` defaults to ``rtol``): adaptive steps of a scheme with an error
-    estimate instead (:mod:`.controller`, ``dt`` the first step tried);
+    With ``rtol`` (``atol`` defaults to ``rtol``; ``atol`` alone is a ValueError): adaptive
+    steps of a scheme with an error estimate instead (:mod:`.controller`, ``dt`` the first step
+    tried, the last one cut to end at ``t1``);
     ``n_steps`` of the result counts the accepted steps, ``n_rejected`` the rejected ones.
 
     The step actually used is ``(t1 - t0) / n_steps(t0, t1, dt)``; a change is logged (DEBUG).
@@ -171,9 +175,10 @@ def run(
     """
     s = lookup(scheme)
     n = n_steps(t0, t1, dt)
-    if rtol is not None and n:
-        return adaptive_run(system, s, np.asarray(x, dtype=float), t0, t1, dt,
-                         tolerances(s, rtol, atol), blowup_factor)
+    tol = None if rtol is None and atol is None else tolerances(s, rtol, atol)
+    if tol is not None and n:
+        return adaptive_run(system, s, np.asarray(x, dtype=float), t0, t1, dt, tol,
+                            blowup_factor)
     if n == 0:
         return RunResult(system.project(np.array(x, dtype=float)), system.monitor(x), 0, dt)
     h = (t1 - t0) / n
@@ -184,17 +189,25 @@ def run(
     )
 
 
-def tolerances(scheme: str | AnyScheme, rtol: float, atol: float | None
+def tolerances(scheme: str | AnyScheme, rtol: float | None, atol: float | None
                ) -> tuple[float, float]:
-    """``(rtol, atol)`` checked for the adaptive steps of ``scheme``: finite and positive
-    (``atol`` None: ``rtol``), and a scheme with an error estimate (ValueError naming the key)."""
+    """``(rtol, atol)`` checked for the adaptive steps of ``scheme``: ``rtol`` given (``atol``
+    alone is refused, not ignored), both finite and positive (``atol`` None: ``rtol``),
+    ``rtol`` at least :data:`RTOL_MIN` (below it the steps would chase round-off), and a
+    scheme with an error estimate (ValueError naming the key)."""
     s = lookup(scheme)
+    if rtol is None:
+        raise ValueError(f"atol: given ({atol!r}) without rtol; adaptive steps need rtol "
+                         "(atol defaults to rtol), or leave both out for fixed steps")
     atol = rtol if atol is None else atol
     for name, value in (("rtol", rtol), ("atol", atol)):
         if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
             raise ValueError(f"{name}: must be a finite number > 0, got {value!r}")
-    if getattr(s, "b_low", None) is None:
-        adaptive = sorted(k for k, v in SCHEMES.items() if getattr(v, "b_low", None) is not None)
+    if rtol < RTOL_MIN:
+        raise ValueError(f"rtol: {rtol:g} is below {RTOL_MIN:.2g} (100 machine epsilons): no "
+                         "step can meet it in double precision; use a larger rtol")
+    if not s.adaptive:
+        adaptive = sorted(k for k, v in SCHEMES.items() if v.adaptive)
         raise ValueError(f"rtol: the scheme {s.name!r} has no error estimate for adaptive "
                          f"steps; use one of {adaptive}, or a fixed step without rtol/atol")
     return float(rtol), float(atol)
@@ -234,7 +247,7 @@ class Propagator:
         if not self.dt > 0:
             raise ValueError(f"dt: must be positive, got {self.dt}")
         if self.rtol is not None or self.atol is not None:
-            tolerances(self.scheme, self.rtol if self.rtol is not None else math.nan, self.atol)
+            tolerances(self.scheme, self.rtol, self.atol)
 
     @property
     def order(self) -> int:

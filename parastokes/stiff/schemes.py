@@ -54,6 +54,11 @@ class Rosenbrock:
     def stages(self) -> int:
         return len(self.b)
 
+    @property
+    def adaptive(self) -> bool:
+        """Whether the scheme has an error estimate (``b_low``) for adaptive steps."""
+        return self.b_low is not None
+
 
 _GAMMA2 = 1.0 + 1.0 / math.sqrt(2.0)
 _ROS2 = dict(order=2, gamma=_GAMMA2, c=(0.0, 1.0), a=((), (1.0,)), d=((), (-2.0,)),
