@@ -24,8 +24,11 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.linalg import lapack
 
-__all__ = ["BAND_LIMIT", "GMRES_ACCEPT", "GMRES_MAXITER", "GMRES_RTOL", "Factorization",
-           "StageSolver", "StiffSolveError", "bandwidth"]
+from ..mobility.threads import LAPACK, blas_threads
+from .banded import band_storage, bandwidth
+
+__all__ = ["GMRES_ACCEPT", "GMRES_MAXITER", "GMRES_RTOL", "Factorization", "StageSolver",
+           "StiffSolveError"]
 
 #: Relative residual of the GMRES stage solves, as scipy's GMRES measures it (W-methods keep
 #: their order with an inexact Jacobian, so the stage systems need not be solved to round-off).
@@ -55,20 +58,6 @@ class StiffSolveError(RuntimeError):
         return type(self), (self.t, self.residual, self.iterations, self.reason)
 
 
-#: The widest band (largest ``max(kl, ku)`` of ``A`` in its own order) factorized by LAPACK's
-#: banded LU (dgbtrf); a wider one goes to SuperLU (docs/benchmarks.md, "Stiff bodies: cheaper
-#: implicit steps": on the paper's rod LAPACK's banded LU is faster below a band of about 60
-#: and slower above).
-BAND_LIMIT = 64
-
-
-def bandwidth(matrix: sp.sparray) -> tuple[int, int]:
-    """``(kl, ku)``: the lower and upper bandwidth of ``matrix`` (0 for a diagonal one)."""
-    coo = sp.coo_array(matrix)
-    offset = coo.col.astype(np.int64) - coo.row
-    return int(-offset.min(initial=0)), int(offset.max(initial=0))
-
-
 def _ordering(matrix: sp.sparray) -> str:
     """SuperLU's column ordering: the natural one for a banded matrix (a rod's or chain's points
     in order along it: no fill outside the band, measured 2x faster to factorize), else COLAMD."""
@@ -77,20 +66,20 @@ def _ordering(matrix: sp.sparray) -> str:
 
 class Factorization:
     """The LU factorization of ``I - hγ A`` (``A`` sparse, square, nonzero): LAPACK's banded
-    dgbtrf when ``A``'s band is at most :data:`BAND_LIMIT`, else SuperLU; a singular matrix is
-    a :class:`StiffSolveError` at time ``t``. ``solve(v)`` solves with it (``v`` flat)."""
+    dgbtrf (on one BLAS thread, :func:`parastokes.mobility.threads.blas_threads`) when ``A``'s
+    band is below an eighth of its size (a rod's or chain's points in order), else SuperLU; a
+    singular matrix is a :class:`StiffSolveError` at time ``t``. ``solve(v)`` solves with it
+    (``v`` flat)."""
 
     def __init__(self, matrix: sp.sparray, hgamma: float, t: float) -> None:
         self.hgamma = hgamma
         n = matrix.shape[0]
         kl, ku = bandwidth(matrix)
-        self.banded = max(kl, ku) <= BAND_LIMIT
+        self.banded = max(kl, ku) < n // 8
         if self.banded:
-            coo = sp.coo_array(matrix)
-            ab = np.zeros((2 * kl + ku + 1, n))
-            ab[kl + ku + coo.row - coo.col, coo.col] = -hgamma * coo.data
-            ab[kl + ku] += 1.0
-            lu, piv, info = lapack.dgbtrf(ab, kl, ku, overwrite_ab=1)
+            ab = band_storage(matrix, hgamma, kl, ku)
+            with LAPACK, blas_threads(1):
+                lu, piv, info = lapack.dgbtrf(ab, kl, ku, overwrite_ab=1)
             singular = info > 0 or not np.isfinite(lu[kl + ku]).all()
             self._factors = (lu, piv, kl, ku)
             reason = f"U[{info - 1}, {info - 1}] = 0"
@@ -110,7 +99,8 @@ class Factorization:
         if not self.banded:
             return self._factors.solve(v)
         lu, piv, kl, ku = self._factors
-        return lapack.dgbtrs(lu, kl, ku, v, piv)[0]
+        with LAPACK:
+            return lapack.dgbtrs(lu, kl, ku, v, piv)[0]
 
 
 class StageSolver:
