@@ -517,7 +517,7 @@ def _linalg_rod(m: int, eps: float) -> dict[str, Any]:
 
     rod = models.rod_swimmer(n_points=m, epsilon=eps, n_threads=1)
     x = rod.initial_state()
-    n = x.size
+    n = rod.rates(0.0, x).size
     hgamma = 2.5e-4 * integrate.SCHEMES["ros34pw2"].gamma
     k = sp.bsr_array(jacobian.load_jacobian(rod, 0.0, x), blocksize=(6, 6))
     mob = local.near_mobility(rod.positions(x), eps, rod.viscosity, True, jacobian.CUTOFF * eps)
