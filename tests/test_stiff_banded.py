@@ -175,20 +175,33 @@ def test_a_reused_factorization_is_the_w_method_with_a_scaled_jacobian():
     assert not np.allclose(reused, plain, rtol=1e-10, atol=0)  # the scaling is real
 
 
-def test_adaptive_steps_factorize_less_often_than_they_change_the_step():
-    """Adaptive ROS34PW2 on Prothero-Robinson (λ = -1e3): every step size differs, yet the
-    factorizations are fewer than the steps; the run is the same bits twice."""
+def _count_factorizations(monkeypatch) -> list[float]:
+    """The step sizes hγ of every factorization the stepper makes from now on."""
+    made: list[float] = []
+    original = stepper.Factorization
+
+    def counted(matrix, hgamma, t):
+        made.append(hgamma)
+        return original(matrix, hgamma, t)
+
+    monkeypatch.setattr(stepper, "Factorization", counted)
+    return made
+
+
+def test_adaptive_steps_factorize_less_often_than_they_change_the_step(monkeypatch):
+    """Adaptive ROS34PW2 on Prothero-Robinson (λ = -1e3, A every 1000 steps): the step changes
+    at nearly every step, yet the factorizations are fewer than half the steps; the run is the
+    same bits twice."""
+    made = _count_factorizations(monkeypatch)
+    monkeypatch.setattr(stepper, "REFRESH", 1000)
     system = Forced(lam=(-1.0, -1e3))
-    runs = []
-    for _ in range(2):
-        run = _stepper(system, "ros34pw2", refresh=1000)
-        x, counts = stepper.adaptive_steps(run, system.initial_state(), 0.0, 1.0, 1e-3, 1e-5,
-                                           1e-7, lambda t, y, i: True)
-        runs.append((x, counts, run.factorizations))
-    (x, counts, factorizations), (x2, counts2, factorizations2) = runs
-    assert np.array_equal(x, x2) and counts == counts2 and factorizations == factorizations2
-    assert counts.accepted > 10 and factorizations < (counts.accepted + counts.rejected) / 2
-    assert np.abs(x - system.exact(1.0)).max() < 1e-4
+    runs = [integrate.run(system, system.initial_state(), 0.0, 1.0, "ros34pw2", 1e-3,
+                          rtol=1e-5, atol=1e-7) for _ in range(2)]
+    assert np.array_equal(runs[0].state, runs[1].state)
+    assert (runs[0].n_steps, runs[0].n_rejected) == (runs[1].n_steps, runs[1].n_rejected)
+    per_run = len(made) // 2
+    assert runs[0].n_steps > 10 and per_run < (runs[0].n_steps + runs[0].n_rejected) / 2
+    assert np.abs(runs[0].state - system.exact(1.0)).max() < 1e-4
 
 
 def test_banded_and_general_factorizations_give_the_same_run(monkeypatch):
