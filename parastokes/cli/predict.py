@@ -4,6 +4,7 @@ numbers of cores, from the coarse family's estimate of γ_G/γ_F or a measured r
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 from typing import Any
 
@@ -48,6 +49,9 @@ def cmd_predict(args: argparse.Namespace, console: Console) -> ExitCode:
         raise ValueError(f"predict: --iterations must be at least 1, got {args.iterations}")
     if (args.case is not None or args.target is not None) and args.serial is None:
         raise ValueError("predict: --case and --target go with --serial FILE.json")
+    for name, value in (("--ratio", args.ratio), ("--target", args.target)):
+        if value is not None and not (math.isfinite(value) and value > 0):
+            raise ValueError(f"predict: {name} must be a positive finite number, got {value:g}")
     cfg, resolved = load(args.config, args.set)
     measured = io.read_summary(Path(args.measured) / "summary.json") if args.measured else None
     if measured is not None and not measured.get("speedup"):
@@ -115,8 +119,10 @@ def best_serial(args: argparse.Namespace, cfg: Any, measured: dict | None
             raise ValueError("predict: --serial needs --target ETA (the accuracy at T of the "
                              "Parareal result), or --measured DIR of a run with a reference")
         target = float(errors[-1])
-    if not target > 0:
-        raise ValueError(f"predict: --target must be positive, got {target:g}")
+        if not (math.isfinite(target) and target > 0):
+            raise ValueError(f"predict: the last error η^K of the run in {args.measured} is "
+                             f"{target:g}, which no serial run is measured to reach: give "
+                             "--target ETA")
     best = runs.best(target)
     who = ("F itself (no faster measured run reaches it)" if best is runs.reference else
            f"{best.describe()} (error {best.error:.3g}), {best.fine_over:.3g}x less CPU than F")

@@ -41,7 +41,14 @@ from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
 from ..core import signals
-from ..core.files import CorruptFileError, Staging, staged, temporary_owner, write_text
+from ..core.files import (
+    CorruptFileError,
+    Staging,
+    read_input,
+    staged,
+    temporary_owner,
+    write_text,
+)
 
 __all__ = [
     "DirectoryInUse", "RunDirectory", "RunDirectoryError", "check_files", "check_free", "claim",
@@ -122,7 +129,7 @@ def process_alive(pid: int, started: str | None = None) -> bool:
 def _owner(path: Path) -> dict | None:
     """The lock record in ``path``; None if it is gone or unreadable (a lock being written)."""
     try:
-        record = json.loads(path.read_text(encoding="utf-8"))
+        record = json.loads(read_input(path, "record"))
     except (OSError, ValueError):
         return None
     return record if isinstance(record, dict) else None
@@ -201,7 +208,7 @@ class RunDirectory:
 
     def _previous_results(self) -> set[str]:
         try:
-            names = json.loads((self.path / MANIFEST).read_text(encoding="utf-8"))["files"]
+            names = json.loads(read_input(self.path / MANIFEST, "record"))["files"]
             return {str(n) for n in names}
         except (OSError, ValueError, KeyError, TypeError):
             return set(RESULT_FILES) | set(_OLD_FIGURES)
@@ -285,7 +292,7 @@ class RunDirectory:
     def _roll_forward(self) -> None:
         record = self.staging / _COMMIT
         try:
-            names = json.loads(record.read_text(encoding="utf-8"))["files"]
+            names = json.loads(read_input(record, "record"))["files"]
         except (OSError, ValueError, KeyError, TypeError) as error:
             raise CorruptFileError(
                 record, f"the record of an interrupted commit cannot be read ({error})",

@@ -18,6 +18,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ..core.files import InputFileError, read_input
+
 __all__ = ["SerialRow", "SerialRuns", "load_serial_runs"]
 
 
@@ -70,8 +72,12 @@ def load_serial_runs(path: str | os.PathLike, case: str | None = None) -> Serial
     names a missing file, case or field."""
     path = Path(path)
     try:
-        data: dict[str, Any] = json.loads(path.read_text())
+        data: dict[str, Any] = json.loads(read_input(path, "serial runs"))
         cases = data["cases"]
+        if not isinstance(cases, dict) or not all(isinstance(e, dict) for e in cases.values()):
+            raise TypeError("'cases' is not a table of cases")
+    except InputFileError:
+        raise
     except (OSError, ValueError, KeyError, TypeError) as error:
         raise ValueError(f"{path}: not a file of measured serial runs ({error})") from None
     if case is None:
@@ -80,16 +86,35 @@ def load_serial_runs(path: str | os.PathLike, case: str | None = None) -> Serial
         (case,) = cases
     if case not in cases:
         raise ValueError(f"{path} has no case {case!r}; it has {sorted(cases)}")
-    entry = cases[case]
-    try:
-        ref = entry["reference"]
-        reference = SerialRow(ref["scheme"], float(ref["dt"]), 0.0, 1.0)
-        rows = tuple(
-            SerialRow(row["scheme"], float(row["dt"]), float(row["error"]),
-                      float(row["fine_cpu"]) / float(row["cpu"]))
-            for row in entry["rows"]
-            if math.isfinite(float(row["error"])) and float(row["cpu"]) > 0
-        )
-        return SerialRuns(case, float(entry["t1"]), reference, rows)
-    except (KeyError, TypeError, ValueError) as error:
-        raise ValueError(f"{path}, case {case!r}: a run without {error}") from None
+    entry, where = cases[case], f"{path}, case {case!r}"
+    ref = entry.get("reference")
+    reference = SerialRow(_field(ref, "scheme", f"{where}, reference"),
+                          float(_field(ref, "dt", f"{where}, reference")), 0.0, 1.0)
+    rows = entry.get("rows")
+    if not isinstance(rows, list):
+        raise ValueError(f"{where}: rows must be a list of runs, got {rows!r}; {_REMEDY}")
+    runs = []
+    for i, row in enumerate(rows):
+        scheme, dt, error, cpu, fine_cpu = (_field(row, key, f"{where}, row {i}")
+                                            for key in ("scheme", "dt", "error", "cpu", "fine_cpu"))
+        runs.append(SerialRow(scheme, float(dt), float(error), fine_cpu / cpu))
+    return SerialRuns(case, float(_field(entry, "t1", where)), reference, tuple(runs))
+
+
+_REMEDY = "measure the runs again (benchmarks/stiff.py --parts best_serial)"
+
+
+def _field(record: Any, key: str, where: str) -> Any:
+    """``record[key]`` of a file of serial runs, checked: a scheme's name for ``scheme``, else a
+    finite number, positive (at least 0 for ``error``); a ValueError names ``where`` and the key
+    when it is missing or wrong (a corrupt or hand-edited file)."""
+    value = record.get(key) if isinstance(record, dict) else None
+    if key == "scheme":
+        good, wanted = isinstance(value, str) and value != "", "a scheme's name"
+    else:
+        number = isinstance(value, int | float) and not isinstance(value, bool)
+        good = number and math.isfinite(value) and (value >= 0 if key == "error" else value > 0)
+        wanted = "a finite number at least 0" if key == "error" else "a positive finite number"
+    if not good:
+        raise ValueError(f"{where}: {key} must be {wanted}, got {value!r}; {_REMEDY}")
+    return value
