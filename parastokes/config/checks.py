@@ -190,8 +190,24 @@ def _cores(cfg: Config, workers: int, warnings: list[str]) -> None:
     )
 
 
+def _gpu_issue(cfg: Config) -> str | None:
+    """Why the GPU executor of ``cfg`` cannot start here (no CUDA device and no simulator, or no
+    numba-cuda: :func:`parastokes.gpu.device.missing`), or None. A run of ``run.mode =
+    "serial"`` starts no executor."""
+    if cfg.execution.executor != "gpu" or cfg.run.mode == "serial":
+        return None
+    from ..gpu.device import missing
+
+    reason = missing()
+    return None if reason is None else (
+        f'"gpu": {reason}; or use executor = "processes" here')
+
+
 def _workers(cfg: Config, n_auxiliary: int, issues: list, warnings: list) -> int | None:
     ex = cfg.execution
+    gpu = _gpu_issue(cfg)
+    if gpu:
+        issues.append(("execution.executor", gpu))
     if ex.executor == "serial":
         if ex.workers not in (None, 1):
             issues.append(
