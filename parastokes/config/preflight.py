@@ -16,11 +16,13 @@ configuration one accepts the other does not refuse:
 - a scene with rigid bodies makes its first coupled mobility solve (:func:`_first_solve`), which
   a run's warm-up makes first: a solve that fails there (loads or a repulsion beyond floating
   point) is a :class:`ConfigError` naming the body with the largest load and its value;
+- one of the package's bodies whose rates are not a solve takes F's first step
+  (:func:`_first_step`): a step that is not finite there is refused, naming the parameter whose
+  magnitude floating point cannot step (``bending = 1e300``), or ``fine.dt``;
 - a linearly implicit scheme on a system without a stiff part (no ``A``: it runs as an explicit
   scheme) gets a note (:func:`implicit_without_stiff_part`), added to ``resolved.warnings``.
 
-The package's own bodies are not called otherwise (they keep the contract by their tests; a call
-would load their compiled kernels).
+The package's own bodies are not probed otherwise (they keep the contract by their tests).
 """
 
 from __future__ import annotations
@@ -102,6 +104,39 @@ def _first_solve(setup: Setup, source: str) -> None:
                                       f"state) failed: {error}; body {load}")], source) from None
 
 
+#: Rates beyond this size at the initial state are values beyond what floating point can step
+#: (a parameter of 1e300): no smaller step is the fix.
+HUGE_RATES = 1e100
+
+
+def _first_step(setup: Setup, source: str) -> None:
+    """One step of F (its scheme at ``fine.dt``) from the initial state of one of the
+    package's bodies whose rates are not a solve (a rod, a vesicle, a chain), as the run's first
+    fine step: a step that is not finite is a :class:`ConfigError` of ``model`` naming the
+    largest parameter when the rates there are beyond :data:`HUGE_RATES`, else ``fine.dt``.
+    (Adaptive steps shrink a failed first step themselves; a user's body is probed by
+    :func:`parastokes.bodies.contract.probe`, a scene by :func:`_first_solve`.)"""
+    cfg, system = setup.config, setup.system
+    if (cfg.fine.rtol is not None or not contract.is_builtin(system)
+            or hasattr(system, "bodies") or hasattr(system, "surface")):
+        return
+    t, x = cfg.time.t0, system.initial_state()
+    with np.errstate(all="ignore"):
+        y = integrate.step(system, cfg.fine.scheme, t, x, cfg.fine.dt)
+        if np.isfinite(y).all():
+            return
+        rates = float(np.abs(system.rates(t, x)).max())
+    if rates > HUGE_RATES:
+        name, value = max(system.params.items(), key=lambda item: abs(item[1]))
+        raise ConfigError([("model", f"the rates at the initial state reach {rates:.3g}, and "
+                                     "one fine step from there is not finite: values beyond "
+                                     "what floating point holds, which no smaller step fixes; "
+                                     f"check the parameters' magnitudes and units (the largest: "
+                                     f"{name} = {value:g})")], source)
+    raise ConfigError([("fine.dt", f"one step of {cfg.fine.scheme} of {cfg.fine.dt:g} from the "
+                                   "initial state is not finite: reduce fine.dt")], source)
+
+
 def _schemes(cfg: Config) -> list[tuple[str, str]]:
     """The ``(key, scheme)`` of every solver of ``cfg``: F's, and G's (its auxiliary solvers',
     or a HODMD G's ``g1`` and ``g2``)."""
@@ -151,6 +186,7 @@ def preflight(cfg: Config, resolved: Resolved, source: str = "") -> Setup:
         raise ConfigError([(where, str(error))], source) from None
     _probe_users(setup.system, cfg.time.t0, cfg.fine.dt)
     _first_solve(setup, source)
+    _first_step(setup, source)
     note = implicit_without_stiff_part(cfg, setup.system)
     if note and note not in resolved.warnings:
         resolved.warnings.append(note)
