@@ -88,10 +88,10 @@ def _execute(
     out, staging = directory.path, directory.staging
     conf = resolved_dict(cfg, resolved)
     key = identity(cfg)
-    check_resumable(out, cfg, resume)
+    check_resumable(directory.state, cfg, resume)
     previous = previous_blow_up(out)  # (an earlier run's, to compare a new blow-up with)
-    for name, text in files.items():
-        write_text(out / name, text)
+    for name, text in files.items():  # (in place with the results: a run cut short keeps the old)
+        write_text(staging / name, text)
     mode = cfg.run.mode
     start = time.perf_counter()
     if not _kernels_cached():
@@ -107,13 +107,14 @@ def _execute(
             reference = serial_time = result = record = None
             if mode in ("serial", "both"):
                 reference, serial_time = serial_run(
-                    setup, x0, times, out, fine_identity(cfg), reporter, previous
+                    setup, x0, times, out, fine_identity(cfg), reporter, previous,
+                    directory.state,
                 )
                 if writer is not None:
                     append_frames(writer, "serial", running, times, reference)
             if mode in ("parareal", "both"):
                 result, record = parareal_run(
-                    running, x0, times, reference, out, key, reporter, previous
+                    running, x0, times, reference, out, key, reporter, previous, directory.state
                 )
                 if writer is not None:
                     append_frames(writer, "parareal", running, times, result.states)
