@@ -5,7 +5,9 @@ counts. docs/validation.md, "Faults and bad input", lists them."""
 
 from __future__ import annotations
 
+import errno
 import json
+import os
 import resource
 import shutil
 import signal
@@ -13,9 +15,12 @@ from pathlib import Path
 
 import pytest
 from test_faults import TINY, finished  # noqa: F401  (the fixture: a finished TINY run)
+from test_flow import scene_run  # noqa: F401  (run_dir's fixture)
+from test_output_claims import run_dir  # noqa: F401  (the fixture: a scene run, to write into)
 from test_run_directory import _run
 
 from parastokes import cli
+from parastokes.core import files
 from parastokes.output import rundir
 from parastokes.output import trajectory as io
 from parastokes.run import serial as serial_module
@@ -114,3 +119,91 @@ def test_a_commit_of_an_overwrite_cut_short_is_completed_by_the_next_claim(tmp_p
     names = sorted(p.name for p in out.iterdir())
     assert names == [rundir.MANIFEST, "history.npz", "reference.npz", "summary.json"]
     assert all((out / n).read_text() == "new" for n in names[1:])
+
+
+# ---- 9: output sets committed as one unit, and locked per name -------------------------------
+def _grid_shapes(stem: Path) -> tuple[str, str]:
+    """The grid's shape (nz ny nx) in ``stem.h5`` and in the ``stem.xdmf`` beside it."""
+    import re
+
+    import h5py
+
+    with h5py.File(stem.with_suffix(".h5"), "r") as f:
+        shape = " ".join(map(str, f.attrs["shape"][::-1]))
+    text = stem.with_suffix(".xdmf").read_text()
+    return shape, re.search(r'TopologyType="3DRectMesh" Dimensions="([\d ]+)"', text).group(1)
+
+
+def test_a_flow_interrupted_between_its_two_renames_is_one_grid(run_dir, tmp_path,  # noqa: F811
+                                                                 monkeypatch):
+    out = tmp_path / "f"
+    assert cli.main(["flow", str(run_dir), "--resolution", "4", "--out", str(out), "-q"]) == 0
+    old = _grid_shapes(out)
+    real, moved = os.replace, []
+
+    def interrupted(source, target):  # Ctrl-C after the first file of the set is in place
+        if Path(target).parent == tmp_path and Path(target).suffix in (".h5", ".xdmf"):
+            moved.append(target)
+            if len(moved) == 2:
+                signal.raise_signal(signal.SIGINT)
+        real(source, target)
+
+    monkeypatch.setattr(os, "replace", interrupted)
+    status = cli.main(["flow", str(run_dir), "--resolution", "5", "--out", str(out), "-q"])
+    monkeypatch.undo()
+    assert status == cli.ExitCode.INTERRUPTED
+    new = _grid_shapes(out)
+    assert new[0] == new[1] != old[0]  # the new set whole (its moves completed at once)
+    assert not list(tmp_path.glob("*.tmp")) and not list(tmp_path.glob(".*.commit"))
+
+
+def test_a_set_whose_moves_fail_midway_is_completed_by_the_next_access(tmp_path, monkeypatch):
+    first, second = tmp_path / "a.toml", tmp_path / "a.json"
+    files.commit_set({first: b"old toml", second: b"old json"})
+    real, calls = os.replace, []
+
+    def failing(source, target):  # every move after the set's first fails (the disk went away)
+        if str(target) in (str(first), str(second)):
+            calls.append(target)
+            if len(calls) > 1:
+                raise OSError(errno.EIO, "Input/output error")
+        real(source, target)
+
+    monkeypatch.setattr(os, "replace", failing)
+    with pytest.raises(files.FileWriteError, match=r"a\.json"):
+        files.commit_set({first: b"new toml", second: lambda h: h.write(b"new json")})
+    assert (first.read_bytes(), second.read_bytes()) == (b"new toml", b"old json")  # a mixture
+    monkeypatch.undo()
+    assert files.recover_sets(tmp_path) == [second]  # ... until the next access
+    assert (first.read_bytes(), second.read_bytes()) == (b"new toml", b"new json")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.json", "a.toml"]
+
+
+def test_a_set_interrupted_before_its_moves_stays_the_old_one(tmp_path):
+    first, second = tmp_path / "a.toml", tmp_path / "a.json"
+    files.commit_set({first: b"old toml", second: b"old json"})
+
+    def stopped(handle):
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        files.commit_set({first: b"new toml", second: stopped})
+    assert (first.read_bytes(), second.read_bytes()) == (b"old toml", b"old json")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.json", "a.toml"]
+
+
+def test_two_commands_writing_one_output_name_are_locked_against_each_other(
+    run_dir, tmp_path, capsys  # noqa: F811
+):
+    out = tmp_path / "outs" / "f"
+    with files.hold_names([out.with_suffix(".xdmf")]):  # a first command, alive, writing it
+        status = cli.main(["flow", str(run_dir), "--resolution", "6", "--out", str(out), "-q"])
+        assert status == cli.ExitCode.CONFIG
+        err = capsys.readouterr().err
+        assert f"{out.with_suffix('.xdmf')} is being written by" in err and f"PID {os.getpid()}" \
+            in err
+        with pytest.raises(files.OutputInUse):
+            files.commit_set({out.with_suffix(".xdmf"): b"x"})
+    assert not list(out.parent.iterdir())  # nothing written, no lock left
+    assert cli.main(["flow", str(run_dir), "--resolution", "4", "--out", str(out), "-q"]) == 0
+    assert sorted(p.name for p in out.parent.iterdir()) == ["f.h5", "f.png", "f.xdmf"]

@@ -41,7 +41,15 @@ from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
 from ..core import locks, signals
-from ..core.files import CorruptFileError, Staging, staged, temporary_owner, write_text
+from ..core.files import (
+    CorruptFileError,
+    Staging,
+    hold_names,
+    recover_sets,
+    staged,
+    temporary_owner,
+    write_text,
+)
 
 __all__ = [
     "DirectoryInUse", "RunDirectory", "RunDirectoryError", "check_files", "check_free", "claim",
@@ -308,6 +316,7 @@ def locked(out: str | os.PathLike) -> Iterator[RunDirectory]:
         ) from None
     try:
         directory = RunDirectory(path)
+        recover_sets(path)  # (a set of flow's or tune's files cut short: its files first)
         _remove_orphans(path)
         directory.recover()  # a commit cut short: its results whole, never a mixture
         yield directory
@@ -336,6 +345,7 @@ def claim(out: str | os.PathLike, *, resume: bool, overwrite: bool) -> Iterator[
         ) from None
     try:
         directory = RunDirectory(path)
+        recover_sets(path)  # (a set of flow's or tune's files cut short: its files first)
         _remove_orphans(path)
         directory.recover()
         directory.check(resume=resume, overwrite=overwrite)
@@ -407,12 +417,15 @@ def claim_files(paths: Sequence[str | os.PathLike], *, overwrite: bool = True,
                 option: str = "--out") -> Iterator[Staging]:
     """Own the files ``paths`` that a command writes (``flow``, ``movie``, ``tune``, ``plot``),
     checked before any work: :func:`check_files`; the lock of every run directory among their
-    folders held until the block ends (:class:`DirectoryInUse` if a run holds it), and the run
-    directories ``reads`` (those the command reads) refused while a run holds them
-    (:func:`check_free`). Yields the :class:`~parastokes.core.files.Staging` to write them through:
-    they are moved into place when the block ends normally (and listed with the results of a run
-    directory they are in, so that its next ``--overwrite`` replaces them), and removed when it
-    raises, so the previous files stay whole."""
+    folders held until the block ends (:class:`DirectoryInUse` if a run holds it), elsewhere the
+    lock of each file's name (:func:`parastokes.core.files.hold_names`: a second command writing
+    the same name is refused, naming the first), and the run directories ``reads`` (those the
+    command reads) refused while a run holds them (:func:`check_free`). Yields the
+    :class:`~parastokes.core.files.Staging` to write them through: they are moved into place as
+    one set when the block ends normally (journalled: a move cut short is completed at once or by
+    the next command writing there; and listed with the results of a run directory they are in,
+    so that its next ``--overwrite`` replaces them), and removed when it raises, so the previous
+    files stay whole."""
     found = check_files(paths, overwrite=overwrite, regenerates=regenerates, option=option)
     folders = list(dict.fromkeys(path.parent for path in found))
     with ExitStack() as stack:
@@ -422,6 +435,7 @@ def claim_files(paths: Sequence[str | os.PathLike], *, overwrite: bool = True,
                 runs[folder] = stack.enter_context(locked(folder))
             else:
                 _directory(folder)
+                stack.enter_context(hold_names([p for p in found if p.parent == folder]))
                 _remove_orphans(folder, locked=False)
         held = {folder.resolve() for folder in runs}
         for read in reads:
