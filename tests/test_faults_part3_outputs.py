@@ -14,15 +14,17 @@ import signal
 from pathlib import Path
 
 import pytest
+from configs import small_rod
 from test_faults import TINY, finished  # noqa: F401  (the fixture: a finished TINY run)
 from test_flow import scene_run  # noqa: F401  (run_dir's fixture)
 from test_output_claims import run_dir  # noqa: F401  (the fixture: a scene run, to write into)
-from test_run_directory import _run
+from test_run_directory import _config, _run
 
 from parastokes import cli
 from parastokes.core import files
 from parastokes.output import rundir
 from parastokes.output import trajectory as io
+from parastokes.run import execution
 from parastokes.run import serial as serial_module
 
 
@@ -207,3 +209,41 @@ def test_two_commands_writing_one_output_name_are_locked_against_each_other(
     assert not list(out.parent.iterdir())  # nothing written, no lock left
     assert cli.main(["flow", str(run_dir), "--resolution", "4", "--out", str(out), "-q"]) == 0
     assert sorted(p.name for p in out.parent.iterdir()) == ["f.h5", "f.png", "f.xdmf"]
+
+
+# ---- 7: a monitor above its limit at the end is never silent, and may be fatal ----------------
+#: A rod by lieuler at a step far too large: its length changes by 7.9 % (limit 1 %) by t = 0.03.
+STRETCHED = small_rod(rest='[execution]\nexecutor = "serial"\n[output]\nfigures = false\n'
+                           'trajectory = false\n[run]\nmode = "serial"\n').replace(
+    "dt = 1e-6", 'dt = 5e-3\nscheme = "lieuler"').replace("t1 = 0.002", "t1 = 0.04").replace(
+    "dt_ratio = 10", "dt_ratio = 1").replace("richardson = { m = 1, r = 0.83 }", "")
+ALARM = ("the stability monitor reached 0.0794 at t = 0.03, 7.94 times its limit 0.01 (a rod's "
+         "length, a vesicle's area changed that much)")
+
+
+def test_a_run_ending_above_its_monitor_limit_warns_on_stderr_and_in_the_summary(tmp_path, capsys):
+    path = _config(tmp_path, STRETCHED)
+    assert _run(path, "--out", tmp_path / "out") == 0
+    err = capsys.readouterr().err
+    assert f"warning: {ALARM}" in err  # (even with -q)
+    summary = io.read_summary(tmp_path / "out" / "summary.json")
+    assert any(ALARM in w for w in summary["warnings"])
+    assert summary["monitor"]["time"] == pytest.approx(0.03)
+
+
+@pytest.mark.parametrize("how", [["--monitor-fatal"], ["--set", "output.monitor_fatal=true"]])
+def test_a_monitor_above_its_limit_is_fatal_when_asked(tmp_path, capsys, how):
+    path = _config(tmp_path, STRETCHED)
+    out = tmp_path / "out"
+    assert _run(path, "--out", out, *how) == cli.ExitCode.BLOWUP
+    err = capsys.readouterr().err
+    assert f"error: {ALARM}" in err and f"the results are in {out}" in err
+    assert any(ALARM in w for w in io.read_summary(out / "summary.json")["warnings"])
+
+
+def test_the_monitor_warning_starts_just_above_the_limit():
+    monitor = {"max": 0.01, "time": 0.5, "final": 0.0, "limit": 0.01}
+    assert execution.monitor_warning(monitor) is None  # at the limit: within it
+    above = execution.monitor_warning({**monitor, "max": 0.0125})
+    assert above is not None and "0.0125 at t = 0.5, 1.25 times its limit 0.01" in above
+    assert execution.monitor_warning({**monitor, "max": float("nan")}) is not None

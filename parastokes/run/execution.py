@@ -29,10 +29,30 @@ from .serial import serial_run
 from .speedups import run_speedups
 
 
-def _monitor(system: System, states: np.ndarray) -> dict[str, float]:
-    """The stability monitor (rod length / vesicle area change) over the slice boundaries."""
+class MonitorError(ArithmeticError):
+    """A run's stability monitor ended above its limit and ``output.monitor_fatal`` is set (its
+    results are written all the same; the command line exits with status 3)."""
+
+
+def _monitor(system: System, states: np.ndarray, times: np.ndarray) -> dict[str, float]:
+    """The stability monitor (rod length / vesicle area change) over the slice boundaries: its
+    largest value, the time of it, its final value and its limit."""
     values = [system.monitor(state) for state in states]
-    return {"max": float(max(values)), "final": float(values[-1]), "limit": system.monitor_limit}
+    worst = int(np.argmax(values))
+    return {"max": float(values[worst]), "time": float(times[worst]),
+            "final": float(values[-1]), "limit": system.monitor_limit}
+
+
+def monitor_warning(monitor: dict[str, float]) -> str | None:
+    """The warning of a run whose monitor (:func:`_monitor`) exceeds its limit anywhere at the
+    slice boundaries (any excess: the limit is the tolerance of the model's constraint, and a
+    monitor beyond ``integrate.BLOWUP_FACTOR`` times it is a blow-up), else None."""
+    value, limit = monitor["max"], monitor["limit"]
+    if value <= limit:  # (a NaN is not within it)
+        return None
+    return (f"the stability monitor reached {value:.3g} at t = {monitor['time']:.6g}, "
+            f"{value / limit:.3g} times its limit {limit:g} (a rod's length, a vesicle's area "
+            "changed that much): the results are not to be trusted; reduce fine.dt")
 
 
 def execute(
@@ -145,7 +165,7 @@ def _execute(
             if result is None or record is None  # (both or neither)
             else run_speedups(result, list(record.elapsed), serial_time),
             "workers": None if running.executor is None else running.executor.workers,
-            "monitor": _monitor(system, final_states),
+            "monitor": _monitor(system, final_states, times),
             "final_time": float(times[-1]),
             "final_positions": system.positions(final_states[-1]),
             "warnings": resolved.warnings,
@@ -155,6 +175,10 @@ def _execute(
                 "python": platform.python_version(),
             },
         }
+    alarm = monitor_warning(summary["monitor"])
+    if alarm is not None:
+        summary["warnings"] = [*resolved.warnings, alarm]
+        reporter.warn(alarm)
     summary["wall_time"] = time.perf_counter() - start
     io.write_summary(staging / SUMMARY, summary)
     if writer is not None:
@@ -171,4 +195,6 @@ def _execute(
     (out / BLOWUP).unlink(missing_ok=True)
     if result is not None and not cfg.parareal.checkpoint:
         (out / CHECKPOINT).unlink(missing_ok=True)
+    if alarm is not None and cfg.output.monitor_fatal:
+        raise MonitorError(f"{alarm} (output.monitor_fatal; the results are in {out})")
     return summary
