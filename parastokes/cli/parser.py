@@ -49,6 +49,12 @@ def parser() -> argparse.ArgumentParser:
         action="store_true",
         help="replace the run in --out (its results stay until the new run completes)",
     )
+    running.add_argument(
+        "--monitor-fatal",
+        action="store_true",
+        help="a stability monitor above its limit at the end is an error (exit 3), not a "
+        "warning (output.monitor_fatal)",
+    )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     p = sub.add_parser("run", parents=[common, overrides, running], help="run a configuration file")

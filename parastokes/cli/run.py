@@ -49,8 +49,13 @@ def run_and_report(
     return ExitCode.OK
 
 
+def _sets(args: argparse.Namespace) -> list[str]:
+    """The ``--set`` overrides with those of the flags (``--monitor-fatal``)."""
+    return [*args.set, *(["output.monitor_fatal=true"] if args.monitor_fatal else [])]
+
+
 def cmd_run(args: argparse.Namespace, console: Console) -> ExitCode:
-    cfg, resolved = load(args.config, args.set)
+    cfg, resolved = load(args.config, _sets(args))
     console.print(f"{cfg.title or args.config}")
     return run_and_report(args, cfg, resolved, console)
 
@@ -88,10 +93,12 @@ def demo_text(overrides: Sequence[str]) -> str:
 def cmd_demo(args: argparse.Namespace, console: Console) -> ExitCode:
     from ..config import DEMO
 
-    cfg, resolved = load(None, args.set, text=DEMO)
+    cfg, resolved = load(None, _sets(args), text=DEMO)
     console.print(cfg.title)
-    console.print(f"(configuration written to {args.out}/config.toml; edit it and use `run`)")
-    return run_and_report(args, cfg, resolved, console, files={"config.toml": demo_text(args.set)})
+    status = run_and_report(args, cfg, resolved, console,
+                            files={"config.toml": demo_text(args.set)})
+    console.print(f"(its configuration is in {args.out}/config.toml; edit it and use `run`)")
+    return status
 
 
 def cmd_check(args: argparse.Namespace, console: Console) -> ExitCode:
