@@ -16,7 +16,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-__all__ = ["add_arguments", "main", "outputs"]
+__all__ = ["PILOT_POINTS", "add_arguments", "config_space", "main", "outputs", "pilot_system"]
 
 #: Nodes per rod of the pilot rod when the run's rod is longer (the quick variants' 61).
 PILOT_POINTS = 61
@@ -77,7 +77,7 @@ class _Bar:
             self.bar = None
 
 
-def _pilot_system(cfg: Any, resolved: Any, points: int) -> Any:
+def pilot_system(cfg: Any, resolved: Any, points: int) -> Any:
     """The run's system, or for a longer rod the same rods shortened to ``points`` nodes."""
     from .. import config as configuration
     from ..config.schema import RodModel
@@ -95,18 +95,24 @@ def _given(*values: Any) -> Any:
     return next((value for value in values if value is not None), None)
 
 
+def config_space(cfg: Any) -> Any:
+    """The search space of the config's [tune] table (the tuner's defaults where it is silent)."""
+    from .space import parse_space
+
+    return parse_space({k: v for k, v in cfg.tune.model_dump().items()
+                        if k not in ("pilot_slices", "pilot_points")})
+
+
 def _space(cfg: Any, args: argparse.Namespace, compare: tuple) -> Any:
     """The config's [tune] table, narrowed further by the command line; ``compare`` added."""
     from .space import parse_space
 
-    options = {k: v for k, v in cfg.tune.model_dump().items()
-               if k not in ("pilot_slices", "pilot_points")}
     flags = {
         "schemes": args.schemes, "parameters": args.parameters, "reach": args.reach,
         "nodes": args.nodes, "richardson": args.richardson, "grid_factors": args.grid_factors,
         "step_fractions": args.step_fractions,
     }
-    return replace(parse_space(flags, parse_space(options)), extra=compare)
+    return replace(parse_space(flags, config_space(cfg)), extra=compare)
 
 
 def outputs(out: str | Path, overwrite: bool) -> tuple[Path, Path, Path]:
@@ -161,7 +167,7 @@ def main(args: argparse.Namespace, console: Any) -> int:
         compare.append(settings_from_config(other, other_resolved, name=Path(path).stem))
     space = _space(cfg, args, tuple(compare))
     system = configuration.build_system(cfg, resolved)
-    pilot = _pilot_system(cfg, resolved, points)
+    pilot = pilot_system(cfg, resolved, points)
     fine = integrate.Propagator(system, cfg.fine.scheme, cfg.fine.dt)
     console.print(f"tuning {cfg.title or args.config}: {args.cores} cores, η* = {args.target:g}")
     if cfg.coarse.kind != "extrapolated":
@@ -171,7 +177,7 @@ def main(args: argparse.Namespace, console: Any) -> int:
     if pilot is not None:
         from ..kinds.rod.kind import RodModel
 
-        assert isinstance(cfg.model, RodModel)  # only rods have a pilot (_pilot_system)
+        assert isinstance(cfg.model, RodModel)  # only rods have a pilot (pilot_system)
         console.print(f"pilot rod: {points} nodes per rod at the run's spacing σ_f (the run has "
                       f"{cfg.model.n_points})")
     bar = _Bar(console)
