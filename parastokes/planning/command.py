@@ -23,7 +23,7 @@ from typing import Any
 
 from .baseline import DEFAULT_BUDGET, F_FACTOR, Baseline, Run
 
-__all__ = ["PlanError", "add_arguments", "main"]
+__all__ = ["PlanError", "add_arguments", "main", "plan_config", "prepare"]
 
 #: Share of the budget given to the serial search when the Parareal route is searched too.
 SERIAL_SHARE = 0.5
@@ -173,7 +173,7 @@ def plan_config(cfg: Any, route: Any, fine: Run, best: Run, tuned: Any) -> dict[
     if "slices" not in settings:  # serial or spatial: the best serial run, on its threads
         data["fine"] = _fine_config(best)
         data["run"] = {"mode": "serial"}
-        execution["threads"] = settings["threads"]
+        execution = {"executor": "serial", "threads": settings["threads"]}
     else:
         data["fine"] = _fine_config(fine)
         data["coarse"] = tuned.chosen.settings.coarse_table()
@@ -191,6 +191,22 @@ def plan_config(cfg: Any, route: Any, fine: Run, best: Run, tuned: Any) -> dict[
     return data
 
 
+def prepare(args: argparse.Namespace) -> tuple[Any, Any]:
+    """Every check made before any work: the options, the files to write, the configuration
+    (loaded and validated) and whether its F can be replaced; returns (cfg, resolved)."""
+    from .. import config as configuration
+    from ..output import rundir
+
+    check_arguments(args)
+    try:
+        rundir.check_files(list(outputs(args.out)), overwrite=args.overwrite)
+    except rundir.RunDirectoryError as error:
+        raise PlanError(str(error)) from None
+    cfg, resolved = configuration.load(args.config, args.set)
+    replaceable(cfg)
+    return cfg, resolved
+
+
 def main(args: argparse.Namespace, console: Any) -> int:
     """Run the command (module docstring); 0 when PLAN.toml was written."""
     from .. import config as configuration
@@ -199,14 +215,8 @@ def main(args: argparse.Namespace, console: Any) -> int:
     from ..tuning.report import toml_dumps
     from . import routes as routing
 
-    check_arguments(args)
+    cfg, resolved = prepare(args)
     toml, record, cache = outputs(args.out)
-    try:
-        rundir.check_files([toml, record, cache], overwrite=args.overwrite)
-    except rundir.RunDirectoryError as error:
-        raise PlanError(str(error)) from None
-    cfg, resolved = configuration.load(args.config, args.set)
-    replaceable(cfg)
     system = cfg.model.build(1)  # one kernel thread: the serial baseline on one core
     points = len(system.positions(system.initial_state()))
     parareal_possible = args.cores >= 2

@@ -117,12 +117,12 @@ def parareal_route(best_seconds: float, fine_seconds: float, alpha: float, itera
 def combined_route(best_seconds: float, fine_seconds: float, cores: int, points: int,
                    schedule: str, at: Callable[[int], tuple[float, int] | None],
                    evidence: str) -> Route | None:
-    """The fastest split of ``cores`` into P >= 2 slices of t >= 2 threads (P t <= cores);
+    """The fastest split of ``cores`` into P >= 2 slices of t = floor(N / P) >= 2 threads;
     ``at(P)`` gives (α, K) for P slices, None where Parareal does not reach η*. None when no
     split exists or none reaches it."""
     best: Route | None = None
-    for threads in range(2, cores // 2 + 1):
-        slices = cores // threads
+    for slices in range(2, cores // 2 + 1):
+        threads = cores // slices  # every core of the split used: the most threads per slice
         found = at(slices)
         if found is None:
             continue

@@ -195,6 +195,7 @@ def main(args: argparse.Namespace, console: Any) -> int:
             return 130
         report = result.report
         report["config"] = str(args.config)
+        report["against_best_serial"] = _against_best_serial(args, cfg, report)
         io.write_summary(record, report, staging)
         draw_curves(result, figure, args.cores, staging=staging)
         if result.chosen is not None:
@@ -211,11 +212,36 @@ def main(args: argparse.Namespace, console: Any) -> int:
         report["search"]["stopped"], 0)
 
 
+def _against_best_serial(args: argparse.Namespace, cfg: Any, report: dict[str, Any]
+                         ) -> dict[str, Any]:
+    """What the speedups are against: F, and the fastest serial run reaching η* when the cache
+    beside the configuration knows one (``parastokes plan``), with the chosen solver's predicted
+    speedup against it; ``line`` says it (or how to measure it)."""
+    from ..config import problem_key
+    from ..parareal.best_serial import HOW_TO_MEASURE, best_known, cache_path
+
+    fine = report["problem"]["fine"]
+    against_f = f"speedups against F ({fine['scheme']} at dt = {fine['dt']:.3g})"
+    known = best_known(cache_path(args.config), problem_key(cfg), args.target)
+    if known is None:
+        return {"known": None, "line": f"{against_f}; against the fastest serial run of the "
+                f"same accuracy: none measured for this problem ({HOW_TO_MEASURE})"}
+    chosen = report["chosen"]
+    value = None if chosen is None else chosen["predicted"]["speedup"] / known.fine_over
+    return {"known": {**known.row, "fine_cpu_seconds": known.fine_cpu, "source": known.source},
+            "speedup": value,
+            "line": f"{against_f}; against the fastest serial run reaching η*, "
+                    f"{known.describe()} (cached in {known.source}), F takes "
+                    f"{known.fine_over:.3g}x its CPU" + (
+                        "" if value is None else f": the chosen solver's {value:.3g}")}
+
+
 def _print_report(console: Any, report: dict[str, Any]) -> None:
     """The search's table, how it ended and what it cost."""
     from .report import table
 
     console.print(table(report))
+    console.print(report["against_best_serial"]["line"])
     search = report["search"]
     if search["stopped"]:
         console.print(f"search stopped ({search['stopped']}) after {search['evaluated']} of "
