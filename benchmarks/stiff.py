@@ -320,6 +320,7 @@ def _serial_case(case: str, config_path: str, data: dict[str, Any]) -> None:
     x0 = system.initial_state()
     t1, scheme, dt = cfg.time.t1, cfg.fine.scheme, cfg.fine.dt
     entry = data["cases"].setdefault(case, {"config": config_path, "t1": t1})
+    entry["problem"] = config.problem_key(cfg)  # predict --serial checks it is the same problem
     partial = OUT / f".best_serial_{case}_partial.npz"  # (kept with the results: F's state)
 
     def fine_solution() -> np.ndarray:

@@ -39,7 +39,12 @@ def run_and_report(
         files=files,
     )
     if summary["speedup"] is not None:
+        from ..config import problem_key
+        from ..run.speedups import against_best_serial
+
         console.print(speedup_table(summary))
+        console.print(against_best_serial(summary, getattr(args, "config", None),
+                                          problem_key(cfg)))
     monitor = summary["monitor"]
     console.print(
         f"stability monitor: max {monitor['max']:.3g} at the slice boundaries "
