@@ -84,6 +84,7 @@ def exit_code(error: BaseException) -> ExitCode:
     from ..core.files import is_resource_error
     from ..integrate import BlowUpError
     from ..parallel import TaskError
+    from ..run.execution import MonitorError
 
     causes = list(_causes(error))
     for cause in causes:
@@ -91,7 +92,7 @@ def exit_code(error: BaseException) -> ExitCode:
             return ExitCode(128 + cause.signum)
     if any(isinstance(e, KeyboardInterrupt) for e in causes):
         return ExitCode.INTERRUPTED
-    if any(isinstance(e, BlowUpError) for e in causes):
+    if any(isinstance(e, BlowUpError | MonitorError) for e in causes):
         return ExitCode.BLOWUP
     if isinstance(error, ConfigError) or body_error(error) is not None:
         return ExitCode.CONFIG

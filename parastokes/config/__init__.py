@@ -30,6 +30,7 @@ from .build import Setup, build, build_system
 from .checks import Resolved, resolve, resolved_dict
 from .errors import ConfigError, from_validation_error
 from .preflight import preflight
+from .problem import problem_key, problem_of
 from .scene import scene_section
 from .schema import Config
 
@@ -48,6 +49,8 @@ __all__ = [
     "merge",
     "parse",
     "preflight",
+    "problem_key",
+    "problem_of",
     "resolve",
     "resolved_dict",
 ]

@@ -41,20 +41,20 @@ import os
 import stat
 import time
 import zipfile
-from collections.abc import Callable, Iterator, Mapping
-from contextlib import contextmanager
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from contextlib import contextmanager, nullcontext
 from pathlib import Path
 from typing import IO, Any
 
 import numpy as np
 
-from . import signals
+from . import locks, signals
 
 __all__ = [
-    "INPUTS", "CorruptFileError", "FileWriteError", "GuardedFile", "InputFileError", "Staging",
-    "atomic_write", "check_input", "describe_os_error", "is_resource_error", "open_input",
-    "read_input", "read_npz", "remove_stale", "staged", "temporary_name", "write_npz",
-    "write_text",
+    "INPUTS", "CorruptFileError", "FileWriteError", "GuardedFile", "InputFileError",
+    "OutputInUse", "Staging", "atomic_write", "check_input", "commit_set", "describe_os_error",
+    "hold_names", "is_resource_error", "open_input", "read_input", "read_npz", "recover_sets",
+    "remove_stale", "staged", "temporary_name", "write_npz", "write_text",
 ]
 
 _MIB, _GIB = 1 << 20, 1 << 30
@@ -285,6 +285,7 @@ class Staging:
     def __init__(self) -> None:
         self._files: dict[Path, Path] = {}
         self._unchecked: set[Path] = set()  # written by another writer: checked at the commit
+        self._journal: Path | None = None  # of the set being moved into place
 
     def temporary(self, path: str | os.PathLike) -> Path:
         """The temporary file to write the new ``path`` to, by a writer that opens its file by
@@ -315,28 +316,49 @@ class Staging:
     def commit(self) -> list[Path]:
         """Move every written file into place; returns the destinations. A temporary file that
         is missing or empty (a writer that failed without saying so) is a FileWriteError, and
-        then nothing is moved; nor is anything after a stop asked for (:mod:`.signals`)."""
+        then nothing is moved; nor is anything after a stop asked for (:mod:`.signals`). Two
+        files or more are moved as one set: their journal (:func:`recover_sets`) is written
+        first and removed last, so that a move cut short (a kill, a failed rename) is completed
+        by the next command that writes there, never left half old, half new."""
         signals.honour()
         for path in self._unchecked:
             tmp = self._files[path]
             if not (tmp.is_file() and tmp.stat().st_size > 0):
                 raise FileWriteError(path, OSError(errno.EIO, "the writer produced no data"))
+        for path in self._unchecked:
+            try:
+                _synced(self._files[path])
+            except OSError as error:
+                raise FileWriteError(path, error) from None
+        if len(self._files) > 1:
+            self._journal = _journal(next(iter(self._files)))
+            pairs = [[os.fspath(tmp), os.fspath(path)] for path, tmp in self._files.items()]
+            write_text(self._journal, json.dumps(pairs))
         for path, tmp in self._files.items():
             try:
-                if path in self._unchecked:
-                    _synced(tmp)
                 os.replace(tmp, path)
             except OSError as error:
                 raise FileWriteError(path, error) from None
+        if self._journal is not None:
+            self._journal.unlink()
+            self._journal = None
         written = list(self._files)
         self._files, self._unchecked = {}, set()
         return written
 
     def discard(self) -> None:
-        """Remove the temporary files not moved into place."""
-        for tmp in self._files.values():
-            tmp.unlink(missing_ok=True)
-        self._files, self._unchecked = {}, set()
+        """Remove the temporary files not moved into place; those of a set whose moves began
+        (an interrupt between two) are moved now instead, and if that fails too, by the next
+        command that writes there (:func:`recover_sets`)."""
+        if self._journal is not None:
+            try:
+                _complete(self._journal)
+            except (OSError, ValueError):
+                pass  # (left to recover_sets)
+        else:
+            for tmp in self._files.values():
+                tmp.unlink(missing_ok=True)
+        self._files, self._unchecked, self._journal = {}, set(), None
 
 
 @contextmanager
@@ -357,6 +379,108 @@ def atomic_write(path: str | os.PathLike, write: Callable[[IO[bytes]], Any]) -> 
     naming ``path``."""
     with staged() as staging:
         staging.write(path, write)
+
+
+# ---- sets of files committed as one unit, and the lock of each output name ---------------------
+def _journal(first: Path, pid: int | None = None) -> Path:
+    """The journal ``.NAME.<pid>.commit`` of a set of files moved into place, beside its first
+    file ``NAME``: the JSON list of its ``[temporary, destination]`` pairs."""
+    return first.with_name(f".{first.name}.{os.getpid() if pid is None else pid}.commit")
+
+
+def recover_sets(folder: str | os.PathLike) -> list[Path]:
+    """Complete the moves of every set of files in ``folder`` whose commit was cut short (its
+    journal left by a process that is gone, or by this one outside a commit): every temporary
+    file still there is moved into place, so that the set is the new one whole (its temporary
+    files were complete before the journal was written). Returns the files moved. A journal of
+    a live process (a commit in progress) is left alone."""
+    moved: list[Path] = []
+    for journal in sorted(Path(folder).glob(".*.commit")):
+        pid = journal.name[: -len(".commit")].rpartition(".")[2]
+        if not pid.isdigit() or (int(pid) != os.getpid() and locks.process_alive(int(pid))):
+            continue
+        moved += _complete(journal)
+    return moved
+
+
+def _complete(journal: Path) -> list[Path]:
+    """Move every temporary file of the set in ``journal`` still there into place, then remove
+    the journal; the files moved."""
+    try:
+        pairs = [(Path(tmp), Path(path)) for tmp, path in json.loads(journal.read_text())]
+    except (OSError, ValueError, TypeError) as error:
+        raise CorruptFileError(journal, f"the journal of a cut-short commit cannot be read "
+                               f"({error})", "remove it (the files it names stay as they "
+                               "are)") from None
+    moved = []
+    for tmp, path in pairs:
+        if tmp.is_file():
+            try:
+                os.replace(tmp, path)
+            except OSError as error:
+                raise FileWriteError(path, error, "complete the cut-short move of") from None
+            moved.append(path)
+    journal.unlink()
+    return moved
+
+
+class OutputInUse(ValueError):
+    """Another command is writing an output of the same name; ``record`` is its lock record."""
+
+    def __init__(self, path: Path, lock: Path, record: dict) -> None:
+        self.path, self.record = path, record
+        super().__init__(
+            f"{path} is being written by {locks.holder(record)}; wait for it to finish or choose "
+            f"another name. If that command is over (e.g. its node was lost), remove {lock}")
+
+
+def name_lock(path: str | os.PathLike) -> Path:
+    """The lock file ``.NAME.lock`` of the output ``path``."""
+    path = Path(path)
+    return path.with_name(f".{path.name}.lock")
+
+
+@contextmanager
+def hold_names(paths: Sequence[str | os.PathLike]) -> Iterator[None]:
+    """Hold the lock of each output name in ``paths`` (:func:`name_lock`; their folders made)
+    while the block runs,
+    two commands writing the same name being refused (:class:`OutputInUse`, naming the holder);
+    cut-short commits in their folders completed first (:func:`recover_sets`)."""
+    held: list[tuple[Path, dict]] = []
+    try:
+        for path in dict.fromkeys(Path(p) for p in paths):
+            lock = name_lock(path)
+            try:
+                path.parent.mkdir(parents=True, exist_ok=True)
+                held.append((lock, locks.acquire(lock)))
+            except locks.Held as error:
+                raise OutputInUse(path, lock, error.record) from None
+            except OSError as error:
+                raise FileWriteError(lock, error, "create the lock") from None
+        for folder in dict.fromkeys(Path(p).parent for p in paths):
+            recover_sets(folder)
+        yield
+    finally:
+        for lock, record in held:
+            locks.release(lock, record)
+
+
+def commit_set(files: Mapping[str | os.PathLike, bytes | Callable[[IO[bytes]], Any]],
+               *, lock: bool = True) -> list[Path]:
+    """Write the files of ``files`` (path -> its bytes, or a function writing them to a binary
+    handle) and move them into place as one unit (:meth:`Staging.commit`): an interruption
+    leaves the old set or, once their moves began, the new set after :func:`recover_sets`,
+    never a mixture. With ``lock``, under :func:`hold_names` (a command that holds the names for
+    longer, through its work, passes ``lock=False``). Returns the destinations."""
+
+    def writer(content: bytes | Callable[[IO[bytes]], Any]) -> Callable[[IO[bytes]], Any]:
+        return content if callable(content) else lambda handle: handle.write(content)
+
+    with hold_names(list(files)) if lock else nullcontext():
+        with staged() as staging:
+            for path, content in files.items():
+                staging.write(path, writer(content))
+    return [Path(p) for p in files]
 
 
 class GuardedFile(io.RawIOBase):
