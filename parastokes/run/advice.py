@@ -74,29 +74,6 @@ def _smaller_step_passes(setup: Setup, error: BlowUpError, step: float) -> bool:
     return True
 
 
-#: How much smaller than the step that blew up the steps of :func:`_no_step_helps` are.
-TINY_STEP = 1e-6
-
-
-def _no_step_helps(setup: Setup, error: BlowUpError, step: float) -> str | None:
-    """Why a blow-up is not the step's: two fine steps :data:`TINY_STEP` times the one that blew
-    up, from its last good state, blow up too (the rates there are beyond any step: a modulus or
-    a force far beyond the physical), else None."""
-    system, x = setup.system, error.last_state
-    if np.shape(x) != np.shape(system.initial_state()):
-        return None  # (a coarser grid's state)
-    tiny = step * TINY_STEP
-    try:
-        integrate.run(system, x, error.t - step, error.t - step + 2 * tiny,
-                      setup.config.fine.scheme, tiny)
-    except (BlowUpError, StepFailure, ValueError, FloatingPointError):
-        return (f"two steps {1 / TINY_STEP:.0e} times smaller blow up from the last good state "
-                "too, so a smaller step does not help: the rates there are beyond any step; look "
-                "at the model's parameters (a modulus, a force or a speed far beyond the "
-                "physical)")
-    return None
-
-
 def _near_wall(setup: Setup, state: np.ndarray) -> str | None:
     """Why a blow-up at ``state`` is the body reaching the wall z = 0 (its lowest point closer to
     the wall than the blob size ε, where the regularised kernels stop resolving the gap), else
@@ -158,8 +135,6 @@ def advice(setup: Setup, label: str, error: BlowUpError, where: str,
     if wall is not None and solve and _smaller_step_passes(setup, error, step):
         wall = None  # the step drove it there: a smaller one is the fix
     found = [note for note in (wall, _same_time(previous, error, where, step, span)) if note]
-    if not found and solve:
-        found = [note for note in (_no_step_helps(setup, error, step),) if note]
     return "; ".join(found) if found else fix(cfg, label, error.reason)
 
 
