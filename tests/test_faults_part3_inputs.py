@@ -438,3 +438,17 @@ def test_the_repulsion_is_switched_off_from_the_command_line():
     assert off.model.repulsion is None and "repulsion" not in off.model.tables()["scene"]
     assert off.model.build(1).repulsion is None
 
+
+
+def test_an_rtol_below_round_off_is_refused_by_check_naming_the_key(tmp_path, capsys):
+    """The configuration's side of integrate.tolerances' floor (was: accepted, then a numpy
+    overflow warning in the run)."""
+    from configs import small_rod
+
+    path = tmp_path / "c.toml"
+    path.write_text(small_rod(rest="[execution]\nworkers = 4\n").replace(
+        "dt = 1e-6", 'dt = 1e-6\nscheme = "ros2"\nrtol = 1e-300'))
+    assert cli.main(["check", str(path)]) == cli.ExitCode.CONFIG
+    assert capsys.readouterr().err.splitlines()[1:] == [
+        "  fine.rtol: 1e-300 is below 2.2e-14 (100 machine epsilons): no step can meet it in "
+        "double precision; use a larger rtol"]
