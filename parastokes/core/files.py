@@ -235,17 +235,6 @@ def temporary_owner(path: str | os.PathLike) -> int | None:
     return int(pid) if pid.isdigit() else None
 
 
-def _running(pid: int) -> bool:
-    """Whether a process ``pid`` runs on this host."""
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:  # (another user's)
-        pass
-    return True
-
-
 def remove_stale(path: str | os.PathLike) -> list[Path]:
     """Remove the temporary files of ``path`` (``NAME.<pid>.tmp``, :func:`temporary_name`) that
     another writer, killed while writing it, left behind: those whose process no longer runs on
@@ -259,7 +248,8 @@ def remove_stale(path: str | os.PathLike) -> list[Path]:
             continue
         try:
             info = entry.lstat()
-            if stat.S_ISREG(info.st_mode) and info.st_mtime < _STARTED and not _running(pid):
+            stale = info.st_mtime < _STARTED and not locks.process_alive(pid)
+            if stale and stat.S_ISREG(info.st_mode):
                 entry.unlink()
                 removed.append(entry)
         except OSError:  # (gone meanwhile, or not ours to remove)
@@ -407,7 +397,7 @@ def _complete(journal: Path) -> list[Path]:
     """Move every temporary file of the set in ``journal`` still there into place, then remove
     the journal; the files moved."""
     try:
-        pairs = [(Path(tmp), Path(path)) for tmp, path in json.loads(journal.read_text())]
+        pairs = [(Path(tmp), Path(path)) for tmp, path in json.loads(read_input(journal, "record"))]
     except (OSError, ValueError, TypeError) as error:
         raise CorruptFileError(journal, f"the journal of a cut-short commit cannot be read "
                                f"({error})", "remove it (the files it names stay as they "
