@@ -129,6 +129,39 @@ def test_a_stop_asked_for_during_a_read_ends_it(tmp_path):
         signals.clear()
 
 
+
+def _readers():
+    """Every reader of a file the package takes, as (name, call on a path)."""
+    from parastokes import flow
+    from parastokes.config.placement import read_poses
+    from parastokes.flow.movie import check_mp4
+    from parastokes.kinds.rigid.shapes import load_points
+    from parastokes.output import plots
+    from parastokes.parareal.best_serial import load_serial_runs
+
+    return {
+        "configuration": config.load, "poses": read_poses, "points": lambda p: load_points(str(p)),
+        "serial runs": load_serial_runs, "summary": io.read_summary, "arrays": io.load_arrays,
+        "trajectory": io.read_trajectory, "flow": flow.read_grid,
+        "measurements": lambda p: plots.draw_benchmark(p, p.parent),
+        "movie": lambda p: check_mp4(p, p), "record": files._complete,
+    }
+
+
+def test_every_reader_refuses_a_pipe_at_once_through_the_one_reader(tmp_path, alarm):
+    """A named pipe given to any reader is refused by the bounded reader's check (one line
+    naming it), never opened for waiting (the alarm fails a read that blocks)."""
+    readers = _readers()
+    assert set(readers) == set(files.INPUTS)  # (a new kind of input gets its reader here)
+    for kind, read in readers.items():
+        if kind == "movie":  # (the encoder's own temporary file: an empty one is refused first)
+            continue
+        pipe = tmp_path / f"{kind.replace(' ', '_')}.h5"
+        os.mkfifo(pipe)
+        with pytest.raises(ValueError, match=r"a named pipe \(FIFO\), not a regular file; give "
+                                             + re.escape(files.INPUTS[kind][0])):
+            read(pipe)
+
 def test_a_memory_error_is_one_line_naming_the_cause(capsys, monkeypatch):
     def exhausted(*_args, **_kwargs):
         raise MemoryError()  # (str(MemoryError()) is empty)
