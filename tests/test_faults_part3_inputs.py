@@ -178,6 +178,32 @@ def test_a_memory_error_is_one_line_naming_the_cause(capsys, monkeypatch):
     assert capsys.readouterr().err.splitlines() == ["error: IsADirectoryError"]
 
 
+#: Runs predict with the address space limited to what the process holds plus 150 MiB, once the
+#: modules it needs are imported and the configuration read (`ulimit -v` without guessing the
+#: interpreter's own size).
+_LIMITED_PREDICT = """
+import resource, sys
+from parastokes import cli, config
+import parastokes.cli.predict, parastokes.parareal.best_serial
+config.load("experiments/table4_g1.toml")
+size = int(next(l for l in open("/proc/self/status") if l.startswith("VmSize")).split()[1])
+resource.setrlimit(resource.RLIMIT_AS, (size * 1024 + (150 << 20), resource.RLIM_INFINITY))
+sys.exit(cli.main(["predict", "experiments/table4_g1.toml", "--cores", "40", "--ratio", "0.0267",
+                   "--serial", sys.argv[1], "--target", "1e-6"]))
+"""
+
+
+def test_out_of_memory_under_a_memory_limit_is_one_line(tmp_path):
+    """A file of serial runs under its cap (14 MiB) whose million records need more memory than
+    the limit leaves: a real MemoryError, exit 2, one line (was: an empty `error: `)."""
+    path = tmp_path / "runs.json"
+    path.write_text(json.dumps({"cases": {"x": {"rows": [{"a": i} for i in range(10**6)]}}}))
+    done = subprocess.run([sys.executable, "-c", _LIMITED_PREDICT, str(path)], cwd=ROOT, env=ENV,
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == cli.ExitCode.CONFIG, done.stderr
+    assert done.stderr.splitlines() == ["error: out of memory (MemoryError): use fewer points, "
+                                        "slices or workers, or a machine with more memory"]
+
 # ---- 1, 2: a device or a pipe as --serial or as a suspension's poses -------------------------
 @pytest.mark.parametrize("source", ["/dev/zero", "fifo"])
 def test_predict_refuses_a_device_or_a_pipe_as_serial_runs_at_once(source, fifo):
