@@ -159,6 +159,12 @@ class Output(_Section):
     )
     frames: bool = Field(True, description="Rods: also write the frames D1, D2, D3.")
     figures: bool = Field(True, description="Draw the figures after the run.")
+    monitor_fatal: bool = Field(
+        False,
+        description="A run whose stability monitor ends above its limit at a slice boundary is "
+        "an error (exit 3, its results written) instead of a warning (summary.json's warnings "
+        "and standard error); also --monitor-fatal.",
+    )
     formats: list[Literal["png", "pdf"]] = Field(
         ["png", "pdf"], min_length=1, description="Figure file formats."
     )

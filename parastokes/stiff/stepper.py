@@ -5,8 +5,9 @@ controller of :mod:`parastokes.integrate.controller` calls for adaptive steps.
 A :class:`Stepper` belongs to one run: it keeps the approximate Jacobian ``A`` of
 :mod:`.jacobian` and the factorization of ``I - hγA``, rebuilding ``A`` every ``refresh`` steps
 (1: every step, so ``A`` follows the body as it moves and turns) and the factorization whenever
-``A`` or the step changes. A step depends only on its inputs and on that count, so a run is a
-deterministic function of its input (Parareal stays bit-reproducible).
+``A`` changes or the step leaves a factor :data:`REUSE` of the factorized one. A step depends
+only on its inputs and on those counts, so a run is a deterministic function of its input
+(Parareal stays bit-reproducible).
 """
 
 from __future__ import annotations
@@ -18,9 +19,9 @@ import numpy as np
 
 from .jacobian import local_jacobian
 from .schemes import Rosenbrock
-from .solve import StageSolver
+from .solve import Factorization, StageSolver
 
-__all__ = ["REFRESH", "Stepper"]
+__all__ = ["REFRESH", "REUSE", "Stepper"]
 
 Rates = Callable[[float, np.ndarray], np.ndarray]
 Advance = Callable[[np.ndarray, np.ndarray, float], np.ndarray]
@@ -28,12 +29,20 @@ Advance = Callable[[np.ndarray, np.ndarray, float], np.ndarray]
 
 #: Steps between rebuilds of the approximate Jacobian (docs/benchmarks.md, "Stiff bodies").
 REFRESH = 5
+#: A factorization of ``I - h_f γ A`` serves every step ``h`` with ``h_f / REUSE <= h <= h_f
+#: REUSE``: it is that of ``I - hγ A'`` with ``A' = (h_f / h) A``, and a W-method keeps its order
+#: for any ``A'`` (docs/stiff.md, "Adaptive steps"; docs/benchmarks.md, "Stiff bodies: cheaper
+#: implicit steps").
+REUSE = 2.0
 
 
 class Stepper:
     """Steps of ``scheme`` for ``system`` through ``rates(t, x)`` and ``advance(x, r, dt)``
     (the integrator's checked calls); ``A`` rebuilt every ``refresh`` steps (default
-    :data:`REFRESH`)."""
+    :data:`REFRESH`), its factorization kept while the step stays within a factor
+    :data:`REUSE` of the factorized one.
+
+    ``jacobians`` and ``factorizations`` count the builds of ``A`` and of its LU so far."""
 
     def __init__(self, system: Any, scheme: Rosenbrock, rates: Rates, advance: Advance,
                  refresh: int | None = None) -> None:
@@ -42,22 +51,31 @@ class Stepper:
         self.refresh = REFRESH if refresh is None else max(1, int(refresh))
         self.steps = 0
         self._jacobian: Any = None
-        self._solver: tuple[float, StageSolver] | None = None
+        self._lu: Factorization | None = None
         #: GMRES iterations so far (``ros2-krylov``).
         self.iterations = 0
+        self.jacobians = 0
+        self.factorizations = 0
+        #: The Lie bracket of two rates of a body on rotating frames (order 3: :meth:`stages`).
+        self._bracket = getattr(system, "bracket", None) if scheme.order >= 3 else None
 
     def _stage_solver(self, t: float, x: np.ndarray, h: float, f0: np.ndarray) -> StageSolver:
         hgamma = h * self.scheme.gamma
         if self.steps % self.refresh == 0 or self._jacobian is None:
             self._jacobian = (local_jacobian(self.system, t, x, f0.size),)
-            self._solver = None
+            self.jacobians += 1
+            self._lu = None
+        matrix = self._jacobian[0]
+        stale = self._lu is None or not (
+            self._lu.hgamma / REUSE <= hgamma <= self._lu.hgamma * REUSE)
+        if matrix is not None and matrix.nnz and stale:
+            self._lu = Factorization(matrix, hgamma, t)
+            self.factorizations += 1
         if self.scheme.krylov:  # the exact Jacobian's products are taken at this step's state
-            return StageSolver(self._jacobian[0], hgamma, t, krylov=True,
+            return StageSolver(self._lu, hgamma, t, krylov=True,
                                rates_at=lambda y: self.rates(t, y), advance=self.advance,
                                x=x, f0=f0)
-        if self._solver is None or self._solver[0] != hgamma:
-            self._solver = (hgamma, StageSolver(self._jacobian[0], hgamma, t))
-        return self._solver[1]
+        return StageSolver(self._lu, hgamma, t)
 
     def stages(self, t: float, x: np.ndarray, h: float) -> list[np.ndarray]:
         """The stage rates ``k_i`` of the step of size ``h`` from ``(t, x)``."""
@@ -73,6 +91,8 @@ class Stepper:
                 shift = sum((a * kj for a, kj in zip(s.a[i], k, strict=False) if a != 0.0),
                             np.zeros_like(f0))
                 r = self.rates(t + s.c[i] * h, self.advance(x, shift, h))
+                if self._bracket is not None:  # dexp⁻¹ of the stage's rotation, to first order
+                    r = r - (0.5 * h) * self._bracket(shift, r)
             for dij, kj in zip(s.d[i], k, strict=False):
                 if dij != 0.0:
                     r = r + dij * kj
