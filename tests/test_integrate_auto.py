@@ -37,10 +37,10 @@ def test_a_stiff_problem_switches_to_implicit_and_takes_far_fewer_steps(caplog):
     with caplog.at_level(logging.INFO, logger="parastokes.integrate.auto"):
         run = _run(Counted(lam=(-1.0, -1e4)), 1e-3, t1=0.3)
     explicit = _run(Counted(lam=(-1.0, -1e4)), 1e-3, "rk45", t1=0.3)
-    assert [name for _, name, _ in run.switches] == ["ros2"]
+    assert [name for _, name, _ in run.switches] == [auto.IMPLICIT]
     t, _, reason = run.switches[0]
     assert 0 < t < 0.05 and "stiff: h ρ > 0.9 x rk45's stability boundary 3.31" in reason
-    assert f"auto: ros2 from t={t:.10g}, stiff" in caplog.text
+    assert f"auto: {auto.IMPLICIT} from t={t:.10g}, stiff" in caplog.text
     assert run.n_steps + run.n_rejected < (explicit.n_steps + explicit.n_rejected) / 20
     by = {name: (accepted, rejected) for name, accepted, rejected in run.by_scheme}
     assert by["rk45"][0] >= auto.STIFF_STEPS  # explicit until the test has seen enough steps
@@ -53,15 +53,16 @@ def test_a_nonstiff_problem_stays_explicit_within_its_tolerance():
     system = Counted(lam=(-1.0, -2.0))
     for rtol in (1e-3, 1e-6):
         run = _run(system, rtol)
-        assert run.switches == () and dict((n, a) for n, a, _ in run.by_scheme)["ros2"] == 0
+        assert run.switches == () and dict((n, a) for n, a, _ in run.by_scheme)[auto.IMPLICIT] == 0
         assert np.abs(run.state - system.exact(1.0)).max() < 3 * rtol
 
 
 def test_auto_switches_back_once_the_stiffness_is_gone():
-    run = _run(Calming(lam=(-1.0, -1e4)), 1e-4)
-    assert [name for _, name, _ in run.switches] == ["ros2", "rk45"]
+    run = _run(Calming(lam=(-1.0, -1e4)), 1e-4, t1=2.0)
+    assert [name for _, name, _ in run.switches] == [auto.IMPLICIT, "rk45"]
     (t_stiff, _, _), (t_calm, _, reason) = run.switches
-    assert t_stiff < 0.05 and 0.3 < t_calm < 0.5 and reason.startswith("not stiff")
+    # BACK_STEPS implicit steps after the stiffness ends (t = 0.3), the large ones of ros34pw2
+    assert t_stiff < 0.05 and 0.3 < t_calm < 1.5 and reason.startswith("not stiff")
 
 
 def test_auto_is_deterministic_and_propagators_take_it():
