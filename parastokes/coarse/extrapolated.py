@@ -236,7 +236,7 @@ def operation_counts(cfg: Any, resolved: Any, sections: Sequence[tuple[Extrapola
     (section, its resolution) the evaluations of its slowest auxiliary solver
     (:func:`~.step_cost.evaluations_per_step`; the body is built once, when a count is measured)."""
     schemes = [cfg.fine.scheme, *(section.scheme for section, _ in sections)]
-    measured = any(integrate.SCHEMES[name].implicit for name in schemes) or any(
+    measured = any(integrate.lookup(name).implicit for name in schemes) or any(
         rtol is not None for rtol in (cfg.fine.rtol, *(section.rtol for section, _ in sections)))
     body = build_system(cfg, resolved) if measured else None
     per_fine = evaluations_per_step(cfg, resolved, cfg.fine.scheme, resolved.fine_steps,
