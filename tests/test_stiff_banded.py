@@ -215,3 +215,33 @@ def test_banded_and_general_factorizations_give_the_same_run(monkeypatch):
     assert not Factorization(jacobian.local_jacobian(rod, 0.0, x0, 6 * len(x0)), 1e-4, 0.0).banded
     b = integrate.run(rod, x0, 0.0, 5e-4, "ros34pw2", 1e-4).state
     assert np.allclose(a, b, rtol=0, atol=1e-10 * np.abs(a).max())
+
+
+@pytest.mark.parametrize("width", [3, 2])
+def test_coloured_differences_are_the_analytic_jacobian(width):
+    """fd_jacobian on f_i = (x_i0 x_{i+1,1}, sin x_i2 + 2 x_{i-1,0}, x_i1²)[:width] (chain
+    coupling, rates by shifts): the analytic Jacobian, entry (width i + l, 3 j + q)."""
+    from parastokes.stiff import coloring
+
+    n = 7
+    x = np.random.default_rng(5).standard_normal((n, 3))
+
+    def function(y):
+        nxt, prev = np.roll(y, -1, axis=0), np.roll(y, 1, axis=0)
+        nxt[-1], prev[0] = 0.0, 0.0
+        return np.stack([y[:, 0] * nxt[:, 1], np.sin(y[:, 2]) + 2 * prev[:, 0], y[:, 1] ** 2],
+                        axis=1)[:, :width]
+
+    expected = np.zeros((n * width, n * 3))
+    for i in range(n):
+        if i + 1 < n:
+            expected[width * i, 3 * i] = x[i + 1, 1]
+            expected[width * i, 3 * (i + 1) + 1] = x[i, 0]
+        expected[width * i + 1, 3 * i + 2] = np.cos(x[i, 2])
+        if i > 0:
+            expected[width * i + 1, 3 * (i - 1)] = 2.0
+        if width == 3:
+            expected[width * i + 2, 3 * i + 1] = 2 * x[i, 1]
+    got = coloring.fd_jacobian(function, lambda y, d, h: y + h * d, x, 3,
+                               coloring.banded(1, n, 1), 1e-6).toarray()
+    assert np.allclose(got, expected, rtol=0, atol=1e-8)
