@@ -23,10 +23,12 @@ from typing import Any
 
 from .baseline import DEFAULT_BUDGET, F_FACTOR, Baseline, Run
 
-__all__ = ["PlanError", "add_arguments", "main", "plan_config", "prepare"]
+__all__ = ["PlanError", "add_arguments", "main", "plan_config", "prepare", "resolvable"]
 
 #: Share of the budget given to the serial search when the Parareal route is searched too.
 SERIAL_SHARE = 0.5
+#: F's own error must lie this many times below η*/F_FACTOR (:func:`resolvable`).
+RESOLUTION = 10.0
 
 
 class PlanError(ValueError):
@@ -75,6 +77,18 @@ def replaceable(cfg: Any) -> None:
             "runs F in device batches of explicit fixed steps it cannot time; plan the "
             "configuration on the CPU (--set execution.executor=\"processes\") and move the "
             "chosen route to the GPU yourself")
+
+
+def resolvable(found: Baseline) -> None:
+    """Refuse (PlanError) a target the reference cannot judge: F's own error (Richardson's
+    estimate at T_s) must lie at least :data:`RESOLUTION` times below η*/F_FACTOR, the accuracy
+    F for Parareal is chosen at."""
+    goal = found.target / F_FACTOR
+    if found.fine_error is not None and found.fine_error * RESOLUTION > goal:
+        raise PlanError(
+            f"--target: η*/{F_FACTOR:g} = {goal:.3g} is not {RESOLUTION:g} times above the "
+            f"configuration's F's own error (about {found.fine_error:.2g}), against which "
+            "every run is measured: raise --target, or reduce fine.dt (a more accurate F)")
 
 
 def outputs(out: str | Path) -> tuple[Path, Path, Path]:
@@ -224,6 +238,7 @@ def main(args: argparse.Namespace, console: Any) -> int:
         args.budget * (SERIAL_SHARE if parareal_possible else 1.0))
     found, which = _baseline(args, cfg, system, serial_budget, console)
     console.print(which)
+    resolvable(found)
     best, fine = found.best(), found.fine()
     console.print(f"fastest serial run reaching η* = {args.target:g}: {best.label()} (error "
                   f"{best.error:.3g}, {best.cpu_seconds:.4g} s CPU over T)")
