@@ -91,6 +91,20 @@ class Run:
     def fixed(self) -> bool:
         return self.rtol is None
 
+    @property
+    def cost(self) -> float:
+        """CPU seconds over T of a measured run (ValueError for one not measured)."""
+        if self.cpu_seconds is None:
+            raise ValueError(f"{self.label()} was not measured ({self.status})")
+        return self.cpu_seconds
+
+    @property
+    def accuracy(self) -> float:
+        """Its error at T_s of a measured run (ValueError for one not measured)."""
+        if self.error is None:
+            raise ValueError(f"{self.label()} was not measured ({self.status})")
+        return self.error
+
     def label(self) -> str:
         step = f"rtol = {self.rtol:.3g}" if self.rtol is not None else f"dt = {self.dt:.3g}"
         return f"{self.scheme} at {step}"
@@ -178,10 +192,9 @@ def candidates(euler_limit: float | None, target: float, span: float,
 def cheapest(runs: Iterable[Run], target: float, fixed_only: bool = False) -> Run | None:
     """The measured run of least CPU time whose error is at most ``target`` (ties: the first);
     ``fixed_only``: among fixed steps (F of a Parareal run)."""
-    reaching = [r for r in runs if r.status in ("measured", "reference") and r.error is not None
-                and r.error <= target and r.cpu_seconds is not None
-                and (r.fixed or not fixed_only)]
-    return min(reaching, key=lambda r: r.cpu_seconds, default=None)
+    reaching = [r for r in runs if r.status in ("measured", "reference")
+                and r.accuracy <= target and (r.fixed or not fixed_only)]
+    return min(reaching, key=lambda r: r.cost, default=None)
 
 
 def choose_runs(runs: list[Run], measure: Callable[[Run, float], None], threshold: float,
@@ -205,17 +218,16 @@ def choose_runs(runs: list[Run], measure: Callable[[Run, float], None], threshol
                 rest.note = f"search stopped ({stopped})"
             return stopped
         best = cheapest(runs[:i], threshold)
-        measure(run, math.inf if best is None else best.cpu_seconds)
+        measure(run, math.inf if best is None else best.cost)
         measured += 1
         if run.status == "abandoned":
             done[run.family] = f"a cheaper run of {run.family} was abandoned: {run.note}"
         elif run.status != "measured":
             continue
-        elif run.error is not None and run.error <= threshold:
+        elif run.accuracy <= threshold:
             done[run.family] = f"a cheaper run of {run.family} reaches {threshold:.3g}"
-        elif best is not None and run.cpu_seconds is not None \
-                and run.cpu_seconds > best.cpu_seconds:
-            done[run.family] = (f"dearer than {best.label()} ({best.cpu_seconds:.3g} s), "
+        elif best is not None and run.cost > best.cost:
+            done[run.family] = (f"dearer than {best.label()} ({best.cost:.3g} s), "
                                 "which reaches it; finer steps cost more")
     return None
 
@@ -248,7 +260,7 @@ class Baseline:
         """The cheapest fixed-step run with error at most η*/:data:`F_FACTOR`: ``plan``'s F
         (F itself when none is cheaper)."""
         found = cheapest(self.runs, self.target / F_FACTOR, fixed_only=True)
-        if found is None or found.cpu_seconds >= self.reference.cpu_seconds:
+        if found is None or found.cost >= self.reference.cost:
             return self.reference
         return found
 

@@ -241,33 +241,33 @@ def main(args: argparse.Namespace, console: Any) -> int:
     resolvable(found)
     best, fine = found.best(), found.fine()
     console.print(f"fastest serial run reaching η* = {args.target:g}: {best.label()} (error "
-                  f"{best.error:.3g}, {best.cpu_seconds:.4g} s CPU over T)")
+                  f"{best.error:.3g}, {best.cost:.4g} s CPU over T)")
     console.print(f"F for Parareal (error <= η*/{F_FACTOR:g}): {fine.label()} (error "
-                  f"{fine.error:.3g}, {fine.cpu_seconds:.4g} s CPU over T)")
-    best_text = f"{best.label()} ({best.cpu_seconds:.4g} s)"
-    rows = [routing.serial_route(best.cpu_seconds, best_text)]
+                  f"{fine.error:.3g}, {fine.cost:.4g} s CPU over T)")
+    best_text = f"{best.label()} ({best.cost:.4g} s)"
+    rows = [routing.serial_route(best.cost, best_text)]
     unavailable: dict[str, str] = {}
     if args.cores >= 2:
-        rows.append(routing.spatial_route(best.cpu_seconds, best_text, args.cores, points))
+        rows.append(routing.spatial_route(best.cost, best_text, args.cores, points))
         goal = (1.0 - 1.0 / F_FACTOR) * args.target
         tune_budget = None if args.budget is None else args.budget * (1.0 - SERIAL_SHARE)
         console.print(f"tuning the coarse solver for F = {fine.label()} on {args.cores} slices "
                       f"to η^K <= {goal:.3g} ...")
         tuned, why = _tune(cfg, resolved, system, fine, args.cores, goal, tune_budget)
         if tuned is None:
-            unavailable["parareal"] = why
+            unavailable["parareal"] = why or "tune found no coarse solver"
         else:
             chosen = tuned.chosen
             evidence = (f"γ_G/γ_F measured by tune's pilot ({tuned.pilot.n_slices} slices), "
                         f"pilot η^k = {', '.join(f'{e:.2g}' for e in chosen.pilot_errors)}; "
                         f"G = {chosen.settings.label()}; F = {fine.label()} "
-                        f"({fine.cpu_seconds:.4g} s)")
+                        f"({fine.cost:.4g} s)")
             for schedule in ("standard", "pipelined"):
                 rows.append(routing.parareal_route(
-                    best.cpu_seconds, fine.cpu_seconds, chosen.gamma_ratio, chosen.iterations,
+                    best.cost, fine.cost, chosen.gamma_ratio, chosen.iterations,
                     args.cores, schedule, evidence))
             at = _parareal_at(tuned, args.cores, goal)
-            combined = routing.combined_route(best.cpu_seconds, fine.cpu_seconds, args.cores,
+            combined = routing.combined_route(best.cost, fine.cost, args.cores,
                                               points, "pipelined", at, evidence)
             if combined is None:
                 unavailable["combined"] = (f"no split of {args.cores} cores into P >= 2 slices "
