@@ -18,6 +18,7 @@ import tomllib
 from argparse import Namespace
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from parastokes import cli, config, integrate
@@ -414,3 +415,24 @@ def test_a_target_the_reference_cannot_judge_is_refused():
         resolvable(found)
     found.fine_error = None  # F with adaptive steps: not estimated, not checked
     resolvable(found)
+
+
+def test_own_error_falls_back_to_half_the_step_where_twice_it_blows_up(monkeypatch):
+    from types import SimpleNamespace
+
+    from parastokes.tuning import pilot
+
+    state = np.array([1.0, 0.0, 0.0])
+    answers = {2e-6: state + [0.0, 3e-6, 0.0], 5e-7: state + [0.0, 1e-6, 0.0]}
+
+    def propagate(system, x0, t0, t1, scheme, dt):
+        if dt not in answers:
+            raise integrate.BlowUpError(t1, 1, math.inf, x0, "unstable")
+        return answers[dt]
+
+    monkeypatch.setattr(pilot.integrate, "propagate", propagate)
+    system = SimpleNamespace(positions=lambda x: x.reshape(-1, 3))
+    # RK2 (p = 2): |F_τ - F_2τ| / 3 = 1e-6
+    assert pilot.own_error(system, state, 0.0, 1.0, "rk2", 1e-6, state) == pytest.approx(1e-6)
+    del answers[2e-6]  # 2τ unstable: 4 |F_τ - F_τ/2| / 3
+    assert pilot.own_error(system, state, 0.0, 1.0, "rk2", 1e-6, state) == pytest.approx(4e-6 / 3)

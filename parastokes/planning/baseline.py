@@ -46,6 +46,7 @@ from ..core.contracts import System
 from ..core.files import atomic_write
 from ..parareal.best_serial import cached_entries
 from ..parareal.metrics import relative_change
+from ..tuning.pilot import own_error
 
 __all__ = ["F_FACTOR", "Baseline", "Run", "cached", "candidates", "cheapest", "choose_runs",
            "real_stability_interval", "search", "store"]
@@ -327,22 +328,25 @@ def search(system: System, x0: np.ndarray, t0: float, t1: float, fine: integrate
                                     rtol=fine.rtol, atol=fine.atol).state
     reference_cpu = clock() - start
     fine_error = None
-    if fine.rtol is None:  # Richardson's estimate from a run at 2τ (as tune's pilot)
-        double = integrate.propagate(system, x0, t0, measured_t1, fine.scheme, 2 * fine.dt)
-        fine_error = relative_change(double, reference_state, system.positions) / (
-            2 ** integrate.scheme_order(fine.scheme) - 1)
+    if fine.rtol is None:  # Richardson's estimate (as tune's pilot)
+        fine_error = own_error(system, x0, t0, measured_t1, fine.scheme, fine.dt,
+                               reference_state)
     else:
         notes.append("F takes adaptive steps: its own error is not estimated")
     reference = Run(fine.scheme, fine.dt, fine.rtol, "F", "reference",
                     0.0 if fine_error is None else fine_error, reference_cpu,
                     reference_cpu * scale, "the configuration's F (the reference)")
-    try:
-        euler_limit = integrate.largest_stable_step(
-            system, "euler", span, fine.dt, max(span / MIN_STEPS, 2 * fine.dt), x0=x0, t0=t0,
-            rtol=0.05, relative=True)
-    except ValueError as error:
-        euler_limit = None
-        notes.append(f"forward Euler's stability limit not found ({error}): no explicit or "
+    euler_limit = None
+    for lowest in (fine.dt, fine.dt / 10, fine.dt / 100):  # F's step may lie above Euler's limit
+        try:
+            euler_limit = integrate.largest_stable_step(
+                system, "euler", span, lowest, max(span / MIN_STEPS, 2 * lowest), x0=x0, t0=t0,
+                rtol=0.05, relative=True)
+            break
+        except ValueError as error:
+            reason = str(error)
+    if euler_limit is None:
+        notes.append(f"forward Euler's stability limit not found ({reason}): no explicit or "
                      "implicit fixed steps searched")
 
     def measure(run: Run, cap: float) -> None:
