@@ -116,7 +116,7 @@ class Run:
 
 def real_stability_interval(scheme: Any, upper: float = 20.0, step: float = 1e-3) -> float | None:
     """The stability interval [-Y, 0] of an explicit Runge-Kutta tableau on the negative real
-    axis: the largest Y with |R(-y)| <= 1 for every y in (0, Y], R(z) = 1 + z bᵀ(I - zA)⁻¹ 1
+    axis: the largest Y with ``|R(-y)| <= 1`` for every y in (0, Y], ``R(z) = 1 + z bᵀ(I - zA)⁻¹ 1``
     (forward Euler and RK2: 2, classical RK4: 2.785); None for a scheme without an explicit
     tableau (``a``, ``b``)."""
     a, b = getattr(scheme, "a", None), getattr(scheme, "b", None)
