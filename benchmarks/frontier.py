@@ -1,0 +1,429 @@
+"""Coarse solvers against an F at its stability limit (issue 48): the measured frontier.
+
+For each problem of the target table (docs/benchmarks.md, "Parareal against the fastest serial
+run (round 5)") this script measures, on a documented shortened analogue (P_s slices of a given
+length, one process, one kernel thread, CPU time):
+
+- ``serial``: candidate serial runs over the analogue's interval (explicit schemes at their
+  stability limit, implicit ones), each one's error eq. 34 against an accurate reference and its
+  CPU time; F is the cheapest of them whose error stays well below the target;
+- ``candidates``: per coarse solver G (a ``[coarse]`` table of the configuration schema, so that a
+  winner ships as a config as it is), gamma_G / gamma_F (``parareal.measure_slice_costs``, CPU
+  clock, the slowest auxiliary solve plus the combination over one fine slice) and eta^k of a real
+  Parareal run over the analogue's P_s slices against F's serial solution;
+- the predicted speedups at P = 40 slices on 40 cores, standard (1 / ((1 + K) alpha + K / P)) and
+  pipelined (1 / ((1 + K / P) alpha + K / P), with N_G > 1 the simulated schedule), against F and
+  against the fastest serial run reaching the same error, with K the first iteration whose eta^K
+  plus F's own error reaches the target.
+
+Results: ``docs/figures/frontier/PROBLEM.json``, one entry per measured candidate, written as
+each one finishes (a rerun skips what is there: ``--redo LABEL`` measures one again).
+
+    PYTHONPATH=. NUMBA_NUM_THREADS=1 python benchmarks/frontier.py --problems table4
+    PYTHONPATH=. python benchmarks/frontier.py --table           # the tables of docs/benchmarks.md
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import pathlib
+import sys
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+OUT = pathlib.Path("docs/figures/frontier")
+#: The core count of the target table.
+CORES = 40
+
+
+@dataclass(frozen=True)
+class Problem:
+    """One row of the target table and its shortened analogue.
+
+    ``model`` is the config's ``[model]`` table; ``fine`` (scheme, dt) the F of the Parareal runs
+    (the fastest serial run well below the target, see ``serial``); ``slice_length`` the analogue's
+    slice (the full problem's T / 40 where affordable), ``slices`` its P_s; ``serial`` the serial
+    candidates (scheme, dt) and ``reference`` the accurate run the errors are measured against;
+    ``full_t1`` the full problem's T.
+    """
+
+    title: str
+    model: dict[str, Any]
+    fine: tuple[str, float]
+    slice_length: float
+    slices: int
+    target: float
+    full_t1: float
+    reference: tuple[str, float]
+    serial: tuple[tuple[str, float], ...]
+    max_iterations: int = 6
+
+    @property
+    def t1(self) -> float:
+        return self.slice_length * self.slices
+
+
+ROD = {"kind": "rod", "n_points": 301, "epsilon": 5, "epsilon_unit": "sigma_f"}
+VESICLE = {"kind": "vesicle", "subdivisions": 3, "epsilon": 0.3, "epsilon_unit": "l_max",
+           "stiffness": 0.1, "viscosity": 1e-3, "shear_rate": 0.1}
+
+#: Forward Euler's stability limits (docs/benchmarks.md, "Stiff bodies" and "Speedup against the
+#: best serial run"): rod 301 ε = 5σ_f 1.22e-5 s; ε = 7σ_f 4.19e-5 s; rod 601 7.97e-7 s;
+#: vesicle (Table 7) 3.99e-3.
+PROBLEMS: dict[str, Problem] = {
+    "table4": Problem(
+        "Table 4's rod (M = 301, ε⁰ = 5σ_f)", ROD, ("rk2", 1.16e-5), 0.025, 8, 1e-6, 1.0,
+        ("rk4", 6.1e-6), (("euler", 1.16e-5), ("rk2", 1.16e-5), ("rk4", 1.59e-5))),
+    "table5": Problem(
+        "Table 5's rod (ε⁰ = 7σ_f)", {**ROD, "epsilon": 7}, ("rk4", 5.45e-5), 0.025, 8, 1e-6,
+        1.0, ("rk4", 2.1e-5), (("euler", 3.98e-5), ("rk2", 3.98e-5), ("rk4", 5.45e-5))),
+    "rod601": Problem(
+        "rod refined to M = 601 (ε⁰ = 5σ_f)", {**ROD, "n_points": 601}, ("rk2", 7.58e-7),
+        0.00125, 8, 1e-5, 1.0, ("rk4", 5e-7),
+        (("euler", 7.58e-7), ("rk2", 7.58e-7))),
+    "table7": Problem(
+        "Table 7's vesicle (T = 100)", VESICLE, ("rk2", 0.00379), 2.5, 40, 1e-6, 100.0,
+        ("rk4", 0.002), (("euler", 0.00379), ("rk2", 0.00379), ("rk4", 0.00518)),
+        max_iterations=5),
+}
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """A coarse solver: its family (the frontier keeps the best of each) and ``[coarse]`` table."""
+
+    family: str
+    coarse: dict[str, Any] = field(default_factory=dict)
+
+
+def _grid(factor: int, eps_nodes: Sequence[float], scheme: str, dt: float,
+          unit: str = "absolute") -> dict[str, Any]:
+    """An extrapolated G on a grid ``factor`` times coarser (1: the fine grid), Lagrange in ε over
+    ``eps_nodes`` (in ``unit``; one node: that ε, no extrapolation)."""
+    table: dict[str, Any] = {"scheme": scheme, "dt": dt, "lagrange": {
+        "epsilon": {"nodes": list(eps_nodes), "unit": unit}}}
+    if factor > 1:
+        table["grid_factor"] = factor
+    return table
+
+
+#: Candidate coarse solvers per problem, cheapest families first. Labels name the construction.
+CANDIDATES: dict[str, dict[str, Candidate]] = {
+    "table4": {
+        "grid 3, eps 3, euler 4e-4": Candidate(
+            "coarse grid, ε scaled", _grid(3, [3.0], "euler", 4e-4)),
+        "grid 3, eps [2, 3], euler 1.4e-4": Candidate(
+            "coarse grid, Lagrange in ε", _grid(3, [2.0, 3.0], "euler", 1.4e-4)),
+        "grid 3, eps [2, 2.5, 3], rk2 1.4e-4": Candidate(
+            "coarse grid, Lagrange in ε", _grid(3, [2.0, 2.5, 3.0], "rk2", 1.4e-4)),
+        "grid 2, eps [1.5, 2], rk2 5e-5": Candidate(
+            "coarse grid, Lagrange in ε", _grid(2, [1.5, 2.0], "rk2", 5e-5)),
+        "grid 3, eps 1, euler 1.3e-5": Candidate(
+            "coarse grid, ε fixed", {"scheme": "euler", "dt": 1.3e-5, "grid_factor": 3}),
+        "fine grid, eps [1.4, 1.6, 1.8], euler 4e-5": Candidate(
+            "fine grid, Lagrange in ε (wide)", _grid(1, [1.4, 1.6, 1.8], "euler", 4e-5)),
+    },
+    "table5": {
+        "grid 3, eps 3, euler 4e-4": Candidate(
+            "coarse grid, ε scaled", _grid(3, [3.0], "euler", 4e-4)),
+        "grid 3, eps [2, 3], euler 1.4e-4": Candidate(
+            "coarse grid, Lagrange in ε", _grid(3, [2.0, 3.0], "euler", 1.4e-4)),
+        "grid 3, eps [2, 2.5, 3], rk2 1.4e-4": Candidate(
+            "coarse grid, Lagrange in ε", _grid(3, [2.0, 2.5, 3.0], "rk2", 1.4e-4)),
+        "grid 2, eps [2, 2.5], rk2 1.4e-4": Candidate(
+            "coarse grid, Lagrange in ε", _grid(2, [2.0, 2.5], "rk2", 1.4e-4)),
+    },
+    "rod601": {
+        "grid 2, eps 1, euler 1.16e-5": Candidate(
+            "coarse grid, ε scaled", _grid(2, [1.0], "euler", 1.16e-5)),
+        "grid 2, eps [1, 1.5], euler 1.16e-5": Candidate(
+            "coarse grid, Lagrange in ε", _grid(2, [1.0, 1.5], "euler", 1.16e-5)),
+        "grid 4, eps [1.5, 2], rk2 5e-5": Candidate(
+            "coarse grid, Lagrange in ε", _grid(4, [1.5, 2.0], "rk2", 5e-5)),
+        "grid 6, eps [2, 2.5, 3], rk2 1.4e-4": Candidate(
+            "coarse grid, Lagrange in ε", _grid(6, [2.0, 2.5, 3.0], "rk2", 1.4e-4)),
+    },
+    "table7": {
+        "eps 0.5 l_max, euler 0.02": Candidate(
+            "ε scaled", _grid(1, [0.5], "euler", 0.02, "l_max")),
+        "eps [0.5, 0.6] l_max, euler 0.02": Candidate(
+            "Lagrange in ε (wide)", _grid(1, [0.5, 0.6], "euler", 0.02, "l_max")),
+        "eps [0.5, 0.6, 0.7] l_max, rk2 0.02": Candidate(
+            "Lagrange in ε (wide)", _grid(1, [0.5, 0.6, 0.7], "rk2", 0.02, "l_max")),
+    },
+}
+
+
+# ---- the arithmetic of the frontier ------------------------------------------------------------
+
+def iterations_to_reach(errors: Sequence[float] | None, target: float, own_error: float = 0.0
+                        ) -> int | None:
+    """The first K whose eta^K + F's own error is at most ``target`` (None: not within the run)."""
+    for k, error in enumerate(errors or (), start=1):
+        if error + own_error <= target:
+            return k
+    return None
+
+
+def predicted_speedups(alpha: float, iterations: int, n_auxiliary: int = 1,
+                       cores: int = CORES) -> dict[str, float]:
+    """Speedups against F at P = ``cores`` slices on as many cores: the standard schedule's
+    closed formula (its coarse sweep runs the N_G auxiliary solves at once on idle cores, so alpha
+    is the slowest one plus the combination), the pipelined closed formula, and the pipelined
+    schedule simulated with the N_G auxiliary solves as tasks of their own (they compete with the
+    fine solves for the cores; equal to the formula's order for N_G = 1)."""
+    from parastokes import parareal
+
+    simulated = parareal.simulate("pipelined", cores, iterations, cores, alpha,
+                                  n_auxiliary=n_auxiliary)
+    return {"standard": parareal.speedup_standard(alpha, iterations, cores),
+            "pipelined": parareal.speedup_pipelined(alpha, iterations, cores),
+            "pipelined_simulated": cores / simulated.wall}
+
+
+def best_serial(rows: Sequence[dict[str, Any]], target: float) -> dict[str, Any] | None:
+    """The serial row of least CPU time per unit of simulated time whose error reaches
+    ``target`` (None when none does)."""
+    reaching = [r for r in rows if r.get("error") is not None and r["error"] <= target]
+    return min(reaching, key=lambda r: r["cpu_per_time"], default=None)
+
+
+def assess(entry: dict[str, Any], target: float, own_error: float, fine_cost: float,
+           best_cost: float, cores: int = CORES) -> dict[str, Any] | None:
+    """K and the speedups of a measured candidate: against F, and against the fastest serial run
+    (times ``best_cost / fine_cost``, their CPU per unit of simulated time). None when the run did
+    not reach the target."""
+    k = iterations_to_reach(entry.get("errors"), target, own_error)
+    if k is None:
+        return None
+    vs_f = predicted_speedups(entry["alpha"], k, entry.get("n_auxiliary", 1), cores)
+    factor = best_cost / fine_cost
+    return {"K": k, "vs_F": vs_f, "vs_best": {name: s * factor for name, s in vs_f.items()}}
+
+
+def frontier(entries: dict[str, dict[str, Any]], target: float, own_error: float,
+             fine_cost: float, best_cost: float, schedule: str = "pipelined"
+             ) -> dict[str, dict[str, Any]]:
+    """Per family, its best candidate by the ``schedule``'s speedup against the fastest serial run
+    (families whose candidates all miss the target keep their smallest alpha, with K None)."""
+    best: dict[str, dict[str, Any]] = {}
+    for label, entry in entries.items():
+        if "alpha" not in entry:
+            continue
+        verdict = assess(entry, target, own_error, fine_cost, best_cost)
+        row = {"label": label, "alpha": entry["alpha"], "n_auxiliary": entry.get("n_auxiliary", 1),
+               "K": None if verdict is None else verdict["K"], "assessment": verdict}
+        score = -math.inf if verdict is None else verdict["vs_best"][schedule]
+        held = best.get(entry["family"])
+        held_score = (-math.inf if held is None or held["assessment"] is None
+                      else held["assessment"]["vs_best"][schedule])
+        if (held is None or score > held_score
+                or (score == held_score == -math.inf and row["alpha"] < held["alpha"])):
+            best[entry["family"]] = row
+    return best
+
+
+# ---- measurements ------------------------------------------------------------------------------
+
+def _load(path: pathlib.Path) -> dict[str, Any]:
+    return json.loads(path.read_text()) if path.exists() else {}
+
+
+def _save(path: pathlib.Path, data: dict[str, Any]) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(data, indent=1) + "\n")
+    tmp.replace(path)
+
+
+def _cpu(function: Callable[[], Any]) -> tuple[Any, float]:
+    start = time.process_time()
+    value = function()
+    return value, time.process_time() - start
+
+
+def config_data(problem: Problem, coarse: dict[str, Any], *, t1: float | None = None,
+                slices: int | None = None) -> dict[str, Any]:
+    """The configuration (as TOML data) of a Parareal run of ``problem`` with G = ``coarse``: the
+    analogue by default, the full problem with ``t1`` and ``slices``."""
+    scheme, dt = problem.fine
+    return {"title": f"{problem.title}: F = {scheme} at {dt:g}",
+            "model": dict(problem.model), "time": {"t1": t1 or problem.t1},
+            "fine": {"scheme": scheme, "dt": dt}, "coarse": coarse,
+            "parareal": {"n_slices": slices or problem.slices, "tol": 0.0,
+                         "max_iterations": problem.max_iterations},
+            "execution": {"executor": "serial", "threads": 1}}
+
+
+def build(problem: Problem, coarse: dict[str, Any]) -> Any:
+    """The system, F and G of the analogue (``parastokes.config``'s own build)."""
+    from parastokes import config
+
+    cfg = config.parse(config_data(problem, coarse), "frontier")
+    return config.build(cfg, config.resolve(cfg, "frontier"))
+
+
+def measure_serial(name: str, problem: Problem, data: dict[str, Any]) -> None:
+    """The reference and each serial candidate over the analogue's interval (resumable)."""
+    from parastokes import integrate
+    from parastokes.parareal import relative_change
+
+    setup = build(problem, {"scheme": "euler", "dt": problem.fine[1]})
+    system, x0, t1 = setup.system, setup.system.initial_state(), problem.t1
+    cache = OUT / f".{name}_reference.npy"
+    if not cache.exists():
+        scheme, dt = problem.reference
+        state, cpu = _cpu(lambda: integrate.propagate(system, x0, 0.0, t1, scheme, dt))
+        np.save(cache, state)
+        data["reference"] = {"scheme": scheme, "dt": dt, "cpu": cpu}
+        _save(OUT / f"{name}.json", data)
+    reference = np.load(cache)
+    rows = data.setdefault("serial", [])
+    done = {(r["scheme"], r["dt"]) for r in rows}
+    for scheme, dt in problem.serial:
+        if (scheme, dt) in done:
+            continue
+        try:
+            state, cpu = _cpu(lambda s=scheme, h=dt: integrate.propagate(system, x0, 0.0, t1, s, h))
+            error = relative_change(state, reference, system.positions)
+        except integrate.BlowUpError as exc:
+            rows.append({"scheme": scheme, "dt": dt, "error": None, "blowup": str(exc)[:200]})
+        else:
+            rows.append({"scheme": scheme, "dt": dt, "cpu": cpu, "cpu_per_time": cpu / t1,
+                         "error": error})
+        print(name, rows[-1], flush=True)
+        _save(OUT / f"{name}.json", data)
+
+
+def fine_solution(name: str, problem: Problem, setup: Any) -> np.ndarray:
+    """F's serial solution at the slice ends of the analogue (cached beside the results)."""
+    from parastokes import parareal
+
+    cache = OUT / f".{name}_fine.npy"
+    if not cache.exists():
+        x0 = setup.system.initial_state()
+        np.save(cache, parareal.serial_solution(setup.fine, x0, 0.0, problem.t1, problem.slices))
+    return np.load(cache)
+
+
+def measure_candidate(name: str, problem: Problem, candidate: Candidate) -> dict[str, Any]:
+    """alpha (``measure_slice_costs``, CPU clock, 2 repeats) and eta^k of a Parareal run of the
+    analogue; a G that blows up or breaks its monitor is recorded as such."""
+    from parastokes import integrate, parareal
+    from parastokes.parallel import TaskError
+
+    setup = build(problem, candidate.coarse)
+    x0 = setup.system.initial_state()
+    reference = fine_solution(name, problem, setup)
+    entry: dict[str, Any] = {"family": candidate.family, "coarse": candidate.coarse}
+    try:
+        costs = parareal.measure_slice_costs(setup.fine, setup.coarse, 0.0, problem.slice_length,
+                                             x0, repeats=2, clock=time.process_time)
+        entry.update(alpha=costs.task_ratio(), n_auxiliary=costs.n_auxiliary,
+                     gamma_F=float(np.median(costs.fine)), costs=costs.as_dict())
+        result, cpu = _cpu(lambda: parareal.run(
+            setup.fine, setup.coarse, x0, t0=0.0, t1=problem.t1, n_slices=problem.slices,
+            tol=0.0, max_iterations=problem.max_iterations, reference=reference))
+    except (integrate.BlowUpError, TaskError, FloatingPointError) as exc:
+        entry.pop("alpha", None)
+        entry["blowup"] = str(exc)[:300]
+    else:
+        entry.update(errors=result.errors, increments=result.increments, run_cpu=cpu)
+    return entry
+
+
+def measure(name: str, labels: Sequence[str] | None, redo: Sequence[str]) -> dict[str, Any]:
+    problem = PROBLEMS[name]
+    OUT.mkdir(parents=True, exist_ok=True)
+    path = OUT / f"{name}.json"
+    data = _load(path)
+    data["problem"] = {"title": problem.title, "model": problem.model, "fine": problem.fine,
+                       "slice_length": problem.slice_length, "slices": problem.slices,
+                       "t1": problem.t1, "target": problem.target, "full_t1": problem.full_t1}
+    measure_serial(name, problem, data)
+    entries = data.setdefault("candidates", {})
+    for label, candidate in CANDIDATES.get(name, {}).items():
+        if (labels and label not in labels) or (label in entries and label not in redo):
+            continue
+        entries[label] = measure_candidate(name, problem, candidate)
+        print(name, label, {k: v for k, v in entries[label].items() if k != "costs"}, flush=True)
+        _save(path, data)
+    return data
+
+
+# ---- tables -------------------------------------------------------------------------------------
+
+def _fine_row(data: dict[str, Any]) -> dict[str, Any]:
+    scheme, dt = data["problem"]["fine"]
+    return next(r for r in data["serial"] if r["scheme"] == scheme and r["dt"] == dt)
+
+
+def summary(data: dict[str, Any]) -> dict[str, Any]:
+    """F, the fastest serial run reaching the target and the per-family frontier of a problem."""
+    target = data["problem"]["target"]
+    fine = _fine_row(data)
+    best = best_serial(data["serial"], target) or fine
+    return {"fine": fine, "best": best,
+            "frontier": frontier(data.get("candidates", {}), target, fine["error"],
+                                 fine["cpu_per_time"], best["cpu_per_time"])}
+
+
+def _g(value: float | None, digits: int = 2) -> str:
+    return "-" if value is None else f"{value:.{digits}g}"
+
+
+def table(data: dict[str, Any]) -> str:
+    """The markdown tables of a problem: serial runs, then every candidate with its K and
+    speedups (standard / pipelined simulated, against F and against the fastest serial run)."""
+    s = summary(data)
+    p = data["problem"]
+    lines = [f"{p['title']}, analogue: {p['slices']} slices of {p['slice_length']:g} s "
+             f"(T = {p['t1']:g}), target η* = {p['target']:g}",
+             "", "| serial run | step | error at T (eq. 34) | CPU (s) |", "|---|---|---|---|"]
+    for r in data["serial"]:
+        lines.append(f"| `{r['scheme']}` | {r['dt']:g} | {_g(r.get('error'))} | "
+                     f"{_g(r.get('cpu'), 3)} |")
+    lines += ["", "| G | family | N_G | α | η¹ .. η^K | K | vs F std / pipe | vs best std / pipe |",
+              "|---|---|---|---|---|---|---|---|"]
+    for label, e in data.get("candidates", {}).items():
+        if "alpha" not in e:
+            lines.append(f"| {label} | {e['family']} | | | blew up | | | |")
+            continue
+        v = assess(e, p["target"], s["fine"]["error"], s["fine"]["cpu_per_time"],
+                   s["best"]["cpu_per_time"])
+        etas = " ".join(f"{x:.1e}" for x in e["errors"])
+        if v is None:
+            lines.append(f"| {label} | {e['family']} | {e['n_auxiliary']} | {e['alpha']:.3g} | "
+                         f"{etas} | > {len(e['errors'])} | - | - |")
+            continue
+        f, b = v["vs_F"], v["vs_best"]
+        lines.append(f"| {label} | {e['family']} | {e['n_auxiliary']} | {e['alpha']:.3g} | "
+                     f"{etas} | {v['K']} | {f['standard']:.2f} / {f['pipelined']:.2f} "
+                     f"| {b['standard']:.2f} / {b['pipelined']:.2f} |")
+    return "\n".join(lines)
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--problems", nargs="+", default=list(PROBLEMS), choices=list(PROBLEMS))
+    parser.add_argument("--only", nargs="+", help="measure only these candidate labels")
+    parser.add_argument("--redo", nargs="+", default=[], help="measure these labels again")
+    parser.add_argument("--table", action="store_true", help="print the tables, measure nothing")
+    args = parser.parse_args(argv)
+    for name in args.problems:
+        if args.table:
+            path = OUT / f"{name}.json"
+            if path.exists():
+                print(table(_load(path)), "\n")
+            continue
+        print(table(measure(name, args.only, args.redo)), "\n", flush=True)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
