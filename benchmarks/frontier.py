@@ -85,7 +85,7 @@ PROBLEMS: dict[str, Problem] = {
         1.0, ("rk4", 2.1e-5), (("euler", 3.98e-5), ("rk2", 3.98e-5), ("rk4", 5.45e-5))),
     "rod601": Problem(
         "rod refined to M = 601 (ε⁰ = 5σ_f)", {**ROD, "n_points": 601}, ("rk2", 7.58e-7),
-        0.00125, 8, 1e-5, 1.0, ("rk4", 5e-7),
+        0.0005, 8, 1e-5, 1.0, ("rk4", 5e-7),
         (("euler", 7.58e-7), ("rk2", 7.58e-7))),
     "table7": Problem(
         "Table 7's vesicle (T = 100)", VESICLE, ("rk2", 0.00379), 2.5, 40, 1e-6, 100.0,
@@ -126,6 +126,10 @@ CANDIDATES: dict[str, dict[str, Candidate]] = {
             "coarse grid, Lagrange in ε", _grid(2, [1.5, 2.0], "rk2", 5e-5)),
         "grid 3, eps 1, euler 1.3e-5": Candidate(
             "coarse grid, ε fixed", {"scheme": "euler", "dt": 1.3e-5, "grid_factor": 3}),
+        "grid 3, eps [1.2, 1.4], euler 2.2e-5": Candidate(
+            "coarse grid, Lagrange in ε", _grid(3, [1.2, 1.4], "euler", 2.2e-5)),
+        "grid 3, eps [1.2, 1.4, 1.6], euler 2.2e-5": Candidate(
+            "coarse grid, Lagrange in ε", _grid(3, [1.2, 1.4, 1.6], "euler", 2.2e-5)),
         "fine grid, eps [1.4, 1.6, 1.8], euler 4e-5": Candidate(
             "fine grid, Lagrange in ε (wide)", _grid(1, [1.4, 1.6, 1.8], "euler", 4e-5)),
     },
@@ -150,12 +154,14 @@ CANDIDATES: dict[str, dict[str, Candidate]] = {
             "coarse grid, Lagrange in ε", _grid(6, [2.0, 2.5, 3.0], "rk2", 1.4e-4)),
     },
     "table7": {
-        "eps 0.5 l_max, euler 0.02": Candidate(
-            "ε scaled", _grid(1, [0.5], "euler", 0.02, "l_max")),
-        "eps [0.5, 0.6] l_max, euler 0.02": Candidate(
-            "Lagrange in ε (wide)", _grid(1, [0.5, 0.6], "euler", 0.02, "l_max")),
-        "eps [0.5, 0.6, 0.7] l_max, rk2 0.02": Candidate(
-            "Lagrange in ε (wide)", _grid(1, [0.5, 0.6, 0.7], "rk2", 0.02, "l_max")),
+        "mesh 2, eps 0.6 l_max, euler 0.008": Candidate(
+            "coarse mesh, ε scaled", _grid(2, [0.6], "euler", 0.008, "l_max")),
+        "mesh 2, eps [0.6, 0.8] l_max, euler 0.008": Candidate(
+            "coarse mesh, Lagrange in ε", _grid(2, [0.6, 0.8], "euler", 0.008, "l_max")),
+        "mesh 2, eps 0.3 l_max, euler 0.0028": Candidate(
+            "coarse mesh, ε fixed", {"scheme": "euler", "dt": 0.0028, "grid_factor": 2}),
+        "eps [0.5, 0.6] l_max, euler 0.01": Candidate(
+            "fine mesh, Lagrange in ε (wide)", _grid(1, [0.5, 0.6], "euler", 0.01, "l_max")),
     },
 }
 
@@ -169,6 +175,17 @@ def iterations_to_reach(errors: Sequence[float] | None, target: float, own_error
         if error + own_error <= target:
             return k
     return None
+
+
+def hopeless(errors: Sequence[float], target: float, max_iterations: int) -> bool:
+    """Whether eta^k, contracting from now on at most at the rate of its last iteration, stays
+    above ``target`` through ``max_iterations`` (a run can stop there: it will not reach it).
+    Needs two iterations; a rate of 1 or more (stalled) is hopeless at once."""
+    if len(errors) < 2 or errors[-1] <= target:
+        return False
+    rate = errors[-1] / errors[-2]
+    left = max_iterations - len(errors)
+    return rate >= 1.0 or errors[-1] * rate**left > target
 
 
 def predicted_speedups(alpha: float, iterations: int, n_auxiliary: int = 1,
@@ -312,9 +329,11 @@ def fine_solution(name: str, problem: Problem, setup: Any) -> np.ndarray:
     return np.load(cache)
 
 
-def measure_candidate(name: str, problem: Problem, candidate: Candidate) -> dict[str, Any]:
+def measure_candidate(name: str, problem: Problem, candidate: Candidate, own_error: float
+                      ) -> dict[str, Any]:
     """alpha (``measure_slice_costs``, CPU clock, 2 repeats) and eta^k of a Parareal run of the
-    analogue; a G that blows up or breaks its monitor is recorded as such."""
+    analogue, stopped at the first k whose eta^k + F's ``own_error`` reaches the target (or at
+    ``problem.max_iterations``); a G that blows up or breaks its monitor is recorded as such."""
     from parastokes import integrate, parareal
     from parastokes.parallel import TaskError
 
@@ -327,15 +346,33 @@ def measure_candidate(name: str, problem: Problem, candidate: Candidate) -> dict
                                              x0, repeats=2, clock=time.process_time)
         entry.update(alpha=costs.task_ratio(), n_auxiliary=costs.n_auxiliary,
                      gamma_F=float(np.median(costs.fine)), costs=costs.as_dict())
-        result, cpu = _cpu(lambda: parareal.run(
-            setup.fine, setup.coarse, x0, t0=0.0, t1=problem.t1, n_slices=problem.slices,
-            tol=0.0, max_iterations=problem.max_iterations, reference=reference))
+        errors, increments = [], []
+
+        def report(it: Any) -> None:
+            errors.append(it.error)
+            increments.append(it.increment)
+            if it.error + own_error <= problem.target:
+                raise _Reached  # K is known: later iterations cannot change it
+            if hopeless(errors, problem.target, problem.max_iterations):
+                raise _Reached
+
+        start = time.process_time()
+        try:
+            parareal.run(setup.fine, setup.coarse, x0, t0=0.0, t1=problem.t1,
+                         n_slices=problem.slices, tol=0.0, max_iterations=problem.max_iterations,
+                         reference=reference, on_iteration=report)
+        except _Reached:
+            pass
     except (integrate.BlowUpError, TaskError, FloatingPointError) as exc:
         entry.pop("alpha", None)
         entry["blowup"] = str(exc)[:300]
     else:
-        entry.update(errors=result.errors, increments=result.increments, run_cpu=cpu)
+        entry.update(errors=errors, increments=increments, run_cpu=time.process_time() - start)
     return entry
+
+
+class _Reached(Exception):
+    """Raised by the iteration report once eta^k reaches the target."""
 
 
 def measure(name: str, labels: Sequence[str] | None, redo: Sequence[str]) -> dict[str, Any]:
@@ -351,7 +388,7 @@ def measure(name: str, labels: Sequence[str] | None, redo: Sequence[str]) -> dic
     for label, candidate in CANDIDATES.get(name, {}).items():
         if (labels and label not in labels) or (label in entries and label not in redo):
             continue
-        entries[label] = measure_candidate(name, problem, candidate)
+        entries[label] = measure_candidate(name, problem, candidate, _fine_row(data)["error"])
         print(name, label, {k: v for k, v in entries[label].items() if k != "costs"}, flush=True)
         _save(path, data)
     return data

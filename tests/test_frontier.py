@@ -69,3 +69,14 @@ def test_frontier_keeps_the_fastest_per_family(frontier):
     # 0.05) = 18.9
     standard = frontier.frontier(entries, 1e-6, 0.0, 1.0, 1.0, "standard")
     assert standard["grid"]["label"] == "b" and standard["grid"]["K"] == 2
+
+
+def test_hopeless_extrapolates_the_last_contraction(frontier):
+    # 1e-2 -> 1e-3: rate 0.1, 4 iterations left of 6 reach 1e-7 <= 1e-6
+    assert not frontier.hopeless([1e-2, 1e-3], 1e-6, 6)
+    # with 2 left: 1e-5 > 1e-6
+    assert frontier.hopeless([1e-2, 1e-3], 1e-6, 4)
+    # exactly on the target after the last one allowed: not hopeless
+    assert not frontier.hopeless([1.0, 0.5], 0.125, 4)
+    assert frontier.hopeless([1e-3, 2e-3], 1e-6, 40)       # stalled or growing
+    assert not frontier.hopeless([1e-3], 1e-6, 2)          # one iteration says nothing
