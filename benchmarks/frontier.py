@@ -89,8 +89,13 @@ PROBLEMS: dict[str, Problem] = {
         (("euler", 7.58e-7), ("rk2", 7.58e-7))),
     "table7": Problem(
         "Table 7's vesicle (T = 100)", VESICLE, ("rk2", 0.00379), 2.5, 40, 1e-6, 100.0,
-        ("rk4", 0.002), (("euler", 0.00379), ("rk2", 0.00379), ("rk4", 0.00518)),
+        ("rk4", 0.002), (("euler", 0.00379), ("rk2", 0.00379)),
         max_iterations=5),
+    # the smoke test's: the paper's rod cut to a fifth (L = 12, M = 61, σ_f and ε as Table 4's)
+    "quick": Problem(
+        "a fifth of Table 4's rod (M = 61, L = 12)", {**ROD, "n_points": 61, "length": 12},
+        ("rk2", 1.16e-5), 0.001, 4, 1e-6, 0.004, ("rk4", 6.1e-6), (("rk2", 1.16e-5),),
+        max_iterations=3),
 }
 
 
@@ -120,38 +125,35 @@ CANDIDATES: dict[str, dict[str, Candidate]] = {
             "coarse grid, ε scaled", _grid(3, [3.0], "euler", 4e-4)),
         "grid 3, eps [2, 3], euler 1.4e-4": Candidate(
             "coarse grid, Lagrange in ε", _grid(3, [2.0, 3.0], "euler", 1.4e-4)),
-        "grid 3, eps [2, 2.5, 3], rk2 1.4e-4": Candidate(
-            "coarse grid, Lagrange in ε", _grid(3, [2.0, 2.5, 3.0], "rk2", 1.4e-4)),
-        "grid 2, eps [1.5, 2], rk2 5e-5": Candidate(
-            "coarse grid, Lagrange in ε", _grid(2, [1.5, 2.0], "rk2", 5e-5)),
-        "grid 3, eps 1, euler 1.3e-5": Candidate(
-            "coarse grid, ε fixed", {"scheme": "euler", "dt": 1.3e-5, "grid_factor": 3}),
         "grid 3, eps [1.2, 1.4], euler 2.2e-5": Candidate(
             "coarse grid, Lagrange in ε", _grid(3, [1.2, 1.4], "euler", 2.2e-5)),
-        "grid 3, eps [1.2, 1.4, 1.6], euler 2.2e-5": Candidate(
-            "coarse grid, Lagrange in ε", _grid(3, [1.2, 1.4, 1.6], "euler", 2.2e-5)),
         "fine grid, eps [1.4, 1.6, 1.8], euler 4e-5": Candidate(
             "fine grid, Lagrange in ε (wide)", _grid(1, [1.4, 1.6, 1.8], "euler", 4e-5)),
+        "grid 3, eps 1, euler 1.3e-5": Candidate(
+            "coarse grid, ε fixed", {"scheme": "euler", "dt": 1.3e-5, "grid_factor": 3}),
+        "grid 3, eps [1.2, 1.4, 1.6], euler 2.2e-5": Candidate(
+            "coarse grid, Lagrange in ε", _grid(3, [1.2, 1.4, 1.6], "euler", 2.2e-5)),
+        "grid 3, eps [2, 2.5, 3], rk2 1.4e-4": Candidate(
+            "coarse grid, Lagrange in ε", _grid(3, [2.0, 2.5, 3.0], "rk2", 1.4e-4)),
+    },
+    "quick": {
+        "grid 3, eps [1.2, 1.4], euler 2.2e-5": Candidate(
+            "coarse grid, Lagrange in ε", _grid(3, [1.2, 1.4], "euler", 2.2e-5)),
     },
     "table5": {
+        "grid 3, eps [1.6, 1.8], euler 5e-5": Candidate(
+            "coarse grid, Lagrange in ε", _grid(3, [1.6, 1.8], "euler", 5e-5)),
         "grid 3, eps 3, euler 4e-4": Candidate(
             "coarse grid, ε scaled", _grid(3, [3.0], "euler", 4e-4)),
         "grid 3, eps [2, 3], euler 1.4e-4": Candidate(
             "coarse grid, Lagrange in ε", _grid(3, [2.0, 3.0], "euler", 1.4e-4)),
-        "grid 3, eps [2, 2.5, 3], rk2 1.4e-4": Candidate(
-            "coarse grid, Lagrange in ε", _grid(3, [2.0, 2.5, 3.0], "rk2", 1.4e-4)),
-        "grid 2, eps [2, 2.5], rk2 1.4e-4": Candidate(
-            "coarse grid, Lagrange in ε", _grid(2, [2.0, 2.5], "rk2", 1.4e-4)),
     },
     "rod601": {
+        "grid 2, eps [0.8, 1], euler 5e-6": Candidate(
+            "coarse grid, Lagrange in ε", _grid(2, [0.8, 1.0], "euler", 5e-6)),
+        "ros2-krylov 1.25e-4": Candidate("implicit", {"scheme": "ros2-krylov", "dt": 1.25e-4}),
         "grid 2, eps 1, euler 1.16e-5": Candidate(
             "coarse grid, ε scaled", _grid(2, [1.0], "euler", 1.16e-5)),
-        "grid 2, eps [1, 1.5], euler 1.16e-5": Candidate(
-            "coarse grid, Lagrange in ε", _grid(2, [1.0, 1.5], "euler", 1.16e-5)),
-        "grid 4, eps [1.5, 2], rk2 5e-5": Candidate(
-            "coarse grid, Lagrange in ε", _grid(4, [1.5, 2.0], "rk2", 5e-5)),
-        "grid 6, eps [2, 2.5, 3], rk2 1.4e-4": Candidate(
-            "coarse grid, Lagrange in ε", _grid(6, [2.0, 2.5, 3.0], "rk2", 1.4e-4)),
     },
     "table7": {
         "mesh 2, eps 0.6 l_max, euler 0.008": Candidate(
@@ -446,13 +448,152 @@ def table(data: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+# ---- shipped configurations and real runs ----------------------------------------------------
+
+SHIPPED = pathlib.Path("experiments/round5")
+
+
+def _toml_value(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return json.dumps(value, ensure_ascii=False)
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{ " + ", ".join(f"{k} = {_toml_value(v)}" for k, v in value.items()) + " }"
+    return repr(value)
+
+
+def toml_text(data: dict[str, Any], comment: str = "") -> str:
+    """TOML of a configuration: top-level scalars, then one table per dict (its dicts of dicts as
+    sub-tables, deeper dicts inline)."""
+    lines = [f"# {line}" for line in comment.splitlines()]
+    lines += [f"{k} = {_toml_value(v)}" for k, v in data.items() if not isinstance(v, dict)]
+
+    def table(name: str, body: dict[str, Any]) -> None:
+        lines.extend(["", f"[{name}]"])
+        lines.extend(f"{k} = {_toml_value(v)}" for k, v in body.items()
+                     if not (isinstance(v, dict) and all(isinstance(x, dict) for x in v.values())
+                             and v))
+        for k, v in body.items():
+            if isinstance(v, dict) and v and all(isinstance(x, dict) for x in v.values()):
+                lines.extend(["", f"[{name}.{k}]"])
+                lines.extend(f"{key} = {_toml_value(x)}" for key, x in v.items())
+
+    for key, value in data.items():
+        if isinstance(value, dict):
+            table(key, value)
+    return "\n".join(lines) + "\n"
+
+
+def shipped_config(name: str, label: str, iterations: int) -> dict[str, Any]:
+    """The full problem with the candidate ``label`` as G: P = 40 slices on 40 worker processes,
+    the pipelined schedule, ``iterations`` iterations (the K its analogue needed)."""
+    problem = PROBLEMS[name]
+    data = config_data(problem, CANDIDATES[name][label].coarse, t1=problem.full_t1, slices=CORES)
+    data["title"] = f"{problem.title}, round 5's best coarse solver: {label}"
+    data["parareal"].update(max_iterations=iterations, schedule="pipelined")
+    data["execution"] = {"executor": "processes", "workers": CORES, "threads": 1}
+    data["run"] = {"mode": "both"}
+    return data
+
+
+def ship(name: str, label: str, iterations: int) -> pathlib.Path:
+    """Write ``experiments/round5/NAME_best.toml`` (see :func:`shipped_config`)."""
+    problem = PROBLEMS[name]
+    path = SHIPPED / f"{name}_best.toml"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    comment = (f"Issue 48 / docs/benchmarks.md, \"Parareal against the fastest serial run (round "
+               f"5)\": {problem.title}.\nF = {problem.fine[0]} at {problem.fine[1]:g} (at forward "
+               f"Euler's stability limit); G = {label}; K = {iterations} (measured on the "
+               f"shortened analogue,\nbenchmarks/frontier.py). Written by "
+               f"`python benchmarks/frontier.py --ship {name} '{label}' {iterations}`.")
+    path.write_text(toml_text(shipped_config(name, label, iterations), comment))
+    return path
+
+
+def _mean(tasks: Sequence[Sequence[Any]], kinds: set[str]) -> float:
+    durations = [t[4] - t[3] for t in tasks if t[0] in kinds]
+    return float(np.mean(durations))
+
+
+def real_runs(name: str, label: str, iterations: int, slices: int = 4, workers: int = 2,
+              repeats: int = 2) -> list[dict[str, Any]]:
+    """``parastokes run`` of the analogue's first ``slices`` slices with G = ``label`` on
+    ``workers`` worker processes, K = ``iterations``, each schedule ``repeats`` times (interleaved),
+    and the wall time of its Parareal part against the simulated schedule fed with that run's
+    measured gamma_F and auxiliary solve time (as benchmarks/pipeline.py's real runs)."""
+    import subprocess
+    import tempfile
+
+    from parastokes import parareal
+
+    problem = PROBLEMS[name]
+    data = config_data(problem, CANDIDATES[name][label].coarse,
+                       t1=slices * problem.slice_length, slices=slices)
+    data["parareal"]["max_iterations"] = iterations
+    data["execution"] = {"executor": "processes", "workers": workers, "threads": 1}
+    data["run"] = {"mode": "parareal"}
+    data["output"] = {"trajectory": False, "figures": False}
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for repeat in range(repeats):
+            for schedule in ("standard", "pipelined"):
+                data["parareal"]["schedule"] = schedule
+                path = pathlib.Path(tmp) / f"{schedule}.toml"
+                path.write_text(toml_text(data))
+                out = pathlib.Path(tmp) / f"{schedule}_{repeat}"
+                load = _load_average()
+                subprocess.run([sys.executable, "-m", "parastokes", "run", str(path), "--out",
+                                str(out), "--overwrite"], check=True, capture_output=True)
+                summary = json.loads((out / "summary.json").read_text())
+                timings = parareal.Timings(**{k: v for k, v in summary["timings"].items()
+                                              if k in parareal.Timings.__dataclass_fields__})
+                gamma_f = timings.gamma_f
+                n_aux = summary["config"]["resolved"]["n_auxiliary"]
+                aux = timings.gamma_g if schedule == "standard" else _mean(
+                    timings.tasks, {"auxiliary", "coarse"})
+                sim = parareal.simulate(schedule, slices, iterations, workers, aux / gamma_f, 1.0,
+                                        n_aux)
+                rows.append({"schedule": schedule, "repeat": repeat, "wall": timings.total,
+                             "gamma_F": gamma_f, "gamma_aux": aux, "n_auxiliary": n_aux,
+                             "simulated_wall": sim.wall * gamma_f,
+                             "wall_vs_simulation": timings.total / (sim.wall * gamma_f),
+                             "load_average": [load, _load_average()],
+                             "errors": summary["errors"]})
+                print(name, label, rows[-1], flush=True)
+    return rows
+
+
+def _load_average() -> float:
+    try:
+        return float(pathlib.Path("/proc/loadavg").read_text().split()[0])
+    except OSError:
+        return math.nan
+
+
 def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--problems", nargs="+", default=list(PROBLEMS), choices=list(PROBLEMS))
     parser.add_argument("--only", nargs="+", help="measure only these candidate labels")
     parser.add_argument("--redo", nargs="+", default=[], help="measure these labels again")
     parser.add_argument("--table", action="store_true", help="print the tables, measure nothing")
+    parser.add_argument("--ship", nargs=3, metavar=("PROBLEM", "LABEL", "K"),
+                        help="write experiments/round5/PROBLEM_best.toml: G = LABEL, K iterations")
+    parser.add_argument("--real", nargs=3, metavar=("PROBLEM", "LABEL", "K"),
+                        help="real runs of G = LABEL on 2 worker processes (parastokes run)")
     args = parser.parse_args(argv)
+    if args.real:
+        name, label, k = args.real
+        path = OUT / f"{name}.json"
+        data = _load(path)
+        data.setdefault("real_runs", {})[label] = real_runs(name, label, int(k))
+        _save(path, data)
+        return
+    if args.ship:
+        print(ship(args.ship[0], args.ship[1], int(args.ship[2])))
+        return
     for name in args.problems:
         if args.table:
             path = OUT / f"{name}.json"
