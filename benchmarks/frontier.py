@@ -135,6 +135,9 @@ CANDIDATES: dict[str, dict[str, Candidate]] = {
             "coarse grid, Lagrange in ε", _grid(3, [1.2, 1.4, 1.6], "euler", 2.2e-5)),
         "grid 3, eps [2, 2.5, 3], rk2 1.4e-4": Candidate(
             "coarse grid, Lagrange in ε", _grid(3, [2.0, 2.5, 3.0], "rk2", 1.4e-4)),
+        "ros34pw2 1.25e-3": Candidate("implicit", {"scheme": "ros34pw2", "dt": 1.25e-3}),
+        "grid 3, eps 1, ros34pw2 1.25e-3": Candidate(
+            "implicit on a coarse grid", {"scheme": "ros34pw2", "dt": 1.25e-3, "grid_factor": 3}),
     },
     "quick": {
         "grid 3, eps [1.2, 1.4], euler 2.2e-5": Candidate(
@@ -151,6 +154,9 @@ CANDIDATES: dict[str, dict[str, Candidate]] = {
     "rod601": {
         "grid 2, eps [0.8, 1], euler 5e-6": Candidate(
             "coarse grid, Lagrange in ε", _grid(2, [0.8, 1.0], "euler", 5e-6)),
+        "ros34pw2 2.5e-4": Candidate("implicit", {"scheme": "ros34pw2", "dt": 2.5e-4}),
+        "grid 2, eps 0.5, ros34pw2 2.5e-4": Candidate(
+            "implicit on a coarse grid", {"scheme": "ros34pw2", "dt": 2.5e-4, "grid_factor": 2}),
         "ros2-krylov 1.25e-4": Candidate("implicit", {"scheme": "ros2-krylov", "dt": 1.25e-4}),
         "grid 2, eps 1, euler 1.16e-5": Candidate(
             "coarse grid, ε scaled", _grid(2, [1.0], "euler", 1.16e-5)),
@@ -448,6 +454,34 @@ def table(data: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+#: Coarse systems whose forward-Euler limit ``--limits`` measures: (grid factor, ε μm, bending).
+ROD_LIMITS = ((1, 1.4, 1.0), (1, 2.0, 1.0), (1, 1.0, 0.5), (2, 1.5, 1.0), (2, 2.0, 1.0),
+              (3, 2.0, 1.0), (3, 3.0, 1.0), (3, 3.0, 0.5), (5, 5.0, 1.0), (6, 6.0, 1.0))
+#: (levels down, ε in the fine mesh's l_max) of the vesicle of Table 7.
+VESICLE_LIMITS = ((0, 0.3), (0, 0.5), (0, 0.7), (1, 0.3), (1, 0.6), (2, 1.2))
+
+
+def limits() -> dict[str, dict[str, float]]:
+    """Forward Euler's largest stable step of each coarse system (rods over one beat, 3 %
+    bisection; vesicles over 1 s, 5 %, area relative to its own change)."""
+    from parastokes import integrate, models
+
+    out: dict[str, dict[str, float]] = {"rod": {}, "vesicle": {}}
+    rod = models.rod_swimmer(n_points=301, epsilon=1.0, n_threads=1)
+    for factor, eps, bending in ROD_LIMITS:
+        system = rod.coarsened(factor)[0] if factor > 1 else rod
+        system = system.with_params(epsilon=eps, bending=bending)
+        out["rod"][f"grid {factor}, eps {eps}, bending {bending}"] = (
+            integrate.largest_stable_step(system, "euler", 0.05, 5e-6, 2e-3, rtol=0.03))
+    ves = models.vesicle(subdivisions=3, n_threads=1)
+    l_max = ves.epsilon / 0.3
+    for down, eps in VESICLE_LIMITS:
+        system = (ves.coarsened(2**down)[0] if down else ves).with_params(epsilon=eps * l_max)
+        out["vesicle"][f"level {3 - down}, eps {eps} l_max"] = integrate.largest_stable_step(
+            system, "euler", 1.0, 1e-3, 1.0, rtol=0.05, relative=True)
+    return out
+
+
 # ---- shipped configurations and real runs ----------------------------------------------------
 
 SHIPPED = pathlib.Path("experiments/round5")
@@ -566,6 +600,25 @@ def real_runs(name: str, label: str, iterations: int, slices: int = 4, workers: 
     return rows
 
 
+def emulate(name: str, label: str, iterations: int, fine_s: float = 0.15) -> dict[str, Any]:
+    """EMULATION, not a speedup of the physics: both schedules on 40 threads whose propagators
+    sleep gamma_F = ``fine_s`` and alpha gamma_F (``label``'s measured alpha and N_G), P = 40
+    (benchmarks/pipeline.py's ``emulation_case``)."""
+    from benchmarks.pipeline import emulation_case
+
+    entry = _load(OUT / f"{name}.json")["candidates"][label]
+    return emulation_case(CORES, entry["alpha"], iterations, fine_s, entry["n_auxiliary"])
+
+
+def _store(name: str, key: str, label: str, value: Any) -> None:
+    """Into ``OUT/NAME_KEY.json`` under ``label`` (beside the candidates' file, which a
+    measuring process rewrites whole)."""
+    path = OUT / f"{name}_{key}.json"
+    data = _load(path)
+    data[label] = value
+    _save(path, data)
+
+
 def _load_average() -> float:
     try:
         return float(pathlib.Path("/proc/loadavg").read_text().split()[0])
@@ -583,13 +636,22 @@ def main(argv: Sequence[str] | None = None) -> None:
                         help="write experiments/round5/PROBLEM_best.toml: G = LABEL, K iterations")
     parser.add_argument("--real", nargs=3, metavar=("PROBLEM", "LABEL", "K"),
                         help="real runs of G = LABEL on 2 worker processes (parastokes run)")
+    parser.add_argument("--emulate", nargs=3, metavar=("PROBLEM", "LABEL", "K"),
+                        help="EMULATION at 40 threads with LABEL's measured alpha (sleeping "
+                        "propagators, benchmarks/pipeline.py)")
+    parser.add_argument("--limits", action="store_true",
+                        help="forward Euler's limits of the coarse systems (limits_measured.json)")
     args = parser.parse_args(argv)
+    if args.limits:
+        _save(OUT / "limits_measured.json", limits())
+        return
+    if args.emulate:
+        name, label, k = args.emulate
+        _store(name, "emulation", label, emulate(name, label, int(k)))
+        return
     if args.real:
         name, label, k = args.real
-        path = OUT / f"{name}.json"
-        data = _load(path)
-        data.setdefault("real_runs", {})[label] = real_runs(name, label, int(k))
-        _save(path, data)
+        _store(name, "real_runs", label, real_runs(name, label, int(k)))
         return
     if args.ship:
         print(ship(args.ship[0], args.ship[1], int(args.ship[2])))
