@@ -268,11 +268,20 @@ class SceneSettings(BaseModel):
         None, description="A short-range repulsion between the rigid bodies, e.g. "
         "`{ range = 0.5, force = 7.5e-5 }`: F0 (1 - h/range)^2 apart along the line of closest "
         "approach for surfaces a gap h < range apart; with a wall, also up from it (default: "
-        "none)."
+        "none; `false`: none, as `--set scene.repulsion=false` switches off a file's)."
     )
+
+    @field_validator("repulsion", mode="before")
+    @classmethod
+    def _switched_off(cls, value: Any) -> Any:
+        """``repulsion = false``: none (TOML has no null, so a file's or a base's repulsion is
+        switched off from the command line this way)."""
+        return None if value is False else value
 
 
 Finite = Annotated[float, Field(allow_inf_nan=False)]
+#: Three positive numbers, one per axis.
+PositiveTriple = Annotated[list[Positive], Field(min_length=3, max_length=3)]
 
 
 class Suspension(BaseModel):
@@ -299,7 +308,7 @@ class Suspension(BaseModel):
         description="lattice, random: the centre of the lattice or of the region (μm).")
     counts: list[Annotated[int, Field(ge=1)]] | None = Field(
         None, min_length=3, max_length=3, description="lattice: bodies along x, y and z.")
-    spacing: Positive | list[Positive] | None = Field(
+    spacing: Positive | PositiveTriple | None = Field(
         None, description="lattice: distance between neighbouring centres (μm), one number or "
         "[dx, dy, dz].")
     region: Literal["box", "sphere"] = Field(

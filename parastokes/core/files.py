@@ -73,6 +73,7 @@ INPUTS: dict[str, tuple[str, int]] = {
                64 * _GIB),
     "trajectory": ("a trajectory (HDF5) written by parastokes", 1 << 40),
     "flow": ("a flow field (HDF5) written by parastokes flow", 1 << 40),
+    "movie": ("an MP4 movie written by the encoder (its box headers are read)", 1 << 40),
 }
 #: The most read at once from a file (a bounded read proceeds in such chunks).
 _CHUNK = 16 * _MIB

@@ -30,7 +30,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from ..core import signals
-from ..core.files import FileWriteError, Staging
+from ..core.files import FileWriteError, Staging, open_input
 from .render import draw_bodies, draw_plane, speed_limits
 from .run import RunFrames
 
@@ -107,22 +107,25 @@ def check_mp4(path: Path, written: Path) -> None:
     """:class:`FileWriteError` naming ``path`` unless ``written`` is a whole MP4: its top-level
     boxes cover the file exactly and include ``ftyp``, ``mdat`` and ``moov`` (the index, written
     last: a file cut short by a full disk or a size limit lacks it)."""
-    data = written.read_bytes() if written.is_file() else b""
-    boxes, at = set(), 0
-    while at + 8 <= len(data):
-        size, kind = int.from_bytes(data[at : at + 4], "big"), data[at + 4 : at + 8]
-        if size == 1 and at + 16 <= len(data):
-            size = int.from_bytes(data[at + 8 : at + 16], "big")
-        elif size == 0:
-            size = len(data) - at
-        if size < 8:
-            break
-        boxes.add(kind)
-        at += size
-    if not data:
+    length = written.stat().st_size if written.is_file() else 0
+    if not length:
         raise _failed(path, "the encoder ended without writing the movie")
-    if at != len(data) or not {b"ftyp", b"mdat", b"moov"} <= boxes:
-        raise _failed(path, f"the encoder left an incomplete MP4 ({len(data)} bytes, no index)")
+    boxes, at = set(), 0
+    with open_input(written, "movie") as handle:  # (the box headers only, not the frames)
+        while at + 8 <= length:
+            handle.seek(at)
+            head = handle.read(16)
+            size, kind = int.from_bytes(head[:4], "big"), head[4:8]
+            if size == 1 and len(head) == 16:
+                size = int.from_bytes(head[8:16], "big")
+            elif size == 0:
+                size = length - at
+            if size < 8:
+                break
+            boxes.add(kind)
+            at += size
+    if at != length or not {b"ftyp", b"mdat", b"moov"} <= boxes:
+        raise _failed(path, f"the encoder left an incomplete MP4 ({length} bytes, no index)")
 
 
 def _wait(process: subprocess.Popen) -> int:
