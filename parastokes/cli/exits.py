@@ -84,6 +84,7 @@ def exit_code(error: BaseException) -> ExitCode:
     from ..core.files import is_resource_error
     from ..integrate import BlowUpError
     from ..parallel import TaskError
+    from ..run.execution import MonitorError
 
     causes = list(_causes(error))
     for cause in causes:
@@ -91,7 +92,7 @@ def exit_code(error: BaseException) -> ExitCode:
             return ExitCode(128 + cause.signum)
     if any(isinstance(e, KeyboardInterrupt) for e in causes):
         return ExitCode.INTERRUPTED
-    if any(isinstance(e, BlowUpError) for e in causes):
+    if any(isinstance(e, BlowUpError | MonitorError) for e in causes):
         return ExitCode.BLOWUP
     if isinstance(error, ConfigError) or body_error(error) is not None:
         return ExitCode.CONFIG
@@ -176,7 +177,10 @@ def report(error: BaseException, console: Console, command: str = "run") -> Exit
         return code
     else:
         limit = _machine_limit(error, command)
-        lines = [f"error: {body_error(error) or error}", *notes, *([limit] if limit else [])]
+        message = str(body_error(error) or error)
+        if not message:  # (a MemoryError says nothing itself: its cause is the message)
+            message, limit = (limit or type(error).__name__).removeprefix("cause: "), None
+        lines = [f"error: {message}", *notes, *([limit] if limit else [])]
         if code is ExitCode.PARALLEL and resumable:
             lines.append("rerun with --resume to continue from the last iteration")
     print("\n".join(lines), file=sys.stderr)

@@ -39,7 +39,12 @@ def run_and_report(
         files=files,
     )
     if summary["speedup"] is not None:
+        from ..config import problem_key
+        from ..run.speedups import against_best_serial
+
         console.print(speedup_table(summary))
+        console.print(against_best_serial(summary, getattr(args, "config", None),
+                                          problem_key(cfg)))
     monitor = summary["monitor"]
     console.print(
         f"stability monitor: max {monitor['max']:.3g} at the slice boundaries "
@@ -49,8 +54,13 @@ def run_and_report(
     return ExitCode.OK
 
 
+def _sets(args: argparse.Namespace) -> list[str]:
+    """The ``--set`` overrides with those of the flags (``--monitor-fatal``)."""
+    return [*args.set, *(["output.monitor_fatal=true"] if args.monitor_fatal else [])]
+
+
 def cmd_run(args: argparse.Namespace, console: Console) -> ExitCode:
-    cfg, resolved = load(args.config, args.set)
+    cfg, resolved = load(args.config, _sets(args))
     console.print(f"{cfg.title or args.config}")
     return run_and_report(args, cfg, resolved, console)
 
@@ -88,10 +98,12 @@ def demo_text(overrides: Sequence[str]) -> str:
 def cmd_demo(args: argparse.Namespace, console: Console) -> ExitCode:
     from ..config import DEMO
 
-    cfg, resolved = load(None, args.set, text=DEMO)
+    cfg, resolved = load(None, _sets(args), text=DEMO)
     console.print(cfg.title)
-    console.print(f"(configuration written to {args.out}/config.toml; edit it and use `run`)")
-    return run_and_report(args, cfg, resolved, console, files={"config.toml": demo_text(args.set)})
+    status = run_and_report(args, cfg, resolved, console,
+                            files={"config.toml": demo_text(args.set)})
+    console.print(f"(its configuration is in {args.out}/config.toml; edit it and use `run`)")
+    return status
 
 
 def cmd_check(args: argparse.Namespace, console: Console) -> ExitCode:

@@ -254,7 +254,21 @@ def _stiff_issues(cfg: Config) -> list[tuple[str, str]]:
             except ValueError as error:
                 key, _, text = str(error).partition(": ")
                 issues.append((f"fine.{key}", text))
+    issues += _fixed_pair_issues(cfg)
     return issues
+
+
+def _fixed_pair_issues(cfg: Config) -> list[tuple[str, str]]:
+    """An embedded explicit pair (rk23, rk45) without ``rtol`` in ``[fine]`` or ``[coarse]``:
+    on a fixed step it is its high-order tableau with an estimate nobody reads."""
+    sections = (("fine", cfg.fine), ("coarse", cfg.coarse))
+    return [(f"{key}.rtol", f"required by the embedded pair {section.scheme!r} (adaptive steps); "
+             "give rtol, or a fixed-step scheme such as rk4")
+            for key, section in sections
+            if getattr(section, "scheme", None) in integrate.SCHEMES
+            and integrate.SCHEMES[section.scheme].adaptive
+            and not integrate.SCHEMES[section.scheme].implicit
+            and getattr(section, "rtol", None) is None]
 
 
 def _fine_steps_issue(cfg: Config, n_points: int, warnings: list[str]) -> str | None:

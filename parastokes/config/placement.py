@@ -16,6 +16,7 @@ ends with the effort spent (:mod:`.suspension` names the key). A count whose exc
 
 from __future__ import annotations
 
+import io
 import itertools
 import math
 import warnings
@@ -23,6 +24,8 @@ from pathlib import Path
 
 import numpy as np
 from scipy.spatial.transform import Rotation
+
+from ..core.files import InputFileError, read_input
 
 __all__ = [
     "RANDOM_CLOSE_PACKING",
@@ -36,10 +39,6 @@ __all__ = [
     "region_volume",
     "tries_allowed",
 ]
-
-#: Largest poses file read (bytes): a million bodies of seven numbers fit.
-MAX_FILE_BYTES = 1 << 26
-
 
 class PlacementError(ValueError):
     """A suspension that cannot be placed: ``key`` (a key of its table) and what to change."""
@@ -159,20 +158,20 @@ def _numbers(values: list[float]) -> str:
 
 def read_poses(path: Path) -> np.ndarray:
     """The poses of ``path``: (n, 3) centres or (n, 7) centres and quaternions (w, x, y, z),
-    normalized; a ``.npy`` array or a text file (spaces or commas, ``#`` comments)."""
+    normalized; a ``.npy`` array or a text file (spaces or commas, ``#`` comments), a regular
+    file of at most 64 MiB (:func:`parastokes.core.files.read_input`: a million bodies of seven
+    numbers fit)."""
     try:
-        if path.stat().st_size > MAX_FILE_BYTES:
-            raise PlacementError("file", f"{path}: larger than {MAX_FILE_BYTES >> 20} MiB; "
-                                         "give one pose per line")
+        raw = read_input(path, "poses")
         if path.suffix == ".npy":
-            data = np.load(path, allow_pickle=False)
+            data = np.load(io.BytesIO(raw), allow_pickle=False)
         else:
-            text = path.read_text(encoding="utf-8").replace(",", " ")
+            text = raw.decode("utf-8").replace(",", " ")
             with warnings.catch_warnings():  # a file without numbers: refused below, by shape
                 warnings.simplefilter("ignore", UserWarning)
                 data = np.loadtxt(text.splitlines(), ndmin=2)
-    except PlacementError:
-        raise
+    except InputFileError as error:
+        raise PlacementError("file", str(error)) from None
     except (OSError, ValueError, UnicodeDecodeError) as error:
         raise PlacementError("file", f"cannot read {path}: {error}") from None
     data = np.asarray(data, dtype=float)

@@ -28,13 +28,14 @@ def slice_seconds(setup: Setup) -> float:
 
 def serial_run(
     setup: Setup, x0: np.ndarray, times: np.ndarray, out: Path, key: dict, reporter: ReporterLike,
-    previous: dict[str, Any] | None = None,
+    previous: dict[str, Any] | None = None, state: Path | None = None,
 ) -> tuple[np.ndarray, float]:
     """The serial fine solution F(T_n, T_0, x0) at every T_n (as ``parareal.serial_solution``) and
-    its wall time. Saved to ``out/REFERENCE`` after every slice, and continued from there when
-    that file holds the same fine problem (``key``, :func:`fine_identity`), so an interrupted
-    serial run loses at most a slice and a finished one can serve other runs of that problem."""
-    path = out / REFERENCE
+    its wall time. Saved to ``state/REFERENCE`` (``state``: ``out`` by default) after every
+    slice, and continued from there when that file holds the same fine problem (``key``,
+    :func:`fine_identity`), so an interrupted serial run loses at most a slice and a finished one
+    can serve other runs of that problem. A blow-up's last good state is saved in ``out``."""
+    path = (out if state is None else state) / REFERENCE
     n_slices = len(times) - 1
     states = np.full((n_slices + 1, *x0.shape), np.nan)
     states[0] = x0

@@ -32,6 +32,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..bodies import contract
+from .banded import block_product
 from .coloring import fd_jacobian
 from .local import near_mobility
 from .solve import StiffSolveError
@@ -170,8 +171,7 @@ def local_jacobian(system: Any, t: float, x: np.ndarray, n_rates: int
     k = load_jacobian(system, t, x)
     m = near_mobility(system.positions(x), float(system.epsilon), float(system.viscosity),
                       angular, CUTOFF * float(system.epsilon))
-    width = m.blocksize[0]
-    return m @ sp.bsr_array(k, blocksize=(width, _rate_columns(system)))
+    return block_product(m, sp.bsr_array(k, blocksize=(m.blocksize[0], _rate_columns(system))))
 
 
 def probe_hooks(system: Any, t: float, x: np.ndarray) -> None:

@@ -1,0 +1,249 @@
+"""The third fault campaign (issue 50), runs and outputs: a monitor far above its limit never
+silent, ``run --overwrite`` that keeps the old run whole until the new one commits, output sets
+committed as one unit and locked per name, touching spheres as a blow-up, ``tune``'s budget and
+counts. docs/validation.md, "Faults and bad input", lists them."""
+
+from __future__ import annotations
+
+import errno
+import json
+import os
+import resource
+import shutil
+import signal
+from pathlib import Path
+
+import pytest
+from configs import small_rod
+from test_faults import TINY, finished  # noqa: F401  (the fixture: a finished TINY run)
+from test_flow import scene_run  # noqa: F401  (run_dir's fixture)
+from test_output_claims import run_dir  # noqa: F401  (the fixture: a scene run, to write into)
+from test_run_directory import _config, _run
+
+from parastokes import cli
+from parastokes.core import files
+from parastokes.output import rundir
+from parastokes.output import trajectory as io
+from parastokes.run import execution
+from parastokes.run import serial as serial_module
+
+
+def _state(directory: Path) -> dict[str, bytes]:
+    """The resume state of a run directory, file by file."""
+    return {name: (directory / name).read_bytes() for name in rundir.STATE_FILES
+            if (directory / name).is_file()}
+
+
+@pytest.fixture
+def interrupted(finished, tmp_path) -> tuple[Path, Path]:  # noqa: F811
+    """A copy of the finished TINY run as if interrupted after its last iteration (its resume
+    state, no summary): (its configuration, its directory)."""
+    path, source = finished
+    out = shutil.copytree(source, tmp_path / "out")
+    (out / "summary.json").unlink()
+    return path, out
+
+
+# ---- 8: run --overwrite keeps the old run whole until the new one commits ---------------------
+def test_an_overwrite_refused_after_the_claim_leaves_the_old_run_resumable(
+    interrupted, tmp_path, capsys
+):
+    path, out = interrupted
+    before = _state(out)
+    assert {"checkpoint.npz", "reference.npz", "history.npz"} <= set(before)
+    # the trajectory's room is checked after the claim: refused under a 1 MB file-size limit
+    soft, hard = resource.getrlimit(resource.RLIMIT_FSIZE)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (1_000_000, hard))
+    try:
+        status = _run(path, "--out", out, "--overwrite", "--set", "output.every=1",
+                      "--set", "fine.dt=5e-7")
+    finally:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (soft, hard))
+    assert status == cli.ExitCode.CONFIG
+    assert "file size limit" in capsys.readouterr().err
+    assert _state(out) == before and not (out / rundir.NEXT).exists()
+    assert _run(path, "--out", out, "--resume") == 0  # the old run, continued
+    assert io.read_summary(out / "summary.json")["iterations"] == 2
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_an_interrupted_overwrite_leaves_the_old_run_resumable(
+    interrupted, tmp_path, monkeypatch, capsys, signum
+):
+    path, out = interrupted
+    before = _state(out)
+    saved = serial_module.io.save_arrays
+
+    def save_then_signal(target, *args, **kwargs):  # the signal after its first slice is saved
+        saved(target, *args, **kwargs)
+        signal.raise_signal(signum)
+
+    monkeypatch.setattr(serial_module.io, "save_arrays", save_then_signal)
+    status = _run(path, "--out", out, "--overwrite", "--set", "fine.dt=5e-7")
+    assert status == 128 + signum
+    monkeypatch.undo()
+    assert _state(out) == before and not (out / rundir.NEXT).exists()
+    assert not (out / "summary.json").exists()
+    assert _run(path, "--out", out, "--resume") == 0
+    assert io.read_summary(out / "summary.json")["iterations"] == 2
+
+
+def test_a_completed_overwrite_replaces_the_resume_state(interrupted, tmp_path):
+    path, out = interrupted
+    before = _state(out)
+    assert _run(path, "--out", out, "--overwrite", "--set", "fine.dt=5e-7") == 0
+    after = _state(out)
+    assert set(after) == set(before) - {"blowup.npz"}
+    assert all(after[name] != before[name] for name in after)  # each the new run's
+    meta = io.load_arrays(out / "reference.npz")[0]
+    assert meta["key"]["fine.dt"] == 5e-7
+    assert not (out / rundir.NEXT).exists() and not (out / rundir.STAGING).exists()
+
+
+def test_a_commit_of_an_overwrite_cut_short_is_completed_by_the_next_claim(tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    for name in ("checkpoint.npz", "history.npz", "summary.json"):
+        (out / name).write_text("old")
+    (out / "checkpoint.solves").mkdir()
+    (out / "checkpoint.solves" / "fine-k1-n1.npz").write_text("old")
+    with rundir.claim(out, resume=False, overwrite=True) as directory:
+        assert directory.state == out / rundir.NEXT
+        (directory.state / "reference.npz").write_text("new")  # a serial run: no checkpoint
+        (directory.state / "history.npz").write_text("new")
+        (directory.staging / "summary.json").write_text("new")
+        record = {"files": ["summary.json"], "state": ["history.npz", "reference.npz"]}
+        (directory.staging / "COMMIT").write_text(json.dumps(record))
+        shutil.rmtree(out / "checkpoint.solves")
+        (out / "reference.npz").write_text("half")  # killed between two moves of the state
+    with rundir.claim(out, resume=True, overwrite=False):
+        pass
+    names = sorted(p.name for p in out.iterdir())
+    assert names == [rundir.MANIFEST, "history.npz", "reference.npz", "summary.json"]
+    assert all((out / n).read_text() == "new" for n in names[1:])
+
+
+# ---- 9: output sets committed as one unit, and locked per name -------------------------------
+def _grid_shapes(stem: Path) -> tuple[str, str]:
+    """The grid's shape (nz ny nx) in ``stem.h5`` and in the ``stem.xdmf`` beside it."""
+    import re
+
+    import h5py
+
+    with h5py.File(stem.with_suffix(".h5"), "r") as f:
+        shape = " ".join(map(str, f.attrs["shape"][::-1]))
+    text = stem.with_suffix(".xdmf").read_text()
+    return shape, re.search(r'TopologyType="3DRectMesh" Dimensions="([\d ]+)"', text).group(1)
+
+
+def test_a_flow_interrupted_between_its_two_renames_is_one_grid(run_dir, tmp_path,  # noqa: F811
+                                                                 monkeypatch):
+    out = tmp_path / "f"
+    assert cli.main(["flow", str(run_dir), "--resolution", "4", "--out", str(out), "-q"]) == 0
+    old = _grid_shapes(out)
+    real, moved = os.replace, []
+
+    def interrupted(source, target):  # Ctrl-C after the first file of the set is in place
+        if Path(target).parent == tmp_path and Path(target).suffix in (".h5", ".xdmf"):
+            moved.append(target)
+            if len(moved) == 2:
+                signal.raise_signal(signal.SIGINT)
+        real(source, target)
+
+    monkeypatch.setattr(os, "replace", interrupted)
+    status = cli.main(["flow", str(run_dir), "--resolution", "5", "--out", str(out), "-q"])
+    monkeypatch.undo()
+    assert status == cli.ExitCode.INTERRUPTED
+    new = _grid_shapes(out)
+    assert new[0] == new[1] != old[0]  # the new set whole (its moves completed at once)
+    assert not list(tmp_path.glob("*.tmp")) and not list(tmp_path.glob(".*.commit"))
+
+
+def test_a_set_whose_moves_fail_midway_is_completed_by_the_next_access(tmp_path, monkeypatch):
+    first, second = tmp_path / "a.toml", tmp_path / "a.json"
+    files.commit_set({first: b"old toml", second: b"old json"})
+    real, calls = os.replace, []
+
+    def failing(source, target):  # every move after the set's first fails (the disk went away)
+        if str(target) in (str(first), str(second)):
+            calls.append(target)
+            if len(calls) > 1:
+                raise OSError(errno.EIO, "Input/output error")
+        real(source, target)
+
+    monkeypatch.setattr(os, "replace", failing)
+    with pytest.raises(files.FileWriteError, match=r"a\.json"):
+        files.commit_set({first: b"new toml", second: lambda h: h.write(b"new json")})
+    assert (first.read_bytes(), second.read_bytes()) == (b"new toml", b"old json")  # a mixture
+    monkeypatch.undo()
+    assert files.recover_sets(tmp_path) == [second]  # ... until the next access
+    assert (first.read_bytes(), second.read_bytes()) == (b"new toml", b"new json")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.json", "a.toml"]
+
+
+def test_a_set_interrupted_before_its_moves_stays_the_old_one(tmp_path):
+    first, second = tmp_path / "a.toml", tmp_path / "a.json"
+    files.commit_set({first: b"old toml", second: b"old json"})
+
+    def stopped(handle):
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        files.commit_set({first: b"new toml", second: stopped})
+    assert (first.read_bytes(), second.read_bytes()) == (b"old toml", b"old json")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.json", "a.toml"]
+
+
+def test_two_commands_writing_one_output_name_are_locked_against_each_other(
+    run_dir, tmp_path, capsys  # noqa: F811
+):
+    out = tmp_path / "outs" / "f"
+    with files.hold_names([out.with_suffix(".xdmf")]):  # a first command, alive, writing it
+        status = cli.main(["flow", str(run_dir), "--resolution", "6", "--out", str(out), "-q"])
+        assert status == cli.ExitCode.CONFIG
+        err = capsys.readouterr().err
+        assert f"{out.with_suffix('.xdmf')} is being written by" in err and f"PID {os.getpid()}" \
+            in err
+        with pytest.raises(files.OutputInUse):
+            files.commit_set({out.with_suffix(".xdmf"): b"x"})
+    assert not list(out.parent.iterdir())  # nothing written, no lock left
+    assert cli.main(["flow", str(run_dir), "--resolution", "4", "--out", str(out), "-q"]) == 0
+    assert sorted(p.name for p in out.parent.iterdir()) == ["f.h5", "f.png", "f.xdmf"]
+
+
+# ---- 7: a monitor above its limit at the end is never silent, and may be fatal ----------------
+#: A rod by lieuler at a step far too large: its length changes by 7.9 % (limit 1 %) by t = 0.03.
+STRETCHED = small_rod(rest='[execution]\nexecutor = "serial"\n[output]\nfigures = false\n'
+                           'trajectory = false\n[run]\nmode = "serial"\n').replace(
+    "dt = 1e-6", 'dt = 5e-3\nscheme = "lieuler"').replace("t1 = 0.002", "t1 = 0.04").replace(
+    "dt_ratio = 10", "dt_ratio = 1").replace("richardson = { m = 1, r = 0.83 }", "")
+ALARM = ("the stability monitor reached 0.0794 at t = 0.03, 7.94 times its limit 0.01 (a rod's "
+         "length, a vesicle's area changed that much)")
+
+
+def test_a_run_ending_above_its_monitor_limit_warns_on_stderr_and_in_the_summary(tmp_path, capsys):
+    path = _config(tmp_path, STRETCHED)
+    assert _run(path, "--out", tmp_path / "out") == 0
+    err = capsys.readouterr().err
+    assert f"warning: {ALARM}" in err  # (even with -q)
+    summary = io.read_summary(tmp_path / "out" / "summary.json")
+    assert any(ALARM in w for w in summary["warnings"])
+    assert summary["monitor"]["time"] == pytest.approx(0.03)
+
+
+@pytest.mark.parametrize("how", [["--monitor-fatal"], ["--set", "output.monitor_fatal=true"]])
+def test_a_monitor_above_its_limit_is_fatal_when_asked(tmp_path, capsys, how):
+    path = _config(tmp_path, STRETCHED)
+    out = tmp_path / "out"
+    assert _run(path, "--out", out, *how) == cli.ExitCode.BLOWUP
+    err = capsys.readouterr().err
+    assert f"error: {ALARM}" in err and f"the results are in {out}" in err
+    assert any(ALARM in w for w in io.read_summary(out / "summary.json")["warnings"])
+
+
+def test_the_monitor_warning_starts_just_above_the_limit():
+    monitor = {"max": 0.01, "time": 0.5, "final": 0.0, "limit": 0.01}
+    assert execution.monitor_warning(monitor) is None  # at the limit: within it
+    above = execution.monitor_warning({**monitor, "max": 0.0125})
+    assert above is not None and "0.0125 at t = 0.5, 1.25 times its limit 0.01" in above
+    assert execution.monitor_warning({**monitor, "max": float("nan")}) is not None
