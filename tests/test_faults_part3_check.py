@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import test_body_faults as body_faults
 import user_hooks as uh
 from configs import SERIAL_SOLVERS, small_rod
 
@@ -48,22 +49,9 @@ def _errors(capsys) -> list[str]:
 
 
 # ---- item 3: a user's Jacobian hooks -------------------------------------------------------------
-#: a body whose hooks an implicit scheme calls (ros2), on the serial executor or the process pool
-HOOKED = """[model]
-kind = "user_hooks:{name}"
-[time]
-t1 = 0.1
-[fine]
-scheme = "ros2"
-dt = 0.01
-[coarse]
-dt = 0.05
-[parareal]
-n_slices = 2
-[execution]
-executor = "{executor}"
-{rest}
-"""
+#: test_body_faults.py's small run with an implicit scheme, which calls the hooks (ros2)
+RUN = body_faults.RUN.replace("[fine]\n", '[fine]\nscheme = "ros2"\n')
+HOOKED = '[model]\nkind = "user_hooks:{name}"\n' + RUN
 
 #: variant -> what the one line says (after "Variant.")
 HOOK_FAULTS = {
@@ -105,7 +93,7 @@ def test_each_broken_hook_is_one_line_naming_it(name):
 def test_check_calls_the_hooks_and_refuses_a_broken_one(tmp_path, capsys, name):
     """On main: `check` ok; the run failed after its directory was claimed (a raising hook:
     exit 4 on the process pool, "rerun with --resume")."""
-    path = _write(tmp_path, HOOKED.format(name=name, executor="serial", rest=""))
+    path = _write(tmp_path, HOOKED.format(name=name, executor="serial", workers=""))
     assert cli.main(["check", str(path)]) == 2
     (line,) = _errors(capsys)
     assert line.startswith(f"{path}: {name}.{HOOK_FAULTS[name]}")
@@ -133,8 +121,8 @@ def test_a_hook_raising_inside_a_worker_is_exit_2_naming_it_not_a_task_to_resume
     fine solve of slice 2 on the process pool. On main: exit 4, "fine solve of slice 2 in
     iteration 1 failed: KeyError: 'frame'" and "rerun with --resume"."""
     path = _write(tmp_path, HOOKED.format(name="LateRaisingHook", executor="processes",
-                                          rest='workers = 2\n[run]\nmode = "parareal"\n'
-                                               "[output]\nfigures = false"))
+                                          workers='workers = 2\n[run]\nmode = "parareal"\n'
+                                                  "[output]\nfigures = false"))
     assert cli.main(["run", str(path), "--out", str(tmp_path / "out"), "-q"]) == 2
     err = _errors(capsys)
     assert err[0] == ("error: LateRaisingHook.load_jacobian(t, state) raised KeyError at "
@@ -166,18 +154,7 @@ kind = "user_hooks:Hooked"
 name = "bad"
 kind = "user_hooks:ShapeHook"
 height = 5.0
-[time]
-t1 = 0.1
-[fine]
-scheme = "ros2"
-dt = 0.01
-[coarse]
-dt = 0.05
-[parareal]
-n_slices = 2
-[execution]
-executor = "serial"
-"""
+""" + RUN.format(executor="serial", workers="")
 
 
 def test_a_scenes_hook_error_names_the_body(tmp_path, capsys):
