@@ -247,3 +247,32 @@ def test_the_monitor_warning_starts_just_above_the_limit():
     above = execution.monitor_warning({**monitor, "max": 0.0125})
     assert above is not None and "0.0125 at t = 0.5, 1.25 times its limit 0.01" in above
     assert execution.monitor_warning({**monitor, "max": float("nan")}) is not None
+
+
+# ---- 10: spheres that touch mid-run are a blow-up naming them, with the repulsion advised ----
+def _sphere_body(name: str, x: float, push: float) -> str:
+    return (f'[[bodies]]\nname = "{name}"\nkind = "rigid"\nshape = "sphere"\nradius = 1.0\n'
+            f"n_points = 42\nposition = [{x}, 0.0, 0.0]\nforce = [{push}, 0.0, 0.0]\n")
+
+
+#: Two spheres pushed together (a gap of 0.6 radii closing at about 4 radii per unit time).
+TOUCHING = ('title = "two spheres pushed together"\n[scene]\nviscosity = 0.05305164769729845\n'
+            "wall = false\n" + _sphere_body("left", 0.0, 10.0) + _sphere_body("right", 2.6, -10.0)
+            + '[time]\nt1 = 0.2\n[fine]\nscheme = "rk2"\ndt = 0.01\n[coarse]\nscheme = "euler"\n'
+            'dt_ratio = 2\n[parareal]\nn_slices = 2\n[run]\nmode = "serial"\n[execution]\n'
+            'executor = "serial"\n[output]\nfigures = false\n')
+
+
+def test_spheres_that_touch_mid_run_are_a_blow_up_naming_them_and_the_repulsion(tmp_path,
+                                                                                 capsys):
+    out = tmp_path / "out"
+    assert _run(_config(tmp_path, TOUCHING), "--out", out) == cli.ExitCode.BLOWUP
+    err = capsys.readouterr().err
+    assert "left and right overlap or touch" in err and "blew up at t = 0.13" in err
+    assert "enable [scene] repulsion" in err
+    meta, arrays = io.load_arrays(out / "blowup.npz")
+    assert meta["t"] == pytest.approx(0.13) and arrays["last_state"].shape[0] == 2 * 43
+    # at the start the same contact is a configuration error, before any work
+    apart = TOUCHING.replace("position = [2.6,", "position = [1.9,")
+    assert _run(_config(tmp_path, apart, "apart.toml"), "--out", tmp_path / "o2") == 2
+    assert "left and right overlap" in capsys.readouterr().err

@@ -337,7 +337,8 @@ class Scene:
         explicit = self._sources(t, state, [i for i in range(len(self.bodies))
                                             if i not in self.implicit_bodies])
         blocks = self.blocks(state)
-        surfaces = [self.bodies[i].surface(t, blocks[i]) for i in self.implicit_bodies]
+        surfaces = [dataclasses.replace(self.bodies[i].surface(t, blocks[i]), name=self.names[i])
+                    for i in self.implicit_bodies]
         if self.repulsion is not None:
             force, torque = repulsion_loads(surfaces, self.repulsion, self.wall)
             surfaces = [dataclasses.replace(s, force=s.force + f, torque=s.torque + q)
