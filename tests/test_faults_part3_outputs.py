@@ -26,6 +26,7 @@ from parastokes.output import rundir
 from parastokes.output import trajectory as io
 from parastokes.run import execution
 from parastokes.run import serial as serial_module
+from parastokes.tuning.report import table
 
 
 def _state(directory: Path) -> dict[str, bytes]:
@@ -276,3 +277,140 @@ def test_spheres_that_touch_mid_run_are_a_blow_up_naming_them_and_the_repulsion(
     apart = TOUCHING.replace("position = [2.6,", "position = [1.9,")
     assert _run(_config(tmp_path, apart, "apart.toml"), "--out", tmp_path / "o2") == 2
     assert "left and right overlap" in capsys.readouterr().err
+
+
+# ---- 12: tune's budget inside implicit step-limit searches, its counts, TUNED.toml -----------
+def _tune_rod():
+    from parastokes import integrate, models
+
+    rod = models.rod_swimmer(n_points=21, length=4.0, epsilon=1.0)
+    return integrate.Propagator(rod, "rk2", 1e-6)
+
+
+@pytest.fixture(scope="module")
+def budgeted():
+    """A search with implicit candidates (ros2, plain and at nodes of ε) under a budget of the
+    baseline's trial runs and half a run more, on a clock that charges one per trial run of a
+    step-limit search: (its result, the trial runs of the baseline alone, those of the
+    search)."""
+    from parastokes import integrate, tuning
+
+    ticks = [0.0]
+    worst = integrate._worst_monitor
+
+    def charged(*args, **kwargs):
+        ticks[0] += 1.0
+        return worst(*args, **kwargs)
+
+    patch = pytest.MonkeyPatch()
+    patch.setattr(integrate, "_worst_monitor", charged)
+    try:
+        run = dict(t0=0.0, t1=8e-3, n_slices=4, cores=4, target=1e-6, clock=lambda: ticks[0])
+        plain = tuning.Space(schemes=("euler",), parameters=(), richardson=(0,),
+                             step_fractions=(1.0,))
+        tuning.tune(_tune_rod(), space=plain, budget=1e6, **run)
+        alone, ticks[0] = ticks[0], 0.0
+        space = tuning.Space(schemes=("euler", "ros2"), parameters=("epsilon",), reach=(1,),
+                             nodes=(2, 3), richardson=(0,), step_fractions=(1.0,),
+                             max_weight=20.0)
+        result = tuning.tune(_tune_rod(), space=space, budget=alone + 0.5, **run)
+    finally:
+        patch.undo()
+    return result, alone, ticks[0]
+
+
+def test_tune_keeps_its_budget_inside_the_step_limit_search_of_implicit_candidates(budgeted):
+    result, alone, spent = budgeted
+    assert result.report["search"]["stopped"] == "budget"
+    # the baseline's bisection, then the one trial run that began within the budget: the first
+    # implicit candidate's run at the fine step; its bisection stopped before the next
+    assert spent == alone + 1
+    implicit = next(c for c in result.candidates if c.settings.scheme == "ros2")
+    assert implicit.status == "not reached" and implicit.step_limit is None
+    assert result.chosen is result.baseline and result.baseline.status == "accepted"
+
+
+def test_tunes_counts_add_up(budgeted):
+    result, _, _ = budgeted
+    search, rows = result.report["search"], result.report["candidates"]
+    counts = search["counts"]
+    assert sum(counts.values()) == search["total"] == len(rows) == len(result.candidates)
+    assert counts == {s: sum(r["status"] == s for r in rows) for s in counts}
+    assert search["weighed_out"] == 2  # (the 3-node candidates: Σ|w v| = 49 > 20)
+    assert search["ordered"] + search["weighed_out"] + 1 == search["total"]  # + the baseline
+    line = table(result.report).splitlines()[-1]
+    assert line.startswith(f"(* chosen, b baseline) {len(rows)} candidates with the baseline: ")
+    assert sum(int(part.split()[0]) for part in line.split(": ")[1].split(", ")) == len(rows)
+
+
+def test_a_winning_baseline_carries_the_star():
+    report = {"chosen": None, "baseline": {}, "candidates": []}
+    row = {"label": "euler", "dt": 1e-4, "dt_ratio": 100.0, "n_auxiliary": 1, "status": "accepted",
+           "stability": {"spectral_radius": None}, "pilot": {"eta1": 1e-5, "contraction": 0.1},
+           "predicted": {"iterations": 2, "gamma_ratio": 0.01, "speedup": 1.5}}
+    other = {**row, "label": "euler, ε 2 nodes", "predicted": {**row["predicted"], "speedup": 1.2}}
+    report |= {"chosen": row, "baseline": row, "candidates": [row, other]}
+    lines = table(report).splitlines()
+    assert lines[1].startswith("*b euler") and lines[2].startswith("   euler, ε")
+    report["chosen"] = other
+    lines = table(report).splitlines()
+    assert lines[1].startswith(" b euler") and lines[2].startswith("*  euler, ε")
+
+
+def test_the_repeated_step_limit_warning_is_held_back_and_counted(caplog):
+    from parastokes import integrate
+    from parastokes.tuning.search import _HeldBack
+
+    held = _HeldBack()
+    integrate.log.addFilter(held)
+    try:
+        for _ in range(3):
+            integrate.log.warning("largest_stable_step: dt_hi=%g is stable; the limit lies "
+                                  "above it", 1e-3)
+        integrate.log.warning("another warning")
+    finally:
+        integrate.log.removeFilter(held)
+    assert held.count == 3
+    assert [r.getMessage() for r in caplog.records] == ["another warning"]
+
+
+def test_a_budget_stops_a_step_limit_bisection_between_its_trial_runs(monkeypatch):
+    from parastokes import integrate
+
+    runs, asked = [], [0]
+    monkeypatch.setattr(integrate, "is_stable", lambda *a, **k: runs.append(a[2]) or False)
+    monkeypatch.setattr(integrate, "_worst_monitor", lambda *a, **k: 0.0)
+
+    class Spent(Exception):
+        pass
+
+    def stop():
+        asked[0] += 1
+        if asked[0] > 3:
+            raise Spent
+
+    rod = _tune_rod().system
+    with pytest.raises(Spent):
+        integrate.largest_stable_step(rod, "ros2", 1e-3, 1e-6, 5e-4, relative=True, stop=stop)
+    assert len(runs) == 2  # the physical run at dt_lo, then dt_hi and one midpoint: 3 asked
+
+
+def test_tuned_toml_says_it_was_tuned_and_records_every_flag(budgeted):
+    from parastokes.cli.parser import parser
+    from parastokes.tuning.command import command_line
+    from parastokes.tuning.report import config_text
+
+    args = parser().parse_args([
+        "tune", "rod.toml", "--cores", "4", "--target", "1e-6", "--out", "T.toml", "--budget",
+        "1", "--schemes", "euler", "ros2", "--parameters", "--pilot-slices", "2", "--exhaustive",
+        "--set", "fine.dt=1e-6"])
+    command = command_line(args)
+    assert command == ("parastokes tune rod.toml --cores 4 --target 1e-06 --budget 1 --schemes "
+                       "euler ros2 --parameters --pilot-slices 2 --exhaustive --set fine.dt=1e-6")
+    result, _, _ = budgeted
+    config = {"title": "small rod", "parareal": {"n_slices": 2}, "execution": {}}
+    text = config_text(config, result, 4, "rod.toml", command)
+    import tomllib
+
+    assert tomllib.loads(text)["title"] == "tuned from rod.toml for 4 cores, η* = 1e-06: small rod"
+    assert text.startswith(f"# Tuned by `{command}`: ")
