@@ -227,6 +227,9 @@ def test_a_run_ending_above_its_monitor_limit_warns_on_stderr_and_in_the_summary
     assert _run(path, "--out", tmp_path / "out") == 0
     err = capsys.readouterr().err
     assert f"warning: {ALARM}" in err  # (even with -q)
+    # (low) without -q: the results listed are those written (no trajectory, no figures here)
+    assert cli.main(["run", str(path), "--out", str(tmp_path / "out"), "--overwrite"]) == 0
+    assert f"results in {tmp_path / 'out'}/ (summary.json)\n" in capsys.readouterr().out
     summary = io.read_summary(tmp_path / "out" / "summary.json")
     assert any(ALARM in w for w in summary["warnings"])
     assert summary["monitor"]["time"] == pytest.approx(0.03)
@@ -414,3 +417,67 @@ def test_tuned_toml_says_it_was_tuned_and_records_every_flag(budgeted):
 
     assert tomllib.loads(text)["title"] == "tuned from rod.toml for 4 cores, η* = 1e-06: small rod"
     assert text.startswith(f"# Tuned by `{command}`: ")
+
+
+# ---- the low items -------------------------------------------------------------------------
+def test_a_signal_after_the_results_are_in_place_says_they_are_complete(finished, tmp_path,  # noqa: F811
+                                                                        monkeypatch, capsys):
+    path, _ = finished
+    out = tmp_path / "out"
+    commit = rundir.RunDirectory.commit
+
+    def then_interrupted(self):
+        names = commit(self)
+        signal.raise_signal(signal.SIGINT)
+        return names
+
+    monkeypatch.setattr(rundir.RunDirectory, "commit", then_interrupted)
+    assert _run(path, "--out", out) == cli.ExitCode.INTERRUPTED
+    err = capsys.readouterr().err
+    assert (f"interrupted after the command had completed: the run's results are complete in "
+            f"{out} (summary.json, trajectory.h5, trajectory.xdmf)") in err
+    assert "--resume" not in err and (out / "summary.json").exists()
+
+
+def test_a_refused_demo_writes_no_configuration_and_does_not_say_so(finished, tmp_path,  # noqa: F811
+                                                                    capsys):
+    out = shutil.copytree(finished[1], tmp_path / "out")
+    assert cli.main(["demo", "--out", str(out)]) == cli.ExitCode.CONFIG
+    assert "config.toml" not in capsys.readouterr().out
+    assert not (out / "config.toml").exists()
+
+
+def test_an_interrupted_demo_overwrite_keeps_the_edited_configuration(finished, tmp_path,  # noqa: F811
+                                                                      monkeypatch):
+    out = shutil.copytree(finished[1], tmp_path / "out")
+    (out / "config.toml").write_text("# edited by hand\n")
+    saved = serial_module.io.save_arrays
+
+    def save_then_signal(target, *args, **kwargs):
+        saved(target, *args, **kwargs)
+        signal.raise_signal(signal.SIGINT)
+
+    monkeypatch.setattr(serial_module.io, "save_arrays", save_then_signal)
+    assert cli.main(["demo", "--out", str(out), "--overwrite", "-q", "--set",
+                     "execution.executor=serial", "--set", "execution.workers=1"]) == \
+        cli.ExitCode.INTERRUPTED
+    assert (out / "config.toml").read_text() == "# edited by hand\n"
+
+
+def test_a_lock_names_the_command_that_holds_it(run_dir, tmp_path, capsys):  # noqa: F811
+    import socket
+
+    from parastokes.core import locks
+
+    pid = os.getpid()
+    record = {"pid": pid, "host": socket.gethostname(), "started": locks.process_start(pid),
+              "time": "2026-01-01 00:00:00",
+              "command": "/usr/local/bin/parastokes movie RUN --out m.gif"}
+    (run_dir / rundir.LOCK).write_text(json.dumps(record))
+    assert cli.main(["flow", str(run_dir), "--out", str(tmp_path / "f"), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert f"is in use by `parastokes movie` (PID {pid} on host" in err
+    record["command"] = "/x/parastokes/__main__.py tune c.toml"  # (python -m parastokes)
+    assert locks.holder(record).startswith("`parastokes tune` (PID")
+    record["command"] = "python -m pytest tests"
+    assert locks.holder(record).startswith("another parastokes process (PID")

@@ -203,6 +203,8 @@ class RunDirectory:
                  sorted(p.name for p in self.state.iterdir() if p.name in STATE_FILES))
         _write_names(self.staging / _COMMIT, names, state)
         self._roll_forward()
+        signals.completed(f"the run's results are complete in {self.path} "
+                          f"({', '.join(n for n in names if n != 'config.toml')})")
         return names
 
     def _roll_forward(self) -> None:
