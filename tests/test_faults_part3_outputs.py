@@ -481,3 +481,23 @@ def test_a_lock_names_the_command_that_holds_it(run_dir, tmp_path, capsys):  # n
     assert locks.holder(record).startswith("`parastokes tune` (PID")
     record["command"] = "python -m pytest tests"
     assert locks.holder(record).startswith("another parastokes process (PID")
+
+
+def test_the_movie_panels_labels_sit_beside_their_axes(scene_run):  # noqa: F811
+    from matplotlib.figure import Figure
+
+    from parastokes import flow
+    from parastokes.flow.movie import _bodies_limits, draw_bodies_frame, render_frame
+
+    run = flow.load_run(scene_run[0])
+    limits = _bodies_limits(run)
+    limits[0], limits[2] = (-6.0, 8.0), (4.0, 6.2)  # flat panels: a wide x range (a long rod)
+    fig = Figure(figsize=(8, 6), dpi=100, layout="constrained")
+    draw_bodies_frame(fig, run, 2, limits)
+    render_frame(fig)
+    renderer = fig.canvas.get_renderer()
+    for ax in fig.axes:
+        box, label = ax.get_window_extent(), ax.yaxis.label.get_window_extent(renderer)
+        ticks = max(t.get_window_extent(renderer).width for t in ax.get_yticklabels())
+        assert box.y0 <= label.y0 and label.y1 <= box.y1  # not hanging above or below it
+        assert 0 < box.x0 - label.x1 <= ticks + 20  # just left of its tick labels
