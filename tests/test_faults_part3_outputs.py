@@ -296,7 +296,8 @@ def budgeted():
     baseline's trial runs and half a run more, on a clock that charges one per trial run of a
     step-limit search: (its result, the trial runs of the baseline alone, those of the
     search)."""
-    from parastokes import integrate, tuning
+    from parastokes import tuning
+    from parastokes.integrate import stability as integrate
 
     ticks = [0.0]
     worst = integrate._worst_monitor
@@ -361,7 +362,7 @@ def test_a_winning_baseline_carries_the_star():
 
 
 def test_the_repeated_step_limit_warning_is_held_back_and_counted(caplog):
-    from parastokes import integrate
+    from parastokes.integrate import stability as integrate
     from parastokes.tuning.search import _HeldBack
 
     held = _HeldBack()
@@ -378,7 +379,7 @@ def test_the_repeated_step_limit_warning_is_held_back_and_counted(caplog):
 
 
 def test_a_budget_stops_a_step_limit_bisection_between_its_trial_runs(monkeypatch):
-    from parastokes import integrate
+    from parastokes.integrate import stability as integrate
 
     runs, asked = [], [0]
     monkeypatch.setattr(integrate, "is_stable", lambda *a, **k: runs.append(a[2]) or False)

@@ -12,7 +12,8 @@ from parastokes import integrate
 from parastokes.integrate import SCHEMES, BlowUpError, Propagator
 from parastokes.testing import fitted_order
 
-ORDERS = {"euler": 1, "rk2": 2, "rk4": 4, "lieuler": 1, "ros2": 2, "ros2-krylov": 2}
+ORDERS = {"euler": 1, "rk2": 2, "rk4": 4, "rk23": 3, "rk45": 5, "lieuler": 1, "ros2": 2,
+          "ros2-krylov": 2}
 IMPLICIT = {"lieuler", "ros2", "ros2-krylov"}
 
 

@@ -180,7 +180,10 @@ def report(error: BaseException, console: Console, command: str = "run") -> Exit
         return code
     else:
         limit = _machine_limit(error, command)
-        lines = [f"error: {body_error(error) or error}", *notes, *([limit] if limit else [])]
+        message = str(body_error(error) or error)
+        if not message:  # (a MemoryError says nothing itself: its cause is the message)
+            message, limit = (limit or type(error).__name__).removeprefix("cause: "), None
+        lines = [f"error: {message}", *notes, *([limit] if limit else [])]
         if code is ExitCode.PARALLEL and resumable:
             lines.append("rerun with --resume to continue from the last iteration")
     print("\n".join(lines), file=sys.stderr)

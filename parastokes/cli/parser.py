@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from .plan import cmd_plan
 from .plot import cmd_plot
 from .predict import cmd_predict
 from .run import cmd_check, cmd_demo, cmd_run
@@ -105,6 +106,17 @@ def parser() -> argparse.ArgumentParser:
 
     add_arguments(p)
     p.set_defaults(func=cmd_tune)
+
+    p = sub.add_parser(
+        "plan",
+        parents=[common, overrides],
+        help="the fastest route to the end on N cores at a target error: serial, spatial, "
+        "Parareal or both, against the fastest serial run (docs/planning.md)",
+    )
+    from ..planning.command import add_arguments as add_plan_arguments
+
+    add_plan_arguments(p)
+    p.set_defaults(func=cmd_plan)
 
     p = sub.add_parser("plot", parents=[common], help="figures from run directories")
     p.add_argument("dirs", nargs="*", help="run directories (several: comparison figures)")

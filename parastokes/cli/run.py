@@ -39,7 +39,12 @@ def run_and_report(
         files=files,
     )
     if summary["speedup"] is not None:
+        from ..config import problem_key
+        from ..run.speedups import against_best_serial
+
         console.print(speedup_table(summary))
+        console.print(against_best_serial(summary, getattr(args, "config", None),
+                                          problem_key(cfg)))
     monitor = summary["monitor"]
     console.print(
         f"stability monitor: max {monitor['max']:.3g} at the slice boundaries "
@@ -123,10 +128,12 @@ def cmd_check(args: argparse.Namespace, console: Console) -> ExitCode:
             print(f"{path}: {error}", file=sys.stderr)
             status = ExitCode.CONFIG
             continue
+        steps = (f"{r.fine_steps} fine steps" if cfg.fine.rtol is None else
+                 f"adaptive fine steps (their number set by fine.rtol = {cfg.fine.rtol:g})")
         console.print(
             f"{path}: ok ({cfg.model.kind}, {r.n_points} points"
             f"{'' if math.isnan(r.epsilon) else f', ε⁰ = {r.epsilon:.6g}'}; "
-            f"{cfg.parareal.n_slices} slices of {r.fine_steps} fine steps; coarse τ_c = "
+            f"{cfg.parareal.n_slices} slices of {steps}; coarse τ_c = "
             f"{r.coarse_dt:.6g} ({r.coarse_dt / r.fine_dt:.4g} τ_f), N_G = {r.n_auxiliary}, "
             f"Σ|w| = {r.weight_sum:.3g}, workers = {r.workers})"
         )

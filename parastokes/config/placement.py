@@ -9,11 +9,14 @@ body's bounding sphere inside it), a candidate kept when it is at least ``distan
 centre kept so far (a grid of cells of that size finds the neighbours), until ``count`` are kept
 or :func:`tries_allowed` candidates have been drawn. Packing spheres this way jams near a volume
 fraction of 0.38 (Torquato, Uche & Stillinger, Phys. Rev. E 74, 061308 (2006)): asking for more
-ends with the effort spent (:mod:`.suspension` names the key).
+ends with the effort spent (:mod:`.suspension` names the key). A count whose exclusion spheres
+(diameter ``distance``) would fill more than :data:`RANDOM_CLOSE_PACKING` of the region
+(:func:`packing`) is refused at once, before any candidate is drawn: no random packing is denser.
 """
 
 from __future__ import annotations
 
+import io
 import itertools
 import math
 import warnings
@@ -22,20 +25,20 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ..core.files import InputFileError, read_input
+
 __all__ = [
+    "RANDOM_CLOSE_PACKING",
     "PlacementError",
     "lattice",
     "matrices",
+    "packing",
     "random_centers",
     "random_quaternions",
     "read_poses",
     "region_volume",
     "tries_allowed",
 ]
-
-#: Largest poses file read (bytes): a million bodies of seven numbers fit.
-MAX_FILE_BYTES = 1 << 26
-
 
 class PlacementError(ValueError):
     """A suspension that cannot be placed: ``key`` (a key of its table) and what to change."""
@@ -60,6 +63,29 @@ def region_volume(region: str, size: list[float] | None, radius: float | None) -
         return 4.0 / 3.0 * math.pi * radius**3
     assert size is not None
     return float(np.prod(size))
+
+
+#: Random close packing of equal spheres, the densest random packing (about 0.64: Scott &
+#: Kilgour, J. Phys. D 2, 863 (1969)); random sequential addition jams well below, near 0.38, and
+#: the placement here reaches 0.31-0.32 within its tries (measured: docs/validation.md, "A
+#: suspension refused before it is built").
+RANDOM_CLOSE_PACKING = 0.64
+
+
+def packing(count: int, region: str, size: list[float] | None, radius: float | None,
+            body_radius: float, distance: float) -> float:
+    """The volume fraction that ``count`` spheres of diameter ``distance`` (the distance kept
+    between centres) would fill of the region they lie in: the region (box of edges ``size`` or
+    sphere of ``radius``) whose centres stay ``body_radius`` inside it, grown by half the
+    ``distance``; at most 1 for any placement (the spheres are disjoint)."""
+    grow = distance - 2.0 * body_radius  # (the region shrunk by the radius, grown by d/2)
+    if region == "sphere":
+        assert radius is not None
+        volume = 4.0 / 3.0 * math.pi * (radius + 0.5 * grow) ** 3
+    else:
+        assert size is not None
+        volume = float(np.prod([edge + grow for edge in size]))
+    return count * math.pi / 6.0 * distance**3 / volume
 
 
 def tries_allowed(count: int) -> int:
@@ -132,20 +158,20 @@ def _numbers(values: list[float]) -> str:
 
 def read_poses(path: Path) -> np.ndarray:
     """The poses of ``path``: (n, 3) centres or (n, 7) centres and quaternions (w, x, y, z),
-    normalized; a ``.npy`` array or a text file (spaces or commas, ``#`` comments)."""
+    normalized; a ``.npy`` array or a text file (spaces or commas, ``#`` comments), a regular
+    file of at most 64 MiB (:func:`parastokes.core.files.read_input`: a million bodies of seven
+    numbers fit)."""
     try:
-        if path.stat().st_size > MAX_FILE_BYTES:
-            raise PlacementError("file", f"{path}: larger than {MAX_FILE_BYTES >> 20} MiB; "
-                                         "give one pose per line")
+        raw = read_input(path, "poses")
         if path.suffix == ".npy":
-            data = np.load(path, allow_pickle=False)
+            data = np.load(io.BytesIO(raw), allow_pickle=False)
         else:
-            text = path.read_text(encoding="utf-8").replace(",", " ")
+            text = raw.decode("utf-8").replace(",", " ")
             with warnings.catch_warnings():  # a file without numbers: refused below, by shape
                 warnings.simplefilter("ignore", UserWarning)
                 data = np.loadtxt(text.splitlines(), ndmin=2)
-    except PlacementError:
-        raise
+    except InputFileError as error:
+        raise PlacementError("file", str(error)) from None
     except (OSError, ValueError, UnicodeDecodeError) as error:
         raise PlacementError("file", f"cannot read {path}: {error}") from None
     data = np.asarray(data, dtype=float)

@@ -69,8 +69,10 @@ def holder(record: dict) -> str:
 
 def owner(path: Path) -> dict | None:
     """The lock record in ``path``; None if it is gone or unreadable (a lock being written)."""
+    from .files import read_record  # (files imports this module)
+
     try:
-        record = json.loads(path.read_text(encoding="utf-8"))
+        record = json.loads(read_record(path))
     except (OSError, ValueError):
         return None
     return record if isinstance(record, dict) else None

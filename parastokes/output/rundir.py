@@ -45,6 +45,7 @@ from ..core.files import (
     CorruptFileError,
     Staging,
     hold_names,
+    read_record,
     recover_sets,
     staged,
     temporary_owner,
@@ -121,7 +122,7 @@ class RunDirectory:
 
     def _previous_results(self) -> set[str]:
         try:
-            names = json.loads((self.path / MANIFEST).read_text(encoding="utf-8"))["files"]
+            names = json.loads(read_record(self.path / MANIFEST))["files"]
             return {str(n) for n in names}
         except (OSError, ValueError, KeyError, TypeError):
             return set(RESULT_FILES) | set(_OLD_FIGURES)
@@ -210,7 +211,7 @@ class RunDirectory:
     def _roll_forward(self) -> None:
         record = self.staging / _COMMIT
         try:
-            data = json.loads(record.read_text(encoding="utf-8"))
+            data = json.loads(read_record(record))
             names, state = list(data["files"]), data.get("state")
         except (OSError, ValueError, KeyError, TypeError, AttributeError) as error:
             raise CorruptFileError(

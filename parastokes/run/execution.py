@@ -83,7 +83,10 @@ def execute(
     """
     reporter = reporter or Reporter()
     rundir.check_path(out)  # a bad --out before any work, and the body before the claim
+    known = len(resolved.warnings)
     setup = preflight(cfg, resolved)
+    for warning in resolved.warnings[known:]:  # (the notes of the built system)
+        reporter.note(f"note: {warning}")
     with rundir.claim(out, resume=resume, overwrite=overwrite) as directory:
         found = directory.entries()
         if resume and not found["state"] and not found["results"]:

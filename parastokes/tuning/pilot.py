@@ -3,14 +3,15 @@
 :meth:`Pilot.prepare` computes the serial fine solution on P slices of the run's slice length (the
 reference; it also proves that the fine solver is stable there and measures γ_F), and estimates the
 fine solver's own time-discretization error over the first slice (one run at 2τ_f, Richardson's
-estimate ``|F_τ - F_2τ| / (2^p - 1)``, eq. 34's measure). :meth:`Pilot.screen` is one coarse call
-over the second slice from the reference: its defect against the reference, the cheap accuracy
-measure that orders the search. :meth:`Pilot.measure` runs Algorithm 1 itself (``parareal.run``)
-on the window for one coarse solver, giving η^k at T_P for k = 1..K and the measured cost of its
-coarse calls. Fine solves whose input is the reference (slices n <= k in iteration k) are taken
-from the reference instead of being recomputed, and the screen's coarse call is reused. Costs
-(γ_F, γ_G) are CPU times of this process: on a shared machine they do not depend on what else
-runs, wall times do.
+estimate ``|F_τ - F_2τ| / (2^p - 1)``, eq. 34's measure; where 2τ_f is unstable, F at more than
+half its stability limit, one at τ_f/2: ``2^p |F_τ - F_τ/2| / (2^p - 1)``). :meth:`Pilot.screen` is
+one coarse call over the second slice from the reference: its defect against the reference, the
+cheap accuracy measure that orders the search. :meth:`Pilot.measure` runs Algorithm 1 itself
+(``parareal.run``) on the window for one coarse solver, giving η^k at T_P for k = 1..K and the
+measured cost of its coarse calls. Fine solves whose input is the reference (slices n <= k in
+iteration k) are taken from the reference instead of being recomputed, and the screen's coarse call
+is reused. Costs (γ_F, γ_G) are CPU times of this process: on a shared machine they do not depend
+on what else runs, wall times do.
 """
 
 from __future__ import annotations
@@ -134,12 +135,19 @@ class Pilot:
             )
         gamma_f = (time.process_time() - cpu) / n_slices
         reference = np.array(states)
-        double = integrate.propagate(system, reference[0], times[0], times[1], fine.scheme,
-                                     2.0 * fine.dt)
         order = integrate.scheme_order(fine.scheme)
-        fine_error = metrics.relative_change(
-            double, reference[1], system.positions
-        ) / (2**order - 1)
+        try:
+            double = integrate.propagate(system, reference[0], times[0], times[1], fine.scheme,
+                                         2.0 * fine.dt)
+            fine_error = metrics.relative_change(
+                double, reference[1], system.positions
+            ) / (2**order - 1)
+        except integrate.BlowUpError:  # F beyond half its stability limit (plan's F): τ/2
+            half = integrate.propagate(system, reference[0], times[0], times[1], fine.scheme,
+                                       0.5 * fine.dt)
+            fine_error = metrics.relative_change(
+                reference[1], half, system.positions
+            ) * 2**order / (2**order - 1)
         return cls(system, fine, reference[0], t0, slice_length, n_slices, reference, gamma_f,
                    fine_error, time.perf_counter() - start)
 

@@ -33,6 +33,7 @@ import numpy as np
 from .. import integrate
 from ..core.contracts import System
 from ..core.values import is_integer, is_real
+from ..integrate import stability as stable_steps
 from ..parallel import TaskError
 from ..parareal.transfer import Transfer
 from . import cost, slice_map, stability
@@ -713,11 +714,11 @@ def tune(
     base_scheme = "euler" if "euler" in space.schemes else space.schemes[0]
     progress.note(f"baseline: plain {base_scheme} at its largest safe step")
     held = _HeldBack()  # (removed when the search ends)
-    integrate.log.addFilter(held)
+    stable_steps.log.addFilter(held)
     try:
         baseline = search.baseline(base_scheme, frugal)
     except BaseException:
-        integrate.log.removeFilter(held)
+        stable_steps.log.removeFilter(held)
         raise
 
     candidates = [Candidate(s) for s in space.candidates(pilot_system.params, reaches)
@@ -803,7 +804,7 @@ def tune(
     finally:
         progress.finish()
         search.deadline = None
-        integrate.log.removeFilter(held)
+        stable_steps.log.removeFilter(held)
     if held.count:
         notes.append(f"the largest step tried was stable in {held.count} step-limit "
                      f"search{'es' if held.count > 1 else ''} (half a slice for an implicit "
