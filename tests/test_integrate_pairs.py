@@ -10,9 +10,9 @@ from fractions import Fraction
 
 import numpy as np
 import pytest
-from scipy.integrate import solve_ivp
 from ivp import Counted
 from rods import helix_rod
+from scipy.integrate import solve_ivp
 
 from parastokes import integrate
 from parastokes.integrate import SCHEMES

@@ -18,6 +18,7 @@ import tomllib
 from argparse import Namespace
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from parastokes import cli, config, integrate
@@ -25,7 +26,7 @@ from parastokes.parareal.best_serial import best_known, cache_path, load_serial_
 from parastokes.parareal.speedup import speedup as eq14_speedup
 from parastokes.planning import baseline, routes
 from parastokes.planning.baseline import Baseline, Run, choose_runs
-from parastokes.planning.command import PlanError, prepare
+from parastokes.planning.command import PlanError, prepare, resolvable
 
 EXPERIMENTS = Path(__file__).resolve().parent.parent / "experiments"
 
@@ -271,7 +272,11 @@ def test_predict_without_a_baseline_says_none_was_measured(tmp_path, capsys):
          'execution.executor = "gpu"'),
     ],
 )
-def test_bad_input_exits_2_before_any_work(tmp_path, capsys, flags, message):
+def test_bad_input_exits_2_before_any_work(tmp_path, capsys, monkeypatch, flags, message):
+    # a GPU as if present, so that plan's own refusal of the gpu executor is what answers
+    from parastokes.gpu import device
+
+    monkeypatch.setattr(device, "missing", lambda: None)
     source = tmp_path / "rod.toml"
     source.write_text(CONFIG)
     code = cli.main(["plan", str(source), *flags, "--out", str(tmp_path / "PLAN.toml")])
@@ -377,10 +382,93 @@ def test_shipped_best_serial_configs_pass_check(path):
     assert not math.isnan(cfg.fine.dt)
 
 
-def test_best_serial_folder_holds_one_config_per_problem_of_the_target_table():
+def test_best_serial_folder_holds_one_config_per_problem_of_the_target_table(monkeypatch):
+    from parastokes.gpu import device
+
+    monkeypatch.setattr(device, "missing", lambda: None)  # plan's refusal, not check's
     names = sorted(p.stem for p in (EXPERIMENTS / "best_serial").glob("*.toml"))
     assert names == ["rod601", "table4_rod301", "table5_rod301_eps7", "table7_vesicle"]
     with pytest.raises(PlanError, match="gpu"):
         prepare(Namespace(config=str(EXPERIMENTS / "quick/table4_g1.toml"),
                           set=['execution.executor="gpu"'], cores=2, target=1e-6, budget=None,
                           out="/tmp/x.toml", overwrite=True))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["table4_g1", "table7_g1"])
+def test_plan_runs_on_quick_experiments(name, tmp_path):
+    """A whole plan on two shipped quick configs (a rod, a vesicle): about a minute each on the
+    shared 2-core machine (loading the compiled loops and tune's pilot), so marked slow; the
+    tiny rod above runs the same code in the default suite. The config is copied so that its
+    cache is written beside the copy, not into experiments/."""
+    text = (EXPERIMENTS / "quick" / f"{name}.toml").read_text()
+    source = tmp_path / f"{name}.toml"
+    source.write_text(text.replace(f'base = "../{name}.toml"',
+                                   f'base = "{(EXPERIMENTS / name).with_suffix(".toml")}"'))
+    out = tmp_path / "PLAN.toml"
+    assert cli.main(["plan", str(source), "--cores", "2", "--target", "1e-6", "--out", str(out),
+                     "--budget", "10", "-q"]) == 0
+    plan = json.loads(out.with_suffix(".json").read_text())
+    assert plan["best_serial"]["error"] <= 1e-6 and plan["routes"][0]["route"] == "serial"
+    assert cli.main(["check", str(out), "-q"]) == 0
+
+
+def test_a_target_the_reference_cannot_judge_is_refused():
+    reference = Run("rk2", 1e-6, None, "F", "reference", 2e-9, 1.0, 1.0)
+    found = Baseline("k", 1e-6, 0.0, 1.0, 1.0, reference, 0.9e-8, 1e-5, [], 1.0, 1.0)
+    resolvable(found)  # η*/10 = 1e-7 is 11 times F's 0.9e-8
+    found.fine_error = 1.1e-8  # 9 times: refused
+    with pytest.raises(PlanError, match="F's own error"):
+        resolvable(found)
+    found.fine_error = None  # F with adaptive steps: not estimated, not checked
+    resolvable(found)
+
+
+def test_own_error_falls_back_to_half_the_step_where_twice_it_blows_up(monkeypatch):
+    from types import SimpleNamespace
+
+    from parastokes.tuning import pilot
+
+    state = np.array([1.0, 0.0, 0.0])
+    answers = {2e-6: state + [0.0, 3e-6, 0.0], 5e-7: state + [0.0, 1e-6, 0.0]}
+
+    def propagate(system, x0, t0, t1, scheme, dt):
+        if dt not in answers:
+            raise integrate.BlowUpError(t1, 1, math.inf, x0, "unstable")
+        return answers[dt]
+
+    monkeypatch.setattr(pilot.integrate, "propagate", propagate)
+    system = SimpleNamespace(positions=lambda x: x.reshape(-1, 3))
+    # RK2 (p = 2): |F_τ - F_2τ| / 3 = 1e-6
+    assert pilot.own_error(system, state, 0.0, 1.0, "rk2", 1e-6, state) == pytest.approx(1e-6)
+    del answers[2e-6]  # 2τ unstable: 4 |F_τ - F_τ/2| / 3
+    assert pilot.own_error(system, state, 0.0, 1.0, "rk2", 1e-6, state) == pytest.approx(4e-6 / 3)
+
+
+def test_a_parareal_route_is_written_as_a_config_that_runs(tmp_path):
+    """The Parareal route's PLAN.toml (plan_config with tune's choice), as check and run read
+    it: F, the coarse solver, slices, K, the schedule and the threads of the route."""
+    from types import SimpleNamespace
+
+    from parastokes.planning.command import plan_config
+    from parastokes.tuning import Settings
+    from parastokes.tuning.report import toml_dumps
+
+    source = tmp_path / "rod.toml"
+    source.write_text(CONFIG)
+    cfg, _ = config.load(source)
+    fine = Run("rk2", 5e-6, None, "r", "measured", 1e-8, 1.0, 1.0)
+    coarse = Settings("euler", lagrange=(("epsilon", (1.1, 1.2)),), dt=1e-5)
+    route = routes.parareal_route(1.0, 1.0, 0.1, 1, 2, "pipelined", "")
+    data = plan_config(cfg, route, fine, fine, SimpleNamespace(chosen=SimpleNamespace(
+        settings=coarse)))
+    path = tmp_path / "PLAN.toml"
+    path.write_text(toml_dumps(data))
+    planned, _ = config.load(path)
+    assert (planned.fine.scheme, planned.fine.dt) == ("rk2", 5e-6)
+    assert planned.parareal.n_slices == 2 and planned.parareal.max_iterations == 1
+    assert planned.parareal.schedule == "pipelined" and planned.run.mode == "parareal"
+    assert planned.coarse.dt == 1e-5 and planned.execution.threads == 1
+    assert cli.main(["run", str(path), "--out", str(tmp_path / "run"), "-q", "--set",
+                     "output.figures=false", "--set", "output.trajectory=false"]) == 0
+    assert json.loads((tmp_path / "run" / "summary.json").read_text())["iterations"] == 1

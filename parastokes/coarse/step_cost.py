@@ -58,8 +58,8 @@ def evaluations_per_step(cfg: Any, resolved: Any, scheme: str, steps: int, grid:
     run's body (on its coarser grid with ``grid`` > 1): the stages of a fixed-step explicit scheme,
     else :func:`measured_evaluations` over the run's first slice, or over its first ``probe``
     steps (a fine solver, too long to run whole); ``system``: the built body, to build it once."""
-    if not integrate.SCHEMES[scheme].implicit and rtol is None:
-        return float(integrate.SCHEMES[scheme].stages)
+    if not integrate.lookup(scheme).implicit and rtol is None:
+        return float(integrate.lookup(scheme).stages)
     body = system if system is not None else build_system(cfg, resolved)
     if grid > 1:
         body = body.coarsened(grid)[0]  # type: ignore[attr-defined]

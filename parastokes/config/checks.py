@@ -91,8 +91,9 @@ def kernel_threads(cfg: Config) -> int:
 
 def steps_on_slice(slice_length: float, dt: float, path: str, what: str,
                    warnings: list[str] | None) -> int:
-    """Steps of size ~``dt`` on a slice; warns (unless ``warnings`` is None) when dt does not divide
-    it (Richardson steps r^q τ rarely do; eq. 27's weights are computed for the steps taken)."""
+    """Steps of size about ``dt`` on a slice; warns (unless ``warnings`` is None) when dt does
+    not divide it (Richardson steps r^q τ rarely do; eq. 27's weights are computed for the steps
+    taken)."""
     n = integrate.n_steps(0.0, slice_length, dt)
     used = slice_length / n
     if warnings is not None and abs(used - dt) > 1e-9 * dt:
@@ -113,7 +114,7 @@ def _duration(seconds: float) -> str:
 def estimated_fine_seconds(scheme: str, steps: float, points: int) -> float:
     """A rough one-core estimate of ``steps`` steps of ``scheme`` with ``points`` points: rate
     evaluations times (overhead + (points)² Stokeslet pairs), from the measured rod step."""
-    stages = integrate.SCHEMES[scheme].stages
+    stages = integrate.lookup(scheme).stages
     return steps * stages * (_EVAL_SECONDS + _PAIR_SECONDS * points**2)
 
 
@@ -123,7 +124,7 @@ def estimated_bytes(cfg: Config, n_points: int, dense_bytes: float = 0.0) -> flo
     boundary (3 (N_c + 1)), the serial solution (N_c + 1) and the stages of one step; plus
     ``dense_bytes``, the dense matrices its solves factorize (rigid bodies)."""
     slices = cfg.parareal.n_slices + 1
-    states = 3 * slices + slices + integrate.SCHEMES[cfg.fine.scheme].stages + 2
+    states = 3 * slices + slices + integrate.lookup(cfg.fine.scheme).stages + 2
     return 24.0 * n_points * states + dense_bytes
 
 
@@ -259,15 +260,16 @@ def _stiff_issues(cfg: Config) -> list[tuple[str, str]]:
 
 
 def _fixed_pair_issues(cfg: Config) -> list[tuple[str, str]]:
-    """An embedded explicit pair (rk23, rk45) without ``rtol`` in ``[fine]`` or ``[coarse]``:
-    on a fixed step it is its high-order tableau with an estimate nobody reads."""
+    """An embedded explicit pair (rk23, rk45) or "auto" without ``rtol`` in ``[fine]`` or
+    ``[coarse]``: "auto" takes adaptive steps only, and a pair on a fixed step is its high-order
+    tableau with an estimate nobody reads."""
     sections = (("fine", cfg.fine), ("coarse", cfg.coarse))
-    return [(f"{key}.rtol", f"required by the embedded pair {section.scheme!r} (adaptive steps); "
+    return [(f"{key}.rtol", f"required by the scheme {section.scheme!r} (adaptive steps); "
              "give rtol, or a fixed-step scheme such as rk4")
             for key, section in sections
-            if getattr(section, "scheme", None) in integrate.SCHEMES
-            and integrate.SCHEMES[section.scheme].adaptive
-            and not integrate.SCHEMES[section.scheme].implicit
+            if getattr(section, "scheme", None) in (*integrate.SCHEMES, integrate.AUTO.name)
+            and integrate.lookup(section.scheme).adaptive
+            and not integrate.lookup(section.scheme).implicit
             and getattr(section, "rtol", None) is None]
 
 

@@ -39,8 +39,10 @@ __all__ = [
 ]
 
 #: The schemes of ``parastokes.integrate.SCHEMES`` (explicit Runge-Kutta, the embedded pairs
-#: rk23 and rk45 with rtol; linearly implicit Rosenbrock-W, docs/stiff.md).
-Scheme = Literal["euler", "rk2", "rk4", "rk23", "rk45", "lieuler", "ros2", "ros2-krylov"]
+#: rk23 and rk45 with rtol; linearly implicit Rosenbrock-W, docs/stiff.md), and "auto" (with
+#: rtol: an explicit pair or an implicit scheme as stiffness comes and goes).
+Scheme = Literal["euler", "rk2", "rk4", "rk23", "rk45", "lieuler", "ros2", "ros2-krylov",
+                 "ros34pw2", "ros34pw2-krylov", "auto"]
 #: The most nodes of a flow grid along one side (``output.flow_resolution``, ``parastokes flow
 #: --resolution``): 4096² nodes of a plane are 400 MB of velocities per frame.
 MAX_FLOW_RESOLUTION = 4096
@@ -65,11 +67,13 @@ class Fine(_Section):
 
     scheme: Scheme = Field("rk2", description="Scheme of F (the paper: rk2 or rk4; the embedded "
                            "pairs rk23, rk45 with rtol; linearly implicit for stiff bodies: "
-                           "lieuler, ros2, ros2-krylov, docs/stiff.md).")
+                           "lieuler, ros2, ros2-krylov, ros34pw2, ros34pw2-krylov, docs/stiff.md; "
+                           "auto with rtol).")
     dt: Positive = Field(description="Fine time step τ_f (with rtol: the first step tried).")
     rtol: float | None = Field(
         None, description="Adaptive steps within this relative error per step (a scheme with an "
-        "error estimate: rk23, rk45, ros2, ros2-krylov); omitted: fixed steps of dt.")
+        "error estimate: rk23, rk45, ros2, ros2-krylov, ros34pw2, ros34pw2-krylov, or auto); "
+        "omitted: fixed steps of dt.")
     atol: float | None = Field(
         None, description="Absolute error per step of the adaptive steps (default: rtol; state "
         "units, μm for positions).")

@@ -58,6 +58,7 @@ The package reads as scipy's ``integrate/_ivp`` does, one module per part:
 - :mod:`.implicit`: the linearly implicit schemes' steppers on a run's checked calls;
 - :mod:`.controller`: THE step-size controller of every adaptive scheme;
 - :mod:`.adaptive`: the adaptive driver;
+- :mod:`.auto`: ``scheme="auto"``, switching between an explicit pair and an implicit scheme;
 - :mod:`.runs`: fixed-step runs, :func:`run`, :func:`propagate`, :class:`Propagator`;
 - :mod:`.stability`: :func:`is_stable`, :func:`largest_stable_step`;
 - :mod:`.loop`: the compiled loop of steps.
@@ -85,11 +86,12 @@ from .runs import (
     step,
     tolerances,
 )
-from .schemes import SCHEMES, AnyScheme, Scheme, explicit_scheme, scheme_order
+from .schemes import AUTO, SCHEMES, AnyScheme, Scheme, explicit_scheme, lookup, scheme_order
 from .stability import is_stable, largest_stable_step
 
 __all__ = [
     "ABOVE",
+    "AUTO",
     "BEYOND",
     "BLOWUP_FACTOR",
     "DONE",
@@ -104,6 +106,7 @@ __all__ = [
     "explicit_scheme",
     "is_stable",
     "largest_stable_step",
+    "lookup",
     "n_steps",
     "projected",
     "propagate",

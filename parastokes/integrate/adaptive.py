@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Callable
 
 import numpy as np
 
@@ -13,39 +14,54 @@ from .. import stiff
 from ..core.contracts import StepFailure, System
 from ..stiff import Rosenbrock
 from .base import BlowUpError, RunResult, monitor, projected
-from .controller import StepSizeError, adaptive_steps, estimate_order
+from .controller import AdaptiveResult, StepSizeError, adaptive_steps, estimate_order
 from .explicit import PairStepper
 from .implicit import checked_stepper, solve_blowup
 from .schemes import AnyScheme
 
-__all__ = ["adaptive_run"]
+__all__ = ["Watch", "adaptive_run", "segment", "stepper_for"]
+
+#: A stepper with an error estimate: an explicit pair's or a Rosenbrock scheme's.
+Stepper = PairStepper | stiff.Stepper
 
 log = logging.getLogger(__name__)
 
 
-def adaptive_run(system: System, scheme: AnyScheme, x: np.ndarray, t0: float, t1: float,
-                 dt: float, tol: tuple[float, float], blowup_factor: float) -> RunResult:
-    """:func:`parastokes.integrate.run` with adaptive steps (see there): every accepted state is
-    checked as the fixed steps' are (finite, monitor within ``blowup_factor`` times the limit;
-    a state beyond it is a rejected step)."""
-    limit = blowup_factor * system.monitor_limit
-    x = projected(system, x, t0)
-    worst = [monitor(system, x)]
-    stepper = (checked_stepper(system, scheme) if isinstance(scheme, Rosenbrock)
-               else PairStepper(system, scheme))
+class Watch:
+    """The checks of every accepted state of a run (finite, monitor within ``blowup_factor``
+    times the limit: else a rejected step) and the worst monitor seen."""
 
-    def accept(t: float, x_new: np.ndarray, index: int) -> bool:
+    def __init__(self, system: System, x: np.ndarray, blowup_factor: float) -> None:
+        self.system = system
+        self.limit = blowup_factor * system.monitor_limit
+        self.worst = monitor(system, x)
+
+    def __call__(self, t: float, x_new: np.ndarray, index: int) -> bool:
         if not np.isfinite(x_new).all():
             return False
-        m = monitor(system, x_new)
-        if not m <= limit:
+        m = monitor(self.system, x_new)
+        if not m <= self.limit:
             return False
-        worst[0] = max(worst[0], m)
+        self.worst = max(self.worst, m)
         return True
 
+
+def stepper_for(system: System, scheme: AnyScheme) -> Stepper:
+    """The stepper with an error estimate of ``scheme`` on a run's checked calls."""
+    if isinstance(scheme, Rosenbrock):
+        return checked_stepper(system, scheme)
+    return PairStepper(system, scheme)
+
+
+def segment(stepper: Stepper, x: np.ndarray, t0: float, t1: float, h: float,
+            tol: tuple[float, float], watch: Watch,
+            until: Callable[[float, np.ndarray, float, float], bool] | None = None
+            ) -> tuple[np.ndarray, AdaptiveResult]:
+    """:func:`.controller.adaptive_steps` of ``stepper`` from ``(t0, x)`` toward ``t1`` (see
+    there), its failures as :class:`BlowUpError`."""
     try:
-        end, counts = adaptive_steps(stepper, estimate_order(scheme), x, t0, t1, dt, *tol,
-                                     accept)
+        return adaptive_steps(stepper, estimate_order(stepper.scheme), x, t0, t1, h, *tol,
+                              watch, until)
     except stiff.StiffSolveError as error:
         raise solve_blowup(error, stepper.steps, x) from error
     except StepSizeError as error:
@@ -53,7 +69,17 @@ def adaptive_run(system: System, scheme: AnyScheme, x: np.ndarray, t0: float, t1
         raise BlowUpError(error.t, stepper.steps, math.nan, x, reason) from error
     except StepFailure as error:  # (a failed mobility solve): no result, a blow-up
         raise BlowUpError(t0, stepper.steps, math.nan, x, str(error)) from None
+
+
+def adaptive_run(system: System, x: np.ndarray, t0: float, t1: float, dt: float,
+                 tol: tuple[float, float], blowup_factor: float, *, scheme: AnyScheme
+                 ) -> RunResult:
+    """:func:`parastokes.integrate.run` with adaptive steps (see there): every accepted state is
+    checked as the fixed steps' are (:class:`Watch`)."""
+    x = projected(system, x, t0)
+    watch = Watch(system, x, blowup_factor)
+    end, counts = segment(stepper_for(system, scheme), x, t0, t1, dt, tol, watch)
     log.debug("adaptive %s on [%g, %g]: %d steps accepted, %d rejected", scheme.name, t0, t1,
               counts.accepted, counts.rejected)
-    return RunResult(projected(system, end, t1), worst[0], counts.accepted, counts.last_step,
+    return RunResult(projected(system, end, t1), watch.worst, counts.accepted, counts.last_step,
                      n_rejected=counts.rejected)

@@ -59,6 +59,10 @@ class RunResult:
     completed: bool = True
     #: Steps rejected by the error control of adaptive steps (``n_steps`` counts the accepted).
     n_rejected: int = 0
+    #: ``scheme="auto"``: its switches ``(t, scheme run from t, why)``, and the steps
+    #: ``(scheme, accepted, rejected)`` of each scheme it ran (:mod:`.auto`).
+    switches: tuple[tuple[float, str, str], ...] = ()
+    by_scheme: tuple[tuple[str, int, int], ...] = ()
 
 
 def projected(system: System, x: np.ndarray, t: float, step: int = 0) -> np.ndarray:

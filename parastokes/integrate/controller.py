@@ -12,6 +12,7 @@ goes as ``h^(q+1)``.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
@@ -78,11 +79,14 @@ class AdaptiveResult:
     accepted: int
     rejected: int
     last_step: float
+    #: Where the steps ended: ``t1``, or earlier where ``until`` stopped them.
+    end: float = math.nan
 
 
 def adaptive_steps(stepper: EstimatingStepper, q: int, x: np.ndarray, t0: float, t1: float,
                    h0: float, rtol: float, atol: float,
-                   accept: Callable[[float, np.ndarray, int], bool]
+                   accept: Callable[[float, np.ndarray, int], bool],
+                   until: Callable[[float, np.ndarray, float, float], bool] | None = None
                    ) -> tuple[np.ndarray, AdaptiveResult]:
     """Steps from ``(t0, x)`` to ``t1`` whose estimated local error stays within ``rtol`` and
     ``atol`` (:func:`error_norm` <= 1), the first of size ``h0``, the next ones by
@@ -90,7 +94,9 @@ def adaptive_steps(stepper: EstimatingStepper, q: int, x: np.ndarray, t0: float,
 
     ``accept(t, x_new, step)`` sees every step whose error is small enough; it returns False for
     a state the run cannot keep (its monitor beyond the limit: the step is rejected) and may
-    raise to end the run. Returns the state at ``t1`` and the counts.
+    raise to end the run. ``until(t, x, step, h)``, after each accepted step (``step`` taken,
+    ``h`` the next one) before ``t1``, may stop the steps there. Returns the state where the steps
+    ended and the counts.
     """
     t, h = t0, min(h0, t1 - t0)
     accepted = rejected = 0
@@ -111,4 +117,6 @@ def adaptive_steps(stepper: EstimatingStepper, q: int, x: np.ndarray, t0: float,
         h = step * factor(err, q, ok)
         if h < 1e-12 * max(abs(t1 - t0), abs(t1)):
             raise StepSizeError(t, h)
-    return x, AdaptiveResult(accepted, rejected, h)
+        if ok and t < t1 and until is not None and until(t, x, step, h):
+            break
+    return x, AdaptiveResult(accepted, rejected, h, t)

@@ -63,6 +63,8 @@ class PairStepper:
         assert scheme.b_low is not None
         self.system, self.scheme = system, scheme
         self.steps = 0
+        #: The stage rates of the last step.
+        self.k: list[np.ndarray] = []
         #: rates known at (t, state): the start of the last step tried and, for a pair that is
         #: first same as last, its end
         self._known: list[tuple[float, np.ndarray, np.ndarray]] = []
@@ -79,5 +81,6 @@ class PairStepper:
         x_new = advance(system, x, combine(system, s.b, k, s.final_brackets, h), h)
         x_low = advance(system, x, combine(system, s.b_low, k, s.low_brackets, h), h)
         self._known = [(t, x, k[0])] + ([(t + h, x_new, k[-1])] if s.fsal else [])
+        self.k = k
         self.steps += 1
         return x_new, x_low

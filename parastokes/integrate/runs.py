@@ -15,6 +15,7 @@ from ..core.contracts import StepFailure, System
 from ..registry.loops import compiled_loop
 from ..stiff import Rosenbrock
 from .adaptive import adaptive_run
+from .auto import auto_run
 from .base import (
     ABOVE,
     BEYOND,
@@ -28,7 +29,7 @@ from .base import (
 )
 from .explicit import explicit_step
 from .implicit import implicit_stepper
-from .schemes import SCHEMES, AnyScheme, lookup, scheme_order
+from .schemes import AUTO, SCHEMES, AnyScheme, Auto, lookup, scheme_order
 
 __all__ = ["Propagator", "n_steps", "propagate", "run", "run_result", "step", "tolerances"]
 
@@ -43,6 +44,8 @@ def step(system: System, scheme: str | AnyScheme, t: float, x: np.ndarray, dt: f
     """One step of ``scheme`` from ``(t, x)`` to ``t + dt`` (no projection; what ``rates`` and
     ``advance`` return is checked, :mod:`parastokes.bodies.contract`, not its finiteness)."""
     s = lookup(scheme)
+    if isinstance(s, Auto):
+        raise ValueError("scheme: 'auto' chooses its own steps; use run or propagate with rtol")
     if isinstance(s, Rosenbrock):
         return implicit_stepper(system, s)(t, x, dt)
     return explicit_step(system, s, t, x, dt)
@@ -175,9 +178,10 @@ def run(
     """
     s = lookup(scheme)
     n = n_steps(t0, t1, dt)
-    tol = None if rtol is None and atol is None else tolerances(s, rtol, atol)
+    tol = None if rtol is None and atol is None and s is not AUTO else tolerances(s, rtol, atol)
     if tol is not None and n:
-        return adaptive_run(system, s, np.asarray(x, dtype=float), t0, t1, dt, tol,
+        run_adaptive = auto_run if s is AUTO else functools.partial(adaptive_run, scheme=s)
+        return run_adaptive(system, np.asarray(x, dtype=float), t0, t1, dt, tol,
                             blowup_factor)
     if n == 0:
         return RunResult(system.project(np.array(x, dtype=float)), system.monitor(x), 0, dt)
@@ -196,6 +200,8 @@ def tolerances(scheme: str | AnyScheme, rtol: float | None, atol: float | None
     ``rtol`` at least :data:`RTOL_MIN` (below it the steps would chase round-off), and a
     scheme with an error estimate (ValueError naming the key)."""
     s = lookup(scheme)
+    if rtol is None and s is AUTO:
+        raise ValueError("rtol: required by the scheme 'auto', which takes adaptive steps only")
     if rtol is None:
         raise ValueError(f"atol: given ({atol!r}) without rtol; adaptive steps need rtol "
                          "(atol defaults to rtol), or leave both out for fixed steps")
@@ -246,7 +252,7 @@ class Propagator:
         lookup(self.scheme)
         if not self.dt > 0:
             raise ValueError(f"dt: must be positive, got {self.dt}")
-        if self.rtol is not None or self.atol is not None:
+        if self.rtol is not None or self.atol is not None or self.scheme == AUTO.name:
             tolerances(self.scheme, self.rtol, self.atol)
 
     @property

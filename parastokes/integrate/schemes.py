@@ -12,9 +12,22 @@ import numpy as np
 from .. import stiff
 from ..stiff import Rosenbrock
 
-__all__ = ["RK23", "RK45", "SCHEMES", "AnyScheme", "Bracket", "Scheme", "embedded_pair",
-           "explicit_scheme", "lookup", "real_stability_boundary", "rkmk_brackets",
-           "scheme_order"]
+__all__ = [
+    "AUTO",
+    "RK23",
+    "RK45",
+    "SCHEMES",
+    "AnyScheme",
+    "Auto",
+    "Bracket",
+    "Scheme",
+    "embedded_pair",
+    "explicit_scheme",
+    "lookup",
+    "real_stability_boundary",
+    "rkmk_brackets",
+    "scheme_order",
+]
 
 # A bracket term (coefficient, p, q) contributes coefficient * dt * bracket(k_p, k_q).
 Bracket = tuple[float, int, int]
@@ -145,16 +158,40 @@ SCHEMES: dict[str, AnyScheme] = {
 }
 
 
-def lookup(scheme: str | AnyScheme) -> AnyScheme:
-    """The scheme named ``scheme`` (a scheme object passes through); ValueError naming the
-    known ones."""
-    if isinstance(scheme, Scheme | Rosenbrock):
+@dataclass(frozen=True)
+class Auto:
+    """The scheme ``"auto"`` (:mod:`.auto`; :func:`lookup` knows it by name): adaptive steps
+    only, so not an entry of :data:`SCHEMES`, whose schemes also take fixed steps (and which
+    the checks of a system run on fixed steps); ``order``: the lowest of the schemes it runs,
+    ``stages``: its explicit phase's (a rough cost)."""
+
+    name: str = "auto"
+    order: int = 2
+    stages: int = 3
+    implicit: bool = False
+    adaptive: bool = True
+
+
+#: The scheme ``"auto"``.
+AUTO = Auto()
+
+
+#: The scheme ``"auto"``.
+AUTO = Auto()
+
+
+def lookup(scheme: str | AnyScheme | Auto) -> AnyScheme | Auto:
+    """The scheme named ``scheme`` (an entry of :data:`SCHEMES`, or ``"auto"``; a scheme
+    object passes through); ValueError naming the known ones."""
+    if isinstance(scheme, Scheme | Rosenbrock | Auto):
         return scheme
+    if scheme == AUTO.name:
+        return AUTO
     try:
         return SCHEMES[scheme]
     except KeyError:
         raise ValueError(
-            f"scheme: unknown scheme {scheme!r}; choose one of {sorted(SCHEMES)}"
+            f"scheme: unknown scheme {scheme!r}; choose one of {sorted(SCHEMES)} or 'auto'"
         ) from None
 
 

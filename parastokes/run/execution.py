@@ -127,9 +127,9 @@ def _execute(
         try:
             if writer is not None:
                 check_room(setup, writer)
-            reference = serial_time = result = record = None
+            reference = serial_time = result = record = fine_steps = None
             if mode in ("serial", "both"):
-                reference, serial_time = serial_run(
+                reference, serial_time, fine_steps = serial_run(
                     setup, x0, times, out, fine_identity(cfg), reporter, previous,
                     directory.state,
                 )
@@ -168,6 +168,8 @@ def _execute(
             if result is None or record is None  # (both or neither)
             else run_speedups(result, list(record.elapsed), serial_time),
             "workers": None if running.executor is None else running.executor.workers,
+            # adaptive fine steps of the serial run (scheme "auto": its switches), or None
+            "fine_steps": fine_steps,
             "monitor": _monitor(system, final_states, times),
             "final_time": float(times[-1]),
             "final_positions": system.positions(final_states[-1]),
