@@ -171,8 +171,9 @@ def test_a_memory_error_is_one_line_naming_the_cause(capsys, monkeypatch):
     code = cli.main(["predict", *TABLE4, "--serial", str(SERIAL_RUNS), "--target", "1e-6"])
     assert code == cli.ExitCode.CONFIG
     err = capsys.readouterr().err
-    assert err.splitlines() == ["error: out of memory (MemoryError): use fewer points, slices or "
-                                "workers, or a machine with more memory"]
+    assert err.splitlines() == ["error: out of memory (MemoryError): give smaller files "
+                                "(--serial, --measured's summary.json), or a machine with more "
+                                "memory"]
     # an error without a message and without a known cause still names its type
     assert cli.report(IsADirectoryError(), cli.Console(quiet=True), "predict") == 2
     assert capsys.readouterr().err.splitlines() == ["error: IsADirectoryError"]
@@ -201,8 +202,9 @@ def test_out_of_memory_under_a_memory_limit_is_one_line(tmp_path):
     done = subprocess.run([sys.executable, "-c", _LIMITED_PREDICT, str(path)], cwd=ROOT, env=ENV,
                           capture_output=True, text=True, timeout=120)
     assert done.returncode == cli.ExitCode.CONFIG, done.stderr
-    assert done.stderr.splitlines() == ["error: out of memory (MemoryError): use fewer points, "
-                                        "slices or workers, or a machine with more memory"]
+    assert done.stderr.splitlines() == ["error: out of memory (MemoryError): give smaller files "
+                                        "(--serial, --measured's summary.json), or a machine "
+                                        "with more memory"]
 
 # ---- 1, 2: a device or a pipe as --serial or as a suspension's poses -------------------------
 @pytest.mark.parametrize("source", ["/dev/zero", "fifo"])

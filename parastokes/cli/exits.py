@@ -41,6 +41,7 @@ SMALLER = {
     "flow": "use a smaller --resolution or --dpi (a plane rather than a box)",
     "movie": "use a smaller --size or --resolution, or fewer --frames",
     "plot": "plot fewer runs at once",
+    "predict": "give smaller files (--serial, --measured's summary.json)",
 }
 
 
