@@ -54,6 +54,22 @@ def test_the_growth_factor_is_safety_times_err_to_minus_one_over_q_plus_one(q):
     assert steps[1][1] / steps[0][1] == pytest.approx(SAFETY * 0.5 ** (-1 / (q + 1)))
 
 
+@pytest.mark.parametrize("q", [1, 2, 4])
+def test_after_two_accepted_steps_the_factor_is_pi_control(q):
+    """err^(-0.7/(q+1)) prev^(0.4/(q+1)) (Gustafsson), prev floored at 1e-4 as in DOPRI5."""
+    pi = SAFETY * 0.5 ** (-0.7 / (q + 1)) * 0.25 ** (0.4 / (q + 1))
+    assert controller.factor(0.5, q, True, 0.25) == pytest.approx(pi)
+    steps, _ = _drive([0.25, 0.5, 0.0, 1e-9], q=q)
+    assert steps[2][1] / steps[1][1] == pytest.approx(pi)  # the second accepted step: PI
+    assert steps[1][1] / steps[0][1] == pytest.approx(SAFETY * 0.25 ** (-1 / (q + 1)))
+    # a rejected step is sized by the elementary controller, whatever came before
+    assert controller.factor(4.0, q, False, 0.25) == controller.factor(4.0, q, False)
+    steps, _ = _drive([0.0, 1e-9, 0.5], q=q, t1=1e6)  # prev = max(0, 1e-4): err 1e-9 after err 0
+    assert steps[2][1] / steps[1][1] == pytest.approx(
+        min(GROW, SAFETY * 1e-9 ** (-0.7 / (q + 1)) * 1e-4 ** (0.4 / (q + 1))))
+    assert controller.factor(0.5, q, True, 1e-4) < GROW  # the floor keeps PI finite
+
+
 def test_growth_and_shrinkage_are_clipped():
     assert controller.factor(1e-12, 2, True) == GROW
     assert controller.factor(0.0, 2, True) == GROW
