@@ -392,3 +392,63 @@ def test_stale_temporary_files_of_a_destination_are_removed_when_it_is_written(t
     assert alive.exists() and fresh.exists() and other.exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
         ["flow.h5", alive.name, fresh.name, other.name])
+
+
+# ---- the configuration's smaller ones ---------------------------------------------------------
+CLOUD = ROOT / "experiments" / "quick" / "cloud_sediments.toml"
+LATTICE = ROOT / "experiments" / "quick" / "suspension_64_spheres.toml"
+
+
+@pytest.mark.parametrize("path, setting, issue", [
+    (LATTICE, "suspensions.0.spacing=[4.0, 4.0]",  # (was: "suspensions[0].body: zip() ...")
+     "suspensions[0].spacing: got [4.0, 4.0]; expected lattice: distance between neighbouring "
+     "centres (μm), one number or [dx, dy, dz]"),
+    (LATTICE, 'suspensions.0.spacing="a"',  # (was two lines, one per member of the union)
+     "suspensions[0].spacing: got 'a'; expected lattice: distance between neighbouring centres "
+     "(μm), one number or [dx, dy, dz]"),
+    (LATTICE, "suspensions.0.spacing=[4.0, -1, 3.0]",  # the list member got furthest: its item
+     "suspensions[0].spacing[1]: Input should be greater than 0 (got -1)"),
+    (CLOUD, "scene.repulsion={range=1.0, force=1.0, shape=2}",  # (was "known keys: ")
+     "scene.repulsion.shape: unknown key (known keys: force, range)"),
+])
+def test_a_bad_value_is_one_line_naming_its_own_key(capsys, path, setting, issue):
+    assert cli.main(["check", str(path), "--set", setting]) == cli.ExitCode.CONFIG
+    assert capsys.readouterr().err.splitlines()[1:] == [f"  {issue}"]
+
+
+def test_an_unknown_key_of_a_table_of_no_schema_gets_no_empty_list_of_keys():
+    from pydantic import BaseModel, ConfigDict, ValidationError
+
+    from parastokes.config import errors
+
+    class Loose(BaseModel):
+        model_config = ConfigDict(extra="forbid")
+
+    with pytest.raises(ValidationError) as info:
+        Loose.model_validate({"x": 1})
+    found = errors.from_validation_error(info.value, {"nowhere": {"x": 1}}, "",
+                                         ("nowhere", "deeper"))
+    assert found.issues == [("nowhere.deeper.x", "unknown key")]
+
+
+def test_the_repulsion_is_switched_off_from_the_command_line():
+    cfg, _ = config.load(CLOUD)
+    assert cfg.model.repulsion is not None  # (the file's)
+    off, _ = config.load(CLOUD, ["scene.repulsion=false"])  # (was: range and force required)
+    assert off.model.repulsion is None and "repulsion" not in off.model.tables()["scene"]
+    assert off.model.build(1).repulsion is None
+
+
+
+def test_an_rtol_below_round_off_is_refused_by_check_naming_the_key(tmp_path, capsys):
+    """The configuration's side of integrate.tolerances' floor (was: accepted, then a numpy
+    overflow warning in the run)."""
+    from configs import small_rod
+
+    path = tmp_path / "c.toml"
+    path.write_text(small_rod(rest="[execution]\nworkers = 4\n").replace(
+        "dt = 1e-6", 'dt = 1e-6\nscheme = "ros2"\nrtol = 1e-300'))
+    assert cli.main(["check", str(path)]) == cli.ExitCode.CONFIG
+    assert capsys.readouterr().err.splitlines()[1:] == [
+        "  fine.rtol: 1e-300 is below 2.2e-14 (100 machine epsilons): no step can meet it in "
+        "double precision; use a larger rtol"]

@@ -18,6 +18,7 @@ import tomllib
 from argparse import Namespace
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from parastokes import cli, config, integrate
@@ -25,7 +26,7 @@ from parastokes.parareal.best_serial import best_known, cache_path, load_serial_
 from parastokes.parareal.speedup import speedup as eq14_speedup
 from parastokes.planning import baseline, routes
 from parastokes.planning.baseline import Baseline, Run, choose_runs
-from parastokes.planning.command import PlanError, prepare
+from parastokes.planning.command import PlanError, prepare, resolvable
 
 EXPERIMENTS = Path(__file__).resolve().parent.parent / "experiments"
 
@@ -384,3 +385,54 @@ def test_best_serial_folder_holds_one_config_per_problem_of_the_target_table():
         prepare(Namespace(config=str(EXPERIMENTS / "quick/table4_g1.toml"),
                           set=['execution.executor="gpu"'], cores=2, target=1e-6, budget=None,
                           out="/tmp/x.toml", overwrite=True))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["table4_g1", "table7_g1"])
+def test_plan_runs_on_quick_experiments(name, tmp_path):
+    """A whole plan on two shipped quick configs (a rod, a vesicle): about a minute each on the
+    shared 2-core machine (loading the compiled loops and tune's pilot), so marked slow; the
+    tiny rod above runs the same code in the default suite. The config is copied so that its
+    cache is written beside the copy, not into experiments/."""
+    text = (EXPERIMENTS / "quick" / f"{name}.toml").read_text()
+    source = tmp_path / f"{name}.toml"
+    source.write_text(text.replace(f'base = "../{name}.toml"',
+                                   f'base = "{(EXPERIMENTS / name).with_suffix(".toml")}"'))
+    out = tmp_path / "PLAN.toml"
+    assert cli.main(["plan", str(source), "--cores", "2", "--target", "1e-6", "--out", str(out),
+                     "--budget", "10", "-q"]) == 0
+    plan = json.loads(out.with_suffix(".json").read_text())
+    assert plan["best_serial"]["error"] <= 1e-6 and plan["routes"][0]["route"] == "serial"
+    assert cli.main(["check", str(out), "-q"]) == 0
+
+
+def test_a_target_the_reference_cannot_judge_is_refused():
+    reference = Run("rk2", 1e-6, None, "F", "reference", 2e-9, 1.0, 1.0)
+    found = Baseline("k", 1e-6, 0.0, 1.0, 1.0, reference, 0.9e-8, 1e-5, [], 1.0, 1.0)
+    resolvable(found)  # η*/10 = 1e-7 is 11 times F's 0.9e-8
+    found.fine_error = 1.1e-8  # 9 times: refused
+    with pytest.raises(PlanError, match="F's own error"):
+        resolvable(found)
+    found.fine_error = None  # F with adaptive steps: not estimated, not checked
+    resolvable(found)
+
+
+def test_own_error_falls_back_to_half_the_step_where_twice_it_blows_up(monkeypatch):
+    from types import SimpleNamespace
+
+    from parastokes.tuning import pilot
+
+    state = np.array([1.0, 0.0, 0.0])
+    answers = {2e-6: state + [0.0, 3e-6, 0.0], 5e-7: state + [0.0, 1e-6, 0.0]}
+
+    def propagate(system, x0, t0, t1, scheme, dt):
+        if dt not in answers:
+            raise integrate.BlowUpError(t1, 1, math.inf, x0, "unstable")
+        return answers[dt]
+
+    monkeypatch.setattr(pilot.integrate, "propagate", propagate)
+    system = SimpleNamespace(positions=lambda x: x.reshape(-1, 3))
+    # RK2 (p = 2): |F_τ - F_2τ| / 3 = 1e-6
+    assert pilot.own_error(system, state, 0.0, 1.0, "rk2", 1e-6, state) == pytest.approx(1e-6)
+    del answers[2e-6]  # 2τ unstable: 4 |F_τ - F_τ/2| / 3
+    assert pilot.own_error(system, state, 0.0, 1.0, "rk2", 1e-6, state) == pytest.approx(4e-6 / 3)

@@ -96,14 +96,14 @@ def test_the_embedded_estimate_is_of_second_order():
     assert abs(-_slope(hs, diffs) - 3.0) < 0.15
 
 
-def _rod_errors(bracket: bool) -> list[float]:
+def _rod_errors(bracket: bool, scheme: str = "ros34pw2") -> list[float]:
     rod = helix_rod()
     x = rod.initial_state()
     horizon = 0.1
     reference = integrate.run(rod, x, 0.0, horizon, "rk4", horizon / 1024).state
     if not bracket:
         rod = _WithoutBracket(rod)
-    return [float(np.abs(integrate.run(rod, x, 0.0, horizon, "ros34pw2", horizon / n).state
+    return [float(np.abs(integrate.run(rod, x, 0.0, horizon, scheme, horizon / n).state
                          - reference).max()) for n in (16, 32, 64)]
 
 
@@ -125,3 +125,10 @@ def test_order_three_on_rotating_frames_needs_the_dexp_correction():
     counts = [16, 32, 64]
     assert abs(_slope(counts, _rod_errors(True)) - 3.0) < 0.25
     assert abs(_slope(counts, _rod_errors(False)) - 2.0) < 0.25
+
+
+def test_the_krylov_variant_is_of_order_three_on_the_rod():
+    """ros34pw2-krylov (stages on the exact Jacobian by GMRES) keeps order 3 on the rod."""
+    assert ROSENBROCK["ros34pw2-krylov"].krylov
+    counts = [16, 32, 64]
+    assert abs(_slope(counts, _rod_errors(True, "ros34pw2-krylov")) - 3.0) < 0.3

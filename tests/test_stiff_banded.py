@@ -146,23 +146,42 @@ def test_a_is_rebuilt_every_refresh_steps_and_factorized_once_per_build(scheme, 
     assert system.calls == pytest.approx([0.01 * refresh * j for j in range(builds)])
 
 
-@pytest.mark.parametrize(("ratio", "refactorized"), [(1.0, False), (1.9, False), (2.0, False),
-                                                     (0.5, False), (2.01, True), (0.49, True)])
-def test_a_factorization_serves_steps_within_a_factor_two(ratio, refactorized):
-    """A step of ``ratio`` times the factorized one keeps the factorization inside
-    [1/REUSE, REUSE] (REUSE = 2) and refactorizes outside it."""
-    assert stepper.REUSE == 2.0
+@pytest.mark.parametrize(("scheme", "ratio", "refactorized"), [
+    ("ros2", 1.0, False), ("ros2", 2.0, False), ("ros2", 0.5, False), ("ros2", 2.01, True),
+    ("ros2", 0.49, True), ("ros34pw2", 1.25, False), ("ros34pw2", 0.5, False),
+    ("ros34pw2", 1.26, True), ("ros34pw2", 0.49, True)])
+def test_a_factorization_serves_the_steps_of_its_reuse_range(scheme, ratio, refactorized):
+    """A step of ``ratio`` times the factorized one keeps the factorization inside the scheme's
+    ``reuse`` range (ROS2 [1/2, 2], ROS34PW2 [1/2, 1.25]) and refactorizes outside it."""
     system = Forced(lam=(-1.0, -1e3))
-    run = _stepper(system, refresh=100)
+    run = _stepper(system, scheme, refresh=100)
     x = run.step(0.0, system.initial_state(), 0.01)
     run.step(0.01, x, 0.01 * ratio)
     assert run.factorizations == 1 + refactorized
 
 
+def _amplification(scheme, factor):
+    """The largest |R| of one step on y' = zy, z from -1e-2 to -1e8, with A = factor z."""
+    return max(abs(integrate.step(Forced(lam=(z,), forced=False, jacobian_factor=factor),
+                                  scheme, 0.0, np.array([[1.0]]), 1.0)[0, 0])
+               for z in -np.logspace(-2, 8, 60))
+
+
+@pytest.mark.parametrize("scheme", ["lieuler", "ros2", "ros34pw2"])
+def test_the_reuse_range_keeps_the_step_from_amplifying(scheme):
+    """A step h = r h_f on a factorization at h_f is a step with A = z / r: within the reuse
+    range (r at both ends) |R| <= 1 for every z < 0; ROS34PW2 at r = 2 amplifies (|R| = 6.5)."""
+    low, high = ROSENBROCK[scheme].reuse
+    assert _amplification(scheme, 1.0 / low) <= 1.0
+    assert _amplification(scheme, 1.0 / high) <= 1.0
+    if scheme == "ros34pw2":
+        assert _amplification(scheme, 0.5) > 5.0
+
+
 def test_a_reused_factorization_is_the_w_method_with_a_scaled_jacobian():
     """A step h after a factorization at h_f equals, to round-off, a fresh step h whose A is
     (h_f / h) times the Jacobian: the reuse is exactly a W-method with that A."""
-    h_f, h = 0.01, 0.016
+    h_f, h = 0.01, 0.012
     system = Forced(lam=(-1.0, -1e3))
     run = _stepper(system, "ros34pw2", refresh=100)
     x1 = run.step(0.0, system.initial_state(), h_f)
@@ -189,13 +208,13 @@ def _count_factorizations(monkeypatch) -> list[float]:
 
 
 def test_adaptive_steps_factorize_less_often_than_they_change_the_step(monkeypatch):
-    """Adaptive ROS34PW2 on Prothero-Robinson (λ = -1e3, A every 1000 steps): the step changes
-    at nearly every step, yet the factorizations are fewer than half the steps; the run is the
+    """Adaptive ROS2 on Prothero-Robinson (λ = -1e3, A every 1000 steps): the step changes at
+    nearly every step, yet the factorizations are fewer than half the steps; the run is the
     same bits twice."""
     made = _count_factorizations(monkeypatch)
     monkeypatch.setattr(stepper, "REFRESH", 1000)
     system = Forced(lam=(-1.0, -1e3))
-    runs = [integrate.run(system, system.initial_state(), 0.0, 1.0, "ros34pw2", 1e-3,
+    runs = [integrate.run(system, system.initial_state(), 0.0, 1.0, "ros2", 1e-3,
                           rtol=1e-5, atol=1e-7) for _ in range(2)]
     assert np.array_equal(runs[0].state, runs[1].state)
     assert (runs[0].n_steps, runs[0].n_rejected) == (runs[1].n_steps, runs[1].n_rejected)
@@ -215,3 +234,33 @@ def test_banded_and_general_factorizations_give_the_same_run(monkeypatch):
     assert not Factorization(jacobian.local_jacobian(rod, 0.0, x0, 6 * len(x0)), 1e-4, 0.0).banded
     b = integrate.run(rod, x0, 0.0, 5e-4, "ros34pw2", 1e-4).state
     assert np.allclose(a, b, rtol=0, atol=1e-10 * np.abs(a).max())
+
+
+@pytest.mark.parametrize("width", [3, 2])
+def test_coloured_differences_are_the_analytic_jacobian(width):
+    """fd_jacobian on f_i = (x_i0 x_{i+1,1}, sin x_i2 + 2 x_{i-1,0}, x_i1²)[:width] (chain
+    coupling, rates by shifts): the analytic Jacobian, entry (width i + l, 3 j + q)."""
+    from parastokes.stiff import coloring
+
+    n = 7
+    x = np.random.default_rng(5).standard_normal((n, 3))
+
+    def function(y):
+        nxt, prev = np.roll(y, -1, axis=0), np.roll(y, 1, axis=0)
+        nxt[-1], prev[0] = 0.0, 0.0
+        return np.stack([y[:, 0] * nxt[:, 1], np.sin(y[:, 2]) + 2 * prev[:, 0], y[:, 1] ** 2],
+                        axis=1)[:, :width]
+
+    expected = np.zeros((n * width, n * 3))
+    for i in range(n):
+        if i + 1 < n:
+            expected[width * i, 3 * i] = x[i + 1, 1]
+            expected[width * i, 3 * (i + 1) + 1] = x[i, 0]
+        expected[width * i + 1, 3 * i + 2] = np.cos(x[i, 2])
+        if i > 0:
+            expected[width * i + 1, 3 * (i - 1)] = 2.0
+        if width == 3:
+            expected[width * i + 2, 3 * i + 1] = 2 * x[i, 1]
+    got = coloring.fd_jacobian(function, lambda y, d, h: y + h * d, x, 3,
+                               coloring.banded(1, n, 1), 1e-6).toarray()
+    assert np.allclose(got, expected, rtol=0, atol=1e-8)

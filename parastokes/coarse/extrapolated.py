@@ -64,8 +64,9 @@ class Extrapolated(CoarseSection):
         None, description="Adaptive steps of every auxiliary solver within this relative error "
         "per step (ros2, ros2-krylov; not with richardson.m >= 1); dt is then the first step.")
     atol: float | None = Field(None, description="Absolute error per step (default: rtol).")
-    grid_factor: int = Field(1, ge=1, description="σ_c / σ_f (rods; Table 6 uses 6); rigid bodies: "
-                             "each part of the surface with factor times fewer points; scenes: "
+    grid_factor: int = Field(1, ge=1, description="σ_c / σ_f (rods; Table 6 uses 6); vesicles: "
+                             "2^j, the icosphere j levels coarser; rigid bodies: each part of the "
+                             "surface with factor times fewer points; scenes: "
                              "every body that has a coarser grid, or those of "
                              "scene.coarse_bodies.")
     max_weight_sum: Positive = Field(

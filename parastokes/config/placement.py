@@ -30,6 +30,7 @@ from ..core.files import InputFileError, read_input
 __all__ = [
     "RANDOM_CLOSE_PACKING",
     "PlacementError",
+    "holds_one",
     "lattice",
     "matrices",
     "packing",
@@ -104,6 +105,18 @@ def _candidates(rng: np.random.Generator, n: int, region: str, center: np.ndarra
     return center + direction * (half[0] * rng.random((n, 1)) ** (1.0 / 3.0))
 
 
+def holds_one(region: str, size: list[float] | None, radius: float | None,
+              body_radius: float) -> list[float]:
+    """The region's extent (``[radius]`` or ``size``); PlacementError naming its key when it is
+    too small for one body of bounding radius ``body_radius``."""
+    extent = [float(radius or 0.0)] if region == "sphere" else list(size or [])
+    key = "radius" if region == "sphere" else "size"
+    if min(extent) <= body_radius:
+        raise PlacementError(key, f"the {region} ({key} {_numbers(extent)}) is too small for "
+                                  f"one body of bounding radius {body_radius:.4g}; enlarge it")
+    return extent
+
+
 def random_centers(count: int, region: str, center: list[float], size: list[float] | None,
                    radius: float | None, body_radius: float, distance: float,
                    rng: np.random.Generator) -> tuple[np.ndarray, int]:
@@ -112,11 +125,7 @@ def random_centers(count: int, region: str, center: list[float], size: list[floa
     it, pairwise at least ``distance`` apart (random sequential addition, see the module), and
     the number of candidates drawn: fewer than ``count`` when :func:`tries_allowed` did not
     suffice."""
-    extent = [float(radius or 0.0)] if region == "sphere" else list(size or [])
-    key = "radius" if region == "sphere" else "size"
-    if min(extent) <= body_radius:
-        raise PlacementError(key, f"the {region} ({key} {_numbers(extent)}) is too small for "
-                                  f"one body of bounding radius {body_radius:.4g}; enlarge it")
+    extent = holds_one(region, size, radius, body_radius)
     half = np.array(extent, dtype=float) / (1.0 if region == "sphere" else 2.0) - body_radius
     mid = np.asarray(center, dtype=float)
     cells: dict[tuple[int, ...], list[int]] = {}

@@ -140,7 +140,7 @@ def _first_step(setup: Setup, source: str) -> None:
 def _schemes(cfg: Config) -> list[tuple[str, str]]:
     """The ``(key, scheme)`` of every solver of ``cfg``: F's, and G's (its auxiliary solvers',
     or a HODMD G's ``g1`` and ``g2``)."""
-    found = [("fine.scheme", cfg.fine.scheme)]
+    found: list[tuple[str, str]] = [("fine.scheme", cfg.fine.scheme)]
     coarse = cfg.coarse
     for key, section in (("coarse", coarse), ("coarse.g1", getattr(coarse, "g1", None)),
                          ("coarse.g2", getattr(coarse, "g2", None))):

@@ -178,6 +178,7 @@ def _random(spec: Suspension, template: BodySection, foot: Footprint, gap: float
                                                     "holds no whole body; raise it or enlarge "
                                                     "the region")
     key = "count" if spec.count is not None else "volume_fraction"
+    placement.holds_one(spec.region, spec.size, spec.radius, foot.radius)  # (before its count)
     distance = 2.0 * foot.radius + gap
     packed = placement.packing(count, spec.region, spec.size, spec.radius, foot.radius, distance)
     if count > 1 and packed > placement.RANDOM_CLOSE_PACKING:

@@ -208,7 +208,7 @@ class KnownBaseline:
         row = self.row
         step = f"rtol = {row['rtol']:.3g}" if row.get("rtol") is not None else \
             f"dt = {row['dt']:.3g}"
-        return (f"{row['scheme']} at {step} (error {row['error']:.3g} at T, "
+        return (f"{row['scheme']} at {step} (error {row['error']:.3g}, "
                 f"{row['cpu_seconds']:.3g} s CPU over T; F {self.fine_cpu:.3g} s)")
 
 

@@ -46,6 +46,7 @@ from ..core.contracts import System
 from ..core.files import atomic_write
 from ..parareal.best_serial import cached_entries
 from ..parareal.metrics import relative_change
+from ..tuning.pilot import own_error
 
 __all__ = ["F_FACTOR", "Baseline", "Run", "cached", "candidates", "cheapest", "choose_runs",
            "real_stability_interval", "search", "store"]
@@ -91,6 +92,20 @@ class Run:
     def fixed(self) -> bool:
         return self.rtol is None
 
+    @property
+    def cost(self) -> float:
+        """CPU seconds over T of a measured run (ValueError for one not measured)."""
+        if self.cpu_seconds is None:
+            raise ValueError(f"{self.label()} was not measured ({self.status})")
+        return self.cpu_seconds
+
+    @property
+    def accuracy(self) -> float:
+        """Its error at T_s of a measured run (ValueError for one not measured)."""
+        if self.error is None:
+            raise ValueError(f"{self.label()} was not measured ({self.status})")
+        return self.error
+
     def label(self) -> str:
         step = f"rtol = {self.rtol:.3g}" if self.rtol is not None else f"dt = {self.dt:.3g}"
         return f"{self.scheme} at {step}"
@@ -101,7 +116,7 @@ class Run:
 
 def real_stability_interval(scheme: Any, upper: float = 20.0, step: float = 1e-3) -> float | None:
     """The stability interval [-Y, 0] of an explicit Runge-Kutta tableau on the negative real
-    axis: the largest Y with |R(-y)| <= 1 for every y in (0, Y], R(z) = 1 + z bᵀ(I - zA)⁻¹ 1
+    axis: the largest Y with ``|R(-y)| <= 1`` for every y in (0, Y], ``R(z) = 1 + z bᵀ(I - zA)⁻¹ 1``
     (forward Euler and RK2: 2, classical RK4: 2.785); None for a scheme without an explicit
     tableau (``a``, ``b``)."""
     a, b = getattr(scheme, "a", None), getattr(scheme, "b", None)
@@ -178,10 +193,9 @@ def candidates(euler_limit: float | None, target: float, span: float,
 def cheapest(runs: Iterable[Run], target: float, fixed_only: bool = False) -> Run | None:
     """The measured run of least CPU time whose error is at most ``target`` (ties: the first);
     ``fixed_only``: among fixed steps (F of a Parareal run)."""
-    reaching = [r for r in runs if r.status in ("measured", "reference") and r.error is not None
-                and r.error <= target and r.cpu_seconds is not None
-                and (r.fixed or not fixed_only)]
-    return min(reaching, key=lambda r: r.cpu_seconds, default=None)
+    reaching = [r for r in runs if r.status in ("measured", "reference")
+                and r.accuracy <= target and (r.fixed or not fixed_only)]
+    return min(reaching, key=lambda r: r.cost, default=None)
 
 
 def choose_runs(runs: list[Run], measure: Callable[[Run, float], None], threshold: float,
@@ -205,17 +219,16 @@ def choose_runs(runs: list[Run], measure: Callable[[Run, float], None], threshol
                 rest.note = f"search stopped ({stopped})"
             return stopped
         best = cheapest(runs[:i], threshold)
-        measure(run, math.inf if best is None else best.cpu_seconds)
+        measure(run, math.inf if best is None else best.cost)
         measured += 1
         if run.status == "abandoned":
             done[run.family] = f"a cheaper run of {run.family} was abandoned: {run.note}"
         elif run.status != "measured":
             continue
-        elif run.error is not None and run.error <= threshold:
+        elif run.accuracy <= threshold:
             done[run.family] = f"a cheaper run of {run.family} reaches {threshold:.3g}"
-        elif best is not None and run.cpu_seconds is not None \
-                and run.cpu_seconds > best.cpu_seconds:
-            done[run.family] = (f"dearer than {best.label()} ({best.cpu_seconds:.3g} s), "
+        elif best is not None and run.cost > best.cost:
+            done[run.family] = (f"dearer than {best.label()} ({best.cost:.3g} s), "
                                 "which reaches it; finer steps cost more")
     return None
 
@@ -248,7 +261,7 @@ class Baseline:
         """The cheapest fixed-step run with error at most η*/:data:`F_FACTOR`: ``plan``'s F
         (F itself when none is cheaper)."""
         found = cheapest(self.runs, self.target / F_FACTOR, fixed_only=True)
-        if found is None or found.cpu_seconds >= self.reference.cpu_seconds:
+        if found is None or found.cost >= self.reference.cost:
             return self.reference
         return found
 
@@ -315,22 +328,25 @@ def search(system: System, x0: np.ndarray, t0: float, t1: float, fine: integrate
                                     rtol=fine.rtol, atol=fine.atol).state
     reference_cpu = clock() - start
     fine_error = None
-    if fine.rtol is None:  # Richardson's estimate from a run at 2τ (as tune's pilot)
-        double = integrate.propagate(system, x0, t0, measured_t1, fine.scheme, 2 * fine.dt)
-        fine_error = relative_change(double, reference_state, system.positions) / (
-            2 ** integrate.scheme_order(fine.scheme) - 1)
+    if fine.rtol is None:  # Richardson's estimate (as tune's pilot)
+        fine_error = own_error(system, x0, t0, measured_t1, fine.scheme, fine.dt,
+                               reference_state)
     else:
         notes.append("F takes adaptive steps: its own error is not estimated")
     reference = Run(fine.scheme, fine.dt, fine.rtol, "F", "reference",
                     0.0 if fine_error is None else fine_error, reference_cpu,
                     reference_cpu * scale, "the configuration's F (the reference)")
-    try:
-        euler_limit = integrate.largest_stable_step(
-            system, "euler", span, fine.dt, max(span / MIN_STEPS, 2 * fine.dt), x0=x0, t0=t0,
-            rtol=0.05, relative=True)
-    except ValueError as error:
-        euler_limit = None
-        notes.append(f"forward Euler's stability limit not found ({error}): no explicit or "
+    euler_limit = None
+    for lowest in (fine.dt, fine.dt / 10, fine.dt / 100):  # F's step may lie above Euler's limit
+        try:
+            euler_limit = integrate.largest_stable_step(
+                system, "euler", span, lowest, max(span / MIN_STEPS, 2 * lowest), x0=x0, t0=t0,
+                rtol=0.05, relative=True)
+            break
+        except ValueError as error:
+            reason = str(error)
+    if euler_limit is None:
+        notes.append(f"forward Euler's stability limit not found ({reason}): no explicit or "
                      "implicit fixed steps searched")
 
     def measure(run: Run, cap: float) -> None:

@@ -23,10 +23,12 @@ from typing import Any
 
 from .baseline import DEFAULT_BUDGET, F_FACTOR, Baseline, Run
 
-__all__ = ["PlanError", "add_arguments", "main", "plan_config", "prepare"]
+__all__ = ["PlanError", "add_arguments", "main", "plan_config", "prepare", "resolvable"]
 
 #: Share of the budget given to the serial search when the Parareal route is searched too.
 SERIAL_SHARE = 0.5
+#: F's own error must lie this many times below η*/F_FACTOR (:func:`resolvable`).
+RESOLUTION = 10.0
 
 
 class PlanError(ValueError):
@@ -75,6 +77,18 @@ def replaceable(cfg: Any) -> None:
             "runs F in device batches of explicit fixed steps it cannot time; plan the "
             "configuration on the CPU (--set execution.executor=\"processes\") and move the "
             "chosen route to the GPU yourself")
+
+
+def resolvable(found: Baseline) -> None:
+    """Refuse (PlanError) a target the reference cannot judge: F's own error (Richardson's
+    estimate at T_s) must lie at least :data:`RESOLUTION` times below η*/F_FACTOR, the accuracy
+    F for Parareal is chosen at."""
+    goal = found.target / F_FACTOR
+    if found.fine_error is not None and found.fine_error * RESOLUTION > goal:
+        raise PlanError(
+            f"--target: η*/{F_FACTOR:g} = {goal:.3g} is not {RESOLUTION:g} times above the "
+            f"configuration's F's own error (about {found.fine_error:.2g}), against which "
+            "every run is measured: raise --target, or reduce fine.dt (a more accurate F)")
 
 
 def outputs(out: str | Path) -> tuple[Path, Path, Path]:
@@ -224,35 +238,36 @@ def main(args: argparse.Namespace, console: Any) -> int:
         args.budget * (SERIAL_SHARE if parareal_possible else 1.0))
     found, which = _baseline(args, cfg, system, serial_budget, console)
     console.print(which)
+    resolvable(found)
     best, fine = found.best(), found.fine()
     console.print(f"fastest serial run reaching η* = {args.target:g}: {best.label()} (error "
-                  f"{best.error:.3g}, {best.cpu_seconds:.4g} s CPU over T)")
+                  f"{best.error:.3g}, {best.cost:.4g} s CPU over T)")
     console.print(f"F for Parareal (error <= η*/{F_FACTOR:g}): {fine.label()} (error "
-                  f"{fine.error:.3g}, {fine.cpu_seconds:.4g} s CPU over T)")
-    best_text = f"{best.label()} ({best.cpu_seconds:.4g} s)"
-    rows = [routing.serial_route(best.cpu_seconds, best_text)]
+                  f"{fine.error:.3g}, {fine.cost:.4g} s CPU over T)")
+    best_text = f"{best.label()} ({best.cost:.4g} s)"
+    rows = [routing.serial_route(best.cost, best_text)]
     unavailable: dict[str, str] = {}
     if args.cores >= 2:
-        rows.append(routing.spatial_route(best.cpu_seconds, best_text, args.cores, points))
+        rows.append(routing.spatial_route(best.cost, best_text, args.cores, points))
         goal = (1.0 - 1.0 / F_FACTOR) * args.target
         tune_budget = None if args.budget is None else args.budget * (1.0 - SERIAL_SHARE)
         console.print(f"tuning the coarse solver for F = {fine.label()} on {args.cores} slices "
                       f"to η^K <= {goal:.3g} ...")
         tuned, why = _tune(cfg, resolved, system, fine, args.cores, goal, tune_budget)
         if tuned is None:
-            unavailable["parareal"] = why
+            unavailable["parareal"] = why or "tune found no coarse solver"
         else:
             chosen = tuned.chosen
             evidence = (f"γ_G/γ_F measured by tune's pilot ({tuned.pilot.n_slices} slices), "
                         f"pilot η^k = {', '.join(f'{e:.2g}' for e in chosen.pilot_errors)}; "
                         f"G = {chosen.settings.label()}; F = {fine.label()} "
-                        f"({fine.cpu_seconds:.4g} s)")
+                        f"({fine.cost:.4g} s)")
             for schedule in ("standard", "pipelined"):
                 rows.append(routing.parareal_route(
-                    best.cpu_seconds, fine.cpu_seconds, chosen.gamma_ratio, chosen.iterations,
+                    best.cost, fine.cost, chosen.gamma_ratio, chosen.iterations,
                     args.cores, schedule, evidence))
             at = _parareal_at(tuned, args.cores, goal)
-            combined = routing.combined_route(best.cpu_seconds, fine.cpu_seconds, args.cores,
+            combined = routing.combined_route(best.cost, fine.cost, args.cores,
                                               points, "pipelined", at, evidence)
             if combined is None:
                 unavailable["combined"] = (f"no split of {args.cores} cores into P >= 2 slices "

@@ -26,6 +26,10 @@ the commutator terms of Runge-Kutta-Munthe-Kaas enter at order 3 only, as for RK
   ``src/ts/impls/rosw/rosw.c``), converted to the form above. At order 3 the commutator terms
   of Munthe-Kaas enter on rotating frames: the stage rates are corrected by ``dexp⁻¹`` to first
   order (``f_i - h/2 [Σ_j a_ij k_j, f_i]``, the system's ``bracket``; :mod:`.stepper`).
+- ``ros34pw2-krylov``: ROS34PW2 with the stage systems on the exact Jacobian, as
+  ``ros2-krylov``: on a stiff rod the order of the W-methods with the local ``A`` falls to about
+  1 at large steps, with the exact Jacobian it stays near 3 (docs/benchmarks.md, "Stiff bodies:
+  cheaper implicit steps").
 """
 
 from __future__ import annotations
@@ -56,6 +60,11 @@ class Rosenbrock:
     #: Coefficients of ``h f_t`` in the stages' right-hand sides (f_t: the rates' derivative in
     #: time at the step's start, the time column of the Jacobian of the autonomous form).
     g: tuple[float, ...] = ()
+    #: The steps ``h / h_f`` that a factorization of ``I - h_f γ A`` serves: it is that of
+    #: ``I - hγ A'`` with ``A' = (h_f / h) A``, and a W-method keeps its order for any ``A'``;
+    #: the range keeps one step on y' = λy with ``A' = (h_f / h) λ`` from amplifying any λ < 0
+    #: (tested; ROS34PW2 amplifies from ``h = 1.67 h_f`` on, ROS2 not up to ``3 h_f``).
+    reuse: tuple[float, float] = (0.5, 2.0)
 
     #: Every scheme of this module solves linear systems (``integrate.SCHEMES`` says so).
     implicit = True
@@ -121,8 +130,12 @@ _ROS2 = dict(order=2, gamma=_GAMMA2, c=(0.0, 1.0), a=((), (1.0,)), d=((), (-2.0,
 
 #: The linearly implicit schemes, by name (joined into ``parastokes.integrate.SCHEMES``).
 ROSENBROCK: dict[str, Rosenbrock] = {
-    "lieuler": Rosenbrock("lieuler", 1, 1.0, c=(0.0,), a=((),), d=((),), b=(1.0,), g=(1.0,)),
+    "lieuler": Rosenbrock("lieuler", 1, 1.0, c=(0.0,), a=((),), d=((),), b=(1.0,), g=(1.0,),
+                          reuse=(0.5, 1.5)),
     "ros2": Rosenbrock("ros2", **_ROS2),  # type: ignore[arg-type]
     "ros2-krylov": Rosenbrock("ros2-krylov", krylov=True, **_ROS2),  # type: ignore[arg-type]
-    "ros34pw2": from_standard("ros34pw2", 3, **ROS34PW2_STANDARD),  # type: ignore[arg-type]
+    "ros34pw2": from_standard("ros34pw2", 3, reuse=(0.5, 1.25),
+                              **ROS34PW2_STANDARD),  # type: ignore[arg-type]
+    "ros34pw2-krylov": from_standard("ros34pw2-krylov", 3, krylov=True, reuse=(0.5, 1.25),
+                                     **ROS34PW2_STANDARD),  # type: ignore[arg-type]
 }

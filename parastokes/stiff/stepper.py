@@ -5,9 +5,9 @@ controller of :mod:`parastokes.integrate.controller` calls for adaptive steps.
 A :class:`Stepper` belongs to one run: it keeps the approximate Jacobian ``A`` of
 :mod:`.jacobian` and the factorization of ``I - hγA``, rebuilding ``A`` every ``refresh`` steps
 (1: every step, so ``A`` follows the body as it moves and turns) and the factorization whenever
-``A`` changes or the step leaves a factor :data:`REUSE` of the factorized one. A step depends
-only on its inputs and on those counts, so a run is a deterministic function of its input
-(Parareal stays bit-reproducible).
+``A`` changes or the step over the factorized one leaves the scheme's ``reuse`` range. A step
+depends only on its inputs and on those counts, so a run is a deterministic function of its
+input (Parareal stays bit-reproducible).
 """
 
 from __future__ import annotations
@@ -19,9 +19,9 @@ import numpy as np
 
 from .jacobian import local_jacobian
 from .schemes import Rosenbrock
-from .solve import Factorization, StageSolver
+from .solve import GMRES_RTOL, GMRES_RTOL_ORDER3, Factorization, StageSolver
 
-__all__ = ["REFRESH", "REUSE", "Stepper"]
+__all__ = ["REFRESH", "Stepper"]
 
 Rates = Callable[[float, np.ndarray], np.ndarray]
 Advance = Callable[[np.ndarray, np.ndarray, float], np.ndarray]
@@ -29,18 +29,11 @@ Advance = Callable[[np.ndarray, np.ndarray, float], np.ndarray]
 
 #: Steps between rebuilds of the approximate Jacobian (docs/benchmarks.md, "Stiff bodies").
 REFRESH = 5
-#: A factorization of ``I - h_f γ A`` serves every step ``h`` with ``h_f / REUSE <= h <= h_f
-#: REUSE``: it is that of ``I - hγ A'`` with ``A' = (h_f / h) A``, and a W-method keeps its order
-#: for any ``A'`` (docs/stiff.md, "Adaptive steps"; docs/benchmarks.md, "Stiff bodies: cheaper
-#: implicit steps").
-REUSE = 2.0
-
-
 class Stepper:
     """Steps of ``scheme`` for ``system`` through ``rates(t, x)`` and ``advance(x, r, dt)``
     (the integrator's checked calls); ``A`` rebuilt every ``refresh`` steps (default
-    :data:`REFRESH`), its factorization kept while the step stays within a factor
-    :data:`REUSE` of the factorized one.
+    :data:`REFRESH`), its factorization kept while the step over the factorized one stays
+    within the scheme's ``reuse`` range.
 
     ``jacobians`` and ``factorizations`` count the builds of ``A`` and of its LU so far."""
 
@@ -66,15 +59,16 @@ class Stepper:
             self.jacobians += 1
             self._lu = None
         matrix = self._jacobian[0]
-        stale = self._lu is None or not (
-            self._lu.hgamma / REUSE <= hgamma <= self._lu.hgamma * REUSE)
+        low, high = self.scheme.reuse
+        stale = self._lu is None or not low <= hgamma / self._lu.hgamma <= high
         if matrix is not None and matrix.nnz and stale:
             self._lu = Factorization(matrix, hgamma, t)
             self.factorizations += 1
         if self.scheme.krylov:  # the exact Jacobian's products are taken at this step's state
             return StageSolver(self._lu, hgamma, t, krylov=True,
                                rates_at=lambda y: self.rates(t, y), advance=self.advance,
-                               x=x, f0=f0)
+                               x=x, f0=f0, rtol=GMRES_RTOL if self.scheme.order < 3
+                               else GMRES_RTOL_ORDER3)
         return StageSolver(self._lu, hgamma, t)
 
     def stages(self, t: float, x: np.ndarray, h: float) -> list[np.ndarray]:

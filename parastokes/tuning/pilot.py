@@ -28,7 +28,22 @@ from ..core.contracts import System
 from ..parareal import algorithm, metrics
 from .space import TuningError
 
-__all__ = ["Pilot", "PilotRun", "Screen"]
+__all__ = ["Pilot", "PilotRun", "Screen", "own_error"]
+
+
+def own_error(system: System, x0: np.ndarray, t0: float, t1: float, scheme: str, dt: float,
+              state: np.ndarray) -> float:
+    """Richardson's estimate of the error at ``t1`` of ``state``, the run of ``scheme`` at step
+    ``dt`` from ``x0`` (eq. 34's measure): ``|F_τ - F_2τ| / (2^p - 1)`` from a run at 2τ, or,
+    where 2τ is unstable (F at more than half its stability limit), ``2^p |F_τ - F_τ/2| /
+    (2^p - 1)`` from a run at τ/2."""
+    order = integrate.scheme_order(scheme)
+    try:
+        double = integrate.propagate(system, x0, t0, t1, scheme, 2.0 * dt)
+        return metrics.relative_change(double, state, system.positions) / (2**order - 1)
+    except integrate.BlowUpError:
+        half = integrate.propagate(system, x0, t0, t1, scheme, 0.5 * dt)
+        return metrics.relative_change(state, half, system.positions) * 2**order / (2**order - 1)
 
 
 class _Reused:
@@ -135,19 +150,8 @@ class Pilot:
             )
         gamma_f = (time.process_time() - cpu) / n_slices
         reference = np.array(states)
-        order = integrate.scheme_order(fine.scheme)
-        try:
-            double = integrate.propagate(system, reference[0], times[0], times[1], fine.scheme,
-                                         2.0 * fine.dt)
-            fine_error = metrics.relative_change(
-                double, reference[1], system.positions
-            ) / (2**order - 1)
-        except integrate.BlowUpError:  # F beyond half its stability limit (plan's F): τ/2
-            half = integrate.propagate(system, reference[0], times[0], times[1], fine.scheme,
-                                       0.5 * fine.dt)
-            fine_error = metrics.relative_change(
-                reference[1], half, system.positions
-            ) * 2**order / (2**order - 1)
+        fine_error = own_error(system, reference[0], times[0], times[1], fine.scheme, fine.dt,
+                               reference[1])
         return cls(system, fine, reference[0], t0, slice_length, n_slices, reference, gamma_f,
                    fine_error, time.perf_counter() - start)
 
@@ -165,7 +169,7 @@ class Pilot:
         return Screen(float(times[1]), start_state, state, float(defect), seconds)
 
     def measure(self, coarse: Any, iterations: int, known: Screen | None = None) -> PilotRun:
-        """Algorithm 1 on the window: η^k at T_P for k = 1..``iterations`` (< P); ``known`` is
+        """Algorithm 1 on the window: η^k at T_P for k = 1, ..., ``iterations`` (< P); ``known`` is
         the screen of the same solver (its call is reused)."""
         start = time.perf_counter()
         times = self.times
