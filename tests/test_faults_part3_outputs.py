@@ -45,6 +45,17 @@ def interrupted(finished, tmp_path) -> tuple[Path, Path]:  # noqa: F811
     return path, out
 
 
+def _signal_after_the_first_slice(monkeypatch, signum: int) -> None:
+    """Deliver ``signum`` to this process once the serial fine run has saved its first slice."""
+    saved = serial_module.io.save_arrays
+
+    def save_then_signal(target, *args, **kwargs):
+        saved(target, *args, **kwargs)
+        signal.raise_signal(signum)
+
+    monkeypatch.setattr(serial_module.io, "save_arrays", save_then_signal)
+
+
 # ---- 8: run --overwrite keeps the old run whole until the new one commits ---------------------
 def test_an_overwrite_refused_after_the_claim_leaves_the_old_run_resumable(
     interrupted, tmp_path, capsys
@@ -73,13 +84,7 @@ def test_an_interrupted_overwrite_leaves_the_old_run_resumable(
 ):
     path, out = interrupted
     before = _state(out)
-    saved = serial_module.io.save_arrays
-
-    def save_then_signal(target, *args, **kwargs):  # the signal after its first slice is saved
-        saved(target, *args, **kwargs)
-        signal.raise_signal(signum)
-
-    monkeypatch.setattr(serial_module.io, "save_arrays", save_then_signal)
+    _signal_after_the_first_slice(monkeypatch, signum)
     status = _run(path, "--out", out, "--overwrite", "--set", "fine.dt=5e-7")
     assert status == 128 + signum
     monkeypatch.undo()
@@ -452,13 +457,7 @@ def test_an_interrupted_demo_overwrite_keeps_the_edited_configuration(finished, 
                                                                       monkeypatch):
     out = shutil.copytree(finished[1], tmp_path / "out")
     (out / "config.toml").write_text("# edited by hand\n")
-    saved = serial_module.io.save_arrays
-
-    def save_then_signal(target, *args, **kwargs):
-        saved(target, *args, **kwargs)
-        signal.raise_signal(signal.SIGINT)
-
-    monkeypatch.setattr(serial_module.io, "save_arrays", save_then_signal)
+    _signal_after_the_first_slice(monkeypatch, signal.SIGINT)
     assert cli.main(["demo", "--out", str(out), "--overwrite", "-q", "--set",
                      "execution.executor=serial", "--set", "execution.workers=1"]) == \
         cli.ExitCode.INTERRUPTED
