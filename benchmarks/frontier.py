@@ -202,18 +202,20 @@ def hopeless(errors: Sequence[float], target: float, max_iterations: int) -> boo
 
 def predicted_speedups(alpha: float, iterations: int, n_auxiliary: int = 1,
                        cores: int = CORES) -> dict[str, float]:
-    """Speedups against F at P = ``cores`` slices on as many cores: the standard schedule's
+    """Speedups against F at P = ``cores`` slices on as many cores. ``standard``: Algorithm 1's
     closed formula (its coarse sweep runs the N_G auxiliary solves at once on idle cores, so alpha
-    is the slowest one plus the combination), the pipelined closed formula, and the pipelined
-    schedule simulated with the N_G auxiliary solves as tasks of their own (they compete with the
-    fine solves for the cores; equal to the formula's order for N_G = 1)."""
+    is the slowest one plus the combination). ``pipelined``: the pipelined closed formula for a
+    plain G (N_G = 1); with N_G > 1 the pipelined schedule simulated with the auxiliary solves
+    as tasks of their own (``pipelined_simulated``: they compete with the fine solves for the
+    cores, which the closed formula, kept as ``pipelined_formula``, does not see)."""
     from parastokes import parareal
 
-    simulated = parareal.simulate("pipelined", cores, iterations, cores, alpha,
-                                  n_auxiliary=n_auxiliary)
+    simulated = cores / parareal.simulate("pipelined", cores, iterations, cores, alpha,
+                                          n_auxiliary=n_auxiliary).wall
+    formula = parareal.speedup_pipelined(alpha, iterations, cores)
     return {"standard": parareal.speedup_standard(alpha, iterations, cores),
-            "pipelined": parareal.speedup_pipelined(alpha, iterations, cores),
-            "pipelined_simulated": cores / simulated.wall}
+            "pipelined": formula if n_auxiliary == 1 else simulated,
+            "pipelined_formula": formula, "pipelined_simulated": simulated}
 
 
 def best_serial(rows: Sequence[dict[str, Any]], target: float) -> dict[str, Any] | None:

@@ -32,6 +32,14 @@ def test_predicted_speedups_closed_formulas(frontier):
     assert s["pipelined"] <= s["pipelined_simulated"] <= 40 / (2 + 38 * 0.1) + 1e-12
 
 
+def test_pipelined_with_many_auxiliary_solves_is_the_simulated_schedule(frontier):
+    """36 auxiliary solves per coarse step compete with the fine solves for 40 cores: the
+    closed formula (one coarse task) overstates the pipeline, so N_G > 1 takes the simulation."""
+    s = frontier.predicted_speedups(0.105, 4, n_auxiliary=36)
+    assert s["pipelined_formula"] == pytest.approx(1 / (1.1 * 0.105 + 0.1))   # 4.63
+    assert s["pipelined"] == s["pipelined_simulated"] < 0.5 * s["pipelined_formula"]
+
+
 def test_best_serial_is_the_cheapest_reaching_the_target(frontier):
     rows = [{"scheme": "euler", "error": 2e-4, "cpu_per_time": 1.0},
             {"scheme": "rk2", "error": 1e-7, "cpu_per_time": 2.0},
