@@ -142,6 +142,9 @@ CANDIDATES: dict[str, dict[str, Candidate]] = {
         "ros34pw2 1.25e-3": Candidate("implicit", {"scheme": "ros34pw2", "dt": 1.25e-3}),
         "grid 3, eps 1, ros34pw2 1.25e-3": Candidate(
             "implicit on a coarse grid", {"scheme": "ros34pw2", "dt": 1.25e-3, "grid_factor": 3}),
+        "grid 3, eps 1, ros34pw2 6.25e-4": Candidate(
+            "implicit on a coarse grid", {"scheme": "ros34pw2", "dt": 6.25e-4, "grid_factor": 3}),
+        "ros34pw2 6.25e-4": Candidate("implicit", {"scheme": "ros34pw2", "dt": 6.25e-4}),
     },
     "quick": {
         "grid 3, eps [1.2, 1.4], euler 2.2e-5": Candidate(
@@ -154,6 +157,10 @@ CANDIDATES: dict[str, dict[str, Candidate]] = {
             "fine grid, Lagrange in ε (wide)", _grid(1, [2.0, 2.2], "euler", 1.3e-4)),
         "fine grid, eps [2, 2.2, 2.4], euler 1.3e-4": Candidate(
             "fine grid, Lagrange in ε (wide)", _grid(1, [2.0, 2.2, 2.4], "euler", 1.3e-4)),
+        "grid 3, eps 1.4, euler 3.8e-5": Candidate(
+            "coarse grid, ε fixed", {"scheme": "euler", "dt": 3.8e-5, "grid_factor": 3}),
+        "grid 2, eps 1.4, euler 3.8e-5": Candidate(
+            "coarse grid, ε fixed", {"scheme": "euler", "dt": 3.8e-5, "grid_factor": 2}),
     },
     "rod601": {
         "grid 2, eps [0.8, 1], euler 5e-6": Candidate(
@@ -625,7 +632,7 @@ def real_runs(name: str, label: str, iterations: int, slices: int = 4, workers: 
     return rows
 
 
-def emulate(name: str, label: str, iterations: int, fine_s: float = 0.15) -> dict[str, Any]:
+def emulate(name: str, label: str, iterations: int, fine_s: float = 1.0) -> dict[str, Any]:
     """EMULATION, not a speedup of the physics: both schedules on 40 threads whose propagators
     sleep gamma_F = ``fine_s`` and alpha gamma_F (``label``'s measured alpha and N_G), P = 40
     (benchmarks/pipeline.py's ``emulation_case``)."""
