@@ -4,8 +4,9 @@ frontier's pick per family. Pure functions: no physics is run."""
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
-from bench_modules import benchmark_module
+from bench_modules import ROOT, benchmark_module
 
 
 @pytest.fixture(scope="module")
@@ -30,6 +31,14 @@ def test_predicted_speedups_closed_formulas(frontier):
     # the event-based schedule is at least as fast as the closed pipeline, and not faster than
     # its critical path K gamma_F + (P - K) gamma_G
     assert s["pipelined"] <= s["pipelined_simulated"] <= 40 / (2 + 38 * 0.1) + 1e-12
+
+
+def test_pipelined_with_many_auxiliary_solves_is_the_simulated_schedule(frontier):
+    """36 auxiliary solves per coarse step compete with the fine solves for 40 cores: the
+    closed formula (one coarse task) overstates the pipeline, so N_G > 1 takes the simulation."""
+    s = frontier.predicted_speedups(0.105, 4, n_auxiliary=36)
+    assert s["pipelined_formula"] == pytest.approx(1 / (1.1 * 0.105 + 0.1))   # 4.63
+    assert s["pipelined"] == s["pipelined_simulated"] < 0.5 * s["pipelined_formula"]
 
 
 def test_best_serial_is_the_cheapest_reaching_the_target(frontier):
@@ -80,3 +89,29 @@ def test_hopeless_extrapolates_the_last_contraction(frontier):
     assert not frontier.hopeless([1.0, 0.5], 0.125, 4)
     assert frontier.hopeless([1e-3, 2e-3], 1e-6, 40)       # stalled or growing
     assert not frontier.hopeless([1e-3], 1e-6, 2)          # one iteration says nothing
+
+
+ROUND5 = sorted((ROOT / "experiments" / "round5").glob("*.toml"))
+#: Cut a shipped configuration to seconds: the rod at a fifth (L = 12, M = 61: σ_f, ε and the
+#: grid factors of 2 and 3 as the full rod's), the vesicle at 162 points, two short slices.
+QUICK = {"rod": ["model.n_points=61", "model.length=12", "time.t1=0.0004"],
+         "vesicle": ["model.subdivisions=2", "time.t1=0.2"]}
+
+
+@pytest.mark.parametrize("path", ROUND5, ids=lambda p: p.stem)
+def test_round5_configuration_checks_and_runs_quick(path):
+    """Each shipped configuration validates as it is (40 slices, pipelined), and a quick cut of
+    it runs Parareal to the end with finite states."""
+    from parastokes import config, parareal
+
+    cfg, resolved = config.load(path)
+    assert cfg.parareal.n_slices == 40 and cfg.parareal.schedule == "pipelined"
+    assert resolved.n_auxiliary <= cfg.execution.workers
+    cut = QUICK[cfg.model.kind] + ["parareal.n_slices=2", "parareal.max_iterations=1",
+                                   'execution.executor="serial"', "execution.workers=1"]
+    cfg, resolved = config.load(path, cut)
+    setup = config.build(cfg, resolved)
+    x0 = setup.system.initial_state()
+    result = parareal.run(setup.fine, setup.coarse, x0, 0.0, cfg.time.t1, 2, tol=0.0,
+                          max_iterations=1)
+    assert result.iterations == 1 and np.isfinite(result.states).all()
