@@ -611,8 +611,12 @@ def real_runs(name: str, label: str, iterations: int, slices: int = 4, workers: 
                 path.write_text(toml_text(data))
                 out = pathlib.Path(tmp) / f"{schedule}_{repeat}"
                 load = _load_average()
-                subprocess.run([sys.executable, "-m", "parastokes", "run", str(path), "--out",
-                                str(out), "--overwrite"], check=True, capture_output=True)
+                done = subprocess.run([sys.executable, "-m", "parastokes", "run", str(path),
+                                       "--out", str(out), "--overwrite"], capture_output=True,
+                                      text=True)
+                if done.returncode:
+                    raise RuntimeError(f"parastokes run exited {done.returncode}: "
+                                       f"{done.stderr[-2000:]}")
                 summary = json.loads((out / "summary.json").read_text())
                 timings = parareal.Timings(**{k: v for k, v in summary["timings"].items()
                                               if k in parareal.Timings.__dataclass_fields__})
