@@ -27,6 +27,13 @@ Run from the repository root (each part resumes from its JSON: a row already mea
   paper's records against the fastest serial run of the same accuracy
   (``docs/figures/stiff/best_serial.json``, read by ``parastokes predict --serial``).
 
+- ``linalg``: the pieces of a linearly implicit step (loads' Jacobian, near mobility, their
+  product, factorization, stage solve) over one evaluation of the rates, on the rods of 301
+  and 601 points, beside the same pieces as they were before round 5; the counts of Jacobians
+  and factorizations of a fixed and an adaptive ROS34PW2 run;
+- ``short``: work-precision over T = 0.005 s on those rods: forward Euler and RK2 at their
+  limit, ROS2, ROS34PW2 and ROS2-Krylov at fixed steps, ROS2 and ROS34PW2 adaptive.
+
 CPU times are ``time.process_time`` of one process with one kernel thread; ratios within one
 run are what to compare (the machine is shared). Results: ``docs/figures/stiff/*.json`` and
 ``docs/figures/stiff/work_precision.png``.
@@ -313,6 +320,7 @@ def _serial_case(case: str, config_path: str, data: dict[str, Any]) -> None:
     x0 = system.initial_state()
     t1, scheme, dt = cfg.time.t1, cfg.fine.scheme, cfg.fine.dt
     entry = data["cases"].setdefault(case, {"config": config_path, "t1": t1})
+    entry["problem"] = config.problem_key(cfg)  # predict --serial checks it is the same problem
     partial = OUT / f".best_serial_{case}_partial.npz"  # (kept with the results: F's state)
 
     def fine_solution() -> np.ndarray:
@@ -489,16 +497,161 @@ def figure() -> None:
     fig.savefig(OUT / "work_precision.png", dpi=120)
 
 
+#: The rods of the short work-precision (``--parts linalg short``): points, ε, and the explicit
+#: schemes' step: just below forward Euler's limit (1.22e-5 and 7.97e-7 s, bisected in
+#: docs/benchmarks.md, "Stiff bodies"; at the limit itself both blow up over T).
+SHORT_RODS = {"rod301": (301, 1.0, 1.2e-5), "rod601": (601, 0.5, 7.58e-7)}
+SHORT_T = 0.005
+
+
+def _cpu_per_call(function: Callable[[], Any], repeat: int) -> float:
+    """CPU seconds per call of ``function`` (one warm-up call, then the mean of ``repeat``)."""
+    function()
+    return _timed(lambda: [function() for _ in range(repeat)])[1] / repeat
+
+
+def _linalg_rod(m: int, eps: float) -> dict[str, Any]:
+    """:func:`linalg_part` on the rod of ``m`` points and regularization ``eps``."""
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    from parastokes.stiff import banded, jacobian, local, solve
+
+    rod = models.rod_swimmer(n_points=m, epsilon=eps, n_threads=1)
+    x = rod.initial_state()
+    n = rod.rates(0.0, x).size
+    hgamma = 2.5e-4 * integrate.SCHEMES["ros34pw2"].gamma
+    k = sp.bsr_array(jacobian.load_jacobian(rod, 0.0, x), blocksize=(6, 6))
+    mob = local.near_mobility(rod.positions(x), eps, rod.viscosity, True, jacobian.CUTOFF * eps)
+    a = banded.block_product(mob, k)
+    lu = solve.Factorization(a, hgamma, 0.0)
+    v = np.ones(n)
+
+    def before() -> None:  # this round's start: scipy's BSR product, CSC, SuperLU
+        system = sp.eye_array(n, format="csc") - hgamma * (mob @ k).tocsc()
+        spla.splu(system, permc_spec="NATURAL")
+
+    pieces = {
+        "evaluation": lambda: rod.rates(0.0, x),
+        "K": lambda: jacobian.load_jacobian(rod, 0.0, x),
+        "M": lambda: local.near_mobility(rod.positions(x), eps, rod.viscosity, True,
+                                         jacobian.CUTOFF * eps),
+        "product": lambda: banded.block_product(mob, k),
+        "factorization": lambda: solve.Factorization(a, hgamma, 0.0),
+        "stage_solve": lambda: lu.solve(v),
+        "fresh": lambda: solve.Factorization(jacobian.local_jacobian(rod, 0.0, x, n), hgamma,
+                                             0.0),
+        "before_product_csc_splu": before,
+    }
+    cpu = {key: _cpu_per_call(f, 40 if key in ("evaluation", "stage_solve") else 10)
+           for key, f in pieces.items()}
+    ratio = {key: value / cpu["evaluation"] for key, value in cpu.items()}
+    entry: dict[str, Any] = {"points": m, "unknowns": n, "band": list(banded.bandwidth(a)),
+                             "cpu_ms": {key: 1e3 * value for key, value in cpu.items()},
+                             "per_evaluation": ratio,
+                             "before_fresh": ratio["K"] + ratio["M"]
+                             + ratio["before_product_csc_splu"]}
+    for scheme, stages in (("ros2", 2), ("ros34pw2", 4)):
+        for every in (5, 10):
+            entry[f"amortized_{scheme}_refresh{every}"] = (ratio["fresh"] / every
+                                                           + stages * ratio["stage_solve"])
+    return entry
+
+
+def _counts() -> dict[str, Any]:
+    """Jacobians and factorizations of ROS34PW2 runs over T on the rod of 301 points: fixed
+    steps of 2.5e-4 s and adaptive ones (rtol 1e-4, atol 1e-5)."""
+    made = {"jacobians": 0, "factorizations": 0}
+    jacobian_of, factorization = stepper.local_jacobian, stepper.Factorization
+
+    def counted_jacobian(*args: Any) -> Any:
+        made["jacobians"] += 1
+        return jacobian_of(*args)
+
+    def counted_factorization(*args: Any) -> Any:
+        made["factorizations"] += 1
+        return factorization(*args)
+
+    rod = models.rod_swimmer(n_points=301, epsilon=1.0, n_threads=1)
+    out = {}
+    stepper.local_jacobian, stepper.Factorization = counted_jacobian, counted_factorization
+    try:
+        for label, kw in (("fixed", {}), ("adaptive", {"rtol": 1e-4, "atol": 1e-5})):
+            made.update(jacobians=0, factorizations=0)
+            result = integrate.run(rod, rod.initial_state(), 0.0, SHORT_T, "ros34pw2", 2.5e-4,
+                                   **kw)  # type: ignore[arg-type]
+            out[label] = dict(made, accepted=result.n_steps, rejected=result.n_rejected)
+    finally:
+        stepper.local_jacobian, stepper.Factorization = jacobian_of, factorization
+    return out
+
+
+def linalg_part() -> dict[str, Any]:
+    """The linear algebra of a linearly implicit step on the rods of :data:`SHORT_RODS`, each
+    piece's CPU time over one evaluation of the rates, in one run: the loads' Jacobian K
+    (coloured differences), the near mobility M, the product A = M K, the factorization of
+    I - hγA, one stage solve; the same pieces as before this round (scipy's BSR product, its
+    conversion to CSC and SuperLU); and the counts of Jacobians and factorizations of a fixed
+    and an adaptive ROS34PW2 run on the rod of 301 points."""
+    data = _load(OUT / "linalg.json")
+    for name, (m, eps, _) in SHORT_RODS.items():
+        data[name] = _linalg_rod(m, eps)
+        print(name, json.dumps(data[name], indent=1), flush=True)
+    data["counts_rod301_ros34pw2"] = _counts()
+    print(data["counts_rod301_ros34pw2"], flush=True)
+    _save(OUT / "linalg.json", data)
+    return data
+
+
+def short_part() -> dict[str, Any]:
+    """Work-precision over T = :data:`SHORT_T` on the rods of :data:`SHORT_RODS`: forward Euler
+    and RK2 just below forward Euler's limit, ROS2, ROS34PW2 (Jacobian every 5 and 10 steps),
+    ROS2-Krylov and ROS34PW2-Krylov at fixed steps, and ROS2, ROS34PW2 and ROS34PW2-Krylov
+    adaptive across tolerances (atol = rtol/10 μm), against RK4 at half the limit; rows as
+    ``work_precision``'s plus ``rtol``."""
+    out = {}
+    for name, (m, eps, limit) in SHORT_RODS.items():
+        rod = models.rod_swimmer(n_points=m, epsilon=eps, n_threads=1)
+        steps = {"euler": [limit], "rk2": [limit],
+                 "ros2": [2.5e-4, 1.25e-4, 6.25e-5],
+                 "ros34pw2": [1e-3, 5e-4, 2.5e-4, 1.25e-4, 6.25e-5],
+                 "ros2-krylov": [2.5e-4, 1.25e-4],
+                 "ros34pw2-krylov": [5e-4, 2.5e-4, 1.25e-4]}
+        steps = {k: [float(f"{v:.3g}") for v in vs] for k, vs in steps.items()}
+        key = f"short_{name}"
+        data = work_precision(key, rod, SHORT_T, float(f"{0.5 * limit:.2g}"), steps,
+                              {"ros34pw2": [5, 10]})
+        reference = np.load(OUT / f".{key}_reference.npy")
+        x0 = rod.initial_state()
+        done = {(r["scheme"], r.get("rtol")) for r in data["rows"]}
+        for scheme in ("ros2", "ros34pw2", "ros34pw2-krylov"):
+            for rtol in (1e-2, 1e-3, 1e-4, 1e-5):
+                if (scheme, rtol) in done:
+                    continue
+                result, cpu = _timed(lambda s=scheme, r=rtol, body=rod, y=x0: integrate.run(
+                    body, y, 0.0, SHORT_T, s, 1e-4, rtol=r, atol=0.1 * r))
+                row = {"scheme": scheme, "rtol": rtol, "dt": None, "refresh": stepper.REFRESH,
+                       "error": _relative_error(result.state, reference, x0), "cpu": cpu,
+                       "steps": result.n_steps, "rejected": result.n_rejected}
+                data["rows"].append(row)
+                print(key, row, flush=True)
+                _save(OUT / f"{key}.json", data)
+        data["summary"] = summary(data)
+        _save(OUT / f"{key}.json", data)
+        out[name] = data
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--parts", nargs="+", default=["rod", "vesicle", "parareal"],
                         choices=["rod", "rod601", "vesicle", "parareal", "parareal601",
-                                 "best_serial"])
+                                 "best_serial", "linalg", "short"])
     args = parser.parse_args(argv)
     for part in args.parts:
         {"rod": rod_part, "rod601": fine_rod_part, "vesicle": vesicle_part,
          "parareal": parareal_part, "parareal601": fine_parareal_part,
-         "best_serial": best_serial_part}[part]()
+         "best_serial": best_serial_part, "linalg": linalg_part, "short": short_part}[part]()
         figure()
     return 0
 

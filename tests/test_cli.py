@@ -266,6 +266,13 @@ def test_failures_map_to_documented_exit_codes(tiny_runs, tmp_path, monkeypatch,
     assert cli.main(["run", str(path), "--out", str(tmp_path), "-q"]) == code
 
 
+def table_rows(text: str) -> list[list[str]]:
+    """The rows of predict's table (the lines after its header, which starts with N_c)."""
+    lines = text.splitlines()
+    start = next(i for i, line in enumerate(lines) if line.split()[:1] == ["N_c"]) + 1
+    return [line.split() for line in lines[start:] if line.split()[0].isdigit()]
+
+
 def test_predict_prints_eq_14_for_each_core_count(tiny_runs, capsys):
     path, (out, _) = tiny_runs
     assert (
@@ -274,7 +281,7 @@ def test_predict_prints_eq_14_for_each_core_count(tiny_runs, capsys):
         )
         == 0
     )
-    rows = [line.split() for line in capsys.readouterr().out.splitlines()[2:]]
+    rows = table_rows(capsys.readouterr().out)
     for (n, theory, bound), row in zip(parareal.predict(0.05, 2, [4, 40]), rows, strict=True):
         assert [int(row[0]), float(row[3]), float(row[4])] == [n, round(theory, 3), round(bound, 3)]
     assert cli.main(["predict", str(path), "--cores", "8", "--measured", str(out)]) == 0
@@ -286,7 +293,7 @@ def test_predict_prints_eq_14_for_each_core_count(tiny_runs, capsys):
     one = summary["speedup"]["gamma_ratio"] / math.ceil(n_aux / workers)
     text = capsys.readouterr().out
     assert f"one auxiliary solve: {one:.4g}; N_G = {n_aux}" in text
-    alpha = float(text.splitlines()[2].split()[2])
+    alpha = float(table_rows(text)[0][2])
     assert alpha == pytest.approx(math.ceil(n_aux / 8) * one, abs=1e-4)
     assert cli.main(["predict", str(path), "--cores", "8"]) == 0
     assert "estimated" in capsys.readouterr().out
@@ -345,6 +352,7 @@ def test_predict_against_the_fastest_serial_run_of_the_same_accuracy(tiny_runs, 
         "t1": 0.002, "reference": {"scheme": "rk2", "dt": 1e-6, "cpu": 10.0},
         "rows": [{"scheme": "rk2", "dt": 4e-6, "error": 1e-7, "cpu": 2.5, "fine_cpu": 10.0},
                  {"scheme": "euler", "dt": 2e-6, "error": 1e-4, "cpu": 1.0, "fine_cpu": 10.0}]}}}
+    runs["cases"]["tiny"]["problem"] = config.problem_key(config.load(path)[0])
     serial = tmp_path / "serial.json"
     serial.write_text(json.dumps(runs))
     base = ["predict", str(path), "--cores", "4", "--ratio", "0.05", "--iterations", "2",
@@ -371,5 +379,5 @@ def test_predict_against_the_fastest_serial_run_of_the_same_accuracy(tiny_runs, 
     # a configuration of another F is refused: its speedups are against another solver
     assert cli.main([*base, "--target", "1e-6", "--set", "fine.dt=2e-6"]) == cli.ExitCode.CONFIG
     assert "measured against F = rk2 at dt = 1e-06 over T = 0.002" in capsys.readouterr().err
-    assert cli.main(["predict", str(path), "--cores", "4", "--target", "1e-6"]) == 2
-    assert "--target go with --serial" in capsys.readouterr().err
+    assert cli.main(["predict", str(path), "--cores", "4", "--case", "tiny"]) == 2
+    assert "--case goes with --serial" in capsys.readouterr().err

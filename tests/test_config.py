@@ -156,7 +156,11 @@ def test_vesicle_units_and_rules():
     )
     assert r.epsilon == pytest.approx(0.3 * r.grid_spacing)  # 0.3 l_max
     assert r.lagrange["stiffness"] == pytest.approx([0.06, 0.07])  # relative to kappa0 = 0.1
-    assert "coarse.grid_factor" in issues_of(VESICLE, "coarse.grid_factor=2")
+    # a coarser icosphere: a power of 2 up to 2^subdivisions (round 5), nothing else
+    config.loads(VESICLE, overrides=["coarse.grid_factor=2"])
+    assert "power of 2" in issues_of(VESICLE, "coarse.grid_factor=3")["coarse.grid_factor"]
+    too_fine = issues_of(VESICLE, "coarse.grid_factor=8")["coarse.grid_factor"]
+    assert "at most 2^subdivisions" in too_fine
     assert "coarse.lagrange.bending" in issues_of(VESICLE, "coarse.lagrange.bending=[0.5, 0.6]")
     assert "output.tracked_points" in issues_of(VESICLE, "output.tracked_points=[5000]")
     assert "model.epsilon_unit" in issues_of(VESICLE, 'model.epsilon_unit="sigma_f"')
@@ -303,7 +307,7 @@ def test_the_coarse_solver_family_is_a_key_with_the_extrapolated_default():
     assert "coarse.kind" in issues and "extrapolated" in issues["coarse.kind"]
 
 
-def test_implicit_schemes_and_adaptive_steps_are_keys_checked_before_any_work():
+def test_implicit_schemes_and_adaptive_steps_are_keys_checked_before_any_work(monkeypatch):
     """docs/stiff.md: the schemes by name, rtol/atol finite and positive with a scheme that has
     an error estimate; implicit schemes on the GPU executor too (hosted)."""
     cfg, _ = config.loads(VESICLE, overrides=['fine.scheme="ros2"', "fine.rtol=1e-4"])
@@ -314,7 +318,11 @@ def test_implicit_schemes_and_adaptive_steps_are_keys_checked_before_any_work():
                                             "fine.rtol=1e-3")["fine.rtol"]
     assert issues_of(VESICLE, 'fine.scheme="ros2"', "fine.atol=1e-3")["fine.rtol"] == (
         "required with fine.atol (adaptive steps)")
-    # the GPU executor hosts implicit solves (parastokes.gpu.hosted): nothing to refuse
+    # the GPU executor hosts implicit solves (parastokes.gpu.hosted): nothing to refuse (on a
+    # machine with a GPU: this one may have none)
+    from parastokes.gpu import device
+
+    monkeypatch.setattr(device, "missing", lambda: None)
     cfg, _ = config.loads(VESICLE, overrides=['coarse.scheme="ros2-krylov"',
                                               'execution.executor="gpu"'])
     assert (cfg.coarse.scheme, cfg.execution.executor) == ("ros2-krylov", "gpu")

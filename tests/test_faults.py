@@ -253,7 +253,9 @@ def test_out_of_memory_in_a_run_is_exit_2_with_one_line(capsys, monkeypatch):
 
     monkeypatch.setattr(runner, "execute", fail)
     assert cli.main(["demo", "--out", "unused", "-q"]) == cli.ExitCode.CONFIG
-    assert "cause: out of memory (MemoryError)" in capsys.readouterr().err
+    assert capsys.readouterr().err.splitlines() == [  # (was a second line under "error: ")
+        "error: out of memory (MemoryError): use fewer points, slices or workers, or a machine "
+        "with more memory"]
 
 
 # ---- 11: plot during a commit cut short; 14: orphan temporary files --------------------------

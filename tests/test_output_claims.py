@@ -208,9 +208,9 @@ def test_flow_and_movie_on_a_directory_a_run_holds_are_refused_before_any_work(
     out = [] if where == "into the run" else ["--out", str(tmp_path / "f")]
     with rundir.locked(run_dir):  # a run in progress there (this process: alive)
         assert main(["flow", str(run_dir), *out, "-q"]) == 2
-        assert "is in use by another parastokes run" in capsys.readouterr().err
+        assert "is in use by another parastokes process" in capsys.readouterr().err
         assert main(["movie", str(run_dir), "--out", str(tmp_path / "m.gif"), "-q"]) == 2
-        assert "is in use by another parastokes run" in capsys.readouterr().err
+        assert "is in use by another parastokes process" in capsys.readouterr().err
         assert _files(run_dir) == before
     assert not (tmp_path / "f.h5").exists() and not (tmp_path / "m.gif").exists()
 

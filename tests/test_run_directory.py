@@ -176,7 +176,7 @@ def test_plot_waits_for_no_run_it_would_mix_with(finished, tmp_path, capsys):
     shutil.copytree(source, out)
     with rundir.claim(out, resume=True, overwrite=False):  # a run holds the directory
         assert cli.main(["plot", str(out), "-q"]) == cli.ExitCode.CONFIG
-    assert "in use by another parastokes run" in capsys.readouterr().err
+    assert "is in use by another parastokes process" in capsys.readouterr().err
 
 
 def test_interrupted_and_foreign_directories_are_refused(finished, tmp_path, capsys):
@@ -338,7 +338,8 @@ def test_trajectories_need_no_hdf5_file_locking(tmp_path):
 
 
 def test_the_kept_solves_are_resume_state(tmp_path):
-    """checkpoint.solves/ is the run's own (not foreign), and --overwrite discards it."""
+    """checkpoint.solves/ is the run's own (not foreign), and --overwrite discards it when the
+    new run commits (not before: a new run cut short leaves the old one resumable)."""
     out = tmp_path / "out"
     (out / "checkpoint.solves").mkdir(parents=True)
     (out / "checkpoint.solves" / "fine-k2-n3.npz").write_text("a kept solve")
@@ -349,6 +350,9 @@ def test_the_kept_solves_are_resume_state(tmp_path):
             pass
     with rundir.claim(out, resume=False, overwrite=True):
         pass
+    assert (out / "checkpoint.solves" / "fine-k2-n3.npz").exists()
+    with rundir.claim(out, resume=False, overwrite=True) as directory:
+        directory.commit()
     assert not (out / "checkpoint.solves").exists()
 
 

@@ -150,12 +150,15 @@ CALLS: dict[str, tuple[str, ...]] = {
     "positions": ("state",),
     "monitor": ("state",),
 }
-#: Methods called only where a body has them: scenes' members, a Lie bracket, a point body's forces.
+#: Methods called only where a body has them: scenes' members, a Lie bracket, a point body's
+#: forces, the Jacobian hooks of the linearly implicit schemes (:mod:`parastokes.stiff.jacobian`).
 OPTIONAL_CALLS: dict[str, tuple[str, ...]] = {
     "loads": ("t", "state"),
     "body_rates": ("u", "w"),
     "bracket": ("r1", "r2"),
     "forces": ("state",),
+    "load_jacobian": ("t", "state"),
+    "stiff_jacobian": ("t", "state"),
 }
 
 

@@ -35,6 +35,14 @@ class Console:
     def note(self, text: str) -> None:
         self.print(text)
 
+    def warn(self, text: str) -> None:
+        """A warning on standard error, even with ``--quiet`` (manager only)."""
+        if is_manager():
+            if self._bar is not None:
+                self._bar.write(f"warning: {text}", file=sys.stderr)
+            else:
+                print(f"warning: {text}", file=sys.stderr, flush=True)
+
     def start(self, what: str, total: int) -> None:
         if what == "parareal":
             self.print(f"{'k':>3}  {'increment η̃^k':>14}  {'error η^k':>10}  {'elapsed [s]':>11}")

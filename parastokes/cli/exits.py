@@ -14,7 +14,7 @@ from collections.abc import Callable
 from concurrent.futures.process import BrokenProcessPool
 from typing import TYPE_CHECKING, Any, TypeAlias
 
-from ..core.signals import Terminated, interrupt, terminate
+from ..core.signals import Terminated, interrupt, terminate, what_completed
 from .console import Console
 from .launch import is_manager, mpi_processes
 
@@ -41,6 +41,7 @@ SMALLER = {
     "flow": "use a smaller --resolution or --dpi (a plane rather than a box)",
     "movie": "use a smaller --size or --resolution, or fewer --frames",
     "plot": "plot fewer runs at once",
+    "predict": "give smaller files (--serial, --measured's summary.json)",
 }
 
 
@@ -84,6 +85,7 @@ def exit_code(error: BaseException) -> ExitCode:
     from ..core.files import is_resource_error
     from ..integrate import BlowUpError
     from ..parallel import TaskError
+    from ..run.execution import MonitorError
 
     causes = list(_causes(error))
     for cause in causes:
@@ -91,7 +93,7 @@ def exit_code(error: BaseException) -> ExitCode:
             return ExitCode(128 + cause.signum)
     if any(isinstance(e, KeyboardInterrupt) for e in causes):
         return ExitCode.INTERRUPTED
-    if any(isinstance(e, BlowUpError) for e in causes):
+    if any(isinstance(e, BlowUpError | MonitorError) for e in causes):
         return ExitCode.BLOWUP
     if isinstance(error, ConfigError) or body_error(error) is not None:
         return ExitCode.CONFIG
@@ -164,7 +166,10 @@ def report(error: BaseException, console: Console, command: str = "run") -> Exit
     notes = [f"  {note}" for note in getattr(error, "__notes__", ())]
     if code in (ExitCode.INTERRUPTED, ExitCode.TERMINATED, ExitCode.HANGUP):
         what = {130: "interrupted", 143: "terminated (SIGTERM)", 129: "hung up (SIGHUP)"}[code]
-        if resumable:
+        done = what_completed()
+        if done is not None:
+            lines = [f"{what} after the command had completed: {done}"]
+        elif resumable:
             lines = [f"{what}: the workers are stopped and the checkpoint is consistent; rerun "
                      "with --resume to continue"]
         else:
@@ -176,7 +181,10 @@ def report(error: BaseException, console: Console, command: str = "run") -> Exit
         return code
     else:
         limit = _machine_limit(error, command)
-        lines = [f"error: {body_error(error) or error}", *notes, *([limit] if limit else [])]
+        message = str(body_error(error) or error)
+        if not message:  # (a MemoryError says nothing itself: its cause is the message)
+            message, limit = (limit or type(error).__name__).removeprefix("cause: "), None
+        lines = [f"error: {message}", *notes, *([limit] if limit else [])]
         if code is ExitCode.PARALLEL and resumable:
             lines.append("rerun with --resume to continue from the last iteration")
     print("\n".join(lines), file=sys.stderr)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from .plan import cmd_plan
 from .plot import cmd_plot
 from .predict import cmd_predict
 from .run import cmd_check, cmd_demo, cmd_run
@@ -19,7 +20,8 @@ def parser() -> argparse.ArgumentParser:
         "flow (Liu & Rostami).",
         epilog="Exit codes: 0 ok, 1 unexpected error (a bug), 2 bad configuration, usage or output "
         "directory (in use, finished, damaged file, unwritable), 3 numerical blow-up (last good "
-        "state saved), 4 worker/parallel failure, 130 interrupted (Ctrl-C), 143 terminated "
+        "state saved; or a monitor above its limit with --monitor-fatal), 4 worker/parallel "
+        "failure, 130 interrupted (Ctrl-C), 143 terminated "
         "(SIGTERM), 129 hung up (SIGHUP); after 4, 130, 143 and 129 the checkpoint is consistent "
         "and --resume continues.",
     )
@@ -48,6 +50,12 @@ def parser() -> argparse.ArgumentParser:
         "--overwrite",
         action="store_true",
         help="replace the run in --out (its results stay until the new run completes)",
+    )
+    running.add_argument(
+        "--monitor-fatal",
+        action="store_true",
+        help="a stability monitor above its limit at the end is an error (exit 3), not a "
+        "warning (output.monitor_fatal)",
     )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
@@ -99,6 +107,17 @@ def parser() -> argparse.ArgumentParser:
 
     add_arguments(p)
     p.set_defaults(func=cmd_tune)
+
+    p = sub.add_parser(
+        "plan",
+        parents=[common, overrides],
+        help="the fastest route to the end on N cores at a target error: serial, spatial, "
+        "Parareal or both, against the fastest serial run (docs/planning.md)",
+    )
+    from ..planning.command import add_arguments as add_plan_arguments
+
+    add_plan_arguments(p)
+    p.set_defaults(func=cmd_plan)
 
     p = sub.add_parser("plot", parents=[common], help="figures from run directories")
     p.add_argument("dirs", nargs="*", help="run directories (several: comparison figures)")

@@ -4,9 +4,11 @@ numbers of cores, from the coarse family's estimate of γ_G/γ_F or a measured r
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 from typing import Any
 
+from ..parareal.best_serial import HOW_TO_MEASURE
 from .console import Console
 from .exits import ExitCode
 from .run import load
@@ -46,8 +48,11 @@ def cmd_predict(args: argparse.Namespace, console: Console) -> ExitCode:
         raise ValueError(f"predict: --workers must be at least 1, got {args.workers}")
     if args.iterations is not None and args.iterations < 1:
         raise ValueError(f"predict: --iterations must be at least 1, got {args.iterations}")
-    if (args.case is not None or args.target is not None) and args.serial is None:
-        raise ValueError("predict: --case and --target go with --serial FILE.json")
+    if args.case is not None and args.serial is None:
+        raise ValueError("predict: --case goes with --serial FILE.json")
+    for name, value in (("--ratio", args.ratio), ("--target", args.target)):
+        if value is not None and not (math.isfinite(value) and value > 0):
+            raise ValueError(f"predict: {name} must be a positive finite number, got {value:g}")
     cfg, resolved = load(args.config, args.set)
     measured = io.read_summary(Path(args.measured) / "summary.json") if args.measured else None
     if measured is not None and not measured.get("speedup"):
@@ -71,8 +76,10 @@ def cmd_predict(args: argparse.Namespace, console: Console) -> ExitCode:
         f"rounds); N_it = {iterations}; {workers} workers; std/pipe: closed formulas, "
         "sim: simulated schedules (docs/parareal.md)"
     )
-    if against is not None:
-        print(against[1])
+    print(f"speedups against F ({cfg.fine.scheme} at dt = {cfg.fine.dt:.3g}); "
+          + (against[1] if against is not None else
+             f"against the fastest serial run of the same accuracy: none measured for this "
+             f"problem ({HOW_TO_MEASURE})"))
     print(
         f"{'N_c':>6} {'N_it':>5} {'γ_G/γ_F':>9} {'speedup (eq. 14)':>17} {'bound (eq. 15)':>15}"
         f" {'std':>7} {'std sim':>8} {'pipe':>7} {'pipe sim':>9}"
@@ -100,26 +107,41 @@ def cmd_predict(args: argparse.Namespace, console: Console) -> ExitCode:
 
 def best_serial(args: argparse.Namespace, cfg: Any, measured: dict | None
                 ) -> tuple[float, str] | None:
-    """With ``--serial``: F's CPU time over that of the fastest measured serial run reaching the
-    target (:mod:`parastokes.parareal.best_serial`), and the line that says which run it is."""
-    if args.serial is None:
-        return None
-    from ..parareal.best_serial import load_serial_runs
+    """F's CPU time over that of the fastest serial run reaching the target, and the line that
+    says which run it is: from ``--serial`` (measured runs of this very problem,
+    :mod:`parastokes.parareal.best_serial`), else from the cache beside the configuration that
+    ``parastokes plan`` writes; None when neither knows one."""
+    from ..config import problem_key
+    from ..parareal.best_serial import best_known, cache_path, load_serial_runs
 
-    runs = load_serial_runs(args.serial, args.case)
-    runs.check_fine(cfg.fine.scheme, cfg.fine.dt, cfg.time.t1 - cfg.time.t0)
     target = args.target
     if target is None:
         errors = (measured or {}).get("errors") or []
-        if not errors:
-            raise ValueError("predict: --serial needs --target ETA (the accuracy at T of the "
-                             "Parareal result), or --measured DIR of a run with a reference")
-        target = float(errors[-1])
-    if not target > 0:
-        raise ValueError(f"predict: --target must be positive, got {target:g}")
+        target = float(errors[-1]) if errors else None
+        if target is not None and not (math.isfinite(target) and target > 0):
+            if args.serial is None:  # no serial run reaches it; the cache is only consulted
+                return None
+            raise ValueError(f"predict: the last error η^K of the run in {args.measured} is "
+                             f"{target:g}, which no serial run is measured to reach: give "
+                             "--target ETA")
+    key = problem_key(cfg)
+    if args.serial is None:
+        known = best_known(cache_path(args.config), key, target)
+        if known is None:
+            return None
+        return known.fine_over, (
+            f"against the fastest serial run reaching η* = {known.target:.3g} at T (cached in "
+            f"{known.source}): {known.describe()}, {known.fine_over:.3g}x less CPU than F; "
+            "vs best serial = eq. 14 over that factor")
+    runs = load_serial_runs(args.serial, args.case)
+    runs.check_fine(cfg.fine.scheme, cfg.fine.dt, cfg.time.t1 - cfg.time.t0)
+    runs.check_problem(key)
+    if target is None:
+        raise ValueError("predict: --serial needs --target ETA (the accuracy at T of the "
+                         "Parareal result), or --measured DIR of a run with a reference")
     best = runs.best(target)
     who = ("F itself (no faster measured run reaches it)" if best is runs.reference else
            f"{best.describe()} (error {best.error:.3g}), {best.fine_over:.3g}x less CPU than F")
-    return best.fine_over, (f"the fastest serial run reaching η* = {target:.3g} at T (case "
-                            f"{runs.case!r} of {args.serial}): {who}; vs best serial = eq. 14 "
-                            "over that factor")
+    return best.fine_over, (f"against the fastest serial run reaching η* = {target:.3g} at T "
+                            f"(case {runs.case!r} of {args.serial}): {who}; vs best serial = "
+                            "eq. 14 over that factor")

@@ -39,18 +39,33 @@ def run_and_report(
         files=files,
     )
     if summary["speedup"] is not None:
+        from ..config import problem_key
+        from ..run.speedups import against_best_serial
+
         console.print(speedup_table(summary))
+        console.print(against_best_serial(summary, getattr(args, "config", None),
+                                          problem_key(cfg)))
     monitor = summary["monitor"]
     console.print(
         f"stability monitor: max {monitor['max']:.3g} at the slice boundaries "
         f"(limit {monitor['limit']:g})"
     )
-    console.print(f"results in {args.out}/ (summary.json, trajectory.h5/.xdmf, figures)")
+    output = cfg.output
+    written = ["summary.json", *(["trajectory.h5/.xdmf"] if output.trajectory else []),
+               *(["flow.h5/.xdmf/.png"] if output.trajectory and output.flow_every is not None
+                 else []),
+               *(["figures"] if output.figures else [])]
+    console.print(f"results in {args.out}/ ({', '.join(written)})")
     return ExitCode.OK
 
 
+def _sets(args: argparse.Namespace) -> list[str]:
+    """The ``--set`` overrides with those of the flags (``--monitor-fatal``)."""
+    return [*args.set, *(["output.monitor_fatal=true"] if args.monitor_fatal else [])]
+
+
 def cmd_run(args: argparse.Namespace, console: Console) -> ExitCode:
-    cfg, resolved = load(args.config, args.set)
+    cfg, resolved = load(args.config, _sets(args))
     console.print(f"{cfg.title or args.config}")
     return run_and_report(args, cfg, resolved, console)
 
@@ -88,10 +103,12 @@ def demo_text(overrides: Sequence[str]) -> str:
 def cmd_demo(args: argparse.Namespace, console: Console) -> ExitCode:
     from ..config import DEMO
 
-    cfg, resolved = load(None, args.set, text=DEMO)
+    cfg, resolved = load(None, _sets(args), text=DEMO)
     console.print(cfg.title)
-    console.print(f"(configuration written to {args.out}/config.toml; edit it and use `run`)")
-    return run_and_report(args, cfg, resolved, console, files={"config.toml": demo_text(args.set)})
+    status = run_and_report(args, cfg, resolved, console,
+                            files={"config.toml": demo_text(args.set)})
+    console.print(f"(its configuration is in {args.out}/config.toml; edit it and use `run`)")
+    return status
 
 
 def cmd_check(args: argparse.Namespace, console: Console) -> ExitCode:
@@ -111,10 +128,12 @@ def cmd_check(args: argparse.Namespace, console: Console) -> ExitCode:
             print(f"{path}: {error}", file=sys.stderr)
             status = ExitCode.CONFIG
             continue
+        steps = (f"{r.fine_steps} fine steps" if cfg.fine.rtol is None else
+                 f"adaptive fine steps (their number set by fine.rtol = {cfg.fine.rtol:g})")
         console.print(
             f"{path}: ok ({cfg.model.kind}, {r.n_points} points"
             f"{'' if math.isnan(r.epsilon) else f', ε⁰ = {r.epsilon:.6g}'}; "
-            f"{cfg.parareal.n_slices} slices of {r.fine_steps} fine steps; coarse τ_c = "
+            f"{cfg.parareal.n_slices} slices of {steps}; coarse τ_c = "
             f"{r.coarse_dt:.6g} ({r.coarse_dt / r.fine_dt:.4g} τ_f), N_G = {r.n_auxiliary}, "
             f"Σ|w| = {r.weight_sum:.3g}, workers = {r.workers})"
         )

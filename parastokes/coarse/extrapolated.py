@@ -64,8 +64,9 @@ class Extrapolated(CoarseSection):
         None, description="Adaptive steps of every auxiliary solver within this relative error "
         "per step (ros2, ros2-krylov; not with richardson.m >= 1); dt is then the first step.")
     atol: float | None = Field(None, description="Absolute error per step (default: rtol).")
-    grid_factor: int = Field(1, ge=1, description="σ_c / σ_f (rods; Table 6 uses 6); rigid bodies: "
-                             "each part of the surface with factor times fewer points; scenes: "
+    grid_factor: int = Field(1, ge=1, description="σ_c / σ_f (rods; Table 6 uses 6); vesicles: "
+                             "2^j, the icosphere j levels coarser; rigid bodies: each part of the "
+                             "surface with factor times fewer points; scenes: "
                              "every body that has a coarser grid, or those of "
                              "scene.coarse_bodies.")
     max_weight_sum: Positive = Field(
@@ -236,7 +237,7 @@ def operation_counts(cfg: Any, resolved: Any, sections: Sequence[tuple[Extrapola
     (section, its resolution) the evaluations of its slowest auxiliary solver
     (:func:`~.step_cost.evaluations_per_step`; the body is built once, when a count is measured)."""
     schemes = [cfg.fine.scheme, *(section.scheme for section, _ in sections)]
-    measured = any(integrate.SCHEMES[name].implicit for name in schemes) or any(
+    measured = any(integrate.lookup(name).implicit for name in schemes) or any(
         rtol is not None for rtol in (cfg.fine.rtol, *(section.rtol for section, _ in sections)))
     body = build_system(cfg, resolved) if measured else None
     per_fine = evaluations_per_step(cfg, resolved, cfg.fine.scheme, resolved.fine_steps,

@@ -16,7 +16,6 @@ package is pure data: nothing here starts a process or an executor (the run laye
 from __future__ import annotations
 
 import os
-import stat
 import tomllib
 from collections.abc import Iterable
 from pathlib import Path
@@ -24,13 +23,14 @@ from typing import Any
 
 from pydantic import ValidationError
 
-from ..core.files import describe_os_error
+from ..core.files import InputFileError, describe_os_error, read_input
 from ..registry import coarse as coarse_registry
 from ..registry import kinds as registry
 from .build import Setup, build, build_system
 from .checks import Resolved, resolve, resolved_dict
 from .errors import ConfigError, from_validation_error
 from .preflight import preflight
+from .problem import problem_key, problem_of
 from .scene import scene_section
 from .schema import Config
 
@@ -49,6 +49,8 @@ __all__ = [
     "merge",
     "parse",
     "preflight",
+    "problem_key",
+    "problem_of",
     "resolve",
     "resolved_dict",
 ]
@@ -96,9 +98,6 @@ mode = "both"          # also the serial fine run: true errors and measured spee
 """
 
 
-#: Largest configuration file read (bytes): a configuration is a few kilobytes; a larger file
-#: (or a device such as /dev/zero) is refused before it is read whole.
-MAX_CONFIG_BYTES = 1 << 20
 #: Deepest nesting of arrays and tables accepted in a file or a ``--set`` value.
 MAX_DEPTH = 32
 
@@ -209,21 +208,6 @@ def merge(base: dict[str, Any], update: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def _text(path: Path) -> bytes:
-    """The bytes of the configuration file ``path``: a regular file of at most
-    :data:`MAX_CONFIG_BYTES` (a device, a pipe or a huge file is refused before it is read;
-    opened without waiting, as a pipe would until something writes to it)."""
-    with os.fdopen(os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0)), "rb") as handle:
-        if not stat.S_ISREG(os.fstat(handle.fileno()).st_mode):
-            raise ConfigError([("", "not a regular file (a device, a pipe or a directory): give a "
-                                    "TOML file")], str(path))
-        data = handle.read(MAX_CONFIG_BYTES + 1)
-    if len(data) > MAX_CONFIG_BYTES:
-        raise ConfigError([("", f"larger than {MAX_CONFIG_BYTES >> 20} MiB: not a configuration "
-                                "file (they are a few kilobytes)")], str(path))
-    return data
-
-
 def _anchor_files(data: dict[str, Any], folder: Path) -> None:
     """Make the relative ``file`` of every ``[[suspensions]]`` table of ``data`` relative to
     ``folder``, the folder of the file that names it (so a variant through ``base`` finds it)."""
@@ -240,7 +224,9 @@ def _read(path: Path, chain: tuple[Path, ...] = ()) -> dict[str, Any]:
     if path.resolve() in chain:
         raise ConfigError([("base", f"circular reference to {path}")], source)
     try:
-        data = _toml(_text(path).decode("utf-8"), "", source)
+        data = _toml(read_input(path, "configuration").decode("utf-8"), "", source)
+    except InputFileError as error:
+        raise ConfigError([("", f"{error.problem}; {error.remedy}")], source) from None
     except OSError as error:
         reason = describe_os_error(error)
         raise ConfigError([("", f"cannot read the file: {reason}")], source) from None

@@ -114,7 +114,7 @@ def _duration(seconds: float) -> str:
 def estimated_fine_seconds(scheme: str, steps: float, points: int) -> float:
     """A rough one-core estimate of ``steps`` steps of ``scheme`` with ``points`` points: rate
     evaluations times (overhead + (points)² Stokeslet pairs), from the measured rod step."""
-    stages = integrate.SCHEMES[scheme].stages
+    stages = integrate.lookup(scheme).stages
     return steps * stages * (_EVAL_SECONDS + _PAIR_SECONDS * points**2)
 
 
@@ -124,7 +124,7 @@ def estimated_bytes(cfg: Config, n_points: int, dense_bytes: float = 0.0) -> flo
     boundary (3 (N_c + 1)), the serial solution (N_c + 1) and the stages of one step; plus
     ``dense_bytes``, the dense matrices its solves factorize (rigid bodies)."""
     slices = cfg.parareal.n_slices + 1
-    states = 3 * slices + slices + integrate.SCHEMES[cfg.fine.scheme].stages + 2
+    states = 3 * slices + slices + integrate.lookup(cfg.fine.scheme).stages + 2
     return 24.0 * n_points * states + dense_bytes
 
 
@@ -143,8 +143,8 @@ def _memory(cfg: Config, size: PlannedSize, issues: list[tuple[str, str]]) -> No
     if not needed > memory:
         return
     what = "states alone need" if not size.dense_bytes else (
-        f"states and the dense mobility matrix of its rigid surface "
-        f"({size.dense_bytes / 2**30:.3g} GiB: (3N)² doubles and their LU factors) need")
+        f"states and the dense mobility matrices of its rigid surfaces (each surface's (3N)² "
+        f"doubles and their LU factors, {size.dense_bytes / 2**30:.3g} GiB in all) need")
     key = size.keys if size.keys == "bodies" else ", ".join(
         f"model.{k.strip()}" for k in size.keys.split(","))
     issues.append((key, f"{size.rows} points: the run's {what} more than "
@@ -191,8 +191,24 @@ def _cores(cfg: Config, workers: int, warnings: list[str]) -> None:
     )
 
 
+def _gpu_issue(cfg: Config) -> str | None:
+    """Why the GPU executor of ``cfg`` cannot start here (no CUDA device and no simulator, or no
+    numba-cuda: :func:`parastokes.gpu.device.missing`), or None. A run of ``run.mode =
+    "serial"`` starts no executor."""
+    if cfg.execution.executor != "gpu" or cfg.run.mode == "serial":
+        return None
+    from ..gpu.device import missing
+
+    reason = missing()
+    return None if reason is None else (
+        f'"gpu": {reason}; or use executor = "processes" here')
+
+
 def _workers(cfg: Config, n_auxiliary: int, issues: list, warnings: list) -> int | None:
     ex = cfg.execution
+    gpu = _gpu_issue(cfg)
+    if gpu:
+        issues.append(("execution.executor", gpu))
     if ex.executor == "serial":
         if ex.workers not in (None, 1):
             issues.append(
@@ -239,7 +255,44 @@ def _stiff_issues(cfg: Config) -> list[tuple[str, str]]:
             except ValueError as error:
                 key, _, text = str(error).partition(": ")
                 issues.append((f"fine.{key}", text))
+    issues += _fixed_pair_issues(cfg)
     return issues
+
+
+def _fixed_pair_issues(cfg: Config) -> list[tuple[str, str]]:
+    """An embedded explicit pair (rk23, rk45) or "auto" without ``rtol`` in ``[fine]`` or
+    ``[coarse]``: "auto" takes adaptive steps only, and a pair on a fixed step is its high-order
+    tableau with an estimate nobody reads."""
+    sections = (("fine", cfg.fine), ("coarse", cfg.coarse))
+    return [(f"{key}.rtol", f"required by the scheme {section.scheme!r} (adaptive steps); "
+             "give rtol, or a fixed-step scheme such as rk4")
+            for key, section in sections
+            if getattr(section, "scheme", None) in (*integrate.SCHEMES, integrate.AUTO.name)
+            and integrate.lookup(section.scheme).adaptive
+            and not integrate.lookup(section.scheme).implicit
+            and getattr(section, "rtol", None) is None]
+
+
+def _fine_steps_issue(cfg: Config, n_points: int, warnings: list[str]) -> str | None:
+    """What is wrong with the fine steps over [t0, t1] (more than :data:`MAX_FINE_STEPS`), and a
+    note (into ``warnings``) when the serial fine solution would take more than
+    :data:`LONG_RUN_SECONDS` on one core. Adaptive steps (``fine.rtol``) are neither: their
+    number is set by the tolerance, not by ``fine.dt`` (the first step tried)."""
+    if cfg.fine.rtol is not None:
+        return None
+    total_steps = (cfg.time.t1 - cfg.time.t0) / cfg.fine.dt
+    seconds = estimated_fine_seconds(cfg.fine.scheme, total_steps, n_points)
+    if total_steps > MAX_FINE_STEPS:
+        return (f"{total_steps:.3g} fine steps over [t0, t1] (more than {MAX_FINE_STEPS:.0e}): "
+                f"the serial fine solution would take about {_duration(seconds)} on one core; "
+                "check fine.dt and time.t1 (units: s)")
+    if seconds > LONG_RUN_SECONDS:
+        warnings.append(
+            f"fine.dt: {total_steps:.3g} fine steps; the serial fine solution would take about "
+            f"{_duration(seconds)} on one core (a rough estimate; Parareal divides it by at most "
+            "its speedup)"
+        )
+    return None
 
 
 def resolve(cfg: Config, source: str = "") -> Resolved:
@@ -274,24 +327,10 @@ def resolve(cfg: Config, source: str = "") -> Resolved:
         issues.append(
             ("fine.dt", f"exceeds the slice length (t1 - t0)/n_slices = {slice_length:.6g}")
         )
-    total_steps = (t1 - t0) / cfg.fine.dt
-    seconds = estimated_fine_seconds(cfg.fine.scheme, total_steps, n_points)
-    if total_steps > MAX_FINE_STEPS:
-        issues.append(
-            (
-                "fine.dt",
-                f"{total_steps:.3g} fine steps over [t0, t1] (more than {MAX_FINE_STEPS:.0e}): the "
-                f"serial fine solution would take about {_duration(seconds)} on one core; check "
-                "fine.dt and time.t1 (units: s)",
-            )
-        )
+    too_many = _fine_steps_issue(cfg, n_points, warnings)
+    if too_many:
+        issues.append(("fine.dt", too_many))
         raise ConfigError(issues, source)
-    if seconds > LONG_RUN_SECONDS:
-        warnings.append(
-            f"fine.dt: {total_steps:.3g} fine steps; the serial fine solution would take about "
-            f"{_duration(seconds)} on one core (a rough estimate; Parareal divides it by at most "
-            "its speedup)"
-        )
     fine_steps = steps_on_slice(slice_length, cfg.fine.dt, "fine.dt", "τ_f", warnings)
 
     coarse = cfg.coarse.resolve(cfg, body, slice_length, issues, warnings)

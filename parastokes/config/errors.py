@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import difflib
+import types
+import typing
 from collections.abc import Iterable, Sequence
 from typing import Any
 
@@ -99,6 +101,81 @@ def _section_class(loc: tuple[Any, ...], data: Any) -> type[BaseModel] | None:
     return _SECTIONS.get(loc)
 
 
+def _models(annotation: Any) -> list[type[BaseModel]]:
+    """The schema classes in a field's ``annotation`` (``X``, ``X | None``, ``list[X]``, ...)."""
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return [annotation]
+    return [m for arg in typing.get_args(annotation) for m in _models(arg)]
+
+
+def _field(loc: tuple[Any, ...], data: Any) -> tuple[type[BaseModel] | None, Any]:
+    """The schema class that holds the key ``loc[-1]`` and that key's field (None for either
+    when unknown): the section of ``loc[:-1]`` (:func:`_section_class`), or a class nested in
+    the nearest known one by its fields' annotations (``scene.repulsion`` in ``scene``)."""
+    for start in range(len(loc) - 1, -1, -1):
+        cls = _section_class(loc[:start], data)
+        for key in loc[start:-1]:
+            if cls is None:
+                break
+            if isinstance(key, int):
+                continue  # (an item of a list of tables)
+            field = cls.model_fields.get(str(key))
+            found = _models(field.annotation) if field is not None else []
+            cls = found[0] if len(found) == 1 else None
+        if cls is not None:
+            return cls, cls.model_fields.get(str(loc[-1]))
+    return None, None
+
+
+def _union_tag(loc: tuple[Any, ...], data: Any) -> int | None:
+    """The position in ``loc`` of pydantic's tag of a union member (``constrained-float`` after
+    ``spacing``, whose values may be one number or a list), or None."""
+    for i in range(1, len(loc)):
+        if not isinstance(loc[i], str) or isinstance(loc[i - 1], int):
+            continue
+        _, field = _field(loc[:i], data)
+        origin = None if field is None else typing.get_origin(field.annotation)
+        members = [a for a in typing.get_args(field.annotation) if a is not type(None)] \
+            if origin in (typing.Union, types.UnionType) else []
+        if len(members) > 1 and loc[i] not in getattr(field.annotation, "model_fields", {}):
+            return i
+    return None
+
+
+def _merged_unions(items: list[ErrorDetails], data: Any,
+                   prefix: tuple[Any, ...]) -> list[tuple[tuple[Any, ...], str]]:
+    """(location, message) of each error, those of the members of one union value merged into
+    one: the member that got furthest into the value (an item of a list) when one did, else what
+    the key holds (its description) and what it got."""
+    out: list[tuple[tuple[Any, ...], str]] = []
+    groups: dict[tuple[Any, ...], list[tuple[int, tuple[Any, ...], ErrorDetails]]] = {}
+    for item in items:
+        loc = (*prefix, *item["loc"])
+        tag = _union_tag(loc, data)
+        if tag is None:
+            out.append((loc, _message(item, loc, data)))
+            continue
+        if loc[:tag] not in groups:
+            groups[loc[:tag]] = []
+            out.append((loc[:tag], ""))  # (its place in the order of the errors)
+        groups[loc[:tag]].append((tag, loc, item))
+    for i, (loc, message) in enumerate(out):
+        if message or loc not in groups:
+            continue
+        members = groups[loc]
+        deepest = max(len(at) - tag for tag, at, _ in members)
+        inner = [(at[:tag] + at[tag + 1:], e) for tag, at, e in members if len(at) - tag == deepest]
+        if deepest > 1 and len(inner) == 1:
+            out[i] = (inner[0][0], _message(inner[0][1], inner[0][0], data))
+            continue
+        _, field = _field(loc, data)
+        what = (field.description or "").rstrip(".") if field is not None else ""
+        got = _describe(members[0][2].get("input"))
+        out[i] = (loc, f"got {got}; expected {what}" if what else
+                  f"{'; or '.join(dict.fromkeys(e['msg'] for _, _, e in members))} (got {got})")
+    return out
+
+
 def _describe(value: Any) -> str:
     text = repr(value)
     return f"{text[:60]}..." if len(text) > 60 else text
@@ -107,11 +184,12 @@ def _describe(value: Any) -> str:
 def _message(error: ErrorDetails, loc: tuple[Any, ...], data: Any) -> str:
     kind = error["type"]
     if kind == "extra_forbidden":
-        cls = _section_class(loc[:-1], data)
+        cls, _ = _field(loc, data)
         known = sorted(cls.model_fields) if cls is not None else []
         close = difflib.get_close_matches(str(loc[-1]), known, n=1)
-        hint = f"did you mean {close[0]!r}?" if close else f"known keys: {', '.join(known)}"
-        return f"unknown key ({hint})"
+        hint = (f"did you mean {close[0]!r}?" if close else f"known keys: {', '.join(known)}"
+                if known else "")
+        return f"unknown key ({hint})" if hint else "unknown key"
     if kind == "missing":
         return "required key is missing"
     if kind == "value_error" and "error" in error.get("ctx", {}):
@@ -128,8 +206,5 @@ def from_validation_error(
     section validated on its own). Unknown keys get a "did you mean" hint from the keys of their
     section.
     """
-    issues = []
-    for item in error.errors():
-        loc = (*prefix, *item["loc"])
-        issues.append((key_path(loc), _message(item, loc, data)))
-    return ConfigError(issues, source)
+    merged = _merged_unions(error.errors(), data, prefix)
+    return ConfigError([(key_path(loc), message) for loc, message in merged], source)

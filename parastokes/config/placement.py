@@ -9,11 +9,14 @@ body's bounding sphere inside it), a candidate kept when it is at least ``distan
 centre kept so far (a grid of cells of that size finds the neighbours), until ``count`` are kept
 or :func:`tries_allowed` candidates have been drawn. Packing spheres this way jams near a volume
 fraction of 0.38 (Torquato, Uche & Stillinger, Phys. Rev. E 74, 061308 (2006)): asking for more
-ends with the effort spent (:mod:`.suspension` names the key).
+ends with the effort spent (:mod:`.suspension` names the key). A count whose exclusion spheres
+(diameter ``distance``) would fill more than :data:`RANDOM_CLOSE_PACKING` of the region
+(:func:`packing`) is refused at once, before any candidate is drawn: no random packing is denser.
 """
 
 from __future__ import annotations
 
+import io
 import itertools
 import math
 import warnings
@@ -22,20 +25,21 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ..core.files import InputFileError, read_input
+
 __all__ = [
+    "RANDOM_CLOSE_PACKING",
     "PlacementError",
+    "holds_one",
     "lattice",
     "matrices",
+    "packing",
     "random_centers",
     "random_quaternions",
     "read_poses",
     "region_volume",
     "tries_allowed",
 ]
-
-#: Largest poses file read (bytes): a million bodies of seven numbers fit.
-MAX_FILE_BYTES = 1 << 26
-
 
 class PlacementError(ValueError):
     """A suspension that cannot be placed: ``key`` (a key of its table) and what to change."""
@@ -62,6 +66,29 @@ def region_volume(region: str, size: list[float] | None, radius: float | None) -
     return float(np.prod(size))
 
 
+#: Random close packing of equal spheres, the densest random packing (about 0.64: Scott &
+#: Kilgour, J. Phys. D 2, 863 (1969)); random sequential addition jams well below, near 0.38, and
+#: the placement here reaches 0.31-0.32 within its tries (measured: docs/validation.md, "A
+#: suspension refused before it is built").
+RANDOM_CLOSE_PACKING = 0.64
+
+
+def packing(count: int, region: str, size: list[float] | None, radius: float | None,
+            body_radius: float, distance: float) -> float:
+    """The volume fraction that ``count`` spheres of diameter ``distance`` (the distance kept
+    between centres) would fill of the region they lie in: the region (box of edges ``size`` or
+    sphere of ``radius``) whose centres stay ``body_radius`` inside it, grown by half the
+    ``distance``; at most 1 for any placement (the spheres are disjoint)."""
+    grow = distance - 2.0 * body_radius  # (the region shrunk by the radius, grown by d/2)
+    if region == "sphere":
+        assert radius is not None
+        volume = 4.0 / 3.0 * math.pi * (radius + 0.5 * grow) ** 3
+    else:
+        assert size is not None
+        volume = float(np.prod([edge + grow for edge in size]))
+    return count * math.pi / 6.0 * distance**3 / volume
+
+
 def tries_allowed(count: int) -> int:
     """How many candidate centres random placement draws at most for ``count`` bodies."""
     return 1000 + 200 * count
@@ -78,6 +105,18 @@ def _candidates(rng: np.random.Generator, n: int, region: str, center: np.ndarra
     return center + direction * (half[0] * rng.random((n, 1)) ** (1.0 / 3.0))
 
 
+def holds_one(region: str, size: list[float] | None, radius: float | None,
+              body_radius: float) -> list[float]:
+    """The region's extent (``[radius]`` or ``size``); PlacementError naming its key when it is
+    too small for one body of bounding radius ``body_radius``."""
+    extent = [float(radius or 0.0)] if region == "sphere" else list(size or [])
+    key = "radius" if region == "sphere" else "size"
+    if min(extent) <= body_radius:
+        raise PlacementError(key, f"the {region} ({key} {_numbers(extent)}) is too small for "
+                                  f"one body of bounding radius {body_radius:.4g}; enlarge it")
+    return extent
+
+
 def random_centers(count: int, region: str, center: list[float], size: list[float] | None,
                    radius: float | None, body_radius: float, distance: float,
                    rng: np.random.Generator) -> tuple[np.ndarray, int]:
@@ -86,11 +125,7 @@ def random_centers(count: int, region: str, center: list[float], size: list[floa
     it, pairwise at least ``distance`` apart (random sequential addition, see the module), and
     the number of candidates drawn: fewer than ``count`` when :func:`tries_allowed` did not
     suffice."""
-    extent = [float(radius or 0.0)] if region == "sphere" else list(size or [])
-    key = "radius" if region == "sphere" else "size"
-    if min(extent) <= body_radius:
-        raise PlacementError(key, f"the {region} ({key} {_numbers(extent)}) is too small for "
-                                  f"one body of bounding radius {body_radius:.4g}; enlarge it")
+    extent = holds_one(region, size, radius, body_radius)
     half = np.array(extent, dtype=float) / (1.0 if region == "sphere" else 2.0) - body_radius
     mid = np.asarray(center, dtype=float)
     cells: dict[tuple[int, ...], list[int]] = {}
@@ -132,20 +167,20 @@ def _numbers(values: list[float]) -> str:
 
 def read_poses(path: Path) -> np.ndarray:
     """The poses of ``path``: (n, 3) centres or (n, 7) centres and quaternions (w, x, y, z),
-    normalized; a ``.npy`` array or a text file (spaces or commas, ``#`` comments)."""
+    normalized; a ``.npy`` array or a text file (spaces or commas, ``#`` comments), a regular
+    file of at most 64 MiB (:func:`parastokes.core.files.read_input`: a million bodies of seven
+    numbers fit)."""
     try:
-        if path.stat().st_size > MAX_FILE_BYTES:
-            raise PlacementError("file", f"{path}: larger than {MAX_FILE_BYTES >> 20} MiB; "
-                                         "give one pose per line")
+        raw = read_input(path, "poses")
         if path.suffix == ".npy":
-            data = np.load(path, allow_pickle=False)
+            data = np.load(io.BytesIO(raw), allow_pickle=False)
         else:
-            text = path.read_text(encoding="utf-8").replace(",", " ")
+            text = raw.decode("utf-8").replace(",", " ")
             with warnings.catch_warnings():  # a file without numbers: refused below, by shape
                 warnings.simplefilter("ignore", UserWarning)
                 data = np.loadtxt(text.splitlines(), ndmin=2)
-    except PlacementError:
-        raise
+    except InputFileError as error:
+        raise PlacementError("file", str(error)) from None
     except (OSError, ValueError, UnicodeDecodeError) as error:
         raise PlacementError("file", f"cannot read {path}: {error}") from None
     data = np.asarray(data, dtype=float)

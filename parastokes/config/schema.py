@@ -38,9 +38,11 @@ __all__ = [
     "Tune",
 ]
 
-#: The schemes of ``parastokes.integrate.SCHEMES`` (explicit Runge-Kutta; linearly implicit
-#: Rosenbrock-W, docs/stiff.md).
-Scheme = Literal["euler", "rk2", "rk4", "lieuler", "ros2", "ros2-krylov"]
+#: The schemes of ``parastokes.integrate.SCHEMES`` (explicit Runge-Kutta, the embedded pairs
+#: rk23 and rk45 with rtol; linearly implicit Rosenbrock-W, docs/stiff.md), and "auto" (with
+#: rtol: an explicit pair or an implicit scheme as stiffness comes and goes).
+Scheme = Literal["euler", "rk2", "rk4", "rk23", "rk45", "lieuler", "ros2", "ros2-krylov",
+                 "ros34pw2", "ros34pw2-krylov", "auto"]
 #: The most nodes of a flow grid along one side (``output.flow_resolution``, ``parastokes flow
 #: --resolution``): 4096² nodes of a plane are 400 MB of velocities per frame.
 MAX_FLOW_RESOLUTION = 4096
@@ -63,12 +65,15 @@ class Time(_Section):
 class Fine(_Section):
     """The fine solver F: always the correct parameters Θ⁰ and the fine grid (section 3)."""
 
-    scheme: Scheme = Field("rk2", description="Scheme of F (the paper: rk2 or rk4; linearly "
-                           "implicit for stiff bodies: lieuler, ros2, ros2-krylov, docs/stiff.md).")
+    scheme: Scheme = Field("rk2", description="Scheme of F (the paper: rk2 or rk4; the embedded "
+                           "pairs rk23, rk45 with rtol; linearly implicit for stiff bodies: "
+                           "lieuler, ros2, ros2-krylov, ros34pw2, ros34pw2-krylov, docs/stiff.md; "
+                           "auto with rtol).")
     dt: Positive = Field(description="Fine time step τ_f (with rtol: the first step tried).")
     rtol: float | None = Field(
         None, description="Adaptive steps within this relative error per step (a scheme with an "
-        "error estimate: ros2, ros2-krylov); omitted: fixed steps of dt.")
+        "error estimate: rk23, rk45, ros2, ros2-krylov, ros34pw2, ros34pw2-krylov, or auto); "
+        "omitted: fixed steps of dt.")
     atol: float | None = Field(
         None, description="Absolute error per step of the adaptive steps (default: rtol; state "
         "units, μm for positions).")
@@ -157,6 +162,12 @@ class Output(_Section):
     )
     frames: bool = Field(True, description="Rods: also write the frames D1, D2, D3.")
     figures: bool = Field(True, description="Draw the figures after the run.")
+    monitor_fatal: bool = Field(
+        False,
+        description="A run whose stability monitor ends above its limit at a slice boundary is "
+        "an error (exit 3, its results written) instead of a warning (summary.json's warnings "
+        "and standard error); also --monitor-fatal.",
+    )
     formats: list[Literal["png", "pdf"]] = Field(
         ["png", "pdf"], min_length=1, description="Figure file formats."
     )
@@ -257,11 +268,20 @@ class SceneSettings(BaseModel):
         None, description="A short-range repulsion between the rigid bodies, e.g. "
         "`{ range = 0.5, force = 7.5e-5 }`: F0 (1 - h/range)^2 apart along the line of closest "
         "approach for surfaces a gap h < range apart; with a wall, also up from it (default: "
-        "none)."
+        "none; `false`: none, as `--set scene.repulsion=false` switches off a file's)."
     )
+
+    @field_validator("repulsion", mode="before")
+    @classmethod
+    def _switched_off(cls, value: Any) -> Any:
+        """``repulsion = false``: none (TOML has no null, so a file's or a base's repulsion is
+        switched off from the command line this way)."""
+        return None if value is False else value
 
 
 Finite = Annotated[float, Field(allow_inf_nan=False)]
+#: Three positive numbers, one per axis.
+PositiveTriple = Annotated[list[Positive], Field(min_length=3, max_length=3)]
 
 
 class Suspension(BaseModel):
@@ -288,7 +308,7 @@ class Suspension(BaseModel):
         description="lattice, random: the centre of the lattice or of the region (μm).")
     counts: list[Annotated[int, Field(ge=1)]] | None = Field(
         None, min_length=3, max_length=3, description="lattice: bodies along x, y and z.")
-    spacing: Positive | list[Positive] | None = Field(
+    spacing: Positive | PositiveTriple | None = Field(
         None, description="lattice: distance between neighbouring centres (μm), one number or "
         "[dx, dy, dz].")
     region: Literal["box", "sphere"] = Field(

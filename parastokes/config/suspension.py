@@ -9,8 +9,11 @@ scene applies to them (names, the fluid, overlaps and the wall, :class:`parastok
 
 Before anything is built, what the placement alone can tell is refused with the table's key:
 keys that the placement does not use or lacks, a lattice whose spacing is smaller than the
-body, a random placement that cannot reach its count (:func:`.placement.random_centers`), a
-region or a lattice or a pose of the file that reaches the wall.
+body, a random placement that cannot reach its count (at once above random close packing,
+:func:`.placement.packing`; else after :func:`.placement.random_centers` tried), a region or a
+lattice or a pose of the file that reaches the wall, and copies that cannot fit in this
+machine's memory (:func:`planned_bytes`, from their count and one body's size, before any
+centre is computed or copy made).
 
 The body's size is measured once on the body built from the table (wall off, at its own
 position): its points' offsets from its position give the bounding radius (a sphere's radius)
@@ -30,10 +33,16 @@ from . import placement
 from .placement import PlacementError
 from .schema import Suspension
 
-__all__ = ["POSITION_KEYS", "Footprint", "expand", "position_key"]
+__all__ = ["POSITION_KEYS", "Footprint", "expand", "planned_bytes", "position_key"]
 
 #: The section keys a suspension sets to place a copy (the first one the section has).
 POSITION_KEYS = ("position", "center")
+#: Bytes of one copy's validated body section (a rigid sphere's: 3.6 kB, measured with
+#: tracemalloc over 1,000 copies; docs/validation.md, "A suspension refused before it is built").
+SECTION_BYTES = 3.6e3
+#: The fewest states of 3 doubles per row that any run keeps: checks.estimated_bytes with one
+#: slice and a one-stage scheme, 3 (1 + 1) + (1 + 1) + 1 + 2.
+FEWEST_STATES = 11
 
 #: The keys each placement uses besides ``name``, ``body``, ``placement``, ``orientations``.
 _USES = {
@@ -58,7 +67,9 @@ class Footprint:
     def __init__(self, template: BodySection, key: str) -> None:
         updates = {"wall": False} if "wall" in type(template).model_fields else {}
         system = template.model_copy(update=updates).build()
-        points = np.asarray(system.positions(system.initial_state()), dtype=float)[:, :3]
+        state = system.initial_state()
+        self.rows = len(state)
+        points = np.asarray(system.positions(state), dtype=float)[:, :3]
         self.offsets = points - np.asarray(getattr(template, key), dtype=float)
         self.radius = float(np.max(np.linalg.norm(self.offsets, axis=1)))
         self.epsilon = float(getattr(system, "epsilon", 0.0))
@@ -75,6 +86,30 @@ class Footprint:
     def default_gap(self) -> float:
         """The larger of a fifth of the bounding radius and 2 ε (blobs of two bodies apart)."""
         return max(0.2 * self.radius, 2.0 * self.epsilon)
+
+
+def planned_bytes(count: int, rows: int, dense_bytes: float) -> float:
+    """A lower bound on the memory of ``count`` copies of a body whose state has ``rows`` rows
+    and whose solves keep ``dense_bytes`` of dense matrices: their validated sections
+    (:data:`SECTION_BYTES`), their dense matrices, and the :data:`FEWEST_STATES` states of 3
+    doubles per row of the smallest run."""
+    return count * (SECTION_BYTES + dense_bytes + 24.0 * FEWEST_STATES * rows)
+
+
+def _fits(count: int, key: str, template: BodySection, foot: Footprint) -> None:
+    """PlacementError naming ``key`` when ``count`` copies of ``template`` cannot fit in this
+    machine's memory (:func:`planned_bytes`; one body's size from its keys where its kind
+    says, :meth:`~parastokes.registry.kinds.BodySection.planned_size`, else as built)."""
+    from .checks import physical_memory  # (checks reads the schema, which reads this module)
+
+    size = template.planned_size()
+    rows, dense = (size.rows, size.dense_bytes) if size is not None else (foot.rows, 0.0)
+    needed, memory = planned_bytes(count, rows, dense), physical_memory()
+    if needed > memory:
+        matrices = f" and dense mobility matrices of {dense / 2**20:.3g} MiB each" if dense else ""
+        raise PlacementError(key, f"{count} bodies of {rows} rows{matrices} need more than "
+                                  f"{needed / 2**30:.3g} GiB, and this machine has "
+                                  f"{memory / 2**30:.3g} GiB; place fewer bodies")
 
 
 def _key_issues(spec: Suspension, has_orientation: bool) -> list[tuple[str, str]]:
@@ -102,9 +137,12 @@ def _key_issues(spec: Suspension, has_orientation: bool) -> list[tuple[str, str]
     return out
 
 
-def _lattice(spec: Suspension, foot: Footprint, gap: float, turned: bool) -> np.ndarray:
-    """The lattice's centres; PlacementError when neighbours would come closer than ``gap``."""
+def _lattice(spec: Suspension, template: BodySection, foot: Footprint, gap: float,
+             turned: bool) -> np.ndarray:
+    """The lattice's centres; PlacementError when neighbours would come closer than ``gap``
+    or the copies cannot fit in memory (before the centres are computed)."""
     assert spec.counts is not None and spec.center is not None and spec.spacing is not None
+    _fits(math.prod(spec.counts), "counts", template, foot)
     spacing = [spec.spacing] * 3 if isinstance(spec.spacing, float | int) else spec.spacing
     extent = (np.full(3, 2 * foot.radius) if turned
               else np.ptp(foot.offsets, axis=0))
@@ -117,8 +155,10 @@ def _lattice(spec: Suspension, foot: Footprint, gap: float, turned: bool) -> np.
     return placement.lattice(spec.counts, [float(d) for d in spacing], spec.center)
 
 
-def _random(spec: Suspension, foot: Footprint, gap: float, wall: bool) -> np.ndarray:
-    """Random centres; PlacementError for a region below the wall or a count not reached."""
+def _random(spec: Suspension, template: BodySection, foot: Footprint, gap: float,
+            wall: bool) -> np.ndarray:
+    """Random centres; PlacementError for a region below the wall, a count beyond random close
+    packing or memory (at once), or not reached."""
     assert spec.center is not None
     half = spec.radius if spec.region == "sphere" else 0.5 * (spec.size or [0, 0, 0])[2]
     assert half is not None
@@ -137,12 +177,22 @@ def _random(spec: Suspension, foot: Footprint, gap: float, wall: bool) -> np.nda
             raise PlacementError("volume_fraction", f"{spec.volume_fraction:g} of this region "
                                                     "holds no whole body; raise it or enlarge "
                                                     "the region")
+    key = "count" if spec.count is not None else "volume_fraction"
+    placement.holds_one(spec.region, spec.size, spec.radius, foot.radius)  # (before its count)
+    distance = 2.0 * foot.radius + gap
+    packed = placement.packing(count, spec.region, spec.size, spec.radius, foot.radius, distance)
+    if count > 1 and packed > placement.RANDOM_CLOSE_PACKING:
+        raise PlacementError(
+            key, f"{count} bodies ask a volume fraction {count * body / volume:.3g} of the "
+            f"{spec.region}, and with the gap around each they would fill {packed:.3g} of it, "
+            f"more than random close packing ({placement.RANDOM_CLOSE_PACKING:g}; the random "
+            f"placement reaches about 0.3): lower {key}, enlarge the region, lower gap, or use "
+            "placement = \"lattice\"")
+    _fits(count, key, template, foot)
     rng = np.random.default_rng(spec.seed)
     centers, drawn = placement.random_centers(count, spec.region, spec.center, spec.size,
-                                              spec.radius, foot.radius, 2.0 * foot.radius + gap,
-                                              rng)
+                                              spec.radius, foot.radius, distance, rng)
     if len(centers) < count:
-        key = "count" if spec.count is not None else "volume_fraction"
         raise PlacementError(
             key, f"random placement gave up: {len(centers)} of {count} bodies placed after "
             f"{drawn} tries (volume fraction {len(centers) * body / volume:.3g} of the "
@@ -157,7 +207,7 @@ def _with_gap(radius: float, gap: float) -> float:
     return (1.0 + 0.5 * gap / radius) ** 3
 
 
-def _poses(spec: Suspension, foot: Footprint, wall: bool
+def _poses(spec: Suspension, template: BodySection, foot: Footprint, wall: bool
            ) -> tuple[np.ndarray, np.ndarray | None]:
     """Centres (n, 3) and orientations (n, 4) or None for the bodies' own."""
     gap = foot.default_gap() if spec.gap is None else spec.gap
@@ -167,12 +217,13 @@ def _poses(spec: Suspension, foot: Footprint, wall: bool
                                     "than ε); raise it")
     turned = spec.orientations == "random"
     if spec.placement == "lattice":
-        centers = _lattice(spec, foot, gap, turned)
+        centers = _lattice(spec, template, foot, gap, turned)
     elif spec.placement == "random":
-        centers = _random(spec, foot, gap, wall)
+        centers = _random(spec, template, foot, gap, wall)
     else:
         assert spec.file is not None
         poses = placement.read_poses(Path(spec.file))
+        _fits(len(poses), "file", template, foot)
         if poses.shape[1] == 7 and foot.q0 is None:
             raise PlacementError("file", "7 numbers per line give orientations, but this kind "
                                          "has no orientation key; give x y z only")
@@ -221,7 +272,7 @@ def expand(spec: Suspension, template: BodySection, prefix: str, wall: bool
     if key in template.model_fields_set:
         raise PlacementError(f"body.{key}", "the suspension places the bodies; remove it")
     foot = Footprint(template, key)
-    centers, quaternions = _poses(spec, foot, wall)
+    centers, quaternions = _poses(spec, template, foot, wall)
     if quaternions is not None and "orientation" in template.model_fields_set:
         by = ("the file" if spec.placement == "file" else "orientations = \"random\"")
         raise PlacementError("body.orientation", f"{by} turns the bodies; remove it")

@@ -14,29 +14,72 @@ A write that fails (a full disk, a file-size limit, too many open files) raises
 :class:`FileWriteError`, an ``OSError`` whose message names the file and the cause. HDF5 files are
 written through :class:`GuardedFile`, so that such a failure never reaches HDF5 itself: h5py
 crashes the interpreter (a segmentation fault) when it closes a file after a failed write.
+
+Every file the package reads (configurations, suspension poses, point clouds, measured serial
+runs, summaries, array files, trajectories, flow grids, run records) goes through one reader,
+:func:`read_input` (bytes, read with a bounded read) or :func:`open_input` (a handle for a parser
+that reads by itself); HDF5 files are checked by :func:`check_input` before h5py opens them by
+name. Each refuses, before opening it, what is not a regular file (a device such as /dev/zero,
+a named pipe, which would block the open, a directory, a socket) and a file above the size cap of
+its kind (:data:`INPUTS`), in one line naming the file and what to give instead
+(:class:`InputFileError`, a ``ValueError``: exit status 2). A file that grows while it is read
+is still read to at most its cap plus one byte.
+
+A temporary file of another process, left beside a destination by a writer that was killed
+(``NAME.<pid>.tmp``), is removed when the same destination is written again, provided its writer
+no longer runs on this host and the file is older than this process (:func:`remove_stale`): a
+command's folder (``flow --out``, ``tune --out``) does not collect them.
 """
 
 from __future__ import annotations
 
 import errno
+import glob
 import io
 import json
 import os
+import stat
+import time
 import zipfile
-from collections.abc import Callable, Iterator, Mapping
-from contextlib import contextmanager
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from contextlib import contextmanager, nullcontext
 from pathlib import Path
 from typing import IO, Any
 
 import numpy as np
 
-from . import signals
+from . import locks, signals
 
 __all__ = [
-    "CorruptFileError", "FileWriteError", "GuardedFile", "Staging", "atomic_write",
-    "describe_os_error", "is_resource_error", "read_npz", "staged", "temporary_name",
-    "write_npz", "write_text",
+    "INPUTS", "CorruptFileError", "FileWriteError", "GuardedFile", "InputFileError",
+    "OutputInUse", "Staging", "atomic_write", "check_input", "commit_set", "describe_os_error",
+    "hold_names", "is_resource_error", "open_input", "read_input", "read_npz", "read_record",
+    "recover_sets",
+    "remove_stale", "staged", "temporary_name", "write_npz", "write_text",
 ]
+
+_MIB, _GIB = 1 << 20, 1 << 30
+#: Every kind of file the package reads: what it is (as a message names it) and its size cap in
+#: bytes, far above what the package writes or a user gives (docs/design.md, "Bounded reads").
+INPUTS: dict[str, tuple[str, int]] = {
+    "configuration": ("a TOML configuration (a few kilobytes)", _MIB),
+    "poses": ("a file of suspension poses, one body per line or a .npy array", 64 * _MIB),
+    "points": ("a point cloud of a rigid surface (.npy or text, N rows of x y z)", 64 * _MIB),
+    "serial runs": ("a file of measured serial runs (benchmarks/stiff.py's best_serial.json)",
+                    16 * _MIB),
+    "summary": ("a run's summary.json", 256 * _MIB),
+    "measurements": ("a benchmark's JSON file of measurements", 256 * _MIB),
+    "record": ("a run directory's record (lock or manifest)", _MIB),
+    "arrays": ("a parastokes array file (.npz: checkpoint, history, reference, blow-up)",
+               64 * _GIB),
+    "trajectory": ("a trajectory (HDF5) written by parastokes", 1 << 40),
+    "flow": ("a flow field (HDF5) written by parastokes flow", 1 << 40),
+    "movie": ("an MP4 movie written by the encoder (its box headers are read)", 1 << 40),
+}
+#: The most read at once from a file (a bounded read proceeds in such chunks).
+_CHUNK = 16 * _MIB
+#: When this process imported this module: a temporary file older than that is no write of its.
+_STARTED = time.time()
 
 #: errno values of a full disk or a reached limit, and what each means.
 _CAUSES = {
@@ -57,6 +100,103 @@ class CorruptFileError(ValueError):
         self.path = Path(path)
         remedy = remedy or "remove it (a run writes it anew) or point to the right file"
         super().__init__(f"{self.path}: {problem}; {remedy}")
+
+
+class InputFileError(ValueError):
+    """A file the package was given to read cannot be: not a regular file, or larger than the
+    cap of its kind (:data:`INPUTS`); ``path`` names it, ``problem`` and ``remedy`` say why and
+    what to give instead."""
+
+    def __init__(self, path: str | os.PathLike, problem: str, remedy: str) -> None:
+        self.path, self.problem, self.remedy = Path(path), problem, remedy
+        super().__init__(f"{self.path}: {problem}; {remedy}")
+
+
+def _file_type(mode: int) -> str:
+    """What a file of ``mode`` is, in words, when it is not a regular file."""
+    for test, name in ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a named pipe (FIFO)"),
+                       (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
+                       (stat.S_ISSOCK, "a socket")):
+        if test(mode):
+            return name
+    return "not a regular file"
+
+
+def _size(count: int) -> str:
+    """``count`` bytes in words (``64 MiB``)."""
+    for unit, scale in (("TiB", 1 << 40), ("GiB", _GIB), ("MiB", _MIB), ("KiB", 1 << 10)):
+        if count >= scale:
+            return f"{count / scale:.3g} {unit}"
+    return f"{count} bytes"
+
+
+def _checked(path: Path, info: os.stat_result, kind: str) -> None:
+    """Refuse (:class:`InputFileError`) a file of ``info`` that is not a regular file or is
+    larger than the cap of ``kind``."""
+    what, limit = INPUTS[kind]
+    if not stat.S_ISREG(info.st_mode):
+        raise InputFileError(path, f"{_file_type(info.st_mode)}, not a regular file",
+                             f"give {what}")
+    if info.st_size > limit:
+        raise InputFileError(path, f"larger than {_size(limit)} ({_size(info.st_size)}): no "
+                                   f"{kind} file is that large", f"give {what}")
+
+
+def check_input(path: str | os.PathLike, kind: str) -> int:
+    """The size of ``path``, a regular file within the cap of ``kind`` (:data:`INPUTS`), checked
+    without opening it (for a reader that opens files by name, as h5py does); else
+    :class:`InputFileError`. A missing or inaccessible file is the ``OSError`` of ``os.stat``."""
+    path = Path(path)
+    info = os.stat(path)
+    _checked(path, info, kind)
+    return info.st_size
+
+
+@contextmanager
+def open_input(path: str | os.PathLike, kind: str) -> Iterator[IO[bytes]]:
+    """``path`` open for binary reading, a regular file within the cap of ``kind``: checked
+    before it is opened (a named pipe would block the open), opened without waiting and checked
+    again (it may have been replaced in between)."""
+    path = Path(path)
+    check_input(path, kind)
+    with os.fdopen(os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0)), "rb") as handle:
+        _checked(path, os.fstat(handle.fileno()), kind)
+        yield handle
+
+
+def read_input(path: str | os.PathLike, kind: str) -> bytes:
+    """The bytes of ``path``, a regular file within the cap of ``kind`` (:data:`INPUTS`), read in
+    chunks, never more than the cap plus one byte (a file growing while it is read is refused
+    as too large); a stop asked for (:mod:`.signals`) ends the read between chunks."""
+    what, limit = INPUTS[kind]
+    chunks: list[bytes] = []
+    with open_input(path, kind) as handle:
+        left = limit + 1
+        while left > 0:
+            chunk = handle.read(min(left, _CHUNK))
+            signals.honour()
+            if not chunk:
+                break
+            chunks.append(chunk)
+            left -= len(chunk)
+    if left <= 0:
+        raise InputFileError(path, f"larger than {_size(limit)} (it grew while it was read): "
+                                   f"no {kind} file is that large", f"give {what}")
+    return b"".join(chunks)
+
+
+def read_record(path: str | os.PathLike) -> bytes:
+    """The bytes of one of the package's own records ``path`` (a lock, a manifest, a commit's
+    journal), bounded as a ``record`` input (:func:`open_input`) but, unlike
+    :func:`read_input`, read whole without honouring a stop asked for: the clean-ups that run
+    after an interrupt (releasing a lock, completing a move) read them."""
+    what, limit = INPUTS["record"]
+    with open_input(path, "record") as handle:
+        data = handle.read(limit + 1)
+    if len(data) > limit:
+        raise InputFileError(path, f"larger than {_size(limit)} (it grew while it was read): "
+                                   "no record file is that large", f"give {what}")
+    return data
 
 
 def describe_os_error(error: OSError) -> str:
@@ -110,6 +250,28 @@ def temporary_owner(path: str | os.PathLike) -> int | None:
     return int(pid) if pid.isdigit() else None
 
 
+def remove_stale(path: str | os.PathLike) -> list[Path]:
+    """Remove the temporary files of ``path`` (``NAME.<pid>.tmp``, :func:`temporary_name`) that
+    another writer, killed while writing it, left behind: those whose process no longer runs on
+    this host and that were last written before this process started (a writer on another host
+    sharing the folder is still writing if it wrote since). Returns the files removed."""
+    path = Path(path)
+    removed = []
+    for entry in path.parent.glob(f"{glob.escape(path.name)}.*.tmp"):
+        pid = temporary_owner(entry)
+        if pid is None or pid == os.getpid():
+            continue
+        try:
+            info = entry.lstat()
+            stale = info.st_mtime < _STARTED and not locks.process_alive(pid)
+            if stale and stat.S_ISREG(info.st_mode):
+                entry.unlink()
+                removed.append(entry)
+        except OSError:  # (gone meanwhile, or not ours to remove)
+            continue
+    return removed
+
+
 def _synced(path: Path) -> None:
     """Flush ``path`` (written by another writer) to disk."""
     fd = os.open(path, os.O_RDONLY)
@@ -128,12 +290,15 @@ class Staging:
     def __init__(self) -> None:
         self._files: dict[Path, Path] = {}
         self._unchecked: set[Path] = set()  # written by another writer: checked at the commit
+        self._journal: Path | None = None  # of the set being moved into place
 
     def temporary(self, path: str | os.PathLike) -> Path:
         """The temporary file to write the new ``path`` to, by a writer that opens its file by
         name (give it the format explicitly: the name ends in ``.tmp``); :meth:`commit` refuses
         it if that writer left it missing or empty."""
         path = Path(path)
+        recover_sets(path.parent)  # (a set cut short keeps its temporary files until moved)
+        remove_stale(path)
         self._files[path] = temporary_name(path)
         self._unchecked.add(path)
         return self._files[path]
@@ -157,28 +322,49 @@ class Staging:
     def commit(self) -> list[Path]:
         """Move every written file into place; returns the destinations. A temporary file that
         is missing or empty (a writer that failed without saying so) is a FileWriteError, and
-        then nothing is moved; nor is anything after a stop asked for (:mod:`.signals`)."""
+        then nothing is moved; nor is anything after a stop asked for (:mod:`.signals`). Two
+        files or more are moved as one set: their journal (:func:`recover_sets`) is written
+        first and removed last, so that a move cut short (a kill, a failed rename) is completed
+        by the next command that writes there, never left half old, half new."""
         signals.honour()
         for path in self._unchecked:
             tmp = self._files[path]
             if not (tmp.is_file() and tmp.stat().st_size > 0):
                 raise FileWriteError(path, OSError(errno.EIO, "the writer produced no data"))
+        for path in self._unchecked:
+            try:
+                _synced(self._files[path])
+            except OSError as error:
+                raise FileWriteError(path, error) from None
+        if len(self._files) > 1:
+            self._journal = _journal(next(iter(self._files)))
+            pairs = [[os.fspath(tmp), os.fspath(path)] for path, tmp in self._files.items()]
+            write_text(self._journal, json.dumps(pairs))
         for path, tmp in self._files.items():
             try:
-                if path in self._unchecked:
-                    _synced(tmp)
                 os.replace(tmp, path)
             except OSError as error:
                 raise FileWriteError(path, error) from None
+        if self._journal is not None:
+            self._journal.unlink()
+            self._journal = None
         written = list(self._files)
         self._files, self._unchecked = {}, set()
         return written
 
     def discard(self) -> None:
-        """Remove the temporary files not moved into place."""
-        for tmp in self._files.values():
-            tmp.unlink(missing_ok=True)
-        self._files, self._unchecked = {}, set()
+        """Remove the temporary files not moved into place; those of a set whose moves began
+        (an interrupt between two) are moved now instead, and if that fails too, by the next
+        command that writes there (:func:`recover_sets`)."""
+        if self._journal is not None:
+            try:
+                _complete(self._journal)
+            except (OSError, ValueError):
+                pass  # (left to recover_sets)
+        else:
+            for tmp in self._files.values():
+                tmp.unlink(missing_ok=True)
+        self._files, self._unchecked, self._journal = {}, set(), None
 
 
 @contextmanager
@@ -199,6 +385,108 @@ def atomic_write(path: str | os.PathLike, write: Callable[[IO[bytes]], Any]) -> 
     naming ``path``."""
     with staged() as staging:
         staging.write(path, write)
+
+
+# ---- sets of files committed as one unit, and the lock of each output name ---------------------
+def _journal(first: Path, pid: int | None = None) -> Path:
+    """The journal ``.NAME.<pid>.commit`` of a set of files moved into place, beside its first
+    file ``NAME``: the JSON list of its ``[temporary, destination]`` pairs."""
+    return first.with_name(f".{first.name}.{os.getpid() if pid is None else pid}.commit")
+
+
+def recover_sets(folder: str | os.PathLike) -> list[Path]:
+    """Complete the moves of every set of files in ``folder`` whose commit was cut short (its
+    journal left by a process that is gone, or by this one outside a commit): every temporary
+    file still there is moved into place, so that the set is the new one whole (its temporary
+    files were complete before the journal was written). Returns the files moved. A journal of
+    a live process (a commit in progress) is left alone."""
+    moved: list[Path] = []
+    for journal in sorted(Path(folder).glob(".*.commit")):
+        pid = journal.name[: -len(".commit")].rpartition(".")[2]
+        if not pid.isdigit() or (int(pid) != os.getpid() and locks.process_alive(int(pid))):
+            continue
+        moved += _complete(journal)
+    return moved
+
+
+def _complete(journal: Path) -> list[Path]:
+    """Move every temporary file of the set in ``journal`` still there into place, then remove
+    the journal; the files moved."""
+    try:
+        pairs = [(Path(tmp), Path(path)) for tmp, path in json.loads(read_record(journal))]
+    except (OSError, ValueError, TypeError) as error:
+        raise CorruptFileError(journal, f"the journal of a cut-short commit cannot be read "
+                               f"({error})", "remove it (the files it names stay as they "
+                               "are)") from None
+    moved = []
+    for tmp, path in pairs:
+        if tmp.is_file():
+            try:
+                os.replace(tmp, path)
+            except OSError as error:
+                raise FileWriteError(path, error, "complete the cut-short move of") from None
+            moved.append(path)
+    journal.unlink()
+    return moved
+
+
+class OutputInUse(ValueError):
+    """Another command is writing an output of the same name; ``record`` is its lock record."""
+
+    def __init__(self, path: Path, lock: Path, record: dict) -> None:
+        self.path, self.record = path, record
+        super().__init__(
+            f"{path} is being written by {locks.holder(record)}; wait for it to finish or choose "
+            f"another name. If that command is over (e.g. its node was lost), remove {lock}")
+
+
+def name_lock(path: str | os.PathLike) -> Path:
+    """The lock file ``.NAME.lock`` of the output ``path``."""
+    path = Path(path)
+    return path.with_name(f".{path.name}.lock")
+
+
+@contextmanager
+def hold_names(paths: Sequence[str | os.PathLike]) -> Iterator[None]:
+    """Hold the lock of each output name in ``paths`` (:func:`name_lock`; their folders made)
+    while the block runs,
+    two commands writing the same name being refused (:class:`OutputInUse`, naming the holder);
+    cut-short commits in their folders completed first (:func:`recover_sets`)."""
+    held: list[tuple[Path, dict]] = []
+    try:
+        for path in dict.fromkeys(Path(p) for p in paths):
+            lock = name_lock(path)
+            try:
+                path.parent.mkdir(parents=True, exist_ok=True)
+                held.append((lock, locks.acquire(lock)))
+            except locks.Held as error:
+                raise OutputInUse(path, lock, error.record) from None
+            except OSError as error:
+                raise FileWriteError(lock, error, "create the lock") from None
+        for folder in dict.fromkeys(Path(p).parent for p in paths):
+            recover_sets(folder)
+        yield
+    finally:
+        for lock, record in held:
+            locks.release(lock, record)
+
+
+def commit_set(files: Mapping[str | os.PathLike, bytes | Callable[[IO[bytes]], Any]],
+               *, lock: bool = True) -> list[Path]:
+    """Write the files of ``files`` (path -> its bytes, or a function writing them to a binary
+    handle) and move them into place as one unit (:meth:`Staging.commit`): an interruption
+    leaves the old set or, once their moves began, the new set after :func:`recover_sets`,
+    never a mixture. With ``lock``, under :func:`hold_names` (a command that holds the names for
+    longer, through its work, passes ``lock=False``). Returns the destinations."""
+
+    def writer(content: bytes | Callable[[IO[bytes]], Any]) -> Callable[[IO[bytes]], Any]:
+        return content if callable(content) else lambda handle: handle.write(content)
+
+    with hold_names(list(files)) if lock else nullcontext():
+        with staged() as staging:
+            for path, content in files.items():
+                staging.write(path, writer(content))
+    return [Path(p) for p in files]
 
 
 class GuardedFile(io.RawIOBase):
@@ -326,7 +614,7 @@ def read_npz(
     """Read a file written by :func:`write_npz`: ``(meta, arrays)``; the arrays ``required`` must
     be there. Raises :class:`CorruptFileError` naming the file when it cannot be read back."""
     try:
-        with np.load(path, allow_pickle=False) as data:
+        with open_input(path, "arrays") as handle, np.load(handle, allow_pickle=False) as data:
             if not hasattr(data, "files") or "meta" not in data.files:
                 raise CorruptFileError(path, "not a parastokes array file (no 'meta' record)")
             meta = json.loads(str(data["meta"]))
@@ -334,9 +622,7 @@ def read_npz(
             if not isinstance(meta, dict) or missing:
                 raise CorruptFileError(path, f"not a parastokes array file (missing {missing})")
             return meta, {k: data[k] for k in data.files if k != "meta"}
-    except CorruptFileError:
-        raise
-    except FileNotFoundError:
+    except (CorruptFileError, InputFileError, FileNotFoundError):
         raise
     except (OSError, EOFError, ValueError, KeyError, zipfile.BadZipFile) as error:
         if isinstance(error, OSError) and is_resource_error(error):  # (the file is not at fault)

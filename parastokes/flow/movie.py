@@ -30,7 +30,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from ..core import signals
-from ..core.files import FileWriteError, Staging
+from ..core.files import FileWriteError, Staging, open_input
 from .render import draw_bodies, draw_plane, speed_limits
 from .run import RunFrames
 
@@ -73,18 +73,22 @@ def _bodies_limits(run: RunFrames) -> np.ndarray:
 
 def draw_bodies_frame(fig: Figure, run: RunFrames, frame: int, limits: np.ndarray) -> None:
     """The bodies of ``frame`` in the x-y and x-z planes on the fixed ``limits``, at true scale
-    (a micrometre as long across as up)."""
-    axes = fig.subplots(2, 1, sharex=True)
+    (a micrometre as long across as up), each panel as tall as its extent makes it (no gap
+    between flat panels), its axis named by a horizontal label beside it (a rotated one hung far
+    above and below a flat panel), what z measures in the panel's title."""
+    extent = limits[:, 1] - limits[:, 0]
+    axes = fig.subplots(2, 1, sharex=True, height_ratios=[extent[1], extent[2]])
     for ax, (i, j) in zip(axes, ((0, 1), (0, 2)), strict=True):
         draw_bodies(ax, run.data["bodies"], frame, (i, j), color="C0")
         ax.set_xlim(*limits[i])
         ax.set_ylim(*limits[j])
         ax.set_aspect("equal", adjustable="box")
-        ax.set_ylabel(f"{'xyz'[j]} (μm)" + (" (distance to the wall)" if j == 2 and run.wall
-                                            else ""))
+        ax.set_ylabel(f"{'xyz'[j]}\n(μm)", rotation=0, ha="right", va="center")
         ax.ticklabel_format(axis="y", useOffset=False)
     axes[-1].set_xlabel("x (μm)")
     axes[0].set_title(f"t = {run.times[frame]:.5g} s ({run.data['run']})", fontsize=9)
+    if run.wall:
+        axes[1].set_title("z: the distance to the wall", fontsize=8)
 
 
 def _ffmpeg(path: Path) -> str:
@@ -107,22 +111,25 @@ def check_mp4(path: Path, written: Path) -> None:
     """:class:`FileWriteError` naming ``path`` unless ``written`` is a whole MP4: its top-level
     boxes cover the file exactly and include ``ftyp``, ``mdat`` and ``moov`` (the index, written
     last: a file cut short by a full disk or a size limit lacks it)."""
-    data = written.read_bytes() if written.is_file() else b""
-    boxes, at = set(), 0
-    while at + 8 <= len(data):
-        size, kind = int.from_bytes(data[at : at + 4], "big"), data[at + 4 : at + 8]
-        if size == 1 and at + 16 <= len(data):
-            size = int.from_bytes(data[at + 8 : at + 16], "big")
-        elif size == 0:
-            size = len(data) - at
-        if size < 8:
-            break
-        boxes.add(kind)
-        at += size
-    if not data:
+    length = written.stat().st_size if written.is_file() else 0
+    if not length:
         raise _failed(path, "the encoder ended without writing the movie")
-    if at != len(data) or not {b"ftyp", b"mdat", b"moov"} <= boxes:
-        raise _failed(path, f"the encoder left an incomplete MP4 ({len(data)} bytes, no index)")
+    boxes, at = set(), 0
+    with open_input(written, "movie") as handle:  # (the box headers only, not the frames)
+        while at + 8 <= length:
+            handle.seek(at)
+            head = handle.read(16)
+            size, kind = int.from_bytes(head[:4], "big"), head[4:8]
+            if size == 1 and len(head) == 16:
+                size = int.from_bytes(head[8:16], "big")
+            elif size == 0:
+                size = length - at
+            if size < 8:
+                break
+            boxes.add(kind)
+            at += size
+    if at != length or not {b"ftyp", b"mdat", b"moov"} <= boxes:
+        raise _failed(path, f"the encoder left an incomplete MP4 ({length} bytes, no index)")
 
 
 def _wait(process: subprocess.Popen) -> int:

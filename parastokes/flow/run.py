@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from ..core.files import CorruptFileError
 from ..output import trajectory as io
 from ..registry.kinds import BodyLayout
 
@@ -124,6 +125,19 @@ def _needed(system: Any) -> np.ndarray:
     return needed
 
 
+def _check_datasets(path: Path, data: dict[str, Any], layout: list[BodyLayout]) -> None:
+    """:class:`~parastokes.core.files.CorruptFileError` naming ``path`` and the datasets its run
+    lacks of those the layout of its own configuration says it wrote (a body's frames ``D1``-
+    ``D3``, a rigid body's ``orientation`` and ``phase``: a damaged or edited file)."""
+    bodies = data["bodies"]
+    lacking = [f"body {body.name!r} lacks its {', '.join(names)}" for body in layout
+               if (names := [n for n in ("positions", *body.vectors)
+                            if n not in bodies.get(body.name, {})])]
+    if lacking:
+        raise CorruptFileError(path, f"run {data['run']!r}: {'; '.join(lacking[:3])}",
+                               "rerun the run that wrote it")
+
+
 def _columns_saved(system: Any, layout: list[BodyLayout]) -> list[str]:
     """What the state needs that the trajectory does not hold (empty if it holds everything)."""
     needed = _needed(system)
@@ -155,6 +169,7 @@ def load_run(directory: str | Path, run: str | None = None, threads: int = 1) ->
     cfg = parse(config_tables(data["config"]), str(path))
     system = cfg.model.build(threads)
     layout = cfg.model.layout(system, cfg.output.frames, cfg.output.tracked_points)
+    _check_datasets(path, data, layout)
     missing = _columns_saved(system, layout)
     if missing:
         raise ValueError(f"{path}: the frames of {', '.join(missing)} lack columns of the state "

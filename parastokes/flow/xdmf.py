@@ -26,7 +26,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from ..core.files import Staging, staged
+from ..core.files import Staging, check_input, staged
 from ..output.trajectory import new_hdf5
 from .grids import Grid
 
@@ -117,9 +117,9 @@ def write_grid(stem: str | os.PathLike, grid: Grid, times: np.ndarray, velocitie
 
 def read_grid(path: str | os.PathLike) -> tuple[Grid, np.ndarray, np.ndarray]:
     """The grid, times (F,) and velocities (F, nz, ny, nx, 3) of a file of :func:`write_grid`."""
-    path = Path(path)
-    with h5py.File(path if path.suffix == ".h5" else suffixed(path, ".h5"), "r",
-                   locking=False) as f:
+    path = Path(path) if Path(path).suffix == ".h5" else suffixed(path, ".h5")
+    check_input(path, "flow")  # (h5py opens it by name: a pipe would block it)
+    with h5py.File(path, "r", locking=False) as f:
         if f.attrs.get("format") != FORMAT:
             raise ValueError(f"{path}: not a parastokes flow file")
         grid = Grid.of(f.attrs["origin"], f.attrs["spacing"], f.attrs["shape"])

@@ -39,7 +39,7 @@ def batch_key(fn: Any, args: tuple) -> tuple | None:
     """What members of one batch share, or None when the call is not batched on the GPU."""
     if not isinstance(fn, integrate.Propagator) or len(args) != 3:
         return None
-    if integrate.SCHEMES[fn.scheme].implicit or fn.rtol is not None or fn.atol is not None:
+    if integrate.lookup(fn.scheme).implicit or fn.rtol is not None or fn.atol is not None:
         return None  # the device loop runs fixed steps of explicit tableaux: hosted instead
     system = stepping.gpu_system(fn.system)
     if system is None:

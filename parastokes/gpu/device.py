@@ -10,7 +10,7 @@ from __future__ import annotations
 import os
 from types import ModuleType
 
-__all__ = ["INSTALL_HINT", "available", "cuda", "require", "simulated"]
+__all__ = ["INSTALL_HINT", "NO_DEVICE", "available", "cuda", "missing", "require", "simulated"]
 
 INSTALL_HINT = 'pip install "parastokes[gpu]"'
 
@@ -41,13 +41,28 @@ def available() -> bool:
         return False
 
 
+#: Why no GPU kernel can run where numba's CUDA target finds no device.
+NO_DEVICE = (
+    "no CUDA GPU is available (numba.cuda.is_available() is False): check the NVIDIA "
+    f"driver and {INSTALL_HINT}; to test without a GPU, set NUMBA_ENABLE_CUDASIM=1 "
+    "before starting Python (numba-cuda's simulator: slow, for tiny problems only)"
+)
+
+
+def missing() -> str | None:
+    """Why GPU kernels cannot run here (numba's CUDA target not installed, or no device and no
+    simulator), or None when they can (a GPU, or the simulator chosen, as the tests do).
+    ``parastokes check`` asks this before a run would start its GPU executor."""
+    try:
+        cuda()
+    except ImportError as error:
+        return str(error)
+    return None if available() else NO_DEVICE
+
+
 def require() -> ModuleType:
     """``numba.cuda``, or a RuntimeError saying why no GPU kernel can run here."""
     module = cuda()
     if not available():
-        raise RuntimeError(
-            "no CUDA GPU is available (numba.cuda.is_available() is False): check the NVIDIA "
-            f"driver and {INSTALL_HINT}; to test without a GPU, set NUMBA_ENABLE_CUDASIM=1 "
-            "before starting Python (numba-cuda's simulator: slow, for tiny problems only)"
-        )
+        raise RuntimeError(NO_DEVICE)
     return module

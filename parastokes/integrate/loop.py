@@ -49,7 +49,8 @@ from ..fluid.compiled import pack_points
 from ..mrs import compiled
 from ..mrs.velocity import EIGHT_PI, kernel_threads
 from ..registry import loops as registry
-from . import ABOVE, BEYOND, DONE, NON_FINITE, Scheme
+from .base import ABOVE, BEYOND, DONE, NON_FINITE
+from .schemes import Scheme
 
 __all__ = [
     "advance",

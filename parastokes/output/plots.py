@@ -44,6 +44,7 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
+from ..core.files import read_input
 from ..registry import kinds as registry
 from . import trajectory as io
 from .figures import save_figure as _save
@@ -344,10 +345,10 @@ def draw_benchmark(
     files written; a missing file or one without either section raises (FileNotFoundError,
     ValueError)."""
     json_path = Path(json_path)
-    if not json_path.is_file():
+    if not json_path.exists():
         raise FileNotFoundError(f"benchmark file {json_path} not found")
     try:
-        data = json.loads(json_path.read_text(encoding="utf-8"))
+        data = json.loads(read_input(json_path, "measurements").decode("utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as error:
         raise ValueError(f"{json_path}: not a JSON file ({error})") from error
     if not isinstance(data, dict) or (not data.get("scaling") and not data.get("fig10")):

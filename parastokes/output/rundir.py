@@ -10,14 +10,17 @@ replaced whole.
 - **No silent overwrite.** Without ``overwrite``, a directory holding a finished run
   (``summary.json``), an interrupted one (its resume state) or files that are not a run's is
   refused before anything is computed; ``resume`` continues an interrupted or finished run.
-- **Whole results.** A run writes its results (trajectory, summary, figures) into ``DIR/.partial/``
-  and :meth:`RunDirectory.commit` moves them in only when all are complete, then removes the
-  previous run's results that the new one does not have (stale figures). The commit is journalled
-  (``.partial/COMMIT``): a commit cut short is completed by the next claim, so the directory holds
-  either the old complete results or the new complete ones. The resume state (``checkpoint.npz``,
-  ``checkpoint.solves/``, ``reference.npz``, ``history.npz``) is written in place, each file
-  atomically; the partial
-  results of a run that stops early are dropped (the next run writes them anew).
+- **Whole results.** A run writes its results (trajectory, summary, figures, the demo's
+  ``config.toml``) into ``DIR/.partial/`` and :meth:`RunDirectory.commit` moves them in only when
+  all are complete, then removes the previous run's results that the new one does not have (stale
+  figures). The resume state (``checkpoint.npz``, ``checkpoint.solves/``, ``reference.npz``,
+  ``history.npz``) is written each file atomically: in place, or, for an ``--overwrite`` of a
+  directory that holds a run, into ``DIR/.next/``, so that the old run stays whole and resumable
+  until the new one commits (a new run refused by a check, interrupted, or blown up leaves it as
+  it was; its own ``.next/`` is dropped). The commit is journalled (``.partial/COMMIT``, with the
+  names of the new resume state): a commit cut short is completed by the next claim, so the
+  directory holds either the old run whole or the new one whole. The partial results of a run
+  that stops early are dropped (the next run writes them anew).
 
 The commands that write beside or from a run (``flow``, ``movie``, ``tune``, ``plot``) claim their
 files through the same rules (:func:`claim_files`): checked before any work (a directory, an
@@ -33,23 +36,30 @@ from __future__ import annotations
 import json
 import os
 import shutil
-import socket
-import sys
-import time
 from collections.abc import Collection, Iterator, Sequence
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
-from ..core import signals
-from ..core.files import CorruptFileError, Staging, staged, temporary_owner, write_text
+from ..core import locks, signals
+from ..core.files import (
+    CorruptFileError,
+    Staging,
+    hold_names,
+    read_record,
+    recover_sets,
+    staged,
+    temporary_owner,
+    write_text,
+)
 
 __all__ = [
     "DirectoryInUse", "RunDirectory", "RunDirectoryError", "check_files", "check_free", "claim",
-    "claim_files", "is_run_directory", "is_run_file", "locked", "process_alive",
+    "claim_files", "is_run_directory", "is_run_file", "locked",
 ]
 
 LOCK = ".parastokes.lock"
 STAGING = ".partial"
+NEXT = ".next"
 MANIFEST = ".parastokes-results.json"
 _COMMIT = "COMMIT"
 
@@ -72,9 +82,7 @@ _OLD_FIGURES = tuple(
 RUN_FIGURES = ("error_decay", "speedup_vs_error", "speedup_by_iteration", "gantt", "structure")
 RUN_FLOW = ("flow.h5", "flow.xdmf", "flow.png")
 #: The files that keep a run directory's books.
-_BOOKS = (LOCK, LOCK + ".break", STAGING, MANIFEST)
-# Seconds after which a lock take-over that was itself interrupted is ignored.
-_BREAK_TIMEOUT = 10.0
+_BOOKS = (LOCK, LOCK + ".break", STAGING, NEXT, MANIFEST)
 
 
 class RunDirectoryError(ValueError):
@@ -87,128 +95,41 @@ class DirectoryInUse(RunDirectoryError):
     def __init__(self, out: Path, owner: dict) -> None:
         self.owner = owner
         super().__init__(
-            f"{out} is in use by another parastokes run (PID {owner.get('pid')} on host "
-            f"{owner.get('host')}, started {owner.get('time', '?')}); wait for it to finish or "
-            f"choose another --out. If that run is over (e.g. its node was lost), remove "
+            f"{out} is in use by {locks.holder(owner)}; wait for it to finish or choose "
+            f"another --out. If that command is over (e.g. its node was lost), remove "
             f"{out / LOCK}"
         )
 
 
-def _process_start(pid: int) -> str | None:
-    """The start time of process ``pid`` in clock ticks since boot (Linux), else None."""
-    try:
-        text = Path(f"/proc/{pid}/stat").read_text()
-    except OSError:
-        return None
-    return text.rsplit(")", 1)[1].split()[19]
-
-
-def process_alive(pid: int, started: str | None = None) -> bool:
-    """Whether process ``pid`` of this host runs (not a zombie) and, given ``started`` (its start
-    time from /proc), is the one that started then (not a later process reusing the PID)."""
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    try:
-        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
-    except OSError:
-        return True  # no /proc: trust kill()
-    return state != "Z" and (started is None or _process_start(pid) == started)
-
-
-def _owner(path: Path) -> dict | None:
-    """The lock record in ``path``; None if it is gone or unreadable (a lock being written)."""
-    try:
-        record = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return None
-    return record if isinstance(record, dict) else None
-
-
-def _age(path: Path) -> float:
-    """Seconds since ``path`` was last written (0 if it is gone)."""
-    try:
-        return time.time() - path.stat().st_mtime
-    except OSError:
-        return 0.0
-
-
-def _stale(owner: dict) -> bool:
-    if owner.get("host") != socket.gethostname() or not isinstance(owner.get("pid"), int):
-        return False
-    return not process_alive(owner["pid"], owner.get("started"))
-
-
-def _take_over(path: Path, owner: dict | None) -> None:
-    """Remove the stale lock ``path`` (``owner``: its record, None for an unreadable one)
-    unless another process is doing so or has replaced it."""
-    breaker = path.with_name(path.name + ".break")
-    try:
-        fd = os.open(breaker, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
-    except FileExistsError:
-        if time.time() - breaker.stat().st_mtime > _BREAK_TIMEOUT:
-            breaker.unlink(missing_ok=True)
-        time.sleep(0.05)
-        return
-    os.close(fd)
-    try:
-        if _owner(path) == owner:  # still the same stale lock
-            path.unlink(missing_ok=True)
-    finally:
-        breaker.unlink(missing_ok=True)
-
-
 def _lock(out: Path) -> dict:
     """Create ``out/LOCK`` for this process (taking over a stale one); returns its record."""
-    path = out / LOCK
-    pid = os.getpid()
-    record = {
-        "pid": pid,
-        "host": socket.gethostname(),
-        "started": _process_start(pid),
-        "time": time.strftime("%Y-%m-%d %H:%M:%S"),
-        "command": " ".join(sys.argv),
-    }
-    deadline = time.monotonic() + 2 * _BREAK_TIMEOUT
-    while True:
-        try:
-            fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
-        except FileExistsError:
-            owner = _owner(path)
-            if (owner is not None and not _stale(owner)) or time.monotonic() > deadline:
-                raise DirectoryInUse(out, owner or {}) from None
-            if owner is not None:
-                _take_over(path, owner)
-            elif _age(path) > _BREAK_TIMEOUT:  # a record never written: its writer was killed
-                _take_over(path, None)
-            else:
-                time.sleep(0.05)  # being written: read it again
-            continue
-        with os.fdopen(fd, "w", encoding="utf-8") as handle:
-            json.dump(record, handle)
-        return record
+    try:
+        return locks.acquire(out / LOCK)
+    except locks.Held as held:
+        raise DirectoryInUse(out, held.record) from None
 
 
 class RunDirectory:
-    """A claimed output directory: ``path``, and ``staging`` where the new results are written."""
+    """A claimed output directory: ``path``, ``staging`` where the new results are written and
+    ``state`` where the new resume state is."""
 
     def __init__(self, path: Path) -> None:
         self.path = path
         self.staging = path / STAGING
+        #: Where the run writes its resume state: the directory itself, or ``NEXT`` in it for an
+        #: ``--overwrite`` whose old run stays whole until the commit (:meth:`start`).
+        self.state = path
 
     def _previous_results(self) -> set[str]:
         try:
-            names = json.loads((self.path / MANIFEST).read_text(encoding="utf-8"))["files"]
+            names = json.loads(read_record(self.path / MANIFEST))["files"]
             return {str(n) for n in names}
         except (OSError, ValueError, KeyError, TypeError):
             return set(RESULT_FILES) | set(_OLD_FIGURES)
 
     def entries(self) -> dict[str, list[str]]:
         """The directory's entries by role: ``results``, ``state``, ``foreign``."""
-        names = {p.name for p in self.path.iterdir()} - {LOCK, LOCK + ".break", STAGING, MANIFEST}
+        names = {p.name for p in self.path.iterdir()} - set(_BOOKS)
         names = {n for n in names if not n.endswith(".tmp")}
         results = self._previous_results() | set(RESULT_FILES)
         known = results | set(STATE_FILES) | set(INPUT_FILES)
@@ -244,28 +165,26 @@ class RunDirectory:
                 "to continue it, or --overwrite to discard it and start afresh"
             )
 
-    def discard_state(self) -> None:
-        """Remove the resume state (``--overwrite``): nothing of the old run is resumed. The
-        record of its blow-up (``blowup.npz``) stays until the new run completes, so that a
-        blow-up of the new run can be compared with it (same time with another step?)."""
-        for name in STATE_FILES:
-            if name == "blowup.npz":
-                continue
-            path = self.path / name
-            if path.is_dir():  # checkpoint.solves: the solves of the iteration in progress
-                shutil.rmtree(path)
-            else:
-                path.unlink(missing_ok=True)
-
     def recover(self) -> None:
-        """Complete a commit that was cut short (by a kill or a power cut)."""
+        """Complete a commit that was cut short (by a kill or a power cut); drop the resume state
+        of an ``--overwrite`` run that did not reach its commit (the run it was to replace stays
+        whole, resumable)."""
         if (self.staging / _COMMIT).exists():
             self._roll_forward()
+        shutil.rmtree(self.path / NEXT, ignore_errors=True)
 
-    def reset_staging(self) -> None:
-        """Drop an unfinished run's partial results and make an empty staging directory."""
+    def start(self, *, replace: bool) -> None:
+        """Make an empty staging directory for the new results (dropping an unfinished run's);
+        with ``replace`` (``--overwrite`` of a directory holding a run), an empty ``NEXT`` for
+        the new run's resume state too (:attr:`state`), so that the old run's stays until the
+        commit."""
         shutil.rmtree(self.staging, ignore_errors=True)
         self.staging.mkdir()
+        found = self.entries()
+        if replace and (found["state"] or found["results"]):
+            self.state = self.path / NEXT
+            shutil.rmtree(self.state, ignore_errors=True)
+            self.state.mkdir()
 
     def add_results(self, names: Sequence[str]) -> None:
         """List files written beside the results (``parastokes plot DIR``'s figures) among them,
@@ -273,32 +192,58 @@ class RunDirectory:
         _write_names(self.path / MANIFEST, sorted(self._previous_results() | set(names)))
 
     def commit(self) -> list[str]:
-        """Move every file of the staging directory into place, remove the previous results
-        that the new ones do not replace; returns the names of the new results. Nothing moves
-        after a stop was asked for (:func:`parastokes.core.signals.honour`)."""
+        """Move every file of the staging directory into place, and the new resume state from
+        :attr:`state` when it is not the directory itself (replacing the old run's, which is
+        removed where the new run has none); remove the previous results that the new ones do
+        not replace; returns the names of the new results. Journalled in ``STAGING/COMMIT``
+        first, so a commit cut short is completed by the next claim (:meth:`recover`). Nothing
+        moves after a stop was asked for (:func:`parastokes.core.signals.honour`)."""
         signals.honour()
         names = sorted(p.name for p in self.staging.iterdir() if not p.name.endswith(".tmp"))
-        _write_names(self.staging / _COMMIT, names)
+        state = (None if self.state == self.path else
+                 sorted(p.name for p in self.state.iterdir() if p.name in STATE_FILES))
+        _write_names(self.staging / _COMMIT, names, state)
         self._roll_forward()
+        signals.completed(f"the run's results are complete in {self.path} "
+                          f"({', '.join(n for n in names if n != 'config.toml')})")
         return names
 
     def _roll_forward(self) -> None:
         record = self.staging / _COMMIT
         try:
-            names = json.loads(record.read_text(encoding="utf-8"))["files"]
-        except (OSError, ValueError, KeyError, TypeError) as error:
+            data = json.loads(read_record(record))
+            names, state = list(data["files"]), data.get("state")
+        except (OSError, ValueError, KeyError, TypeError, AttributeError) as error:
             raise CorruptFileError(
                 record, f"the record of an interrupted commit cannot be read ({error})",
                 f"move the files of {self.staging} into {self.path} by hand, or remove "
                 f"{self.staging} to keep the previous results",
             ) from None
+        if state is not None:  # an --overwrite: the new resume state replaces the old one
+            for name in STATE_FILES:
+                new, old = self.path / NEXT / name, self.path / name
+                if new.exists() or name not in state:  # (moved already: in state, new gone)
+                    _remove(old)
+                if new.exists():
+                    os.replace(new, old)
         for name in names:
             if (self.staging / name).exists():
                 os.replace(self.staging / name, self.path / name)
-        for name in self._previous_results() - set(names):
+        results = [name for name in names if name not in INPUT_FILES]
+        for name in self._previous_results() - set(results):
             (self.path / name).unlink(missing_ok=True)
-        _write_names(self.path / MANIFEST, names)
+        _write_names(self.path / MANIFEST, results)
+        shutil.rmtree(self.path / NEXT, ignore_errors=True)
         shutil.rmtree(self.staging, ignore_errors=True)
+        self.state = self.path
+
+
+def _remove(path: Path) -> None:
+    """Remove the file or directory (``checkpoint.solves``) ``path`` if it exists."""
+    if path.is_dir():
+        shutil.rmtree(path)
+    else:
+        path.unlink(missing_ok=True)
 
 
 def _remove_orphans(path: Path, locked: bool = True) -> None:
@@ -311,13 +256,16 @@ def _remove_orphans(path: Path, locked: bool = True) -> None:
         pid = temporary_owner(entry)
         if pid is None or pid == os.getpid() or not entry.is_file():
             continue
-        if locked or (not process_alive(pid) and _age(entry) > 6 * _BREAK_TIMEOUT):
+        old = locks.age(entry) > 6 * locks.BREAK_TIMEOUT
+        if locked or (not locks.process_alive(pid) and old):
             entry.unlink(missing_ok=True)
 
 
-def _write_names(path: Path, names: Sequence[str]) -> None:
-    """The record ``{"files": names}`` (the manifest, a commit's record), written atomically."""
-    write_text(path, json.dumps({"files": list(names)}))
+def _write_names(path: Path, names: Sequence[str], state: Sequence[str] | None = None) -> None:
+    """The record ``{"files": names}`` (the manifest, a commit's record, with the names of the
+    new resume state, ``state``, for an ``--overwrite``), written atomically."""
+    record: dict = {"files": list(names)} | ({} if state is None else {"state": list(state)})
+    write_text(path, json.dumps(record))
 
 
 def check_path(out: str | os.PathLike, shown: str | None = None) -> None:
@@ -371,11 +319,12 @@ def locked(out: str | os.PathLike) -> Iterator[RunDirectory]:
         ) from None
     try:
         directory = RunDirectory(path)
+        recover_sets(path)  # (a set of flow's or tune's files cut short: its files first)
         _remove_orphans(path)
         directory.recover()  # a commit cut short: its results whole, never a mixture
         yield directory
     finally:
-        if _owner(path / LOCK) == record:
+        if locks.owner(path / LOCK) == record:
             (path / LOCK).unlink(missing_ok=True)
 
 
@@ -399,17 +348,17 @@ def claim(out: str | os.PathLike, *, resume: bool, overwrite: bool) -> Iterator[
         ) from None
     try:
         directory = RunDirectory(path)
+        recover_sets(path)  # (a set of flow's or tune's files cut short: its files first)
         _remove_orphans(path)
         directory.recover()
         directory.check(resume=resume, overwrite=overwrite)
-        if overwrite:
-            directory.discard_state()
-        directory.reset_staging()
+        directory.start(replace=overwrite)
         yield directory
     finally:
         if not (path / STAGING / _COMMIT).exists():  # an unfinished run's partial results
             shutil.rmtree(path / STAGING, ignore_errors=True)
-        if _owner(path / LOCK) == record:
+            shutil.rmtree(path / NEXT, ignore_errors=True)
+        if locks.owner(path / LOCK) == record:
             (path / LOCK).unlink(missing_ok=True)
 
 
@@ -434,8 +383,8 @@ def check_free(run: str | os.PathLike) -> None:
     """:class:`DirectoryInUse` when a live process holds the lock of the run directory ``run``
     (a command reads a run's results only when no run is replacing them)."""
     path = Path(run)
-    owner = _owner(path / LOCK)
-    if owner is not None and not _stale(owner):
+    owner = locks.owner(path / LOCK)
+    if owner is not None and not locks.stale(owner):
         raise DirectoryInUse(path, owner)
 
 
@@ -471,12 +420,15 @@ def claim_files(paths: Sequence[str | os.PathLike], *, overwrite: bool = True,
                 option: str = "--out") -> Iterator[Staging]:
     """Own the files ``paths`` that a command writes (``flow``, ``movie``, ``tune``, ``plot``),
     checked before any work: :func:`check_files`; the lock of every run directory among their
-    folders held until the block ends (:class:`DirectoryInUse` if a run holds it), and the run
-    directories ``reads`` (those the command reads) refused while a run holds them
-    (:func:`check_free`). Yields the :class:`~parastokes.core.files.Staging` to write them through:
-    they are moved into place when the block ends normally (and listed with the results of a run
-    directory they are in, so that its next ``--overwrite`` replaces them), and removed when it
-    raises, so the previous files stay whole."""
+    folders held until the block ends (:class:`DirectoryInUse` if a run holds it), elsewhere the
+    lock of each file's name (:func:`parastokes.core.files.hold_names`: a second command writing
+    the same name is refused, naming the first), and the run directories ``reads`` (those the
+    command reads) refused while a run holds them (:func:`check_free`). Yields the
+    :class:`~parastokes.core.files.Staging` to write them through: they are moved into place as
+    one set when the block ends normally (journalled: a move cut short is completed at once or by
+    the next command writing there; and listed with the results of a run directory they are in,
+    so that its next ``--overwrite`` replaces them), and removed when it raises, so the previous
+    files stay whole."""
     found = check_files(paths, overwrite=overwrite, regenerates=regenerates, option=option)
     folders = list(dict.fromkeys(path.parent for path in found))
     with ExitStack() as stack:
@@ -486,6 +438,7 @@ def claim_files(paths: Sequence[str | os.PathLike], *, overwrite: bool = True,
                 runs[folder] = stack.enter_context(locked(folder))
             else:
                 _directory(folder)
+                stack.enter_context(hold_names([p for p in found if p.parent == folder]))
                 _remove_orphans(folder, locked=False)
         held = {folder.resolve() for folder in runs}
         for read in reads:

@@ -48,7 +48,10 @@ from ..core.files import (
     CorruptFileError,
     FileWriteError,
     GuardedFile,
+    InputFileError,
     Staging,
+    check_input,
+    read_input,
     read_npz,
     write_npz,
     write_text,
@@ -114,7 +117,9 @@ def read_summary(path: str | os.PathLike) -> dict[str, Any]:
             f"{path} does not exist: is {path.parent} the output directory of a finished run?"
         )
     try:
-        summary = json.loads(path.read_text(encoding="utf-8"))
+        summary = json.loads(read_input(path, "summary").decode("utf-8"))
+    except InputFileError:
+        raise
     except (OSError, ValueError) as error:
         raise CorruptFileError(path, f"not a readable summary ({error})") from None
     if not isinstance(summary, dict):
@@ -145,6 +150,7 @@ def _reading(path: str | os.PathLike) -> Iterator[h5py.File]:
     :class:`~parastokes.core.files.CorruptFileError` naming it."""
     if not Path(path).exists():
         raise FileNotFoundError(f"{path} does not exist")
+    check_input(path, "trajectory")  # (h5py opens it by name: a pipe would block it)
     try:
         with h5py.File(path, "r", locking=False) as f:
             if f.attrs.get("format") != FORMAT:

@@ -127,6 +127,12 @@ def advice(setup: Setup, label: str, error: BlowUpError, where: str,
     cfg = setup.config
     span = cfg.time.t1 - cfg.time.t0
     step = solver_step(cfg, setup.resolved, label)
+    if " overlap or touch" in error.reason:  # (mobility.checks.ContactError, names in reason)
+        return ("the bodies came into contact, where the mobility problem can no longer tell "
+                "their surfaces apart; a smaller step does not help: enable [scene] repulsion "
+                "(e.g. repulsion = { range = 0.5, force = F0 }, a push of F0 at contact that "
+                "vanishes a range apart; docs/bodies.md) to keep them apart, or start them "
+                "farther apart")
     if " returned " in error.reason:  # a body's own method at the (finite) last good state
         return ("the body's own function named above gives non-finite values, so a smaller step "
                 "does not help: fix that function (or the values it is given)")
@@ -145,9 +151,7 @@ def fix(cfg: Config, label: str, reason: str = "") -> str:
         return ("loosen fine.rtol/fine.atol, or use fixed steps (no rtol) to see where the "
                 "body fails")
     if "linear solve failed" in reason:
-        which = "fine.dt" if fine else "the coarse step"
-        return (f"reduce {which}, or use the scheme ros2 (a direct solve on the approximate "
-                "Jacobian, no GMRES iterations to fail)")
+        return _linear_solve_fix(cfg, fine)
     if fine:
         return f"reduce fine.dt (now {cfg.fine.dt:g}) or use a more stable fine.scheme"
     if cfg.coarse.kind == "hodmd":
@@ -158,6 +162,20 @@ def fix(cfg: Config, label: str, reason: str = "") -> str:
         f"the coarse scheme ({getattr(cfg.coarse, 'scheme', cfg.coarse.kind)}) is stable at that "
         "step"
     )
+
+
+def _linear_solve_fix(cfg: Config, fine: bool) -> str:
+    """What to change after a failed stage solve of a linearly implicit scheme: a GMRES one
+    (``ros2-krylov``) can use the direct solve of ros2; a direct one (its ``I - hγA`` singular)
+    only a smaller step, or a Jacobian hook that is right."""
+    which = "fine.dt" if fine else "the coarse step"
+    scheme = cfg.fine.scheme if fine else getattr(cfg.coarse, "scheme", "")
+    if getattr(integrate.SCHEMES.get(scheme), "krylov", False):
+        return (f"reduce {which}, or use the scheme ros2 (a direct solve on the approximate "
+                "Jacobian, no GMRES iterations to fail)")
+    return (f"reduce {which} (I - hγA of {scheme or 'the scheme'} is singular at this step; a "
+            "smaller h moves it away from singular), or check the body's stiff_jacobian or "
+            "load_jacobian if it has one")
 
 
 def find_blow_up(error: BaseException) -> tuple[BlowUpError, str] | None:

@@ -29,10 +29,30 @@ from .serial import serial_run
 from .speedups import run_speedups
 
 
-def _monitor(system: System, states: np.ndarray) -> dict[str, float]:
-    """The stability monitor (rod length / vesicle area change) over the slice boundaries."""
+class MonitorError(ArithmeticError):
+    """A run's stability monitor ended above its limit and ``output.monitor_fatal`` is set (its
+    results are written all the same; the command line exits with status 3)."""
+
+
+def _monitor(system: System, states: np.ndarray, times: np.ndarray) -> dict[str, float]:
+    """The stability monitor (rod length / vesicle area change) over the slice boundaries: its
+    largest value, the time of it, its final value and its limit."""
     values = [system.monitor(state) for state in states]
-    return {"max": float(max(values)), "final": float(values[-1]), "limit": system.monitor_limit}
+    worst = int(np.argmax(values))
+    return {"max": float(values[worst]), "time": float(times[worst]),
+            "final": float(values[-1]), "limit": system.monitor_limit}
+
+
+def monitor_warning(monitor: dict[str, float]) -> str | None:
+    """The warning of a run whose monitor (:func:`_monitor`) exceeds its limit anywhere at the
+    slice boundaries (any excess: the limit is the tolerance of the model's constraint, and a
+    monitor beyond ``integrate.BLOWUP_FACTOR`` times it is a blow-up), else None."""
+    value, limit = monitor["max"], monitor["limit"]
+    if value <= limit:  # (a NaN is not within it)
+        return None
+    return (f"the stability monitor reached {value:.3g} at t = {monitor['time']:.6g}, "
+            f"{value / limit:.3g} times its limit {limit:g} (a rod's length, a vesicle's area "
+            "changed that much): the results are not to be trusted; reduce fine.dt")
 
 
 def execute(
@@ -63,7 +83,10 @@ def execute(
     """
     reporter = reporter or Reporter()
     rundir.check_path(out)  # a bad --out before any work, and the body before the claim
+    known = len(resolved.warnings)
     setup = preflight(cfg, resolved)
+    for warning in resolved.warnings[known:]:  # (the notes of the built system)
+        reporter.note(f"note: {warning}")
     with rundir.claim(out, resume=resume, overwrite=overwrite) as directory:
         found = directory.entries()
         if resume and not found["state"] and not found["results"]:
@@ -88,10 +111,10 @@ def _execute(
     out, staging = directory.path, directory.staging
     conf = resolved_dict(cfg, resolved)
     key = identity(cfg)
-    check_resumable(out, cfg, resume)
+    check_resumable(directory.state, cfg, resume)
     previous = previous_blow_up(out)  # (an earlier run's, to compare a new blow-up with)
-    for name, text in files.items():
-        write_text(out / name, text)
+    for name, text in files.items():  # (in place with the results: a run cut short keeps the old)
+        write_text(staging / name, text)
     mode = cfg.run.mode
     start = time.perf_counter()
     if not _kernels_cached():
@@ -104,16 +127,17 @@ def _execute(
         try:
             if writer is not None:
                 check_room(setup, writer)
-            reference = serial_time = result = record = None
+            reference = serial_time = result = record = fine_steps = None
             if mode in ("serial", "both"):
-                reference, serial_time = serial_run(
-                    setup, x0, times, out, fine_identity(cfg), reporter, previous
+                reference, serial_time, fine_steps = serial_run(
+                    setup, x0, times, out, fine_identity(cfg), reporter, previous,
+                    directory.state,
                 )
                 if writer is not None:
                     append_frames(writer, "serial", running, times, reference)
             if mode in ("parareal", "both"):
                 result, record = parareal_run(
-                    running, x0, times, reference, out, key, reporter, previous
+                    running, x0, times, reference, out, key, reporter, previous, directory.state
                 )
                 if writer is not None:
                     append_frames(writer, "parareal", running, times, result.states)
@@ -144,7 +168,9 @@ def _execute(
             if result is None or record is None  # (both or neither)
             else run_speedups(result, list(record.elapsed), serial_time),
             "workers": None if running.executor is None else running.executor.workers,
-            "monitor": _monitor(system, final_states),
+            # adaptive fine steps of the serial run (scheme "auto": its switches), or None
+            "fine_steps": fine_steps,
+            "monitor": _monitor(system, final_states, times),
             "final_time": float(times[-1]),
             "final_positions": system.positions(final_states[-1]),
             "warnings": resolved.warnings,
@@ -154,6 +180,10 @@ def _execute(
                 "python": platform.python_version(),
             },
         }
+    alarm = monitor_warning(summary["monitor"])
+    if alarm is not None:
+        summary["warnings"] = [*resolved.warnings, alarm]
+        reporter.warn(alarm)
     summary["wall_time"] = time.perf_counter() - start
     io.write_summary(staging / SUMMARY, summary)
     if writer is not None:
@@ -170,4 +200,6 @@ def _execute(
     (out / BLOWUP).unlink(missing_ok=True)
     if result is not None and not cfg.parareal.checkpoint:
         (out / CHECKPOINT).unlink(missing_ok=True)
+    if alarm is not None and cfg.output.monitor_fatal:
+        raise MonitorError(f"{alarm} (output.monitor_fatal; the results are in {out})")
     return summary

@@ -26,19 +26,23 @@ def parareal_run(
     key: dict,
     reporter: ReporterLike,
     previous: dict[str, Any] | None = None,
+    state: Path | None = None,
 ) -> tuple[parareal.PararealResult, io.HistoryRecord]:
-    """Parareal with the history of an interrupted run in ``out`` (if any) carried on.
+    """Parareal with the history of an interrupted run in ``state`` (default ``out``; if any)
+    carried on.
 
     After every iteration (``parareal.run``'s ``on_iteration``) the final positions X^k at T_N and
-    the elapsed time are appended to ``history.npz`` and reported; the checkpoint in ``out`` lets
-    an interrupted run resume where it stopped.
+    the elapsed time are appended to ``history.npz`` and reported; the checkpoint in ``state``
+    lets an interrupted run resume where it stopped. A blow-up's last good state is saved in
+    ``out``.
     """
     setup, executor = running.setup, running.executor
     cfg, system = setup.config, setup.system
-    history_path = out / HISTORY
+    state = out if state is None else state
+    history_path = state / HISTORY
     finals: list[np.ndarray] = []
     elapsed: list[float] = []
-    checkpoint = out / CHECKPOINT
+    checkpoint = state / CHECKPOINT
     if history_path.exists():
         _, arrays = io.load_arrays(history_path, required=("final_positions", "elapsed"))
         finals, elapsed = list(arrays["final_positions"]), list(arrays["elapsed"])

@@ -12,6 +12,8 @@ class ReporterLike(Protocol):
 
     def note(self, text: str) -> None: ...
 
+    def warn(self, text: str) -> None: ...
+
     def start(self, what: str, total: int) -> None: ...
 
     def expect(self, seconds: float) -> None: ...
@@ -28,6 +30,9 @@ class Reporter:
 
     def note(self, text: str) -> None:
         """A line of information."""
+
+    def warn(self, text: str) -> None:
+        """A warning about the results (also in summary.json's warnings)."""
 
     def start(self, what: str, total: int) -> None:
         """A phase of ``total`` steps begins: ``"serial"`` slices or ``"parareal"`` iterations

@@ -28,13 +28,16 @@ def slice_seconds(setup: Setup) -> float:
 
 def serial_run(
     setup: Setup, x0: np.ndarray, times: np.ndarray, out: Path, key: dict, reporter: ReporterLike,
-    previous: dict[str, Any] | None = None,
-) -> tuple[np.ndarray, float]:
-    """The serial fine solution F(T_n, T_0, x0) at every T_n (as ``parareal.serial_solution``) and
-    its wall time. Saved to ``out/REFERENCE`` after every slice, and continued from there when
-    that file holds the same fine problem (``key``, :func:`fine_identity`), so an interrupted
-    serial run loses at most a slice and a finished one can serve other runs of that problem."""
-    path = out / REFERENCE
+    previous: dict[str, Any] | None = None, state: Path | None = None,
+) -> tuple[np.ndarray, float, dict[str, Any] | None]:
+    """The serial fine solution F(T_n, T_0, x0) at every T_n (as ``parareal.serial_solution``),
+    its wall time and, for adaptive steps, what :func:`adaptive_summary` says of the slices run
+    now (None for fixed steps or a reloaded run). Saved to ``state/REFERENCE`` (``state``:
+    ``out`` by default) after every slice, and continued from there when that file holds the
+    same fine problem (``key``, :func:`fine_identity`), so an interrupted serial run loses at
+    most a slice and a finished one can serve other runs of that problem. A blow-up's last good
+    state is saved in ``out``."""
+    path = (out if state is None else state) / REFERENCE
     n_slices = len(times) - 1
     states = np.full((n_slices + 1, *x0.shape), np.nan)
     states[0] = x0
@@ -48,17 +51,17 @@ def serial_run(
             raise CorruptFileError(path, f"an incomplete serial run ({error!r})") from None
         if done == n_slices:
             reporter.note(f"serial fine solution reloaded from {path.name}")
-            return states, wall
+            return states, wall, None
         reporter.note(f"serial fine run resumed after slice {done} of {n_slices}")
     reporter.start("serial", n_slices - done)
     reporter.expect(slice_seconds(setup))
-    accepted = rejected = 0
+    results = []
     for n in range(done + 1, n_slices + 1):
         start = time.perf_counter()
         try:
             result = setup.fine.run(times[n - 1], times[n], states[n - 1])
             states[n] = result.state
-            accepted, rejected = accepted + result.n_steps, rejected + result.n_rejected
+            results.append(result)
         except BlowUpError as error:
             cfg = setup.config
             where = f"the fine solver F ({cfg.fine.scheme}) in slice {n} of the serial fine run"
@@ -70,7 +73,28 @@ def serial_run(
         reporter.advance()
         signals.honour()
     reporter.finish()
-    if setup.config.fine.rtol is not None:
+    steps = adaptive_summary(results) if setup.config.fine.rtol is not None else None
+    if steps is not None:
         reporter.note(f"serial fine run: adaptive steps ({setup.config.fine.scheme}, rtol "
-                      f"{setup.config.fine.rtol:g}): {accepted} accepted, {rejected} rejected")
-    return states, wall
+                      f"{setup.config.fine.rtol:g}): {steps['accepted']} accepted, "
+                      f"{steps['rejected']} rejected, {len(steps['switches'])} scheme switches")
+    return states, wall, steps
+
+
+def adaptive_summary(results: list[Any]) -> dict[str, Any]:
+    """The steps of adaptive fine solves (their :class:`parastokes.integrate.RunResult`), for
+    ``summary.json``: accepted, rejected, per scheme (``scheme="auto"`` runs several) and the
+    switches of ``auto`` ``{t, scheme, reason}`` in time order."""
+    by_scheme: dict[str, list[int]] = {}
+    for result in results:
+        for name, accepted, rejected in result.by_scheme:
+            counts = by_scheme.setdefault(name, [0, 0])
+            counts[0] += accepted
+            counts[1] += rejected
+    return {
+        "accepted": sum(r.n_steps for r in results),
+        "rejected": sum(r.n_rejected for r in results),
+        "by_scheme": {name: {"accepted": a, "rejected": r} for name, (a, r) in by_scheme.items()},
+        "switches": [{"t": t, "scheme": name, "reason": why}
+                     for r in results for t, name, why in r.switches],
+    }

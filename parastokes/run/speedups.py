@@ -6,6 +6,7 @@ from __future__ import annotations
 from typing import Any
 
 from .. import parareal
+from ..parareal.best_serial import HOW_TO_MEASURE, best_known, cache_path
 from ..parareal.speedup import schedule_speedups
 
 
@@ -58,3 +59,21 @@ def speedup_table(summary: dict[str, Any]) -> str:
         f"  bound        {s['bound']:8.3f}   ({limit})",
     ]
     return "\n".join(lines)
+
+
+def against_best_serial(summary: dict[str, Any], config: str | None, key: str) -> str:
+    """The speedup report's line against the fastest serial run of the same accuracy: the
+    measured and theoretical speedups over F's CPU time over that run's, from the cache beside
+    the configuration ``config`` (``parastokes plan``) for the problem ``key``, at the run's
+    last error η^K (the cache entry's own target when the run measured none); or the line that
+    says none was measured and how to measure it."""
+    s = summary["speedup"]
+    errors = summary.get("errors") or []
+    known = None if config is None else best_known(cache_path(config), key,
+                                                   float(errors[-1]) if errors else None)
+    if known is None:
+        return f"  vs best serial      -      (none measured for this problem: {HOW_TO_MEASURE})"
+    return (f"  vs best serial {s['measured'] / known.fine_over:8.3f}   (measured; theoretical "
+            f"{s['theoretical'] / known.fine_over:.3f}: against {known.describe()}, the fastest "
+            f"serial run reaching η* = {known.target:.3g}, cached in {known.source}; F takes "
+            f"{known.fine_over:.3g}x its CPU)")

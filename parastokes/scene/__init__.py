@@ -287,9 +287,14 @@ class Scene:
         prescribed-motion bodies), block-diagonal over the padded rates; the coupling between
         bodies stays out of it (W-methods keep their order with any approximation)."""
         cols = self.rate_columns
-        parts = [(first, rc, local_jacobian(body, t, x, rows * rc))
-                 for body, x, (first, rows, _), rc in zip(self.bodies, self.blocks(state),
-                                                           self.shapes, cols, strict=True)]
+        parts = []
+        for i, (body, x, (first, rows, _), rc) in enumerate(
+                zip(self.bodies, self.blocks(state), self.shapes, cols, strict=True)):
+            try:
+                parts.append((first, rc, local_jacobian(body, t, x, rows * rc)))
+            except contract.BodyError as error:  # a user's hook: which body of the scene
+                raise contract.BodyError(f"bodies[{i}] ({self.names[i]!r}): {error}",
+                                         error.method) from None
         return block_jacobian(parts, len(state), max(cols))
 
     def bracket(self, r1: np.ndarray, r2: np.ndarray) -> np.ndarray:
@@ -329,6 +334,18 @@ class Scene:
         w[:, 1] += 0.5 * self.shear_rate
         return u, w
 
+    def implicit_surfaces(self, t: float, state: np.ndarray) -> list[Any]:
+        """The surfaces of the implicit bodies at ``(t, state)``, in :attr:`implicit_bodies`
+        order, their loads with the repulsion's added: what the coupled solve takes."""
+        blocks = self.blocks(state)
+        surfaces = [dataclasses.replace(self.bodies[i].surface(t, blocks[i]), name=self.names[i])
+                    for i in self.implicit_bodies]  # (named as the scene names them)
+        if self.repulsion is not None:
+            force, torque = repulsion_loads(surfaces, self.repulsion, self.wall)
+            surfaces = [dataclasses.replace(s, force=s.force + f, torque=s.torque + q)
+                        for s, f, q in zip(surfaces, force, torque, strict=True)]
+        return surfaces
+
     def coupled(self, t: float, state: np.ndarray) -> Coupled:
         """One coupled evaluation (see the module): the explicit loads, the mobility solve of
         all implicit bodies in their background, the velocities at the explicit bodies."""
@@ -336,12 +353,7 @@ class Scene:
 
         explicit = self._sources(t, state, [i for i in range(len(self.bodies))
                                             if i not in self.implicit_bodies])
-        blocks = self.blocks(state)
-        surfaces = [self.bodies[i].surface(t, blocks[i]) for i in self.implicit_bodies]
-        if self.repulsion is not None:
-            force, torque = repulsion_loads(surfaces, self.repulsion, self.wall)
-            surfaces = [dataclasses.replace(s, force=s.force + f, torque=s.torque + q)
-                        for s, f, q in zip(surfaces, force, torque, strict=True)]
+        surfaces = self.implicit_surfaces(t, state)
         rigid_points = np.concatenate([s.points for s in surfaces])
         background, _ = self._flow(rigid_points, explicit, False)
         solution = mobility(surfaces, self.viscosity, self.wall, background, self.n_threads)

@@ -61,41 +61,36 @@ def fd_jacobian(
     rate_columns: int,
     coupling: sp.spmatrix | sp.sparray,
     step: float,
-) -> sp.csr_array:
+) -> sp.bsr_array:
     """The Jacobian of ``function`` (state -> (n, L) values per point) with respect to a rate
     perturbation ``δ`` (n, ``rate_columns``) applied by ``advance(x, δ, 1)``, as a sparse
-    (n L, n rate_columns) matrix, row ``L i + l`` and column ``rate_columns j + q`` point-major;
-    central differences of size ``step``, one pair per colour of ``coupling`` and rate column.
+    (n L, n rate_columns) matrix in blocks of L x rate_columns (one per entry of ``coupling``),
+    row ``L i + l`` and column ``rate_columns j + q`` point-major; central differences of size
+    ``step``, one pair per colour of ``coupling`` and rate column.
     """
-    pattern = sp.coo_array(sp.csc_array(coupling, dtype=bool))
-    rows_all, cols_all = pattern.row, pattern.col
+    pattern = sp.csr_array(coupling, dtype=bool)
+    pattern.sort_indices()
+    rows_all = np.repeat(np.arange(pattern.shape[0]), np.diff(pattern.indptr))
+    cols_all = pattern.indices.astype(np.int64)
     colour = _cached_colours(rows_all, cols_all, pattern.shape)
-    n = len(colour)
-    rc = rate_columns
-    data, rows, cols = [], [], []
-    width = None
-    for c in range(int(colour.max()) + 1 if n else 0):
+    n, rc = len(colour), rate_columns
+    n_colours = int(colour.max()) + 1 if n else 0
+    diffs = []  # (colour, q) -> (n, L): each row meets one point of a colour
+    for c in range(n_colours):
         points = colour == c
-        keep = points[cols_all]
-        r, j = rows_all[keep], cols_all[keep]  # each row meets one point of this colour
         for q in range(rc):
             delta = np.zeros((n, rc))
             delta[points, q] = step
             plus = np.asarray(function(advance(x, delta, 1.0)), dtype=float)
             minus = np.asarray(function(advance(x, -delta, 1.0)), dtype=float)
-            diff = (plus - minus).reshape(n, -1) / (2.0 * step)
-            width = diff.shape[1]
-            for col in range(width):
-                data.append(diff[r, col])
-                rows.append(width * r + col)
-                cols.append(rc * j + q)
-    width = width or 1
-    if not data:
-        return sp.csr_array((n * width, n * rc))
-    return sp.csr_array(
-        (np.concatenate(data), (np.concatenate(rows), np.concatenate(cols))),
-        shape=(n * width, n * rc),
-    )
+            diffs.append((plus - minus).reshape(n, -1) / (2.0 * step))
+    width = diffs[0].shape[1] if diffs else 1
+    if not diffs:
+        return sp.bsr_array((n * width, n * rc), blocksize=(width, rc))
+    table = np.stack(diffs).reshape(n_colours, rc, n, width)
+    blocks = table[colour[cols_all], :, rows_all, :].transpose(0, 2, 1)  # (entries, L, rc)
+    return sp.bsr_array((np.ascontiguousarray(blocks), cols_all, pattern.indptr),
+                        shape=(n * width, n * rc))
 
 
 @functools.lru_cache(maxsize=32)

@@ -12,21 +12,33 @@ In order of preference (docs/stiff.md, "Which Jacobian"):
    rod, vesicle and chain declare theirs), else dense finite differences (a user body without
    either: two loads evaluations per point and rate column);
 3. otherwise (a rigid or prescribed-motion body, whose velocity is already a solve; a system
-   with rates only): no ``A``, and the schemes step it as their explicit counterparts.
+   with rates only): no ``A``, and the schemes step it as their explicit counterparts
+   (:func:`has_stiff_part` says which, without calling anything).
+
+A user's hooks (``stiff_jacobian``, ``load_jacobian``) are checked where they enter: a value
+that is no matrix, of the wrong shape, or an error they raise is a
+:class:`~parastokes.bodies.contract.BodyError` naming the hook (exit 2 of a run, in a worker
+too); non-finite entries during a run are a blow-up there (:class:`NonFiniteJacobian`, a
+:class:`~.solve.StiffSolveError`), and at the initial state a BodyError (:func:`probe_hooks`,
+called by ``parastokes check`` and before every run).
 """
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
 
 from ..bodies import contract
+from .banded import block_product
 from .coloring import fd_jacobian
 from .local import near_mobility
+from .solve import StiffSolveError
 
-__all__ = ["CUTOFF", "block_jacobian", "jacobian_check", "load_jacobian", "local_jacobian"]
+__all__ = ["CUTOFF", "NonFiniteJacobian", "block_jacobian", "has_stiff_part", "jacobian_check",
+           "load_jacobian", "local_jacobian", "probe_hooks"]
 
 #: Pairs of points closer than CUTOFF ε enter the near mobility (docs/benchmarks.md, "Stiff
 #: bodies": 3 ε keeps ROS2 stable at 20x the explicit limit on the paper's rod).
@@ -37,10 +49,37 @@ def _rate_columns(body: Any) -> int:
     return int(getattr(body, "rate_columns", 6 if getattr(body, "angular", False) else 3))
 
 
-def _sparse(system: Any, call: str, matrix: Any, shape: tuple[int, int], what: str
+class NonFiniteJacobian(StiffSolveError):
+    """A Jacobian hook (``method``: ``"Type.hook(t, state)"``) returned non-finite entries at
+    time ``t`` of a run: a blow-up there, like a failed stage solve."""
+
+    def __init__(self, t: float, method: str, kind: str) -> None:
+        super().__init__(t, math.nan, 0, f"{method} returned {kind}")
+        self.args = (f"{method} returned {kind} at t = {t:.10g}",)
+        self.method, self.kind = method, kind
+
+    def __reduce__(self) -> tuple:
+        return type(self), (self.t, self.method, self.kind)
+
+
+def _hook(system: Any, call: str, t: float, x: np.ndarray) -> Any:
+    """``system.call(t, x)`` (a Jacobian hook); an error it raises as a BodyError naming
+    ``Type.call(t, state)`` and the time (exit 2 wherever it runs, never a failed task)."""
+    name = f"{type(system).__name__}.{call}(t, state)"
+    try:
+        return getattr(system, call)(t, x)
+    except contract.BodyError:
+        raise
+    except Exception as error:
+        raise contract.BodyError(f"{name} raised {type(error).__name__} at t = {t:.10g}: "
+                                 f"{error}", name) from error
+
+
+def _sparse(system: Any, call: str, matrix: Any, shape: tuple[int, int], what: str, t: float
             ) -> sp.csr_array:
-    """``matrix`` (what ``system.call`` returned) as a CSR array of ``shape``, finite
-    (BodyError naming ``Type.call`` otherwise; ``what`` says what the shape means)."""
+    """``matrix`` (what ``system.call`` returned at time ``t``) as a CSR array of ``shape``
+    (BodyError naming ``Type.call`` otherwise; ``what`` says what the shape means), finite
+    (:class:`NonFiniteJacobian` otherwise)."""
     name = f"{type(system).__name__}.{call}"
     try:
         out = sp.csr_array(matrix, dtype=float)
@@ -51,8 +90,8 @@ def _sparse(system: Any, call: str, matrix: Any, shape: tuple[int, int], what: s
         raise contract.BodyError(f"{name} returned shape {out.shape}; expected {shape}: {what}",
                                  name)
     if not np.isfinite(out.data).all():
-        raise contract.BodyError(f"{name} returned non-finite entries; expected finite values",
-                                 name)
+        kind = "NaN" if np.isnan(out.data).any() else "infinite entries"
+        raise NonFiniteJacobian(t, name, kind)
     return out
 
 
@@ -80,10 +119,10 @@ def load_jacobian(body: Any, t: float, x: np.ndarray, *, dense: bool = False) ->
     finite differences over ``load_coupling()`` (``dense``, or without one: every point)."""
     n, rc = len(x), _rate_columns(body)
     width = 6 if getattr(body, "angular", False) else 3
-    own = getattr(body, "load_jacobian", None)
-    if own is not None and not dense:
-        return _sparse(body, "load_jacobian(t, state)", own(t, x), (n * width, n * rc),
-                       "a row per load and a column per rate, point-major")
+    if getattr(body, "load_jacobian", None) is not None and not dense:
+        return _sparse(body, "load_jacobian(t, state)", _hook(body, "load_jacobian", t, x),
+                       (n * width, n * rc), "a row per load and a column per rate, point-major",
+                       t)
     declared = getattr(body, "load_coupling", None)
     if declared is None or dense:
         coupling = sp.csr_array(np.ones((n, n), dtype=bool))
@@ -101,28 +140,53 @@ def _is_fluid_body(system: Any) -> bool:
         hasattr(system, "surface") and hasattr(system, "motion_rates"))
 
 
+def _local_model(system: Any) -> bool:
+    """Whether ``system`` is a body on the MRS fluid whose rates are its points' velocities
+    (``A = M_near K`` models it); rates of other columns have no local model."""
+    angular = bool(getattr(system, "angular", False))
+    return _is_fluid_body(system) and _rate_columns(system) == (6 if angular else 3)
+
+
+def has_stiff_part(system: Any) -> bool:
+    """Whether :func:`local_jacobian` gives ``system`` an ``A`` (its own ``stiff_jacobian``, which
+    may still return None, or a body on the fluid); False: a linearly implicit scheme steps it
+    with ``A = 0``, as an explicit scheme. (A scene has ``stiff_jacobian``: ask of its bodies.)"""
+    return getattr(system, "stiff_jacobian", None) is not None or _local_model(system)
+
+
 def local_jacobian(system: Any, t: float, x: np.ndarray, n_rates: int
                    ) -> sp.csr_array | sp.bsr_array | None:
     """``A`` of ``system`` at ``(t, x)`` over its ``n_rates`` rates flattened point-major, or
     None (no stiff part known: the schemes step it explicitly); see the module docstring."""
     x = np.asarray(x, dtype=float)
-    own = getattr(system, "stiff_jacobian", None)
-    if own is not None:
-        matrix = own(t, x)
+    if getattr(system, "stiff_jacobian", None) is not None:
+        matrix = _hook(system, "stiff_jacobian", t, x)
         if matrix is None:
             return None
         return _sparse(system, "stiff_jacobian(t, state)", matrix, (n_rates, n_rates),
-                       "one row and column per rate, point-major")
-    if not _is_fluid_body(system):
+                       "one row and column per rate, point-major", t)
+    if not _local_model(system):
         return None
     angular = bool(getattr(system, "angular", False))
-    if _rate_columns(system) != (6 if angular else 3):
-        return None  # rates that are not the fluid's velocities: no local model of them
     k = load_jacobian(system, t, x)
     m = near_mobility(system.positions(x), float(system.epsilon), float(system.viscosity),
                       angular, CUTOFF * float(system.epsilon))
-    width = m.blocksize[0]
-    return m @ sp.bsr_array(k, blocksize=(width, _rate_columns(system)))
+    return block_product(m, sp.bsr_array(k, blocksize=(m.blocksize[0], _rate_columns(system))))
+
+
+def probe_hooks(system: Any, t: float, x: np.ndarray) -> None:
+    """Call ``system``'s own Jacobian hooks (``stiff_jacobian``, ``load_jacobian``) once at its
+    initial state ``(t, x)``, as a linearly implicit scheme does (:func:`local_jacobian`): a
+    :class:`~parastokes.bodies.contract.BodyError` naming the hook for a value that is no
+    matrix, of the wrong shape or not finite, or an error it raises. Nothing without hooks."""
+    if all(getattr(system, hook, None) is None for hook in ("stiff_jacobian", "load_jacobian")):
+        return
+    n_rates = np.asarray(system.rates(t, x)).size
+    try:
+        local_jacobian(system, t, x, n_rates)
+    except NonFiniteJacobian as error:
+        raise contract.BodyError(f"{error.method} returned {error.kind} at the initial state; "
+                                 "expected finite values", error.method) from None
 
 
 def block_jacobian(parts: list[tuple[int, int, Any]], rows: int, width: int) -> sp.csr_array:

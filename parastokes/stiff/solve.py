@@ -1,12 +1,14 @@
 """The stage solves of the linearly implicit schemes: ``(I - h γ A) k = r`` over the rates.
 
 - :class:`StageSolver` with ``krylov=False``: ``A`` is the approximate Jacobian of
-  :mod:`.jacobian`, factorized once (scipy's SuperLU with its fill-reducing ordering; the matrix
-  is sparse, O(points) entries) and reused for every stage and every step that keeps the same
-  ``A`` and step. No dense (3N)² matrix is ever formed.
+  :mod:`.jacobian`, factorized once (:class:`Factorization`: LAPACK's banded LU when ``A`` is
+  banded in the body's own point order, as a rod's is, else scipy's SuperLU; O(points) entries)
+  and reused for every stage and every step that keeps the same ``A`` and a step within a
+  factor of the factorized one (:mod:`.stepper`). No dense (3N)² matrix is ever formed.
 - ``krylov=True``: the exact Jacobian of the rates, applied matrix-free by a forward difference
   of the rates (one evaluation of the compiled kernels per product), solved by GMRES to a
-  relative residual of :data:`GMRES_RTOL` (checked again after it within
+  relative residual of :data:`GMRES_RTOL` (:data:`GMRES_RTOL_ORDER3` for a third-order
+  scheme; checked again after it within
   :data:`GMRES_ACCEPT`), preconditioned by the LU of the approximate ``A``.
 
 A factorization of a singular matrix or a GMRES that does not converge is a
@@ -17,16 +19,25 @@ reports it as a blow-up (``integrate.BlowUpError``, exit 3 of a run) with advice
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from scipy.linalg import lapack
 
-__all__ = ["GMRES_ACCEPT", "GMRES_MAXITER", "GMRES_RTOL", "StageSolver", "StiffSolveError"]
+from ..mobility.threads import LAPACK, blas_threads
+from .banded import band_storage, bandwidth
+
+__all__ = ["GMRES_ACCEPT", "GMRES_MAXITER", "GMRES_RTOL", "GMRES_RTOL_ORDER3", "Factorization",
+           "StageSolver", "StiffSolveError"]
 
 #: Relative residual of the GMRES stage solves, as scipy's GMRES measures it (W-methods keep
 #: their order with an inexact Jacobian, so the stage systems need not be solved to round-off).
 GMRES_RTOL = 1e-5
+#: The same for a scheme of order 3 (``ros34pw2-krylov``): at 1e-5 the solves' errors showed as
+#: a fitted order of 2.7 on a rod at small steps (``parastokes.testing.check_system``).
+GMRES_RTOL_ORDER3 = 1e-7
 #: The largest relative residual of a stage solve recomputed after GMRES (the finite-difference
 #: products carry noise of about 1e-8 relative, amplified by h γ times the Jacobian's norm):
 #: above it the solve failed.
@@ -55,35 +66,75 @@ class StiffSolveError(RuntimeError):
 def _ordering(matrix: sp.sparray) -> str:
     """SuperLU's column ordering: the natural one for a banded matrix (a rod's or chain's points
     in order along it: no fill outside the band, measured 2x faster to factorize), else COLAMD."""
-    coo = matrix.tocoo()
-    band = int(np.abs(coo.row - coo.col).max(initial=0))
-    return "NATURAL" if band < matrix.shape[0] // 8 else "COLAMD"
+    return "NATURAL" if max(bandwidth(matrix)) < matrix.shape[0] // 8 else "COLAMD"
+
+
+class Factorization:
+    """The LU factorization of ``I - hγ A`` (``A`` sparse, square, nonzero): LAPACK's banded
+    dgbtrf (on one BLAS thread, :func:`parastokes.mobility.threads.blas_threads`) when ``A``'s
+    band is below an eighth of its size (a rod's or chain's points in order), else SuperLU; a
+    singular matrix is a :class:`StiffSolveError` at time ``t``. ``solve(v)`` solves with it
+    (``v`` flat)."""
+
+    def __init__(self, matrix: sp.sparray, hgamma: float, t: float) -> None:
+        self.hgamma = hgamma
+        n = matrix.shape[0]
+        kl, ku = bandwidth(matrix)
+        self._band: tuple[np.ndarray, np.ndarray, int, int] | None = None
+        self._superlu: Any = None
+        if max(kl, ku) < n // 8:
+            ab = band_storage(matrix, hgamma, kl, ku)
+            with LAPACK, blas_threads(1):
+                lu, piv, info = lapack.dgbtrf(ab, kl, ku, overwrite_ab=1)
+            singular = info > 0 or not np.isfinite(lu[kl + ku]).all()
+            self._band = (lu, piv, kl, ku)
+            reason = f"U[{info - 1}, {info - 1}] = 0"
+        else:
+            system = sp.eye_array(n, format="csc") - hgamma * sp.csc_array(matrix)
+            try:
+                self._superlu = spla.splu(system, permc_spec=_ordering(matrix))
+                singular = False
+            except RuntimeError as error:  # "Factor is exactly singular"
+                singular, reason = True, str(error)
+        if singular:
+            raise StiffSolveError(t, float("nan"), 0, f"I - h*gamma*A is singular ({reason}); "
+                                  "use a smaller step")
+
+    @property
+    def banded(self) -> bool:
+        """Whether LAPACK's banded LU holds the factors (else SuperLU)."""
+        return self._band is not None
+
+    def solve(self, v: np.ndarray) -> np.ndarray:
+        """``(I - hγ A)⁻¹ v``."""
+        if self._band is None:
+            return self._superlu.solve(v)
+        lu, piv, kl, ku = self._band
+        with LAPACK:
+            return lapack.dgbtrs(lu, kl, ku, v, piv)[0]
 
 
 class StageSolver:
     """Solves ``(I - hγ A) k = r`` at one step (see the module docstring).
 
-    ``matrix``: the approximate ``A`` (None: ``A = 0``); with ``krylov``, ``rates_at(y)`` gives
-    the rates at the step's time at a state ``y`` near ``x`` and ``advance`` moves ``x`` along
-    a rate perturbation, for the products of the exact Jacobian with ``f0 = rates_at(x)``.
+    ``lu``: the :class:`Factorization` of ``I - h'γ A`` (None: ``A = 0``), where ``h'`` may
+    differ from this step's ``h`` (a W-method's ``A`` is any matrix: the factorization is that
+    of ``I - hγ (h'/h) A``); with ``krylov``, ``rates_at(y)`` gives the rates at the step's
+    time at a state ``y`` near ``x`` and ``advance`` moves ``x`` along a rate perturbation, for
+    the products of the exact Jacobian with ``f0 = rates_at(x)``, and ``lu`` preconditions.
     """
 
-    def __init__(self, matrix: sp.sparray | None, hgamma: float, t: float, *,
+    def __init__(self, lu: Factorization | None, hgamma: float, t: float, *,
                  krylov: bool = False,
                  rates_at: Callable[[np.ndarray], np.ndarray] | None = None,
                  advance: Callable[[np.ndarray, np.ndarray, float], np.ndarray] | None = None,
-                 x: np.ndarray | None = None, f0: np.ndarray | None = None) -> None:
+                 x: np.ndarray | None = None, f0: np.ndarray | None = None,
+                 rtol: float = GMRES_RTOL) -> None:
         self.hgamma = hgamma
+        self.rtol = rtol
         self.t = t
-        self.lu = None
+        self.lu = lu
         self.iterations = 0
-        if matrix is not None and matrix.nnz:
-            system = sp.eye_array(matrix.shape[0], format="csc") - hgamma * matrix.tocsc()
-            try:
-                self.lu = spla.splu(system, permc_spec=_ordering(matrix))
-            except RuntimeError as error:  # "Factor is exactly singular"
-                raise StiffSolveError(t, float("nan"), 0, f"I - h*gamma*A is singular ({error}); "
-                                      "use a smaller step") from None
         self.krylov = krylov
         self.rates_at, self.advance, self.x, self.f0 = rates_at, advance, x, f0
 
@@ -120,7 +171,7 @@ class StageSolver:
         scale = float(np.linalg.norm(b))
         if scale == 0.0:
             return np.zeros_like(b)
-        k, info = spla.gmres(operator, b, x0=self._precondition(b), rtol=GMRES_RTOL,
+        k, info = spla.gmres(operator, b, x0=self._precondition(b), rtol=self.rtol,
                              atol=0.0, restart=GMRES_MAXITER, maxiter=1, M=preconditioner,
                              callback=counted, callback_type="pr_norm")
         self.iterations += count[0]

@@ -16,7 +16,8 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-__all__ = ["add_arguments", "main", "outputs"]
+__all__ = ["PILOT_POINTS", "add_arguments", "command_line", "config_space", "main", "outputs",
+           "pilot_system"]
 
 #: Nodes per rod of the pilot rod when the run's rod is longer (the quick variants' 61).
 PILOT_POINTS = 61
@@ -77,7 +78,7 @@ class _Bar:
             self.bar = None
 
 
-def _pilot_system(cfg: Any, resolved: Any, points: int) -> Any:
+def pilot_system(cfg: Any, resolved: Any, points: int) -> Any:
     """The run's system, or for a longer rod the same rods shortened to ``points`` nodes."""
     from .. import config as configuration
     from ..config.schema import RodModel
@@ -95,18 +96,50 @@ def _given(*values: Any) -> Any:
     return next((value for value in values if value is not None), None)
 
 
+def config_space(cfg: Any) -> Any:
+    """The search space of the config's [tune] table (the tuner's defaults where it is silent)."""
+    from .space import parse_space
+
+    return parse_space({k: v for k, v in cfg.tune.model_dump().items()
+                        if k not in ("pilot_slices", "pilot_points")})
+
+
 def _space(cfg: Any, args: argparse.Namespace, compare: tuple) -> Any:
     """The config's [tune] table, narrowed further by the command line; ``compare`` added."""
     from .space import parse_space
 
-    options = {k: v for k, v in cfg.tune.model_dump().items()
-               if k not in ("pilot_slices", "pilot_points")}
     flags = {
         "schemes": args.schemes, "parameters": args.parameters, "reach": args.reach,
         "nodes": args.nodes, "richardson": args.richardson, "grid_factors": args.grid_factors,
         "step_fractions": args.step_fractions,
     }
-    return replace(parse_space(flags, parse_space(options)), extra=compare)
+    return replace(parse_space(flags, config_space(cfg)), extra=compare)
+
+
+#: The options of ``tune`` that TUNED.toml's header records, in the order they are written.
+_RECORDED = ("cores", "target", "budget", "schemes", "parameters", "reach", "nodes",
+             "richardson", "grid_factors", "step_fractions", "pilot_slices", "pilot_points",
+             "exhaustive", "compare", "set")
+
+
+def command_line(args: argparse.Namespace) -> str:
+    """The ``parastokes tune`` command that ``args`` stand for, every option given (not
+    ``--out`` and ``--overwrite``, which say where, not what): TUNED.toml's header."""
+    words = ["parastokes", "tune", str(args.config)]
+    for name in _RECORDED:
+        value = getattr(args, name, None)
+        flag = "--" + name.replace("_", "-")
+        if value is None or value is False or (name in ("compare", "set") and not value):
+            continue
+        if value is True:
+            words.append(flag)
+        elif name == "set":
+            words += [item for key in value for item in ("--set", str(key))]
+        elif isinstance(value, list):
+            words += [flag, *map(str, value)] if value else [flag]  # (--parameters: none)
+        else:
+            words += [flag, f"{value:g}" if isinstance(value, float) else str(value)]
+    return " ".join(words)
 
 
 def outputs(out: str | Path, overwrite: bool) -> tuple[Path, Path, Path]:
@@ -161,7 +194,7 @@ def main(args: argparse.Namespace, console: Any) -> int:
         compare.append(settings_from_config(other, other_resolved, name=Path(path).stem))
     space = _space(cfg, args, tuple(compare))
     system = configuration.build_system(cfg, resolved)
-    pilot = _pilot_system(cfg, resolved, points)
+    pilot = pilot_system(cfg, resolved, points)
     fine = integrate.Propagator(system, cfg.fine.scheme, cfg.fine.dt)
     console.print(f"tuning {cfg.title or args.config}: {args.cores} cores, η* = {args.target:g}")
     if cfg.coarse.kind != "extrapolated":
@@ -171,7 +204,7 @@ def main(args: argparse.Namespace, console: Any) -> int:
     if pilot is not None:
         from ..kinds.rod.kind import RodModel
 
-        assert isinstance(cfg.model, RodModel)  # only rods have a pilot (_pilot_system)
+        assert isinstance(cfg.model, RodModel)  # only rods have a pilot (pilot_system)
         console.print(f"pilot rod: {points} nodes per rod at the run's spacing σ_f (the run has "
                       f"{cfg.model.n_points})")
     bar = _Bar(console)
@@ -189,12 +222,14 @@ def main(args: argparse.Namespace, console: Any) -> int:
             return 130
         report = result.report
         report["config"] = str(args.config)
+        report["against_best_serial"] = _against_best_serial(args, cfg, report)
         io.write_summary(record, report, staging)
         draw_curves(result, figure, args.cores, staging=staging)
         if result.chosen is not None:
             dumped = {k: v for k, v in cfg.model_dump(mode="json", exclude_none=True).items()
                       if k != "model"} | cfg.model.tables()
-            text = config_text(dumped, result, args.cores, args.config).encode()
+            text = config_text(dumped, result, args.cores, args.config,
+                               command_line(args)).encode()
             staging.write(out, lambda handle: handle.write(text))
     _print_report(console, report)
     if result.chosen is None:
@@ -205,11 +240,36 @@ def main(args: argparse.Namespace, console: Any) -> int:
         report["search"]["stopped"], 0)
 
 
+def _against_best_serial(args: argparse.Namespace, cfg: Any, report: dict[str, Any]
+                         ) -> dict[str, Any]:
+    """What the speedups are against: F, and the fastest serial run reaching η* when the cache
+    beside the configuration knows one (``parastokes plan``), with the chosen solver's predicted
+    speedup against it; ``line`` says it (or how to measure it)."""
+    from ..config import problem_key
+    from ..parareal.best_serial import HOW_TO_MEASURE, best_known, cache_path
+
+    fine = report["problem"]["fine"]
+    against_f = f"speedups against F ({fine['scheme']} at dt = {fine['dt']:.3g})"
+    known = best_known(cache_path(args.config), problem_key(cfg), args.target)
+    if known is None:
+        return {"known": None, "line": f"{against_f}; against the fastest serial run of the "
+                f"same accuracy: none measured for this problem ({HOW_TO_MEASURE})"}
+    chosen = report["chosen"]
+    value = None if chosen is None else chosen["predicted"]["speedup"] / known.fine_over
+    return {"known": {**known.row, "fine_cpu_seconds": known.fine_cpu, "source": known.source},
+            "speedup": value,
+            "line": f"{against_f}; against the fastest serial run reaching η*, "
+                    f"{known.describe()} (cached in {known.source}), F takes "
+                    f"{known.fine_over:.3g}x its CPU" + (
+                        "" if value is None else f": the chosen solver's {value:.3g}")}
+
+
 def _print_report(console: Any, report: dict[str, Any]) -> None:
     """The search's table, how it ended and what it cost."""
     from .report import table
 
     console.print(table(report))
+    console.print(report["against_best_serial"]["line"])
     search = report["search"]
     if search["stopped"]:
         console.print(f"search stopped ({search['stopped']}) after {search['evaluated']} of "

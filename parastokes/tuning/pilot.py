@@ -3,14 +3,15 @@
 :meth:`Pilot.prepare` computes the serial fine solution on P slices of the run's slice length (the
 reference; it also proves that the fine solver is stable there and measures γ_F), and estimates the
 fine solver's own time-discretization error over the first slice (one run at 2τ_f, Richardson's
-estimate ``|F_τ - F_2τ| / (2^p - 1)``, eq. 34's measure). :meth:`Pilot.screen` is one coarse call
-over the second slice from the reference: its defect against the reference, the cheap accuracy
-measure that orders the search. :meth:`Pilot.measure` runs Algorithm 1 itself (``parareal.run``)
-on the window for one coarse solver, giving η^k at T_P for k = 1..K and the measured cost of its
-coarse calls. Fine solves whose input is the reference (slices n <= k in iteration k) are taken
-from the reference instead of being recomputed, and the screen's coarse call is reused. Costs
-(γ_F, γ_G) are CPU times of this process: on a shared machine they do not depend on what else
-runs, wall times do.
+estimate ``|F_τ - F_2τ| / (2^p - 1)``, eq. 34's measure; where 2τ_f is unstable, F at more than
+half its stability limit, one at τ_f/2: ``2^p |F_τ - F_τ/2| / (2^p - 1)``). :meth:`Pilot.screen` is
+one coarse call over the second slice from the reference: its defect against the reference, the
+cheap accuracy measure that orders the search. :meth:`Pilot.measure` runs Algorithm 1 itself
+(``parareal.run``) on the window for one coarse solver, giving η^k at T_P for k = 1..K and the
+measured cost of its coarse calls. Fine solves whose input is the reference (slices n <= k in
+iteration k) are taken from the reference instead of being recomputed, and the screen's coarse call
+is reused. Costs (γ_F, γ_G) are CPU times of this process: on a shared machine they do not depend
+on what else runs, wall times do.
 """
 
 from __future__ import annotations
@@ -27,7 +28,22 @@ from ..core.contracts import System
 from ..parareal import algorithm, metrics
 from .space import TuningError
 
-__all__ = ["Pilot", "PilotRun", "Screen"]
+__all__ = ["Pilot", "PilotRun", "Screen", "own_error"]
+
+
+def own_error(system: System, x0: np.ndarray, t0: float, t1: float, scheme: str, dt: float,
+              state: np.ndarray) -> float:
+    """Richardson's estimate of the error at ``t1`` of ``state``, the run of ``scheme`` at step
+    ``dt`` from ``x0`` (eq. 34's measure): ``|F_τ - F_2τ| / (2^p - 1)`` from a run at 2τ, or,
+    where 2τ is unstable (F at more than half its stability limit), ``2^p |F_τ - F_τ/2| /
+    (2^p - 1)`` from a run at τ/2."""
+    order = integrate.scheme_order(scheme)
+    try:
+        double = integrate.propagate(system, x0, t0, t1, scheme, 2.0 * dt)
+        return metrics.relative_change(double, state, system.positions) / (2**order - 1)
+    except integrate.BlowUpError:
+        half = integrate.propagate(system, x0, t0, t1, scheme, 0.5 * dt)
+        return metrics.relative_change(state, half, system.positions) * 2**order / (2**order - 1)
 
 
 class _Reused:
@@ -134,12 +150,8 @@ class Pilot:
             )
         gamma_f = (time.process_time() - cpu) / n_slices
         reference = np.array(states)
-        double = integrate.propagate(system, reference[0], times[0], times[1], fine.scheme,
-                                     2.0 * fine.dt)
-        order = integrate.scheme_order(fine.scheme)
-        fine_error = metrics.relative_change(
-            double, reference[1], system.positions
-        ) / (2**order - 1)
+        fine_error = own_error(system, reference[0], times[0], times[1], fine.scheme, fine.dt,
+                               reference[1])
         return cls(system, fine, reference[0], t0, slice_length, n_slices, reference, gamma_f,
                    fine_error, time.perf_counter() - start)
 

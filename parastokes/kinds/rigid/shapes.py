@@ -27,6 +27,7 @@ shape) and ``phase_rate`` (dφ/dt, zero without a motor).
 
 from __future__ import annotations
 
+import io
 import math
 from dataclasses import dataclass
 from functools import lru_cache
@@ -37,6 +38,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ...core import plugins
+from ...core.files import read_input
 
 __all__ = [
     "Bacterium",
@@ -215,17 +217,20 @@ class Helix(_Rigid):
 
 
 def load_points(source: str) -> np.ndarray:
-    """An (N, 3) cloud from a ``.npy`` file, a text file of three columns, or a
-    ``"module:function"`` returning one; ValueError naming the source and the problem."""
+    """An (N, 3) cloud from a ``.npy`` file, a text file of three columns (a regular file of at
+    most 64 MiB: :func:`parastokes.core.files.read_input`), or a ``"module:function"`` returning
+    one; ValueError naming the source and the problem."""
     if ":" in source and not Path(source).exists():
         make = plugins.import_target(source, source, ValueError)
         points = np.asarray(make(), dtype=float)
     else:
         path = Path(source)
-        if not path.is_file():
+        if not path.exists():
             raise ValueError(f"points: no file {source!r}; give a .npy or text file of (N, 3) "
                              "points, or a \"module:function\" that returns them")
-        points = np.load(path) if path.suffix == ".npy" else np.loadtxt(path, ndmin=2)
+        raw = read_input(path, "points")
+        points = (np.load(io.BytesIO(raw), allow_pickle=False) if path.suffix == ".npy" else
+                  np.loadtxt(io.StringIO(raw.decode("utf-8")), ndmin=2))
     points = np.asarray(points, dtype=float)
     if points.ndim != 2 or points.shape[1] != 3 or len(points) < 1:
         raise ValueError(f"points: {source!r} must give an (N, 3) array, got {points.shape}")

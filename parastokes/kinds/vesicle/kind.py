@@ -17,6 +17,7 @@ from pydantic import Field
 from ...bodies import geometry
 from ...registry.kinds import BodyKind, BodyLayout, BodyResolution, BodySection, Positive
 from .system import VesicleSystem, longest_edge, vesicle
+from .transfer import levels_down
 
 __all__ = ["KIND", "VesicleModel"]
 
@@ -65,6 +66,12 @@ class VesicleModel(BodySection):
             center=(x, y, z),
             radius=self.radius,
         )
+
+    def coarse_points(self, factor: int) -> int:
+        """Vertices of the icosphere with edges ``factor`` = 2^j times longer, as
+        :meth:`VesicleSystem.coarsened` builds it."""
+        return len(geometry.icosphere(self.subdivisions - levels_down(factor,
+                                                                      self.subdivisions))[0])
 
 
 def default_tracked(system: VesicleSystem) -> list[int]:

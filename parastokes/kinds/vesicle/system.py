@@ -11,7 +11,7 @@ bytes. Importing this module registers its compiled loop (:mod:`.compiled`) and 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import lru_cache
 from typing import ClassVar
 
@@ -26,6 +26,7 @@ from ...registry import loops as registry
 from ...stiff.coloring import from_edges
 from .compiled import vesicle_data
 from .mechanics import spring_forces
+from .transfer import VesicleTransfer, levels_down
 
 __all__ = ["VesicleSystem", "longest_edge", "vesicle"]
 
@@ -144,6 +145,15 @@ class VesicleSystem(PointsInShear):
         """Relative change of the surface area from the initial sphere's (section 5.2)."""
         area = geometry.surface_area(state, self.mesh[1])
         return abs(area - self.initial_area) / self.initial_area
+
+    # ---- coarse grid (Remark 4) ------------------------------------------------------------
+    def coarsened(self, factor: int) -> tuple[VesicleSystem, VesicleTransfer]:
+        """The same vesicle on the icosphere with edges ``factor`` = 2^j times longer (j levels
+        fewer; same ε, κ and μ in absolute units: a spring network's membrane modulus does not
+        depend on its edge length) and the transfer (:mod:`.transfer`)."""
+        j = levels_down(factor, self.subdivisions)
+        coarse = replace(self, subdivisions=self.subdivisions - j)
+        return coarse, VesicleTransfer(self.subdivisions, coarse.subdivisions, self.radius)
 
 
 def vesicle(

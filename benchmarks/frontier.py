@@ -1,0 +1,706 @@
+"""Coarse solvers against an F at its stability limit (issue 48): the measured frontier.
+
+For each problem of the target table (docs/benchmarks.md, "Parareal against the fastest serial
+run (round 5)") this script measures, on a documented shortened analogue (P_s slices of a given
+length, one process, one kernel thread, CPU time):
+
+- ``serial``: candidate serial runs over the analogue's interval (explicit schemes at their
+  stability limit, implicit ones), each one's error eq. 34 against an accurate reference and its
+  CPU time; F is the cheapest of them whose error stays well below the target;
+- ``candidates``: per coarse solver G (a ``[coarse]`` table of the configuration schema, so that a
+  winner ships as a config as it is), gamma_G / gamma_F (``parareal.measure_slice_costs``, CPU
+  clock, the slowest auxiliary solve plus the combination over one fine slice) and eta^k of a real
+  Parareal run over the analogue's P_s slices against F's serial solution;
+- the predicted speedups at P = 40 slices on 40 cores, standard (1 / ((1 + K) alpha + K / P)) and
+  pipelined (1 / ((1 + K / P) alpha + K / P), with N_G > 1 the simulated schedule), against F and
+  against the fastest serial run reaching the same error, with K the first iteration whose eta^K
+  plus F's own error reaches the target.
+
+Results: ``docs/figures/frontier/PROBLEM.json``, one entry per measured candidate, written as
+each one finishes (a rerun skips what is there: ``--redo LABEL`` measures one again).
+
+    PYTHONPATH=. NUMBA_NUM_THREADS=1 python benchmarks/frontier.py --problems table4
+    PYTHONPATH=. python benchmarks/frontier.py --table           # the tables of docs/benchmarks.md
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import pathlib
+import sys
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+OUT = pathlib.Path("docs/figures/frontier")
+#: The core count of the target table.
+CORES = 40
+
+
+@dataclass(frozen=True)
+class Problem:
+    """One row of the target table and its shortened analogue.
+
+    ``model`` is the config's ``[model]`` table; ``fine`` (scheme, dt) the F of the Parareal runs
+    (the fastest serial run well below the target, see ``serial``); ``slice_length`` the analogue's
+    slice (the full problem's T / 40 where affordable), ``slices`` its P_s; ``serial`` the serial
+    candidates (scheme, dt) and ``reference`` the accurate run the errors are measured against;
+    ``full_t1`` the full problem's T.
+    """
+
+    title: str
+    model: dict[str, Any]
+    fine: tuple[str, float]
+    slice_length: float
+    slices: int
+    target: float
+    full_t1: float
+    reference: tuple[str, float]
+    serial: tuple[tuple[str, float], ...]
+    max_iterations: int = 6
+    #: The fastest serial run over the FULL interval where the analogue's is not it (an error
+    #: that grows with T: experiments/best_serial/), else None (the analogue's cheapest row).
+    best: tuple[str, float] | None = None
+
+    @property
+    def t1(self) -> float:
+        return self.slice_length * self.slices
+
+
+ROD = {"kind": "rod", "n_points": 301, "epsilon": 5, "epsilon_unit": "sigma_f"}
+VESICLE = {"kind": "vesicle", "subdivisions": 3, "epsilon": 0.3, "epsilon_unit": "l_max",
+           "stiffness": 0.1, "viscosity": 1e-3, "shear_rate": 0.1}
+
+#: Forward Euler's stability limits (docs/benchmarks.md, "Stiff bodies" and "Speedup against the
+#: best serial run"): rod 301 ε = 5σ_f 1.22e-5 s; ε = 7σ_f 4.19e-5 s; rod 601 7.97e-7 s;
+#: vesicle (Table 7) 3.99e-3.
+PROBLEMS: dict[str, Problem] = {
+    "table4": Problem(
+        "Table 4's rod (M = 301, ε⁰ = 5σ_f)", ROD, ("rk2", 1.16e-5), 0.025, 8, 1e-6, 1.0,
+        ("rk4", 6.1e-6), (("euler", 1.16e-5), ("rk2", 1.16e-5), ("rk4", 1.59e-5))),
+    "table5": Problem(
+        "Table 5's rod (ε⁰ = 7σ_f)", {**ROD, "epsilon": 7}, ("rk4", 5.45e-5), 0.025, 8, 1e-6,
+        1.0, ("rk4", 2.1e-5), (("euler", 3.98e-5), ("rk2", 3.98e-5), ("rk4", 5.45e-5)),
+        best=("rk4", 5.45e-5)),  # over T = 1, RK2 at the limit misses 1e-6 (1.05e-6)
+    "rod601": Problem(
+        "rod refined to M = 601 (ε⁰ = 5σ_f)", {**ROD, "n_points": 601}, ("rk2", 7.58e-7),
+        0.0005, 8, 1e-5, 1.0, ("rk4", 5e-7),
+        (("euler", 7.58e-7), ("rk2", 7.58e-7)), best=("rk2", 7.58e-7)),
+    "table7": Problem(
+        "Table 7's vesicle (T = 100)", VESICLE, ("rk2", 0.00379), 2.5, 40, 1e-6, 100.0,
+        ("rk4", 0.002), (("euler", 0.00379), ("rk2", 0.00379)),
+        max_iterations=5),
+    # the smoke test's: the paper's rod cut to a fifth (L = 12, M = 61, σ_f and ε as Table 4's)
+    "quick": Problem(
+        "a fifth of Table 4's rod (M = 61, L = 12)", {**ROD, "n_points": 61, "length": 12},
+        ("rk2", 1.16e-5), 0.001, 4, 1e-6, 0.004, ("rk4", 6.1e-6), (("rk2", 1.16e-5),),
+        max_iterations=3),
+}
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """A coarse solver: its family (the frontier keeps the best of each) and ``[coarse]`` table."""
+
+    family: str
+    coarse: dict[str, Any] = field(default_factory=dict)
+
+
+def _grid(factor: int, eps_nodes: Sequence[float], scheme: str, dt: float,
+          unit: str = "absolute") -> dict[str, Any]:
+    """An extrapolated G on a grid ``factor`` times coarser (1: the fine grid), Lagrange in ε over
+    ``eps_nodes`` (in ``unit``; one node: that ε, no extrapolation)."""
+    table: dict[str, Any] = {"scheme": scheme, "dt": dt, "lagrange": {
+        "epsilon": {"nodes": list(eps_nodes), "unit": unit}}}
+    if factor > 1:
+        table["grid_factor"] = factor
+    return table
+
+
+#: Candidate coarse solvers per problem, cheapest families first. Labels name the construction.
+CANDIDATES: dict[str, dict[str, Candidate]] = {
+    "table4": {
+        "grid 3, eps 3, euler 4e-4": Candidate(
+            "coarse grid, ε scaled", _grid(3, [3.0], "euler", 4e-4)),
+        "grid 3, eps [2, 3], euler 1.4e-4": Candidate(
+            "coarse grid, Lagrange in ε", _grid(3, [2.0, 3.0], "euler", 1.4e-4)),
+        "grid 3, eps [1.2, 1.4], euler 2.2e-5": Candidate(
+            "coarse grid, Lagrange in ε", _grid(3, [1.2, 1.4], "euler", 2.2e-5)),
+        "fine grid, eps [1.4, 1.6, 1.8], euler 4e-5": Candidate(
+            "fine grid, Lagrange in ε (wide)", _grid(1, [1.4, 1.6, 1.8], "euler", 4e-5)),
+        "grid 3, eps 1, euler 1.3e-5": Candidate(
+            "coarse grid, ε fixed", {"scheme": "euler", "dt": 1.3e-5, "grid_factor": 3}),
+        "grid 3, eps [1.2, 1.4, 1.6], euler 2.2e-5": Candidate(
+            "coarse grid, Lagrange in ε", _grid(3, [1.2, 1.4, 1.6], "euler", 2.2e-5)),
+        "grid 3, eps [2, 2.5, 3], rk2 1.4e-4": Candidate(
+            "coarse grid, Lagrange in ε", _grid(3, [2.0, 2.5, 3.0], "rk2", 1.4e-4)),
+        "ros34pw2 1.25e-3": Candidate("implicit", {"scheme": "ros34pw2", "dt": 1.25e-3}),
+        "grid 3, eps 1, ros34pw2 1.25e-3": Candidate(
+            "implicit on a coarse grid", {"scheme": "ros34pw2", "dt": 1.25e-3, "grid_factor": 3}),
+        "grid 3, eps 1, ros34pw2 6.25e-4": Candidate(
+            "implicit on a coarse grid", {"scheme": "ros34pw2", "dt": 6.25e-4, "grid_factor": 3}),
+        "ros34pw2 6.25e-4": Candidate("implicit", {"scheme": "ros34pw2", "dt": 6.25e-4}),
+    },
+    "quick": {
+        "grid 3, eps [1.2, 1.4], euler 2.2e-5": Candidate(
+            "coarse grid, Lagrange in ε", _grid(3, [1.2, 1.4], "euler", 2.2e-5)),
+    },
+    "table5": {
+        "grid 3, eps [1.6, 1.8], euler 5e-5": Candidate(
+            "coarse grid, Lagrange in ε", _grid(3, [1.6, 1.8], "euler", 5e-5)),
+        "fine grid, eps [2, 2.2], euler 1.3e-4": Candidate(
+            "fine grid, Lagrange in ε (wide)", _grid(1, [2.0, 2.2], "euler", 1.3e-4)),
+        "fine grid, eps [2, 2.2, 2.4], euler 1.3e-4": Candidate(
+            "fine grid, Lagrange in ε (wide)", _grid(1, [2.0, 2.2, 2.4], "euler", 1.3e-4)),
+        "grid 3, eps 1.4, euler 3.8e-5": Candidate(
+            "coarse grid, ε fixed", {"scheme": "euler", "dt": 3.8e-5, "grid_factor": 3}),
+        "grid 2, eps 1.4, euler 3.8e-5": Candidate(
+            "coarse grid, ε fixed", {"scheme": "euler", "dt": 3.8e-5, "grid_factor": 2}),
+    },
+    "rod601": {
+        "grid 2, eps [0.8, 1], euler 5e-6": Candidate(
+            "coarse grid, Lagrange in ε", _grid(2, [0.8, 1.0], "euler", 5e-6)),
+        "ros34pw2 2.5e-4": Candidate("implicit", {"scheme": "ros34pw2", "dt": 2.5e-4}),
+        "grid 2, eps 0.5, ros34pw2 2.5e-4": Candidate(
+            "implicit on a coarse grid", {"scheme": "ros34pw2", "dt": 2.5e-4, "grid_factor": 2}),
+        "ros2-krylov 1.25e-4": Candidate("implicit", {"scheme": "ros2-krylov", "dt": 1.25e-4}),
+        "grid 2, eps 1, euler 1.16e-5": Candidate(
+            "coarse grid, ε scaled", _grid(2, [1.0], "euler", 1.16e-5)),
+    },
+    "table7": {
+        "mesh 2, eps 0.6 l_max, euler 0.008": Candidate(
+            "coarse mesh, ε scaled", _grid(2, [0.6], "euler", 0.008, "l_max")),
+        "mesh 2, eps [0.6, 0.8] l_max, euler 0.008": Candidate(
+            "coarse mesh, Lagrange in ε", _grid(2, [0.6, 0.8], "euler", 0.008, "l_max")),
+        "mesh 2, eps 0.3 l_max, euler 0.0028": Candidate(
+            "coarse mesh, ε fixed", {"scheme": "euler", "dt": 0.0028, "grid_factor": 2}),
+        "eps [0.5, 0.6] l_max, euler 0.01": Candidate(
+            "fine mesh, Lagrange in ε (wide)", _grid(1, [0.5, 0.6], "euler", 0.01, "l_max")),
+    },
+}
+
+
+# ---- the arithmetic of the frontier ------------------------------------------------------------
+
+def iterations_to_reach(errors: Sequence[float] | None, target: float, own_error: float = 0.0
+                        ) -> int | None:
+    """The first K whose eta^K + F's own error is at most ``target`` (None: not within the run)."""
+    for k, error in enumerate(errors or (), start=1):
+        if error + own_error <= target:
+            return k
+    return None
+
+
+def hopeless(errors: Sequence[float], target: float, max_iterations: int) -> bool:
+    """Whether eta^k, contracting from now on at most at the rate of its last iteration, stays
+    above ``target`` through ``max_iterations`` (a run can stop there: it will not reach it).
+    Needs two iterations; a rate of 1 or more (stalled) is hopeless at once."""
+    if len(errors) < 2 or errors[-1] <= target:
+        return False
+    rate = errors[-1] / errors[-2]
+    left = max_iterations - len(errors)
+    return rate >= 1.0 or errors[-1] * rate**left > target
+
+
+def predicted_speedups(alpha: float, iterations: int, n_auxiliary: int = 1,
+                       cores: int = CORES) -> dict[str, float]:
+    """Speedups against F at P = ``cores`` slices on as many cores. ``standard``: Algorithm 1's
+    closed formula (its coarse sweep runs the N_G auxiliary solves at once on idle cores, so alpha
+    is the slowest one plus the combination). ``pipelined``: the pipelined closed formula for a
+    plain G (N_G = 1); with N_G > 1 the pipelined schedule simulated with the auxiliary solves
+    as tasks of their own (``pipelined_simulated``: they compete with the fine solves for the
+    cores, which the closed formula, kept as ``pipelined_formula``, does not see)."""
+    from parastokes import parareal
+
+    simulated = cores / parareal.simulate("pipelined", cores, iterations, cores, alpha,
+                                          n_auxiliary=n_auxiliary).wall
+    formula = parareal.speedup_pipelined(alpha, iterations, cores)
+    return {"standard": parareal.speedup_standard(alpha, iterations, cores),
+            "pipelined": formula if n_auxiliary == 1 else simulated,
+            "pipelined_formula": formula, "pipelined_simulated": simulated}
+
+
+def best_serial(rows: Sequence[dict[str, Any]], target: float) -> dict[str, Any] | None:
+    """The serial row of least CPU time per unit of simulated time whose error reaches
+    ``target`` (None when none does)."""
+    reaching = [r for r in rows if r.get("error") is not None and r["error"] <= target]
+    return min(reaching, key=lambda r: r["cpu_per_time"], default=None)
+
+
+def assess(entry: dict[str, Any], target: float, own_error: float, fine_cost: float,
+           best_cost: float, cores: int = CORES) -> dict[str, Any] | None:
+    """K and the speedups of a measured candidate: against F, and against the fastest serial run
+    (times ``best_cost / fine_cost``, their CPU per unit of simulated time). None when the run did
+    not reach the target."""
+    k = iterations_to_reach(entry.get("errors"), target, own_error)
+    if k is None:
+        return None
+    vs_f = predicted_speedups(entry["alpha"], k, entry.get("n_auxiliary", 1), cores)
+    factor = best_cost / fine_cost
+    return {"K": k, "vs_F": vs_f, "vs_best": {name: s * factor for name, s in vs_f.items()}}
+
+
+def frontier(entries: dict[str, dict[str, Any]], target: float, own_error: float,
+             fine_cost: float, best_cost: float, schedule: str = "pipelined"
+             ) -> dict[str, dict[str, Any]]:
+    """Per family, its best candidate by the ``schedule``'s speedup against the fastest serial run
+    (families whose candidates all miss the target keep their smallest alpha, with K None)."""
+    best: dict[str, dict[str, Any]] = {}
+    for label, entry in entries.items():
+        if "alpha" not in entry:
+            continue
+        verdict = assess(entry, target, own_error, fine_cost, best_cost)
+        row = {"label": label, "alpha": entry["alpha"], "n_auxiliary": entry.get("n_auxiliary", 1),
+               "K": None if verdict is None else verdict["K"], "assessment": verdict}
+        score = -math.inf if verdict is None else verdict["vs_best"][schedule]
+        held = best.get(entry["family"])
+        held_score = (-math.inf if held is None or held["assessment"] is None
+                      else held["assessment"]["vs_best"][schedule])
+        if (held is None or score > held_score
+                or (score == held_score == -math.inf and row["alpha"] < held["alpha"])):
+            best[entry["family"]] = row
+    return best
+
+
+# ---- measurements ------------------------------------------------------------------------------
+
+def _load(path: pathlib.Path) -> dict[str, Any]:
+    return json.loads(path.read_text()) if path.exists() else {}
+
+
+def _save(path: pathlib.Path, data: dict[str, Any]) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(data, indent=1) + "\n")
+    tmp.replace(path)
+
+
+def _cpu(function: Callable[[], Any]) -> tuple[Any, float]:
+    start = time.process_time()
+    value = function()
+    return value, time.process_time() - start
+
+
+def config_data(problem: Problem, coarse: dict[str, Any], *, t1: float | None = None,
+                slices: int | None = None) -> dict[str, Any]:
+    """The configuration (as TOML data) of a Parareal run of ``problem`` with G = ``coarse``: the
+    analogue by default, the full problem with ``t1`` and ``slices``."""
+    scheme, dt = problem.fine
+    return {"title": f"{problem.title}: F = {scheme} at {dt:g}",
+            "model": dict(problem.model), "time": {"t1": t1 or problem.t1},
+            "fine": {"scheme": scheme, "dt": dt}, "coarse": coarse,
+            "parareal": {"n_slices": slices or problem.slices, "tol": 0.0,
+                         "max_iterations": problem.max_iterations},
+            "execution": {"executor": "serial", "threads": 1}}
+
+
+def build(problem: Problem, coarse: dict[str, Any]) -> Any:
+    """The system, F and G of the analogue (``parastokes.config``'s own build)."""
+    from parastokes import config
+
+    cfg = config.parse(config_data(problem, coarse), "frontier")
+    return config.build(cfg, config.resolve(cfg, "frontier"))
+
+
+def measure_serial(name: str, problem: Problem, data: dict[str, Any], path: pathlib.Path
+                   ) -> None:
+    """The reference and each serial candidate over the analogue's interval (resumable)."""
+    from parastokes import integrate
+    from parastokes.parareal import relative_change
+
+    setup = build(problem, {"scheme": "euler", "dt": problem.fine[1]})
+    system, x0, t1 = setup.system, setup.system.initial_state(), problem.t1
+    cache = OUT / f".{name}_reference.npy"
+    if not cache.exists():
+        scheme, dt = problem.reference
+        state, cpu = _cpu(lambda: integrate.propagate(system, x0, 0.0, t1, scheme, dt))
+        np.save(cache, state)
+        data["reference"] = {"scheme": scheme, "dt": dt, "cpu": cpu}
+        _save(path, data)
+    reference = np.load(cache)
+    rows = data.setdefault("serial", [])
+    done = {(r["scheme"], r["dt"]) for r in rows}
+    for scheme, dt in problem.serial:
+        if (scheme, dt) in done:
+            continue
+        try:
+            state, cpu = _cpu(lambda s=scheme, h=dt: integrate.propagate(system, x0, 0.0, t1, s, h))
+            error = relative_change(state, reference, system.positions)
+        except integrate.BlowUpError as exc:
+            rows.append({"scheme": scheme, "dt": dt, "error": None, "blowup": str(exc)[:200]})
+        else:
+            rows.append({"scheme": scheme, "dt": dt, "cpu": cpu, "cpu_per_time": cpu / t1,
+                         "error": error})
+        print(name, rows[-1], flush=True)
+        _save(path, data)
+
+
+def fine_solution(name: str, problem: Problem, setup: Any) -> np.ndarray:
+    """F's serial solution at the slice ends of the analogue (cached beside the results)."""
+    from parastokes import parareal
+
+    cache = OUT / f".{name}_fine.npy"
+    if not cache.exists():
+        x0 = setup.system.initial_state()
+        np.save(cache, parareal.serial_solution(setup.fine, x0, 0.0, problem.t1, problem.slices))
+    return np.load(cache)
+
+
+def measure_candidate(name: str, problem: Problem, candidate: Candidate, own_error: float
+                      ) -> dict[str, Any]:
+    """alpha (``measure_slice_costs``, CPU clock, 2 repeats) and eta^k of a Parareal run of the
+    analogue, stopped at the first k whose eta^k + F's ``own_error`` reaches the target (or at
+    ``problem.max_iterations``); a G that blows up or breaks its monitor is recorded as such."""
+    from parastokes import integrate, parareal
+    from parastokes.parallel import TaskError
+
+    setup = build(problem, candidate.coarse)
+    x0 = setup.system.initial_state()
+    reference = fine_solution(name, problem, setup)
+    entry: dict[str, Any] = {"family": candidate.family, "coarse": candidate.coarse}
+    try:
+        costs = parareal.measure_slice_costs(setup.fine, setup.coarse, 0.0, problem.slice_length,
+                                             x0, repeats=2, clock=time.process_time)
+        entry.update(alpha=costs.task_ratio(), n_auxiliary=costs.n_auxiliary,
+                     gamma_F=float(np.median(costs.fine)), costs=costs.as_dict())
+        errors, increments = [], []
+
+        def report(it: Any) -> None:
+            errors.append(it.error)
+            increments.append(it.increment)
+            if it.error + own_error <= problem.target:
+                raise _Reached  # K is known: later iterations cannot change it
+            if hopeless(errors, problem.target, problem.max_iterations):
+                raise _Reached
+
+        start = time.process_time()
+        try:
+            parareal.run(setup.fine, setup.coarse, x0, t0=0.0, t1=problem.t1,
+                         n_slices=problem.slices, tol=0.0, max_iterations=problem.max_iterations,
+                         reference=reference, on_iteration=report)
+        except _Reached:
+            pass
+    except (integrate.BlowUpError, TaskError, FloatingPointError) as exc:
+        entry.pop("alpha", None)
+        entry["blowup"] = str(exc)[:300]
+    else:
+        entry.update(errors=errors, increments=increments, run_cpu=time.process_time() - start)
+    return entry
+
+
+class _Reached(Exception):
+    """Raised by the iteration report once eta^k reaches the target."""
+
+
+def measure(name: str, labels: Sequence[str] | None, redo: Sequence[str], tag: str = ""
+            ) -> dict[str, Any]:
+    """Measure ``name``'s serial runs and candidates (``labels``: only those) into
+    ``OUT/NAME.json``, or ``OUT/NAME@TAG.json`` with a ``tag`` (a second process measuring other
+    candidates of the same problem at once; :func:`load_problem` merges them)."""
+    problem = PROBLEMS[name]
+    OUT.mkdir(parents=True, exist_ok=True)
+    path = OUT / (f"{name}@{tag}.json" if tag else f"{name}.json")
+    data = _load(path)
+    if tag:  # the serial runs are the main file's
+        main = _load(OUT / f"{name}.json")
+        data.update({k: main[k] for k in ("serial", "reference") if k in main})
+    data["problem"] = {"title": problem.title, "model": problem.model, "fine": problem.fine,
+                       "slice_length": problem.slice_length, "slices": problem.slices,
+                       "t1": problem.t1, "target": problem.target, "full_t1": problem.full_t1,
+                       "best": problem.best}
+    measure_serial(name, problem, data, path)
+    entries = data.setdefault("candidates", {})
+    for label, candidate in CANDIDATES.get(name, {}).items():
+        if (labels and label not in labels) or (label in entries and label not in redo):
+            continue
+        entries[label] = measure_candidate(name, problem, candidate, _fine_row(data)["error"])
+        print(name, label, {k: v for k, v in entries[label].items() if k != "costs"}, flush=True)
+        _save(path, data)
+    return data
+
+
+# ---- tables -------------------------------------------------------------------------------------
+
+def load_problem(name: str) -> dict[str, Any]:
+    """``OUT/NAME.json`` with the candidates of every ``OUT/NAME@TAG.json`` merged in."""
+    data = _load(OUT / f"{name}.json")
+    for extra in sorted(OUT.glob(f"{name}@*.json")):
+        data.setdefault("candidates", {}).update(_load(extra).get("candidates", {}))
+    return data
+
+
+def _fine_row(data: dict[str, Any]) -> dict[str, Any]:
+    scheme, dt = data["problem"]["fine"]
+    return next(r for r in data["serial"] if r["scheme"] == scheme and r["dt"] == dt)
+
+
+def summary(data: dict[str, Any]) -> dict[str, Any]:
+    """F, the fastest serial run reaching the target and the per-family frontier of a problem."""
+    target = data["problem"]["target"]
+    fine = _fine_row(data)
+    named = next((p.best for p in PROBLEMS.values() if p.title == data["problem"]["title"]), None)
+    best = (next(r for r in data["serial"] if [r["scheme"], r["dt"]] == list(named)) if named
+            else best_serial(data["serial"], target) or fine)
+    return {"fine": fine, "best": best,
+            "frontier": frontier(data.get("candidates", {}), target, fine["error"],
+                                 fine["cpu_per_time"], best["cpu_per_time"])}
+
+
+def _g(value: float | None, digits: int = 2) -> str:
+    return "-" if value is None else f"{value:.{digits}g}"
+
+
+def table(data: dict[str, Any]) -> str:
+    """The markdown tables of a problem: serial runs, then every candidate with its K and
+    speedups (standard / pipelined simulated, against F and against the fastest serial run)."""
+    s = summary(data)
+    p = data["problem"]
+    lines = [f"{p['title']}, analogue: {p['slices']} slices of {p['slice_length']:g} s "
+             f"(T = {p['t1']:g}), target η* = {p['target']:g}",
+             "", "| serial run | step | error at T (eq. 34) | CPU (s) |", "|---|---|---|---|"]
+    for r in data["serial"]:
+        lines.append(f"| `{r['scheme']}` | {r['dt']:g} | {_g(r.get('error'))} | "
+                     f"{_g(r.get('cpu'), 3)} |")
+    lines += ["", "| G | family | N_G | α | η¹ .. η^K | K | vs F std / pipe | vs best std / pipe |",
+              "|---|---|---|---|---|---|---|---|"]
+    for label, e in data.get("candidates", {}).items():
+        if "alpha" not in e:
+            lines.append(f"| {label} | {e['family']} | | | blew up | | | |")
+            continue
+        v = assess(e, p["target"], s["fine"]["error"], s["fine"]["cpu_per_time"],
+                   s["best"]["cpu_per_time"])
+        etas = " ".join(f"{x:.1e}" for x in e["errors"])
+        if v is None:
+            lines.append(f"| {label} | {e['family']} | {e['n_auxiliary']} | {e['alpha']:.3g} | "
+                         f"{etas} | > {len(e['errors'])} | - | - |")
+            continue
+        f, b = v["vs_F"], v["vs_best"]
+        lines.append(f"| {label} | {e['family']} | {e['n_auxiliary']} | {e['alpha']:.3g} | "
+                     f"{etas} | {v['K']} | {f['standard']:.2f} / {f['pipelined']:.2f} "
+                     f"| {b['standard']:.2f} / {b['pipelined']:.2f} |")
+    return "\n".join(lines)
+
+
+#: Coarse systems whose forward-Euler limit ``--limits`` measures: (grid factor, ε μm, bending).
+ROD_LIMITS = ((1, 1.4, 1.0), (1, 2.0, 1.0), (1, 1.0, 0.5), (2, 1.5, 1.0), (2, 2.0, 1.0),
+              (3, 2.0, 1.0), (3, 3.0, 1.0), (3, 3.0, 0.5), (5, 5.0, 1.0), (6, 6.0, 1.0))
+#: (levels down, ε in the fine mesh's l_max) of the vesicle of Table 7.
+VESICLE_LIMITS = ((0, 0.3), (0, 0.5), (0, 0.7), (1, 0.3), (1, 0.6), (2, 1.2))
+
+
+def limits() -> dict[str, dict[str, float]]:
+    """Forward Euler's largest stable step of each coarse system (rods over one beat, 3 %
+    bisection; vesicles over 1 s, 5 %, area relative to its own change)."""
+    from parastokes import integrate, models
+
+    out: dict[str, dict[str, float]] = {"rod": {}, "vesicle": {}}
+    rod = models.rod_swimmer(n_points=301, epsilon=1.0, n_threads=1)
+    for factor, eps, bending in ROD_LIMITS:
+        system = rod.coarsened(factor)[0] if factor > 1 else rod
+        system = system.with_params(epsilon=eps, bending=bending)
+        out["rod"][f"grid {factor}, eps {eps}, bending {bending}"] = (
+            integrate.largest_stable_step(system, "euler", 0.05, 5e-6, 2e-3, rtol=0.03))
+    ves = models.vesicle(subdivisions=3, n_threads=1)
+    l_max = ves.epsilon / 0.3
+    for down, eps in VESICLE_LIMITS:
+        system = (ves.coarsened(2**down)[0] if down else ves).with_params(epsilon=eps * l_max)
+        out["vesicle"][f"level {3 - down}, eps {eps} l_max"] = integrate.largest_stable_step(
+            system, "euler", 1.0, 1e-3, 1.0, rtol=0.05, relative=True)
+    return out
+
+
+# ---- shipped configurations and real runs ----------------------------------------------------
+
+SHIPPED = pathlib.Path("experiments/round5")
+
+
+def _toml_value(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return json.dumps(value, ensure_ascii=False)
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{ " + ", ".join(f"{k} = {_toml_value(v)}" for k, v in value.items()) + " }"
+    return repr(value)
+
+
+def toml_text(data: dict[str, Any], comment: str = "") -> str:
+    """TOML of a configuration: top-level scalars, then one table per dict (its dicts of dicts as
+    sub-tables, deeper dicts inline)."""
+    lines = [f"# {line}" for line in comment.splitlines()]
+    lines += [f"{k} = {_toml_value(v)}" for k, v in data.items() if not isinstance(v, dict)]
+
+    def table(name: str, body: dict[str, Any]) -> None:
+        lines.extend(["", f"[{name}]"])
+        lines.extend(f"{k} = {_toml_value(v)}" for k, v in body.items()
+                     if not (isinstance(v, dict) and all(isinstance(x, dict) for x in v.values())
+                             and v))
+        for k, v in body.items():
+            if isinstance(v, dict) and v and all(isinstance(x, dict) for x in v.values()):
+                lines.extend(["", f"[{name}.{k}]"])
+                lines.extend(f"{key} = {_toml_value(x)}" for key, x in v.items())
+
+    for key, value in data.items():
+        if isinstance(value, dict):
+            table(key, value)
+    return "\n".join(lines) + "\n"
+
+
+def shipped_config(name: str, label: str, iterations: int) -> dict[str, Any]:
+    """The full problem with the candidate ``label`` as G: P = 40 slices on 40 worker processes,
+    the pipelined schedule, ``iterations`` iterations (the K its analogue needed)."""
+    problem = PROBLEMS[name]
+    data = config_data(problem, CANDIDATES[name][label].coarse, t1=problem.full_t1, slices=CORES)
+    data["title"] = f"{problem.title}, round 5's best coarse solver: {label}"
+    data["parareal"].update(max_iterations=iterations, schedule="pipelined")
+    data["execution"] = {"executor": "processes", "workers": CORES, "threads": 1}
+    data["run"] = {"mode": "both"}
+    return data
+
+
+def ship(name: str, label: str, iterations: int) -> pathlib.Path:
+    """Write ``experiments/round5/NAME_best.toml`` (see :func:`shipped_config`)."""
+    problem = PROBLEMS[name]
+    path = SHIPPED / f"{name}_best.toml"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    comment = (f"Issue 48 / docs/benchmarks.md, \"Parareal against the fastest serial run (round "
+               f"5)\": {problem.title}.\nF = {problem.fine[0]} at {problem.fine[1]:g} (at forward "
+               f"Euler's stability limit); G = {label}; K = {iterations} (measured on the "
+               f"shortened analogue,\nbenchmarks/frontier.py). Written by "
+               f"`python benchmarks/frontier.py --ship {name} '{label}' {iterations}`.")
+    path.write_text(toml_text(shipped_config(name, label, iterations), comment))
+    return path
+
+
+def _mean(tasks: Sequence[Sequence[Any]], kinds: set[str]) -> float:
+    durations = [t[4] - t[3] for t in tasks if t[0] in kinds]
+    return float(np.mean(durations))
+
+
+def real_runs(name: str, label: str, iterations: int, slices: int = 4, workers: int = 2,
+              repeats: int = 2) -> list[dict[str, Any]]:
+    """``parastokes run`` of the analogue's first ``slices`` slices with G = ``label`` on
+    ``workers`` worker processes, K = ``iterations``, each schedule ``repeats`` times (interleaved),
+    and the wall time of its Parareal part against the simulated schedule fed with that run's
+    measured gamma_F and auxiliary solve time (as benchmarks/pipeline.py's real runs)."""
+    import subprocess
+    import tempfile
+
+    from parastokes import parareal
+
+    problem = PROBLEMS[name]
+    data = config_data(problem, CANDIDATES[name][label].coarse,
+                       t1=slices * problem.slice_length, slices=slices)
+    data["parareal"]["max_iterations"] = iterations
+    data["execution"] = {"executor": "processes", "workers": workers, "threads": 1}
+    data["run"] = {"mode": "parareal"}
+    data["output"] = {"trajectory": False, "figures": False}
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for repeat in range(repeats):
+            for schedule in ("standard", "pipelined"):
+                data["parareal"]["schedule"] = schedule
+                path = pathlib.Path(tmp) / f"{schedule}.toml"
+                path.write_text(toml_text(data))
+                out = pathlib.Path(tmp) / f"{schedule}_{repeat}"
+                load = _load_average()
+                done = subprocess.run([sys.executable, "-m", "parastokes", "run", str(path),
+                                       "--out", str(out), "--overwrite"], capture_output=True,
+                                      text=True)
+                if done.returncode:
+                    raise RuntimeError(f"parastokes run exited {done.returncode}: "
+                                       f"{done.stderr[-2000:]}")
+                summary = json.loads((out / "summary.json").read_text())
+                timings = parareal.Timings(**{k: v for k, v in summary["timings"].items()
+                                              if k in parareal.Timings.__dataclass_fields__})
+                gamma_f = timings.gamma_f
+                n_aux = summary["config"]["resolved"]["n_auxiliary"]
+                aux = timings.gamma_g if schedule == "standard" else _mean(
+                    timings.tasks, {"auxiliary", "coarse"})
+                sim = parareal.simulate(schedule, slices, iterations, workers, aux / gamma_f, 1.0,
+                                        n_aux)
+                rows.append({"schedule": schedule, "repeat": repeat, "wall": timings.total,
+                             "gamma_F": gamma_f, "gamma_aux": aux, "n_auxiliary": n_aux,
+                             "simulated_wall": sim.wall * gamma_f,
+                             "wall_vs_simulation": timings.total / (sim.wall * gamma_f),
+                             "load_average": [load, _load_average()],
+                             "errors": summary["errors"]})
+                print(name, label, rows[-1], flush=True)
+    return rows
+
+
+def emulate(name: str, label: str, iterations: int, fine_s: float = 1.0) -> dict[str, Any]:
+    """EMULATION, not a speedup of the physics: both schedules on 40 threads whose propagators
+    sleep gamma_F = ``fine_s`` and alpha gamma_F (``label``'s measured alpha and N_G), P = 40
+    (benchmarks/pipeline.py's ``emulation_case``)."""
+    from benchmarks.pipeline import emulation_case
+
+    entry = load_problem(name)["candidates"][label]
+    return emulation_case(CORES, entry["alpha"], iterations, fine_s, entry["n_auxiliary"])
+
+
+def _store(name: str, key: str, label: str, value: Any) -> None:
+    """Into ``OUT/NAME_KEY.json`` under ``label`` (beside the candidates' file, which a
+    measuring process rewrites whole)."""
+    path = OUT / f"{name}_{key}.json"
+    data = _load(path)
+    data[label] = value
+    _save(path, data)
+
+
+def _load_average() -> float:
+    try:
+        return float(pathlib.Path("/proc/loadavg").read_text().split()[0])
+    except OSError:
+        return math.nan
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--problems", nargs="+", default=list(PROBLEMS), choices=list(PROBLEMS))
+    parser.add_argument("--only", nargs="+", help="measure only these candidate labels")
+    parser.add_argument("--redo", nargs="+", default=[], help="measure these labels again")
+    parser.add_argument("--table", action="store_true", help="print the tables, measure nothing")
+    parser.add_argument("--tag", default="", help="measure into PROBLEM@TAG.json (a 2nd process)")
+    parser.add_argument("--ship", nargs=3, metavar=("PROBLEM", "LABEL", "K"),
+                        help="write experiments/round5/PROBLEM_best.toml: G = LABEL, K iterations")
+    parser.add_argument("--real", nargs=3, metavar=("PROBLEM", "LABEL", "K"),
+                        help="real runs of G = LABEL on 2 worker processes (parastokes run)")
+    parser.add_argument("--emulate", nargs=3, metavar=("PROBLEM", "LABEL", "K"),
+                        help="EMULATION at 40 threads with LABEL's measured alpha (sleeping "
+                        "propagators, benchmarks/pipeline.py)")
+    parser.add_argument("--limits", action="store_true",
+                        help="forward Euler's limits of the coarse systems (limits_measured.json)")
+    args = parser.parse_args(argv)
+    if args.limits:
+        _save(OUT / "limits_measured.json", limits())
+        return
+    if args.emulate:
+        name, label, k = args.emulate
+        _store(name, "emulation", label, emulate(name, label, int(k)))
+        return
+    if args.real:
+        name, label, k = args.real
+        _store(name, "real_runs", label, real_runs(name, label, int(k)))
+        return
+    if args.ship:
+        print(ship(args.ship[0], args.ship[1], int(args.ship[2])))
+        return
+    for name in args.problems:
+        if args.table:
+            if (OUT / f"{name}.json").exists():
+                print(table(load_problem(name)), "\n")
+            continue
+        measure(name, args.only, args.redo, args.tag)
+        print(table(load_problem(name)), "\n", flush=True)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,333 @@
+"""``parastokes plan CONFIG --cores N --target ETA --out PLAN.toml``: the route that finishes a
+simulation soonest on N cores at accuracy η* (docs/planning.md).
+
+1. the baseline: the fastest serial run reaching η* at T (:mod:`.baseline`), measured on the
+   configuration's problem against its F, or reused from the cache beside it
+   (CONFIG.best_serial.json);
+2. F: the cheapest fixed-step run of that search with error at most η*/F_FACTOR;
+3. the coarse solver: ``tune``'s search (:func:`parastokes.tuning.tune`) with that F on N slices,
+   to the target (1 - 1/F_FACTOR) η* (F's own error takes the rest);
+4. the routes (:mod:`.routes`): serial, spatial, Parareal in both schedules, both combined, in
+   one table; the fastest is written as PLAN.toml, with PLAN.json (the record) and
+   PLAN.best_serial.json (the baseline, keyed by PLAN.toml's own problem, so that ``run`` and
+   ``predict`` of PLAN.toml name it), all three moved into place together.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+from typing import Any
+
+from .baseline import DEFAULT_BUDGET, F_FACTOR, Baseline, Run
+
+__all__ = ["PlanError", "add_arguments", "main", "plan_config", "prepare", "resolvable"]
+
+#: Share of the budget given to the serial search when the Parareal route is searched too.
+SERIAL_SHARE = 0.5
+#: F's own error must lie this many times below η*/F_FACTOR (:func:`resolvable`).
+RESOLUTION = 10.0
+
+
+class PlanError(ValueError):
+    """Bad input to ``plan``, found before any work (exit 2): the message names what to change."""
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """The options of ``parastokes plan``."""
+    p.add_argument("config", help="TOML configuration: the problem (model, T) and its F, the "
+                   "reference of the accuracy")
+    p.add_argument("--cores", type=int, required=True, help="cores N to finish on")
+    p.add_argument("--target", type=float, required=True, metavar="ETA",
+                   help="target relative error η* at T (eq. 34), in (0, 1)")
+    p.add_argument("--out", required=True,
+                   help="PLAN.toml to write (PLAN.json and PLAN.best_serial.json beside it)")
+    p.add_argument("--budget", type=float, help=f"CPU seconds for the searches (default "
+                   f"{DEFAULT_BUDGET:g} for the serial one, tune's default for the coarse one)")
+    p.add_argument("--remeasure", action="store_true",
+                   help="search the serial baseline again even when the cache holds it")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace PLAN.toml, .json and .best_serial.json if they exist")
+
+
+def check_arguments(args: argparse.Namespace) -> None:
+    """The command line, before anything is read (PlanError naming the option)."""
+    target = args.target
+    if not (math.isfinite(target) and 0.0 < target < 1.0):
+        raise PlanError(f"--target: the relative error η* must be a number in (0, 1), got "
+                        f"{target:g}")
+    if args.cores < 1:
+        raise PlanError(f"--cores must be at least 1, got {args.cores}")
+    if args.budget is not None and not (math.isfinite(args.budget) and args.budget > 0):
+        raise PlanError(f"--budget must be a positive number of CPU seconds, got {args.budget:g}")
+    if Path(args.out).suffix.lower() != ".toml":
+        raise PlanError(f"--out {args.out}: plan writes a configuration there (and PLAN.json "
+                        "beside it): give a name ending in .toml")
+
+
+def replaceable(cfg: Any) -> None:
+    """Refuse (PlanError) a configuration whose F ``plan`` cannot replace or time: the GPU
+    executor (its batches run F on the device, whose costs this search, on the CPU, does not
+    measure; they also take explicit fixed steps only)."""
+    if cfg.execution.executor == "gpu":
+        raise PlanError(
+            'execution.executor = "gpu": plan measures and compares CPU costs, and the GPU '
+            "runs F in device batches of explicit fixed steps it cannot time; plan the "
+            "configuration on the CPU (--set execution.executor=\"processes\") and move the "
+            "chosen route to the GPU yourself")
+
+
+def resolvable(found: Baseline) -> None:
+    """Refuse (PlanError) a target the reference cannot judge: F's own error (Richardson's
+    estimate at T_s) must lie at least :data:`RESOLUTION` times below η*/F_FACTOR, the accuracy
+    F for Parareal is chosen at."""
+    goal = found.target / F_FACTOR
+    if found.fine_error is not None and found.fine_error * RESOLUTION > goal:
+        raise PlanError(
+            f"--target: η*/{F_FACTOR:g} = {goal:.3g} is not {RESOLUTION:g} times above the "
+            f"configuration's F's own error (about {found.fine_error:.2g}), against which "
+            "every run is measured: raise --target, or reduce fine.dt (a more accurate F)")
+
+
+def outputs(out: str | Path) -> tuple[Path, Path, Path]:
+    """PLAN.toml, PLAN.json and PLAN.best_serial.json."""
+    from ..parareal.best_serial import cache_path
+
+    toml = Path(out)
+    return toml, toml.with_suffix(".json"), cache_path(toml)
+
+
+def _baseline(args: argparse.Namespace, cfg: Any, system: Any, budget: float,
+              console: Any) -> tuple[Baseline, str]:
+    """The cached search of this problem and target, or a new one (stored in the cache beside
+    the configuration when its folder can be written); with the line that says which."""
+    from .. import integrate
+    from ..config import problem_key
+    from ..parareal.best_serial import cache_path
+    from . import baseline
+
+    key = problem_key(cfg)
+    cache = cache_path(args.config)
+    found = None if args.remeasure else baseline.cached(cache, key, args.target)
+    if found is not None:
+        return found, f"the serial baseline is cached in {cache} (problem {key}); reused"
+    fine = integrate.Propagator(system, cfg.fine.scheme, cfg.fine.dt, rtol=cfg.fine.rtol,
+                                atol=cfg.fine.atol)
+    console.print(f"searching the fastest serial run reaching η* = {args.target:g} (budget "
+                  f"{budget:.3g} s CPU) ...")
+    result = baseline.search(system, system.initial_state(), cfg.time.t0, cfg.time.t1, fine,
+                             args.target, key, budget)
+    try:
+        baseline.store(cache, result)
+        where = f"measured now and cached in {cache}"
+    except OSError as error:
+        where = f"measured now (not cached: {error})"
+    return result, f"the serial baseline was {where} (problem {key})"
+
+
+def _fine_config(run: Run) -> dict[str, Any]:
+    table: dict[str, Any] = {"scheme": run.scheme, "dt": run.dt}
+    if run.rtol is not None:
+        table["rtol"] = run.rtol
+    return table
+
+
+def _tune(cfg: Any, resolved: Any, system: Any, fine: Run, cores: int, target: float,
+          budget: float | None) -> tuple[Any, str | None]:
+    """tune's search with F = ``fine`` on ``cores`` slices; (result, None) or (None, why)."""
+    from .. import integrate
+    from ..tuning import TuningError, tune
+    from ..tuning.command import PILOT_POINTS, config_space, pilot_system
+
+    points = cfg.tune.pilot_points or PILOT_POINTS
+    try:
+        result = tune(integrate.Propagator(system, fine.scheme, fine.dt), t0=cfg.time.t0,
+                      t1=cfg.time.t1, n_slices=cores, cores=cores, target=target,
+                      space=config_space(cfg), budget=budget,
+                      pilot=pilot_system(cfg, resolved, points),
+                      pilot_slices=cfg.tune.pilot_slices)
+    except TuningError as error:
+        return None, f"tune: {error}"
+    if result.chosen is None:
+        return None, f"no coarse solver reaches {target:.3g} (tune measured " \
+                     f"{len(result.candidates)} candidates)"
+    return result, None
+
+
+def _parareal_at(result: Any, cores: int, target: float):
+    """(α, K) of the tuned coarse solver on P slices: K from the pilot's η^k scaled to P slices
+    (:func:`parastokes.tuning.cost.predicted_iterations`), α with its N_G auxiliary solves in
+    ceil(N_G / P) rounds instead of ceil(N_G / N)."""
+    from ..core.contracts import rounds
+    from ..tuning import cost
+
+    chosen = result.chosen
+    n_aux = chosen.settings.n_auxiliary
+
+    def at(slices: int) -> tuple[float, int] | None:
+        k = cost.predicted_iterations(chosen.pilot_errors, result.pilot.n_slices, slices,
+                                      target, chosen.contraction)
+        if k is None:
+            return None
+        return chosen.gamma_ratio * rounds(n_aux, slices) / rounds(n_aux, cores), k
+
+    return at
+
+
+def plan_config(cfg: Any, route: Any, fine: Run, best: Run, tuned: Any) -> dict[str, Any]:
+    """The configuration of the chosen route (a dict of TOML tables)."""
+    data = {k: v for k, v in cfg.model_dump(mode="json", exclude_none=True).items()
+            if k not in ("model", "tune")} | cfg.model.tables()
+    settings = route.settings
+    execution = {k: v for k, v in data.get("execution", {}).items()
+                 if k not in ("workers", "allow_oversubscribe")}
+    output = {k: v for k, v in data.get("output", {}).items() if k != "every"}
+    if "slices" not in settings:  # serial or spatial: the best serial run, on its threads
+        data["fine"] = _fine_config(best)
+        data["run"] = {"mode": "serial"}
+        execution = {"executor": "serial", "threads": settings["threads"]}
+    else:
+        data["fine"] = _fine_config(fine)
+        data["coarse"] = tuned.chosen.settings.coarse_table()
+        data["parareal"] = {**data["parareal"], "n_slices": settings["slices"],
+                            "max_iterations": settings["iterations"],
+                            "schedule": settings["schedule"], "tol": 0.0}
+        data["run"] = {"mode": "parareal"}
+        execution["threads"] = settings["threads"]
+        if execution.get("executor", "processes") == "processes":
+            execution["workers"] = settings["slices"]
+        if tuned.chosen.settings.n_auxiliary > settings["slices"]:
+            execution["allow_oversubscribe"] = True
+    data["execution"] = execution
+    data["output"] = output
+    return data
+
+
+def prepare(args: argparse.Namespace) -> tuple[Any, Any]:
+    """Every check made before any work: the options, the files to write, the configuration
+    (loaded and validated) and whether its F can be replaced; returns (cfg, resolved)."""
+    from .. import config as configuration
+    from ..output import rundir
+
+    check_arguments(args)
+    try:
+        rundir.check_files(list(outputs(args.out)), overwrite=args.overwrite)
+    except rundir.RunDirectoryError as error:
+        raise PlanError(str(error)) from None
+    cfg, resolved = configuration.load(args.config, args.set)
+    replaceable(cfg)
+    return cfg, resolved
+
+
+def main(args: argparse.Namespace, console: Any) -> int:
+    """Run the command (module docstring); 0 when PLAN.toml was written."""
+    from .. import config as configuration
+    from ..config import problem_key
+    from ..output import rundir
+    from ..tuning.report import toml_dumps
+    from . import routes as routing
+
+    cfg, resolved = prepare(args)
+    toml, record, cache = outputs(args.out)
+    system = cfg.model.build(1)  # one kernel thread: the serial baseline on one core
+    points = len(system.positions(system.initial_state()))
+    parareal_possible = args.cores >= 2
+    serial_budget = DEFAULT_BUDGET if args.budget is None else (
+        args.budget * (SERIAL_SHARE if parareal_possible else 1.0))
+    found, which = _baseline(args, cfg, system, serial_budget, console)
+    console.print(which)
+    resolvable(found)
+    best, fine = found.best(), found.fine()
+    console.print(f"fastest serial run reaching η* = {args.target:g}: {best.label()} (error "
+                  f"{best.error:.3g}, {best.cost:.4g} s CPU over T)")
+    console.print(f"F for Parareal (error <= η*/{F_FACTOR:g}): {fine.label()} (error "
+                  f"{fine.error:.3g}, {fine.cost:.4g} s CPU over T)")
+    best_text = f"{best.label()} ({best.cost:.4g} s)"
+    rows = [routing.serial_route(best.cost, best_text)]
+    unavailable: dict[str, str] = {}
+    if args.cores >= 2:
+        rows.append(routing.spatial_route(best.cost, best_text, args.cores, points))
+        goal = (1.0 - 1.0 / F_FACTOR) * args.target
+        tune_budget = None if args.budget is None else args.budget * (1.0 - SERIAL_SHARE)
+        console.print(f"tuning the coarse solver for F = {fine.label()} on {args.cores} slices "
+                      f"to η^K <= {goal:.3g} ...")
+        tuned, why = _tune(cfg, resolved, system, fine, args.cores, goal, tune_budget)
+        if tuned is None:
+            unavailable["parareal"] = why or "tune found no coarse solver"
+        else:
+            chosen = tuned.chosen
+            evidence = (f"γ_G/γ_F measured by tune's pilot ({tuned.pilot.n_slices} slices), "
+                        f"pilot η^k = {', '.join(f'{e:.2g}' for e in chosen.pilot_errors)}; "
+                        f"G = {chosen.settings.label()}; F = {fine.label()} "
+                        f"({fine.cost:.4g} s)")
+            for schedule in ("standard", "pipelined"):
+                rows.append(routing.parareal_route(
+                    best.cost, fine.cost, chosen.gamma_ratio, chosen.iterations,
+                    args.cores, schedule, evidence))
+            at = _parareal_at(tuned, args.cores, goal)
+            combined = routing.combined_route(best.cost, fine.cost, args.cores,
+                                              points, "pipelined", at, evidence)
+            if combined is None:
+                unavailable["combined"] = (f"no split of {args.cores} cores into P >= 2 slices "
+                                           "of t >= 2 threads reaches η*")
+            else:
+                rows.append(combined)
+    chosen_route = min(rows, key=lambda r: r.predicted_wall_seconds)
+    console.print(routing.table(rows, chosen_route.route))
+    for route, why in unavailable.items():
+        console.print(f"  {route}: not available ({why})")
+    plan = {
+        "config": str(args.config), "cores": args.cores, "target": args.target,
+        "best_serial": {**{k: getattr(best, k) for k in ("scheme", "dt", "rtol", "error",
+                                                          "cpu_seconds")},
+                        "source": which},
+        "fine": {k: getattr(fine, k) for k in ("scheme", "dt", "rtol", "error", "cpu_seconds")},
+        "routes": [r.as_dict() for r in rows],
+        "unavailable": unavailable,
+        "chosen": chosen_route.route,
+        "baseline": found.as_dict(),
+        "tune": None if "parareal" in unavailable or args.cores < 2 else tuned.report,
+    }
+    tuned_result = None if "parareal" in unavailable or args.cores < 2 else tuned
+    data = plan_config(cfg, chosen_route, fine, best, tuned_result)
+    header = (f"Planned by `parastokes plan {args.config} --cores {args.cores} --target "
+              f"{args.target:g}`: route {chosen_route.route}, predicted "
+              f"{chosen_route.predicted_wall_seconds:.4g} s, "
+              f"{chosen_route.speedup_vs_best_serial:.3g}x the fastest serial run "
+              f"({best.label()}); see {record.name}")
+    text = toml_dumps(data, header)
+    planned, _ = configuration.loads(text, str(toml))  # (what check and run will read)
+    with rundir.claim_files([toml, record, cache], overwrite=args.overwrite) as staging:
+        _write(staging, toml, record, cache, text.encode(), plan,
+               _rekeyed(found, problem_key(planned), data["fine"]))
+    console.print(f"chosen: {chosen_route.route}; wrote {toml}, {record}, {cache.name}")
+    sys.stdout.flush()
+    return 0
+
+
+def _write(staging: Any, toml: Path, record: Path, cache: Path, text: bytes,
+           plan: dict[str, Any], planned: Baseline) -> None:
+    """PLAN.json, PLAN.best_serial.json (the baseline under PLAN.toml's own problem) and
+    PLAN.toml through one staging: moved into place together, or none of them."""
+    from ..output import trajectory as io
+    from .baseline import store
+
+    io.write_summary(record, plan, staging)
+    store(cache, planned, staging.write)
+    staging.write(toml, lambda handle: handle.write(text))
+
+
+def _rekeyed(found: Baseline, key: str, fine: dict[str, Any]) -> Baseline:
+    """The baseline under PLAN.toml's problem ``key``, whose F is ``fine`` (the [fine] table
+    written): that run becomes the reference row (its CPU time is F's in ``best_known``), the
+    configuration's F an ordinary measured row."""
+    from dataclasses import replace
+
+    every = [replace(found.reference, status="measured"), *found.runs]
+    same = [r for r in every if (r.scheme, r.dt, r.rtol) == (fine["scheme"], fine["dt"],
+                                                               fine.get("rtol"))]
+    reference = same[0] if same else every[0]
+    return replace(found, key=key, reference=replace(reference, status="reference"),
+                   runs=[r for r in every if r is not reference])

@@ -1,0 +1,117 @@
+"""The arithmetic of benchmarks/frontier.py: the iteration count K that reaches a target, the
+speedups at P = 40 (closed formulas), against F and against the fastest serial run, and the
+frontier's pick per family. Pure functions: no physics is run."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from bench_modules import ROOT, benchmark_module
+
+
+@pytest.fixture(scope="module")
+def frontier():
+    with benchmark_module("frontier") as module:
+        yield module
+
+
+def test_iterations_to_reach_counts_f_own_error_and_equality(frontier):
+    errors = [8.0, 2.0, 0.25, 2.0**-10]            # (binary fractions: the sums are exact)
+    assert frontier.iterations_to_reach(errors, 1.0) == 3
+    assert frontier.iterations_to_reach(errors, 1.0, own_error=0.75) == 3   # 0.25 + 0.75 = 1
+    assert frontier.iterations_to_reach(errors, 1.0, own_error=0.875) == 4
+    assert frontier.iterations_to_reach(errors, 2.0**-11) is None
+    assert frontier.iterations_to_reach(None, 1.0) is None
+
+
+def test_predicted_speedups_closed_formulas(frontier):
+    s = frontier.predicted_speedups(0.1, 2, cores=40)
+    assert s["standard"] == pytest.approx(1 / (3 * 0.1 + 2 / 40))           # 2.857
+    assert s["pipelined"] == pytest.approx(1 / ((1 + 2 / 40) * 0.1 + 2 / 40))  # 6.452
+    # the event-based schedule is at least as fast as the closed pipeline, and not faster than
+    # its critical path K gamma_F + (P - K) gamma_G
+    assert s["pipelined"] <= s["pipelined_simulated"] <= 40 / (2 + 38 * 0.1) + 1e-12
+
+
+def test_pipelined_with_many_auxiliary_solves_is_the_simulated_schedule(frontier):
+    """36 auxiliary solves per coarse step compete with the fine solves for 40 cores: the
+    closed formula (one coarse task) overstates the pipeline, so N_G > 1 takes the simulation."""
+    s = frontier.predicted_speedups(0.105, 4, n_auxiliary=36)
+    assert s["pipelined_formula"] == pytest.approx(1 / (1.1 * 0.105 + 0.1))   # 4.63
+    assert s["pipelined"] == s["pipelined_simulated"] < 0.5 * s["pipelined_formula"]
+
+
+def test_best_serial_is_the_cheapest_reaching_the_target(frontier):
+    rows = [{"scheme": "euler", "error": 2e-4, "cpu_per_time": 1.0},
+            {"scheme": "rk2", "error": 1e-7, "cpu_per_time": 2.0},
+            {"scheme": "rk4", "error": 1e-9, "cpu_per_time": 2.6},
+            {"scheme": "rk2", "error": None, "cpu_per_time": 0.1}]
+    assert frontier.best_serial(rows, 1e-6)["scheme"] == "rk2"
+    assert frontier.best_serial(rows, 1e-8)["scheme"] == "rk4"
+    assert frontier.best_serial(rows, 1e-3)["scheme"] == "euler"
+    assert frontier.best_serial(rows, 1e-12) is None
+
+
+def test_assess_scales_speedups_by_the_serial_cost_ratio(frontier):
+    entry = {"alpha": 0.05, "errors": [1e-4, 1e-7], "n_auxiliary": 1}
+    v = frontier.assess(entry, 1e-6, 0.0, fine_cost=4.0, best_cost=1.0)
+    assert v["K"] == 2
+    assert v["vs_F"]["pipelined"] == pytest.approx(1 / ((1 + 2 / 40) * 0.05 + 2 / 40))
+    assert v["vs_best"]["pipelined"] == pytest.approx(v["vs_F"]["pipelined"] / 4)
+    assert v["vs_best"]["standard"] == pytest.approx(v["vs_F"]["standard"] / 4)
+    assert frontier.assess(entry, 1e-8, 0.0, 4.0, 1.0) is None
+
+
+def test_frontier_keeps_the_fastest_per_family(frontier):
+    entries = {
+        "a": {"family": "grid", "alpha": 0.02, "errors": [1e-7]},              # K = 1
+        "b": {"family": "grid", "alpha": 0.001, "errors": [1e-4, 1e-7]},       # K = 2, cheaper
+        "c": {"family": "implicit", "alpha": 0.5, "errors": [1e-3]},           # misses
+        "d": {"family": "implicit", "alpha": 0.2, "errors": [1e-3]},           # misses, cheaper
+        "e": {"family": "implicit", "blowup": "x"},
+    }
+    best = frontier.frontier(entries, 1e-6, 0.0, 1.0, 1.0)
+    # pipelined: a 1/(1.025*0.02 + 0.025) = 21.9; b 1/(1.05*0.001 + 0.05) = 19.6
+    assert best["grid"]["label"] == "a" and best["grid"]["K"] == 1
+    assert best["implicit"]["label"] == "d" and best["implicit"]["K"] is None
+    # the standard schedule ranks them the other way: a 1/(0.04 + 0.025) = 15.4, b 1/(0.003 +
+    # 0.05) = 18.9
+    standard = frontier.frontier(entries, 1e-6, 0.0, 1.0, 1.0, "standard")
+    assert standard["grid"]["label"] == "b" and standard["grid"]["K"] == 2
+
+
+def test_hopeless_extrapolates_the_last_contraction(frontier):
+    # 1e-2 -> 1e-3: rate 0.1, 4 iterations left of 6 reach 1e-7 <= 1e-6
+    assert not frontier.hopeless([1e-2, 1e-3], 1e-6, 6)
+    # with 2 left: 1e-5 > 1e-6
+    assert frontier.hopeless([1e-2, 1e-3], 1e-6, 4)
+    # exactly on the target after the last one allowed: not hopeless
+    assert not frontier.hopeless([1.0, 0.5], 0.125, 4)
+    assert frontier.hopeless([1e-3, 2e-3], 1e-6, 40)       # stalled or growing
+    assert not frontier.hopeless([1e-3], 1e-6, 2)          # one iteration says nothing
+
+
+ROUND5 = sorted((ROOT / "experiments" / "round5").glob("*.toml"))
+#: Cut a shipped configuration to seconds: the rod at a fifth (L = 12, M = 61: σ_f, ε and the
+#: grid factors of 2 and 3 as the full rod's), the vesicle at 162 points, two short slices.
+QUICK = {"rod": ["model.n_points=61", "model.length=12", "time.t1=0.0004"],
+         "vesicle": ["model.subdivisions=2", "time.t1=0.2"]}
+
+
+@pytest.mark.parametrize("path", ROUND5, ids=lambda p: p.stem)
+def test_round5_configuration_checks_and_runs_quick(path):
+    """Each shipped configuration validates as it is (40 slices, pipelined), and a quick cut of
+    it runs Parareal to the end with finite states."""
+    from parastokes import config, parareal
+
+    cfg, resolved = config.load(path)
+    assert cfg.parareal.n_slices == 40 and cfg.parareal.schedule == "pipelined"
+    assert resolved.n_auxiliary <= cfg.execution.workers
+    cut = QUICK[cfg.model.kind] + ["parareal.n_slices=2", "parareal.max_iterations=1",
+                                   'execution.executor="serial"', "execution.workers=1"]
+    cfg, resolved = config.load(path, cut)
+    setup = config.build(cfg, resolved)
+    x0 = setup.system.initial_state()
+    result = parareal.run(setup.fine, setup.coarse, x0, 0.0, cfg.time.t1, 2, tol=0.0,
+                          max_iterations=1)
+    assert result.iterations == 1 and np.isfinite(result.states).all()

@@ -1,0 +1,266 @@
+"""The linear algebra of the linearly implicit steps (parastokes.stiff.banded, .solve, .stepper):
+the compiled block product against scipy's, the band and LAPACK's banded layout, factorizations
+against dense solves, and when the stepper rebuilds ``A`` and refactorizes (exact counts), its
+reuse of a factorization across a change of step (the W-method's view), determinism."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from test_stiff import Forced
+
+from parastokes import integrate, models
+from parastokes.stiff import ROSENBROCK, StiffSolveError, banded, jacobian, local, solve, stepper
+from parastokes.stiff.solve import Factorization
+
+
+def _random_bsr(rng, n_rows, n_cols, block, density):
+    pattern = sp.random_array((n_rows, n_cols), density=density, rng=rng, format="csr")
+    pattern.data[:] = 1.0
+    coo = sp.coo_array(pattern)
+    blocks = rng.standard_normal((coo.nnz, *block))
+    dense = np.zeros((n_rows * block[0], n_cols * block[1]))
+    for (i, j), b in zip(zip(coo.row, coo.col, strict=True), blocks, strict=True):
+        dense[i * block[0]:(i + 1) * block[0], j * block[1]:(j + 1) * block[1]] = b
+    return sp.bsr_array(dense, blocksize=block), dense
+
+
+@pytest.mark.parametrize(("left", "right"), [((6, 6), (6, 6)), ((3, 3), (3, 3)), ((2, 3), (3, 4))])
+def test_block_product_is_the_matrix_product(left, right):
+    rng = np.random.default_rng(1)
+    m, dm = _random_bsr(rng, 30, 25, left, 0.2)
+    k, dk = _random_bsr(rng, 25, 20, right, 0.15)
+    product = banded.block_product(m, k)
+    assert product.blocksize == (left[0], right[1])
+    assert np.allclose(product.toarray(), dm @ dk, rtol=1e-13, atol=1e-13)
+
+
+def test_block_product_refuses_blocks_that_do_not_chain():
+    rng = np.random.default_rng(2)
+    m, _ = _random_bsr(rng, 4, 4, (3, 3), 0.5)
+    k, _ = _random_bsr(rng, 4, 4, (2, 2), 0.5)
+    with pytest.raises(ValueError, match="do not chain"):
+        banded.block_product(m, k)
+
+
+def test_the_rods_a_is_the_near_mobility_times_the_load_jacobian():
+    """local_jacobian's compiled product equals scipy's M @ K on a rod above the wall."""
+    rod = models.rod_swimmer(n_points=31, length=6.0, n_threads=1)
+    x = rod.initial_state()
+    k = jacobian.load_jacobian(rod, 0.0, x)
+    m = local.near_mobility(rod.positions(x), rod.epsilon, rod.viscosity, True,
+                            jacobian.CUTOFF * rod.epsilon)
+    a = jacobian.local_jacobian(rod, 0.0, x, 6 * len(x)).toarray()
+    expected = (m @ sp.csr_array(k)).toarray()
+    assert np.allclose(a, expected, rtol=0, atol=1e-13 * np.abs(expected).max())
+
+
+def test_bandwidth_of_blocks_counts_every_entry_of_a_block():
+    """A block tridiagonal matrix of 6 x 6 blocks has bandwidth 11 either side; a lower
+    bidiagonal one of 1 x 1 entries (1, 0); the COO and BSR paths agree."""
+    tri = sp.bsr_array(np.kron(sp.diags_array([1, 1, 1], offsets=[-1, 0, 1], shape=(5, 5))
+                               .toarray(), np.ones((6, 6))), blocksize=(6, 6))
+    assert banded.bandwidth(tri) == (11, 11)
+    assert banded.bandwidth(sp.csr_array(tri)) == (11, 11)
+    lower = sp.diags_array([1.0, 2.0], offsets=[-1, 0], shape=(4, 4))
+    assert banded.bandwidth(lower) == (1, 0)
+
+
+def _banded_matrix(n=240, kl=5, ku=3, seed=3):
+    rng = np.random.default_rng(seed)
+    dense = np.zeros((n, n))
+    for off in range(-kl, ku + 1):
+        dense += np.diag(rng.standard_normal(n - abs(off)), off)
+    return dense
+
+
+def test_band_storage_is_lapacks_layout():
+    """Entry (i, j) of I - hγA at row kl + ku + i - j of column j, the first kl rows zero."""
+    dense = _banded_matrix()
+    kl, ku = 5, 3
+    ab = banded.band_storage(sp.csr_array(dense), 0.3, kl, ku)
+    expected = np.eye(len(dense)) - 0.3 * dense
+    for i, j in [(0, 0), (7, 4), (4, 7), (100, 95), (95, 98)]:
+        assert ab[kl + ku + i - j, j] == expected[i, j]
+    assert not ab[:kl].any()
+    bsr = sp.bsr_array(dense, blocksize=(4, 4))  # the compiled path: the same entries
+    kb, ub = banded.bandwidth(bsr)
+    ab4 = banded.band_storage(bsr, 0.3, kb, ub)
+    for i, j in [(0, 0), (7, 4), (4, 7), (100, 95), (95, 98)]:
+        assert ab4[kb + ub + i - j, j] == expected[i, j]
+
+
+@pytest.mark.parametrize("kl", [5, 200])
+def test_factorization_solves_as_a_dense_solve(kl):
+    """Banded (LAPACK, a band below n/8) and general (SuperLU) factorizations of I - hγA solve
+    like numpy's dense solve."""
+    dense = _banded_matrix(kl=kl, ku=3)
+    lu = Factorization(sp.csr_array(dense), 0.05, 0.0)
+    assert lu.banded == (kl < 240 // 8)
+    rhs = np.random.default_rng(4).standard_normal(240)
+    expected = np.linalg.solve(np.eye(240) - 0.05 * dense, rhs)
+    assert np.allclose(lu.solve(rhs), expected, rtol=1e-10, atol=1e-12)
+
+
+@pytest.mark.parametrize("kl", [2, 200])
+def test_a_singular_matrix_is_a_named_stiff_solve_error(kl):
+    dense = _banded_matrix(kl=kl, ku=1)
+    dense[10] = 0.0
+    dense[10, 10] = 1.0 / 0.5  # row 10 of I - 0.5 A is zero
+    with pytest.raises(StiffSolveError, match="singular"):
+        Factorization(sp.csr_array(dense), 0.5, 1.5)
+
+
+@dataclasses.dataclass(frozen=True)
+class Counted(Forced):
+    """Forced with a counter of its Jacobian builds (a list shared by copies)."""
+
+    calls: list = dataclasses.field(default_factory=list)
+
+    def stiff_jacobian(self, t, x):
+        self.calls.append(t)
+        return super().stiff_jacobian(t, x)
+
+
+def _stepper(system, scheme="ros2", refresh=None):
+    return stepper.Stepper(system, ROSENBROCK[scheme], system.rates, system.advance,
+                           refresh=refresh)
+
+
+@pytest.mark.parametrize(("steps", "refresh", "builds"), [(12, 5, 3), (10, 5, 2), (7, 1, 7),
+                                                          (9, 10, 1)])
+@pytest.mark.parametrize("scheme", ["ros2", "ros34pw2", "ros2-krylov"])
+def test_a_is_rebuilt_every_refresh_steps_and_factorized_once_per_build(scheme, steps, refresh,
+                                                                        builds):
+    """At a fixed step: ``A`` built at steps 0, refresh, 2 refresh, ... and factorized once
+    each (ros2-krylov too: its preconditioner is kept across the steps)."""
+    system = Counted(lam=(-1.0, -1e3))
+    run = _stepper(system, scheme, refresh)
+    x = system.initial_state()
+    for i in range(steps):
+        x = run.step(0.01 * i, x, 0.01)
+    assert (run.jacobians, run.factorizations, len(system.calls)) == (builds, builds, builds)
+    assert system.calls == pytest.approx([0.01 * refresh * j for j in range(builds)])
+
+
+@pytest.mark.parametrize(("scheme", "ratio", "refactorized"), [
+    ("ros2", 1.0, False), ("ros2", 2.0, False), ("ros2", 0.5, False), ("ros2", 2.01, True),
+    ("ros2", 0.49, True), ("ros34pw2", 1.25, False), ("ros34pw2", 0.5, False),
+    ("ros34pw2", 1.26, True), ("ros34pw2", 0.49, True)])
+def test_a_factorization_serves_the_steps_of_its_reuse_range(scheme, ratio, refactorized):
+    """A step of ``ratio`` times the factorized one keeps the factorization inside the scheme's
+    ``reuse`` range (ROS2 [1/2, 2], ROS34PW2 [1/2, 1.25]) and refactorizes outside it."""
+    system = Forced(lam=(-1.0, -1e3))
+    run = _stepper(system, scheme, refresh=100)
+    x = run.step(0.0, system.initial_state(), 0.01)
+    run.step(0.01, x, 0.01 * ratio)
+    assert run.factorizations == 1 + refactorized
+
+
+def _amplification(scheme, factor):
+    """The largest |R| of one step on y' = zy, z from -1e-2 to -1e8, with A = factor z."""
+    return max(abs(integrate.step(Forced(lam=(z,), forced=False, jacobian_factor=factor),
+                                  scheme, 0.0, np.array([[1.0]]), 1.0)[0, 0])
+               for z in -np.logspace(-2, 8, 60))
+
+
+@pytest.mark.parametrize("scheme", ["lieuler", "ros2", "ros34pw2"])
+def test_the_reuse_range_keeps_the_step_from_amplifying(scheme):
+    """A step h = r h_f on a factorization at h_f is a step with A = z / r: within the reuse
+    range (r at both ends) |R| <= 1 for every z < 0; ROS34PW2 at r = 2 amplifies (|R| = 6.5)."""
+    low, high = ROSENBROCK[scheme].reuse
+    assert _amplification(scheme, 1.0 / low) <= 1.0
+    assert _amplification(scheme, 1.0 / high) <= 1.0
+    if scheme == "ros34pw2":
+        assert _amplification(scheme, 0.5) > 5.0
+
+
+def test_a_reused_factorization_is_the_w_method_with_a_scaled_jacobian():
+    """A step h after a factorization at h_f equals, to round-off, a fresh step h whose A is
+    (h_f / h) times the Jacobian: the reuse is exactly a W-method with that A."""
+    h_f, h = 0.01, 0.012
+    system = Forced(lam=(-1.0, -1e3))
+    run = _stepper(system, "ros34pw2", refresh=100)
+    x1 = run.step(0.0, system.initial_state(), h_f)
+    reused = run.step(h_f, x1, h)
+    assert run.factorizations == 1
+    scaled = Forced(lam=(-1.0, -1e3), jacobian_factor=h_f / h)
+    fresh = _stepper(scaled, "ros34pw2").step(h_f, x1, h)
+    assert np.allclose(reused, fresh, rtol=1e-13, atol=1e-15)
+    plain = _stepper(system, "ros34pw2").step(h_f, x1, h)
+    assert not np.allclose(reused, plain, rtol=1e-10, atol=0)  # the scaling is real
+
+
+def _count_factorizations(monkeypatch) -> list[float]:
+    """The step sizes hγ of every factorization the stepper makes from now on."""
+    made: list[float] = []
+    original = stepper.Factorization
+
+    def counted(matrix, hgamma, t):
+        made.append(hgamma)
+        return original(matrix, hgamma, t)
+
+    monkeypatch.setattr(stepper, "Factorization", counted)
+    return made
+
+
+def test_adaptive_steps_factorize_less_often_than_they_change_the_step(monkeypatch):
+    """Adaptive ROS2 on Prothero-Robinson (λ = -1e3, A every 1000 steps): the step changes at
+    nearly every step, yet the factorizations are fewer than half the steps; the run is the
+    same bits twice."""
+    made = _count_factorizations(monkeypatch)
+    monkeypatch.setattr(stepper, "REFRESH", 1000)
+    system = Forced(lam=(-1.0, -1e3))
+    runs = [integrate.run(system, system.initial_state(), 0.0, 1.0, "ros2", 1e-3,
+                          rtol=1e-4, atol=1e-6) for _ in range(2)]
+    assert np.array_equal(runs[0].state, runs[1].state)
+    assert (runs[0].n_steps, runs[0].n_rejected) == (runs[1].n_steps, runs[1].n_rejected)
+    per_run = len(made) // 2
+    assert runs[0].n_steps > 100 and per_run < (runs[0].n_steps + runs[0].n_rejected) / 4
+    assert np.abs(runs[0].state - system.exact(1.0)).max() < 2e-4
+
+
+def test_banded_and_general_factorizations_give_the_same_run(monkeypatch):
+    """The rod's run with A's band factorized by LAPACK equals (to 1e-10) the run with SuperLU
+    (the band reported as the whole matrix)."""
+    rod = models.rod_swimmer(n_points=61, length=12.0, epsilon=0.3, n_threads=1)
+    x0 = rod.initial_state()
+    assert Factorization(jacobian.local_jacobian(rod, 0.0, x0, 6 * len(x0)), 1e-4, 0.0).banded
+    a = integrate.run(rod, x0, 0.0, 5e-4, "ros34pw2", 1e-4).state
+    monkeypatch.setattr(solve, "bandwidth", lambda matrix: (matrix.shape[0], matrix.shape[0]))
+    assert not Factorization(jacobian.local_jacobian(rod, 0.0, x0, 6 * len(x0)), 1e-4, 0.0).banded
+    b = integrate.run(rod, x0, 0.0, 5e-4, "ros34pw2", 1e-4).state
+    assert np.allclose(a, b, rtol=0, atol=1e-10 * np.abs(a).max())
+
+
+@pytest.mark.parametrize("width", [3, 2])
+def test_coloured_differences_are_the_analytic_jacobian(width):
+    """fd_jacobian on f_i = (x_i0 x_{i+1,1}, sin x_i2 + 2 x_{i-1,0}, x_i1²)[:width] (chain
+    coupling, rates by shifts): the analytic Jacobian, entry (width i + l, 3 j + q)."""
+    from parastokes.stiff import coloring
+
+    n = 7
+    x = np.random.default_rng(5).standard_normal((n, 3))
+
+    def function(y):
+        nxt, prev = np.roll(y, -1, axis=0), np.roll(y, 1, axis=0)
+        nxt[-1], prev[0] = 0.0, 0.0
+        return np.stack([y[:, 0] * nxt[:, 1], np.sin(y[:, 2]) + 2 * prev[:, 0], y[:, 1] ** 2],
+                        axis=1)[:, :width]
+
+    expected = np.zeros((n * width, n * 3))
+    for i in range(n):
+        if i + 1 < n:
+            expected[width * i, 3 * i] = x[i + 1, 1]
+            expected[width * i, 3 * (i + 1) + 1] = x[i, 0]
+        expected[width * i + 1, 3 * i + 2] = np.cos(x[i, 2])
+        if i > 0:
+            expected[width * i + 1, 3 * (i - 1)] = 2.0
+        if width == 3:
+            expected[width * i + 2, 3 * i + 1] = 2 * x[i, 1]
+    got = coloring.fd_jacobian(function, lambda y, d, h: y + h * d, x, 3,
+                               coloring.banded(1, n, 1), 1e-6).toarray()
+    assert np.allclose(got, expected, rtol=0, atol=1e-8)
