@@ -75,7 +75,7 @@ class ElasticRing(PointsInShear):
 
 
 ring = ElasticRing()
-orders = check_system(ring, horizon=0.5, counts=(8, 16))
+orders = check_system(ring, horizon=0.5, counts=(16, 32))  # ros34pw2: order 3 from 64 steps
 print("contract ok; fitted orders:", ", ".join(f"{k} {v:.2f}" for k, v in orders.items()))
 
 # %%
