@@ -1,0 +1,101 @@
+"""Adaptive schemes (rtol) and ``scheme = "auto"`` in Parareal's coarse solver, ``tune`` and
+``plan`` (issue 49's "Done when"; issue 50: an adaptive coarse solver reports its step counts).
+
+The counts of an adaptive coarse solver are checked against the same propagator run directly
+(``integrate.run``) over each slice from the very states Parareal fed it, on the serial and the
+process-pool executors, which must agree bit for bit."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from parastokes import integrate, models, parallel, parareal
+
+N_SLICES = 3
+T1 = 3e-4
+
+
+def _rod():
+    return models.rod_swimmer(n_points=21)
+
+
+def _solve(executor, scheme: str, lagrange: dict | None = None, iterations: int = 2):
+    rod = _rod()
+    fine = integrate.Propagator(rod, "rk2", 1e-6)
+    coarse = parareal.extrapolated(rod, scheme, 2e-5, lagrange=lagrange, rtol=1e-4,
+                                   allow_oversubscribe=True)
+    result = parareal.run(fine, coarse, rod.initial_state(), t0=0.0, t1=T1, n_slices=N_SLICES,
+                           tol=0.0, max_iterations=iterations, executor=executor,
+                           allow_oversubscribe=True)
+    return rod, result
+
+
+@pytest.fixture(scope="module")
+def pool():
+    with parallel.make_executor("processes", 2) as executor:
+        yield executor
+
+
+@pytest.fixture(scope="module")
+def ros2_serial():
+    with parallel.make_executor("serial") as executor:
+        return _solve(executor, "ros2", lagrange={"epsilon": [1.03, 1.06]})
+
+
+def test_adaptive_coarse_counts_equal_direct_runs_over_each_slice(ros2_serial):
+    rod, result = ros2_serial
+    steps = result.timings.coarse_steps
+    assert len(steps) == result.iterations + 1  # the initial sweep, then one per iteration
+    # the initial sweep (eq. 9) runs G from X_{n-1}^0 on every slice; X^0 is its own output
+    times = result.times
+    x = rod.initial_state()
+    accepted = rejected = 0
+    g = parareal.extrapolated(rod, "ros2", 2e-5, lagrange={"epsilon": [1.03, 1.06]}, rtol=1e-4)
+    for n in range(1, N_SLICES + 1):
+        for p in (p for row in g.auxiliary for p in row):
+            r = integrate.run(p.system, x, times[n - 1], times[n], "ros2", p.dt, rtol=1e-4)
+            accepted += r.n_steps
+            rejected += r.n_rejected
+        x = g(times[n - 1], times[n], x)
+    assert steps[0] == {"accepted": accepted, "rejected": rejected, "switches": 0}
+    assert accepted > 0
+    # iteration k runs G on slices n = k+1..N: fewer solves, fewer steps
+    assert 0 < steps[2]["accepted"] < steps[1]["accepted"] < steps[0]["accepted"]
+
+
+def test_adaptive_coarse_counts_serial_equal_processes(ros2_serial, pool):
+    _, serial = ros2_serial
+    _, pooled = _solve(pool, "ros2", lagrange={"epsilon": [1.03, 1.06]})
+    assert pooled.timings.coarse_steps == serial.timings.coarse_steps
+    assert np.array_equal(pooled.states, serial.states)
+
+
+def test_fixed_coarse_reports_no_counts():
+    rod = _rod()
+    coarse = parareal.extrapolated(rod, "euler", 2e-5)
+    result = parareal.run(integrate.Propagator(rod, "rk2", 1e-6), coarse, rod.initial_state(),
+                          t0=0.0, t1=T1, n_slices=N_SLICES, tol=0.0, max_iterations=1)
+    assert result.timings.coarse_steps == []
+
+
+def test_auto_coarse_converges_and_processes_equal_serial(pool):
+    with parallel.make_executor("serial") as executor:
+        rod, serial = _solve(executor, "auto", iterations=N_SLICES)
+    _, pooled = _solve(pool, "auto", iterations=N_SLICES)
+    assert np.array_equal(pooled.states, serial.states)
+    assert pooled.timings.coarse_steps == serial.timings.coarse_steps
+    # k = N: Parareal is the serial fine solution (Algorithm 1's exactness)
+    exact = parareal.serial_solution(integrate.Propagator(rod, "rk2", 1e-6), rod.initial_state(),
+                                     0.0, T1, N_SLICES)
+    np.testing.assert_allclose(serial.states, exact, rtol=0, atol=1e-12)
+    assert serial.increments[-1] < serial.increments[0]
+    # auto's accepted steps over the initial sweep equal its direct runs
+    direct = 0
+    x = rod.initial_state()
+    g = integrate.Propagator(rod, "auto", 2e-5, rtol=1e-4)
+    for n in range(1, N_SLICES + 1):
+        r = g.run(serial.times[n - 1], serial.times[n], x)
+        direct += r.n_steps
+        x = r.state
+    assert serial.timings.coarse_steps[0]["accepted"] == direct
