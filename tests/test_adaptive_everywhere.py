@@ -99,3 +99,39 @@ def test_auto_coarse_converges_and_processes_equal_serial(pool):
         direct += r.n_steps
         x = r.state
     assert serial.timings.coarse_steps[0]["accepted"] == direct
+
+
+# ---- tune: an adaptive F (rtol, or "auto") ---------------------------------------------------
+
+def _tune_rod():
+    return models.rod_swimmer(n_points=21, length=4.0, epsilon=1.0)
+
+
+@pytest.mark.parametrize("scheme", ["rk23", "auto"])
+def test_tune_runs_an_adaptive_fine_solver_with_its_rtol(scheme):
+    from parastokes import tuning
+    from parastokes.parareal.metrics import relative_change
+
+    rod = _tune_rod()
+    fine = integrate.Propagator(rod, scheme, 1e-6, rtol=1e-7)
+    space = tuning.Space(schemes=("euler",), parameters=(), richardson=(0,),
+                         step_fractions=(1.0,))
+    res = tuning.tune(fine, t0=0.0, t1=2e-3, n_slices=2, cores=2, target=1e-3, space=space)
+    assert res.report["problem"]["fine"] == {"scheme": scheme, "dt": 1e-6, "rtol": 1e-7,
+                                             "atol": None}
+    pilot = res.pilot
+    x0, t1 = pilot.reference[0], pilot.times[1]
+    adaptive = integrate.run(rod, x0, 0.0, t1, scheme, 1e-6, rtol=1e-7)
+    assert np.array_equal(pilot.reference[1], adaptive.state)  # F ran with its rtol
+    tighter = integrate.propagate(rod, x0, 0.0, t1, scheme, 1e-6, rtol=1e-8)
+    assert pilot.fine_error == relative_change(adaptive.state, tighter, rod.positions)
+    assert res.chosen is not None
+
+
+def test_tune_refuses_auto_as_a_coarse_candidate_in_one_line():
+    from parastokes import tuning
+
+    rod = _tune_rod()
+    with pytest.raises(tuning.TuningError, match="'auto' cannot"):
+        tuning.tune(integrate.Propagator(rod, "rk2", 1e-6), t0=0.0, t1=2e-3, n_slices=2,
+                    cores=2, target=1e-3, space=tuning.Space(schemes=("auto",)))
