@@ -135,3 +135,78 @@ def test_tune_refuses_auto_as_a_coarse_candidate_in_one_line():
     with pytest.raises(tuning.TuningError, match="'auto' cannot"):
         tuning.tune(integrate.Propagator(rod, "rk2", 1e-6), t0=0.0, t1=2e-3, n_slices=2,
                     cores=2, target=1e-3, space=tuning.Space(schemes=("auto",)))
+
+
+# ---- plan: adaptive runs (and auto) in the serial baseline -----------------------------------
+
+PLAN_CONFIG = """
+title = "small rod, adaptive plan"
+[model]
+kind = "rod"
+n_points = 21
+length = 4.0
+epsilon = 5.0
+[time]
+t1 = 0.0005
+[fine]
+dt = 1e-6
+[coarse]
+dt_ratio = 10
+[parareal]
+n_slices = 2
+[execution]
+executor = "serial"
+"""
+
+
+def test_plan_candidates_hold_every_adaptive_scheme_and_auto_on_the_rtol_ladder():
+    from parastokes.planning import baseline
+
+    target = 1e-6
+    runs = baseline.candidates(1e-5, target, span=1.0, auto=baseline._auto_available(_rod()))
+    ladder = {(r.scheme, r.rtol) for r in runs if r.rtol is not None}
+    adaptive = [n for n, s in integrate.SCHEMES.items() if s.adaptive] + ["auto"]
+    assert {"rk23", "rk45", "ros2", "ros34pw2"} <= set(adaptive)
+    for name in adaptive:
+        assert {(name, target), (name, target / 10), (name, target / 100)} <= ladder, name
+    assert not any(r.rtol is not None for r in runs if not integrate.lookup(r.scheme).adaptive)
+    # an explicit pair on a fixed step is refused by check (a PLAN.toml must pass it)
+    assert not any(r.rtol is None for r in runs if r.scheme in ("rk23", "rk45"))
+
+
+@pytest.mark.parametrize(("scheme", "rtol"), [("auto", 1e-7), ("ros34pw2", 1e-6)])
+def test_an_adaptive_best_serial_run_is_written_and_passes_check(scheme, rtol, tmp_path):
+    from parastokes import cli, config
+    from parastokes.planning import routes
+    from parastokes.planning.baseline import Run
+    from parastokes.planning.command import plan_config
+    from parastokes.tuning.report import toml_dumps
+
+    source = tmp_path / "rod.toml"
+    source.write_text(PLAN_CONFIG)
+    cfg, _ = config.load(source)
+    best = Run(scheme, 1e-6, rtol, f"{scheme} adaptive", "measured", 4e-7, 0.1, 0.2)
+    fine = Run("rk2", 1e-6, None, "F", "reference", 0.0, 0.3, 0.6)
+    data = plan_config(cfg, routes.serial_route(best.cost, best.label()), fine, best, None)
+    assert data["fine"] == {"scheme": scheme, "dt": 1e-6, "rtol": rtol}
+    assert data["run"] == {"mode": "serial"}
+    out = tmp_path / "PLAN.toml"
+    out.write_text(toml_dumps(data, "# plan"))
+    assert cli.main(["check", str(out)]) == 0
+
+
+def test_plan_runs_with_an_auto_fine_solver_and_measures_adaptive_rows(tmp_path):
+    import json
+
+    from parastokes import cli
+
+    source = tmp_path / "rod.toml"
+    source.write_text(PLAN_CONFIG.replace("dt = 1e-6", 'dt = 1e-6\nscheme = "auto"\nrtol = 1e-8'))
+    out = tmp_path / "PLAN.toml"
+    assert cli.main(["plan", str(source), "--cores", "2", "--target", "1e-5", "--out", str(out),
+                     "--budget", "4"]) == 0
+    plan = json.loads(out.with_suffix(".json").read_text())
+    rows = plan["baseline"]["rows"]
+    assert plan["fine"]["scheme"] == "auto" or any(r["rtol"] is not None for r in rows)
+    assert {"scheme", "dt", "rtol", "error", "cpu_seconds"} <= set(plan["best_serial"])
+    assert cli.main(["check", str(out)]) == 0
