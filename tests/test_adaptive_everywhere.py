@@ -210,3 +210,33 @@ def test_plan_runs_with_an_auto_fine_solver_and_measures_adaptive_rows(tmp_path)
     assert plan["fine"]["scheme"] == "auto" or any(r["rtol"] is not None for r in rows)
     assert {"scheme", "dt", "rtol", "error", "cpu_seconds"} <= set(plan["best_serial"])
     assert cli.main(["check", str(out)]) == 0
+
+
+# ---- a config: [coarse] scheme = "auto" end to end, counts in summary.json and on screen ----
+
+def test_a_config_with_an_auto_coarse_solver_reports_its_steps(tmp_path, capsys):
+    import json
+
+    from parastokes import cli
+
+    source = tmp_path / "rod.toml"
+    source.write_text(PLAN_CONFIG.replace("t1 = 0.0005", "t1 = 0.0003").replace(
+        "dt_ratio = 10", 'dt_ratio = 20\nscheme = "auto"\nrtol = 1e-4').replace(
+        "n_slices = 2", "n_slices = 3\nmax_iterations = 2\ntol = 0.0")
+        + '[output]\nformats = ["png"]\nfigures = false\n')
+    assert cli.main(["run", str(source), "--out", str(tmp_path / "out")]) == 0
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    counts = summary["timings"]["coarse_steps"]
+    assert len(counts) == summary["iterations"] + 1
+    assert counts[0]["accepted"] > counts[1]["accepted"] > 0
+    total = sum(c["accepted"] for c in counts)
+    assert f"in all {total} accepted" in capsys.readouterr().out
+
+
+def test_coarse_steps_line_sums_the_sweeps():
+    from parastokes.cli.run import coarse_steps_line
+
+    line = coarse_steps_line([{"accepted": 5, "rejected": 1, "switches": 0},
+                              {"accepted": 3, "rejected": 0, "switches": 2}])
+    assert line == ("adaptive coarse steps (accepted/rejected per sweep k = 0..1): 5/1, 3/0/2; "
+                    "in all 8 accepted, 1 rejected, 2 switches")
