@@ -240,3 +240,16 @@ def test_coarse_steps_line_sums_the_sweeps():
                               {"accepted": 3, "rejected": 0, "switches": 2}])
     assert line == ("adaptive coarse steps (accepted/rejected per sweep k = 0..1): 5/1, 3/0/2; "
                     "in all 8 accepted, 1 rejected, 2 switches")
+
+
+def test_a_bound_copy_starts_counting_from_zero_and_take_resets():
+    rod = _rod()
+    g = parareal.extrapolated(rod, "ros2", 2e-5, rtol=1e-4)
+    g(0.0, 1e-4, rod.initial_state())
+    with parallel.make_executor("serial") as executor:
+        bound = g.with_executor(executor)
+        assert bound.take_step_counts() == {"accepted": 0, "rejected": 0, "switches": 0}
+    direct = g.auxiliary[0][0].run(0.0, 1e-4, rod.initial_state())
+    assert g.take_step_counts() == {"accepted": direct.n_steps, "rejected": direct.n_rejected,
+                                    "switches": 0}
+    assert g.take_step_counts() == {"accepted": 0, "rejected": 0, "switches": 0}
