@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from test_plan import CONFIG as PLAN_ROD
 
 from parastokes import integrate, models, parallel, parareal
 
@@ -139,24 +140,8 @@ def test_tune_refuses_auto_as_a_coarse_candidate_in_one_line():
 
 # ---- plan: adaptive runs (and auto) in the serial baseline -----------------------------------
 
-PLAN_CONFIG = """
-title = "small rod, adaptive plan"
-[model]
-kind = "rod"
-n_points = 21
-length = 4.0
-epsilon = 5.0
-[time]
-t1 = 0.0005
-[fine]
-dt = 1e-6
-[coarse]
-dt_ratio = 10
-[parareal]
-n_slices = 2
-[execution]
-executor = "serial"
-"""
+#: test_plan's small rod over a shorter T (a quarter).
+PLAN_CONFIG = PLAN_ROD.replace("t1 = 0.002", "t1 = 0.0005")
 
 
 def test_plan_candidates_hold_every_adaptive_scheme_and_auto_on_the_rtol_ladder():
@@ -222,8 +207,8 @@ def test_a_config_with_an_auto_coarse_solver_reports_its_steps(tmp_path, capsys)
     source = tmp_path / "rod.toml"
     source.write_text(PLAN_CONFIG.replace("t1 = 0.0005", "t1 = 0.0003").replace(
         "dt_ratio = 10", 'dt_ratio = 20\nscheme = "auto"\nrtol = 1e-4').replace(
-        "n_slices = 2", "n_slices = 3\nmax_iterations = 2\ntol = 0.0")
-        + '[output]\nformats = ["png"]\nfigures = false\n')
+        "n_slices = 2", "n_slices = 3\nmax_iterations = 2\ntol = 0.0").replace(
+        'formats = ["png"]', 'formats = ["png"]\nfigures = false'))
     assert cli.main(["run", str(source), "--out", str(tmp_path / "out")]) == 0
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     counts = summary["timings"]["coarse_steps"]
