@@ -238,3 +238,14 @@ def test_a_bound_copy_starts_counting_from_zero_and_take_resets():
     assert g.take_step_counts() == {"accepted": direct.n_steps, "rejected": direct.n_rejected,
                                     "switches": 0}
     assert g.take_step_counts() == {"accepted": 0, "rejected": 0, "switches": 0}
+
+
+def test_an_adaptive_auxiliary_solve_stays_a_gpu_call():
+    """The GPU executor runs a propagator's ``counted`` hosted (its products on the device),
+    as it ran the propagator itself before the counts were carried back."""
+    from parastokes.gpu import batch
+
+    p = integrate.Propagator(_rod(), "ros2", 2e-5, rtol=1e-4)
+    args = (0.0, 1e-4, _rod().initial_state())
+    assert batch.gpu_call(p.counted, args, {}) and batch.hosted_call(p.counted, args, {})
+    assert batch.gpu_call(p, args, {}) and not batch.gpu_call(p.run, args, {})

@@ -49,22 +49,12 @@ class RichardsonSpec(TypedDict, total=False):
 logger = logging.getLogger(__name__)
 
 
-def counted_run(p: integrate.Propagator, t_start: float, t_end: float, x: np.ndarray
-                ) -> tuple[np.ndarray, tuple[int, int, int]]:
-    """An adaptive auxiliary solve as a task: its state at ``t_end`` and its step counts
-    ``(accepted, rejected, switches)`` (``switches``: those of ``scheme = "auto"``), which
-    travel back with the state from a worker process."""
-    result = p.run(t_start, t_end, x)
-    return result.state, (result.n_steps, result.n_rejected, len(result.switches))
-
-
 def _run_batch(
     solvers: tuple[integrate.Propagator, ...], t_start: float, t_end: float, x: np.ndarray,
     counted: bool = False,
 ) -> list[Any]:
     """Run several auxiliary solvers one after the other on one worker (oversubscription)."""
-    return [counted_run(p, t_start, t_end, x) if counted else p(t_start, t_end, x)
-            for p in solvers]
+    return [(p.counted if counted else p)(t_start, t_end, x) for p in solvers]
 
 
 class Extrapolated:
@@ -143,7 +133,7 @@ class Extrapolated:
 
     def _states(self, results: list[Any]) -> list[np.ndarray]:
         """The auxiliary solvers' states from their results; the step counts of adaptive ones
-        (:func:`counted_run`) are added to :attr:`step_counts` on the way."""
+        (``Propagator.counted``) are added to :attr:`step_counts` on the way."""
         if not self.adaptive:
             return results
         for _, counts in results:
@@ -188,7 +178,7 @@ class Extrapolated:
         """The N_G auxiliary solves G_{Theta^j, r^q tau}(t_start, t_end, x), one task each."""
         solvers = [p for row in self.auxiliary for p in row]
         if self.adaptive:
-            return [Task(counted_run, (p, t_start, t_end, x), self._label(i))
+            return [Task(p.counted, (t_start, t_end, x), self._label(i))
                     for i, p in enumerate(solvers)]
         return [Task(p, (t_start, t_end, x), self._label(i)) for i, p in enumerate(solvers)]
 
