@@ -4,9 +4,10 @@ on y' = Λ y (two decoupled rates, the exact Jacobian) one ROS2 step multiplies 
 and its embedded linearly implicit Euler step by R_low(z), z = hλ, so the error estimate of
 every step, and hence the whole sequence of accepted and rejected steps of the controller
 documented in docs/stiff.md (RMS norm, accept at err <= 1, next step h (0.9 / err)^(1/2)
-within [0.2 h, 5 h], at most 0.5 h after a rejection, the last step cut to end at t1), is known
-in closed form. Part of the one-line-bug tests (docs/validation.md, "Planted one-line bugs
-(round 5)")."""
+within [0.2 h, 5 h], at most 0.5 h after a rejection, the last step cut to end at t1; the
+Jacobian rebuilt every 5 steps tried, its factorization kept within the scheme's ``reuse`` range
+of step ratios), is known in closed form. Part of the one-line-bug tests (docs/validation.md,
+"Planted one-line bugs (round 5)")."""
 
 from __future__ import annotations
 
@@ -27,19 +28,27 @@ LAM = np.array([-1.0, -40.0])
 T1 = 0.5
 
 
-def _ratios(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """R(z) of ROS2 and R_low(z) of its embedded solution (b_low = (1, 0): x + h k1)."""
-    d = 1.0 - GAMMA * z
+def _ratios(z: np.ndarray, z_lu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """R of a ROS2 step of z = hλ whose stages solve with the factorization of I - γ z_lu (a
+    W-method: the LU of an earlier step h_lu kept, docs/stiff.md), and R_low of its embedded
+    solution (b_low = (1, 0): x + h k1); z_lu = z is R(z) = 1 + 2z/D - z/D² + z²/(2D²)."""
+    d = 1.0 - GAMMA * z_lu
     return 1.0 + 2 * z / d - z / d**2 + z**2 / (2 * d**2), 1.0 + z / d
 
 
 def _controller(x, t0, t1, h0, rtol, atol):
-    """The documented controller on y' = LAM y, by hand: (state, accepted, rejected, last h)."""
+    """The documented controller on y' = LAM y, by hand: (state, accepted, rejected, last h).
+    The Jacobian is rebuilt every 5 steps tried (its LU dropped), and the LU of the step h_lu
+    kept while h / h_lu stays within the scheme's ``reuse`` range."""
     t, h, accepted, rejected = t0, min(h0, t1 - t0), 0, 0
+    low_ratio, high_ratio = integrate.SCHEMES["ros2"].reuse
+    h_lu = None
     while t < t1:
         last = t + h >= t1 * (1 - 1e-14)
         step = t1 - t if last else h
-        r, low = _ratios(step * LAM)
+        if (accepted + rejected) % 5 == 0 or not low_ratio <= step / h_lu <= high_ratio:
+            h_lu = step
+        r, low = _ratios(step * LAM, h_lu * LAM)
         new = r[:, None] * x
         scale = atol + rtol * np.maximum(np.abs(x), np.abs(new))
         err = math.sqrt(np.mean(((new - low[:, None] * x) / scale) ** 2))
