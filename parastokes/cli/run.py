@@ -45,6 +45,9 @@ def run_and_report(
         console.print(speedup_table(summary))
         console.print(against_best_serial(summary, getattr(args, "config", None),
                                           problem_key(cfg)))
+    counts = summary["timings"].get("coarse_steps") or []
+    if counts:
+        console.print(coarse_steps_line(counts))
     monitor = summary["monitor"]
     console.print(
         f"stability monitor: max {monitor['max']:.3g} at the slice boundaries "
@@ -57,6 +60,17 @@ def run_and_report(
                *(["figures"] if output.figures else [])]
     console.print(f"results in {args.out}/ ({', '.join(written)})")
     return ExitCode.OK
+
+
+def coarse_steps_line(counts: list[dict[str, int]]) -> str:
+    """The adaptive coarse solver's steps (summary.json's ``timings.coarse_steps``): accepted,
+    rejected and auto's switches per serial sweep k = 0, 1, ..., and their sums."""
+    per = ", ".join(f"{c['accepted']}/{c['rejected']}" + (f"/{c['switches']}" if c["switches"]
+                                                         else "") for c in counts)
+    total = {key: sum(c[key] for c in counts) for key in ("accepted", "rejected", "switches")}
+    return (f"adaptive coarse steps (accepted/rejected per sweep k = 0..{len(counts) - 1}): "
+            f"{per}; in all {total['accepted']} accepted, {total['rejected']} rejected"
+            + (f", {total['switches']} switches" if total["switches"] else ""))
 
 
 def _sets(args: argparse.Namespace) -> list[str]:

@@ -38,7 +38,7 @@ Outcome = tuple[bool, Any]
 def batch_key(fn: Any, args: tuple) -> tuple | None:
     """What members of one batch share, or None when the call is not batched on the GPU."""
     if not isinstance(fn, integrate.Propagator) or len(args) != 3:
-        return None
+        return None  # (a propagator's ``counted``, with rtol, runs hosted)
     if integrate.lookup(fn.scheme).implicit or fn.rtol is not None or fn.atol is not None:
         return None  # the device loop runs fixed steps of explicit tableaux: hosted instead
     system = stepping.gpu_system(fn.system)
@@ -53,8 +53,10 @@ def batch_key(fn: Any, args: tuple) -> tuple | None:
 
 def gpu_call(fn: Any, args: tuple, kwargs: dict) -> bool:
     """Whether the call runs on the GPU, batched or hosted: a propagator call
-    ``fn(t_start, t_end, x)``."""
-    return isinstance(fn, integrate.Propagator) and len(args) == 3 and not kwargs
+    ``fn(t_start, t_end, x)``, or its ``counted`` (an adaptive auxiliary solve)."""
+    owner = getattr(fn, "__self__", None)
+    counted = isinstance(owner, integrate.Propagator) and fn == owner.counted
+    return (isinstance(fn, integrate.Propagator) or counted) and len(args) == 3 and not kwargs
 
 
 def hosted_call(fn: Any, args: tuple, kwargs: dict) -> bool:

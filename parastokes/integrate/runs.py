@@ -272,4 +272,12 @@ class Propagator:
         return run(self.system, x, t_start, t_end, self.scheme, self.dt,
                    blowup_factor=self.blowup_factor, rtol=self.rtol, atol=self.atol)
 
+    def counted(self, t_start: float, t_end: float, x: np.ndarray
+                ) -> tuple[np.ndarray, tuple[int, int, int]]:
+        """The state at ``t_end`` and the steps ``(accepted, rejected, switches)`` taken
+        (``switches``: those of ``"auto"``): a task whose counts travel back with its state
+        from a worker process (Parareal's adaptive auxiliary solves)."""
+        result = self.run(t_start, t_end, x)
+        return result.state, (result.n_steps, result.n_rejected, len(result.switches))
+
 

@@ -38,6 +38,7 @@ from .options import Checkpoint, Reporting, Stopping
 from .result import PararealResult
 from .solve_memo import SolveMemo, memo_directory
 from .timings import MANAGER, Timings, queued_intervals, queued_start
+from .transfer import take_step_counts
 
 __all__ = [
     "IterationReport",
@@ -356,6 +357,9 @@ def _initial_sweep(
         traces.append(value)
         timings.coarse[0].append(seconds)
     timings.serial_sweeps.append(time.perf_counter() - sweep_start)
+    counts = take_step_counts(coarse)
+    if counts is not None:
+        timings.coarse_steps.append(counts)
     coarse_values = np.array(traces) if is_tracing(coarse) else states[1:].copy()
     return ckpt.Progress(
         0, states, coarse_values, errors=[] if with_errors else None, timings=timings
@@ -437,6 +441,9 @@ def _iterate(
         )
         coarse_values[n - 1] = value
     serial_time = time.perf_counter() - start
+    counts = take_step_counts(coarse)
+    if counts is not None:
+        progress.timings.coarse_steps.append(counts)
 
     progress.timings.parallel_sweeps.append(parallel_time)
     progress.timings.fine.append(fine_times)
@@ -535,6 +542,9 @@ class Bookkeeping:
             progress.timings.parallel_sweeps[-1],
             progress.timings.serial_sweeps[-1],
         )
+        if len(progress.timings.coarse_steps) > progress.iteration:
+            logger.info("parareal k=%d adaptive coarse steps %s", progress.iteration,
+                        progress.timings.coarse_steps[progress.iteration])
         if self.checkpoint is not None:
             assert self.memo is not None  # (made with the checkpoint)
             ckpt.save(self.checkpoint, progress, self.key)

@@ -27,7 +27,7 @@ import logging
 import math
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Executor
-from typing import Required, TypedDict
+from typing import Any, Required, TypedDict
 
 import numpy as np
 
@@ -50,10 +50,11 @@ logger = logging.getLogger(__name__)
 
 
 def _run_batch(
-    solvers: tuple[integrate.Propagator, ...], t_start: float, t_end: float, x: np.ndarray
-) -> list[np.ndarray]:
+    solvers: tuple[integrate.Propagator, ...], t_start: float, t_end: float, x: np.ndarray,
+    counted: bool = False,
+) -> list[Any]:
     """Run several auxiliary solvers one after the other on one worker (oversubscription)."""
-    return [p(t_start, t_end, x) for p in solvers]
+    return [(p.counted if counted else p)(t_start, t_end, x) for p in solvers]
 
 
 class Extrapolated:
@@ -94,6 +95,10 @@ class Extrapolated:
         self.executor = executor
         #: The steps h_q actually taken in the most recent call (None before the first call).
         self.steps_used: tuple[float, ...] | None = None
+        #: Adaptive auxiliary solvers (``rtol``, or ``scheme = "auto"``) report step counts.
+        self.adaptive = tolerances is not None
+        #: Their steps since :meth:`take_step_counts`: accepted, rejected, auto's switches.
+        self.step_counts = [0, 0, 0]
 
     @property
     def n_auxiliary(self) -> int:
@@ -119,12 +124,30 @@ class Extrapolated:
         tasks = [
             Task(
                 _run_batch,
-                (tuple(solvers[i] for i in batch), t_start, t_end, x),
+                (tuple(solvers[i] for i in batch), t_start, t_end, x, self.adaptive),
                 f"batch of auxiliary coarse solvers {batch[0]}-{batch[-1]}",
             )
             for batch in batches
         ]
         return [value for batch in run_tasks(executor, tasks) for value in batch]
+
+    def _states(self, results: list[Any]) -> list[np.ndarray]:
+        """The auxiliary solvers' states from their results; the step counts of adaptive ones
+        (``Propagator.counted``) are added to :attr:`step_counts` on the way."""
+        if not self.adaptive:
+            return results
+        for _, counts in results:
+            self.step_counts = [a + b for a, b in zip(self.step_counts, counts, strict=True)]
+        return [state for state, _ in results]
+
+    def take_step_counts(self) -> dict[str, int] | None:
+        """The adaptive auxiliary solvers' steps since the last call ``{accepted, rejected,
+        switches}`` (then reset), or None for fixed steps."""
+        if not self.adaptive:
+            return None
+        accepted, rejected, switches = self.step_counts
+        self.step_counts = [0, 0, 0]
+        return {"accepted": accepted, "rejected": rejected, "switches": switches}
 
     def plan(self, t_start: float, t_end: float) -> tuple[np.ndarray, np.ndarray]:
         """The steps h_q = (t_end - t_start) / n_q actually taken on a slice, and their weights v_q.
@@ -154,6 +177,9 @@ class Extrapolated:
     def auxiliary_tasks(self, t_start: float, t_end: float, x: np.ndarray) -> list[Task]:
         """The N_G auxiliary solves G_{Theta^j, r^q tau}(t_start, t_end, x), one task each."""
         solvers = [p for row in self.auxiliary for p in row]
+        if self.adaptive:
+            return [Task(p.counted, (t_start, t_end, x), self._label(i))
+                    for i, p in enumerate(solvers)]
         return [Task(p, (t_start, t_end, x), self._label(i)) for i, p in enumerate(solvers)]
 
     def combine(
@@ -187,17 +213,23 @@ class Extrapolated:
             return None
         coefficients = self.coefficients(t_start, t_end)
         tasks = self.auxiliary_tasks(t_start, t_end, x)
-        return tasks, functools.partial(self.combine, t_start, t_end, x, coefficients)
+        return tasks, functools.partial(self._combine_results, t_start, t_end, x, coefficients)
+
+    def _combine_results(self, t_start: float, t_end: float, x: np.ndarray,
+                         coefficients: np.ndarray, results: list[Any]) -> np.ndarray:
+        """:meth:`combine` of the auxiliary tasks' results (step counts taken off)."""
+        return self.combine(t_start, t_end, x, coefficients, self._states(results))
 
     def __call__(self, t_start: float, t_end: float, x: np.ndarray) -> np.ndarray:
         if t_end == t_start:  # no step: the state, projected (as a plain propagator gives it)
             return self.system.project(np.array(x, dtype=float))
         coefficients = self.coefficients(t_start, t_end)
         if self.executor is None:
-            values = [p(t_start, t_end, x) for row in self.auxiliary for p in row]
+            results = _run_batch(tuple(p for row in self.auxiliary for p in row), t_start,
+                                 t_end, x, self.adaptive)
         else:
-            values = self._run_on_executor(t_start, t_end, x)
-        return self.combine(t_start, t_end, x, coefficients, values)
+            results = self._run_on_executor(t_start, t_end, x)
+        return self._combine_results(t_start, t_end, x, coefficients, results)
 
     def _check_combination(
         self,
@@ -238,6 +270,7 @@ class Extrapolated:
         """
         clone = copy.copy(self)
         clone.executor = executor
+        clone.step_counts = [0, 0, 0]
         return clone
 
     def __getstate__(self) -> dict:

@@ -39,6 +39,9 @@ class Timings:
       coarse step, pipelined schedule only), times in seconds since the run started, worker the
       slot 0, 1, ... that ran it or ``MANAGER`` (-1); the data of the Gantt chart.
     - ``schedule``: ``"standard"`` (Algorithm 1) or ``"pipelined"``.
+    - ``coarse_steps[k]``: the steps ``{accepted, rejected, switches}`` of the adaptive
+      auxiliary solves of serial sweep k (standard schedule, a coarse solver with ``rtol``;
+      empty otherwise; steps taken from a stopped session's memo are not counted).
 
     In the pipelined schedule ``parallel_sweeps[k-1]`` and ``serial_sweeps[k]`` are the spans
     (first start to last end) of iteration k's fine and coarse tasks, which overlap.
@@ -51,6 +54,7 @@ class Timings:
     total: float = 0.0
     tasks: list[list] = field(default_factory=list)
     schedule: str = "standard"
+    coarse_steps: list[dict[str, int]] = field(default_factory=list)
 
     @property
     def gamma_g(self) -> float:

@@ -13,13 +13,13 @@ in arclength, ``parastokes/kinds/rod/transfer.py``).
 from __future__ import annotations
 
 from concurrent.futures import Executor
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
 from ..core.contracts import PropagatorLike
 
-__all__ = ["OnCoarseGrid", "Transfer"]
+__all__ = ["OnCoarseGrid", "Transfer", "take_step_counts"]
 
 
 class Transfer(Protocol):
@@ -61,7 +61,19 @@ class OnCoarseGrid:
         """The executor of the wrapped combinator (None for a plain propagator)."""
         return getattr(self.propagator, "executor", None)
 
+    def take_step_counts(self) -> dict[str, int] | None:
+        """The wrapped combinator's adaptive step counts (:func:`take_step_counts`)."""
+        return take_step_counts(self.propagator)
+
     def with_executor(self, executor: Executor) -> OnCoarseGrid:
         """A copy whose wrapped combinator runs its auxiliary solvers on ``executor``."""
         bind = getattr(self.propagator, "with_executor", None)
         return self if bind is None else OnCoarseGrid(bind(executor), self.transfer)
+
+
+def take_step_counts(coarse: Any) -> dict[str, int] | None:
+    """The steps ``{accepted, rejected, switches}`` taken by ``coarse``'s adaptive solves since
+    the last call (then reset), or None for a coarse solver on fixed steps or one that does not
+    count them (:meth:`parastokes.parareal.Extrapolated.take_step_counts`)."""
+    take = getattr(coarse, "take_step_counts", None)
+    return None if take is None else take()

@@ -195,7 +195,8 @@ def main(args: argparse.Namespace, console: Any) -> int:
     space = _space(cfg, args, tuple(compare))
     system = configuration.build_system(cfg, resolved)
     pilot = pilot_system(cfg, resolved, points)
-    fine = integrate.Propagator(system, cfg.fine.scheme, cfg.fine.dt)
+    fine = integrate.Propagator(system, cfg.fine.scheme, cfg.fine.dt, rtol=cfg.fine.rtol,
+                                atol=cfg.fine.atol)
     console.print(f"tuning {cfg.title or args.config}: {args.cores} cores, η* = {args.target:g}")
     if cfg.coarse.kind != "extrapolated":
         console.print(f"note: tune searches extrapolated coarse solvers only; this configuration's "

@@ -77,8 +77,8 @@ def estimated_ratio(
 ) -> float:
     """γ_G/γ_F from operation counts (stages x steps x points², like ``parastokes predict``): the
     cheap estimate used to order and prune candidates before measuring them."""
-    stages = integrate.SCHEMES[settings.scheme].stages
-    fine = fine_steps * integrate.SCHEMES[fine_scheme].stages * points**2
+    stages = integrate.lookup(settings.scheme).stages
+    fine = fine_steps * integrate.lookup(fine_scheme).stages * points**2
     slowest = max(_step_counts(settings, slice_length)) * stages * coarse_points**2
     return rounds(settings.n_auxiliary, cores) * slowest / fine
 

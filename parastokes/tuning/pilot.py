@@ -32,11 +32,16 @@ __all__ = ["Pilot", "PilotRun", "Screen", "own_error"]
 
 
 def own_error(system: System, x0: np.ndarray, t0: float, t1: float, scheme: str, dt: float,
-              state: np.ndarray) -> float:
+              state: np.ndarray, rtol: float | None = None, atol: float | None = None) -> float:
     """Richardson's estimate of the error at ``t1`` of ``state``, the run of ``scheme`` at step
     ``dt`` from ``x0`` (eq. 34's measure): ``|F_τ - F_2τ| / (2^p - 1)`` from a run at 2τ, or,
     where 2τ is unstable (F at more than half its stability limit), ``2^p |F_τ - F_τ/2| /
-    (2^p - 1)`` from a run at τ/2."""
+    (2^p - 1)`` from a run at τ/2. Adaptive steps (``rtol``): ``|F_rtol - F_rtol/10|``, the
+    run within a tenth of the tolerances taken as exact."""
+    if rtol is not None:
+        tighter = integrate.propagate(system, x0, t0, t1, scheme, dt, rtol=rtol / 10,
+                                      atol=None if atol is None else atol / 10)
+        return metrics.relative_change(state, tighter, system.positions)
     order = integrate.scheme_order(scheme)
     try:
         double = integrate.propagate(system, x0, t0, t1, scheme, 2.0 * dt)
@@ -134,7 +139,8 @@ class Pilot:
         try:
             for n in range(n_slices):
                 run = integrate.run(
-                    system, states[-1], times[n], times[n + 1], fine.scheme, fine.dt
+                    system, states[-1], times[n], times[n + 1], fine.scheme, fine.dt,
+                    rtol=fine.rtol, atol=fine.atol,
                 )
                 states.append(run.state)
                 worst = max(worst, run.max_monitor)
@@ -151,7 +157,7 @@ class Pilot:
         gamma_f = (time.process_time() - cpu) / n_slices
         reference = np.array(states)
         fine_error = own_error(system, reference[0], times[0], times[1], fine.scheme, fine.dt,
-                               reference[1])
+                               reference[1], fine.rtol, fine.atol)
         return cls(system, fine, reference[0], t0, slice_length, n_slices, reference, gamma_f,
                    fine_error, time.perf_counter() - start)
 

@@ -52,7 +52,7 @@ def build_report(
         "problem": {
             "t0": t0, "t1": t1, "n_slices": n_slices, "cores": cores, "target": target,
             "slice_length": (t1 - t0) / n_slices,
-            "fine": {"scheme": fine.scheme, "dt": fine.dt},
+            "fine": {"scheme": fine.scheme, "dt": fine.dt, "rtol": fine.rtol, "atol": fine.atol},
             "points": full_points,
             "fine_error": pilot.fine_error,
         },

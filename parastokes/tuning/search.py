@@ -248,10 +248,14 @@ def _check_input(cores: Any, target: Any, n_slices: Any, t0: float, t1: float,
                           f"{pilot_slices}")
 
 
-def _seconds_per_step(system: System, scheme: str, dt: float, x0: np.ndarray, steps: int) -> float:
-    """CPU seconds per step of ``scheme`` (its compiled loop is loaded before, in ``tune``)."""
+def _seconds_per_step(system: System, fine: integrate.Propagator, x0: np.ndarray, steps: int
+                      ) -> float:
+    """CPU seconds of F per ``fine.dt`` of time, over ``steps`` of them (its compiled loop is
+    loaded before, in ``tune``): per step on fixed steps; with ``rtol`` (adaptive steps, or
+    ``"auto"``) F's cost as it runs, whatever steps it takes."""
     start = time.process_time()
-    integrate.run(system, x0, 0.0, steps * dt, scheme, dt)
+    integrate.run(system, x0, 0.0, steps * fine.dt, fine.scheme, fine.dt, rtol=fine.rtol,
+                  atol=fine.atol)
     return (time.process_time() - start) / steps
 
 
@@ -648,20 +652,22 @@ def tune(
     for body, x in {id(system): (system, system.initial_state()),
                  id(pilot_system): (pilot_system, start_state)}.values():
         for scheme in dict.fromkeys((fine.scheme, *space.schemes)):
+            tol = {"rtol": fine.rtol, "atol": fine.atol} if scheme == fine.scheme else {}
             try:
-                integrate.run(body, x, t0, t0 + fine.dt, scheme, fine.dt)
+                integrate.run(body, x, t0, t0 + fine.dt, scheme, fine.dt, **tol)
             except integrate.BlowUpError:
                 pass  # reported below, where the fine solver's steps are timed
     started, wall, cpu = clock(), time.perf_counter(), time.process_time()
     slice_length = (t1 - t0) / n_slices
     fine_steps = integrate.n_steps(0.0, slice_length, fine.dt)
-    pilot_fine = integrate.Propagator(pilot_system, fine.scheme, fine.dt)
+    pilot_fine = integrate.Propagator(pilot_system, fine.scheme, fine.dt, rtol=fine.rtol,
+                                      atol=fine.atol)
 
     probe = max(1, min(fine_steps, 50))
     try:
-        step_full = _seconds_per_step(system, fine.scheme, fine.dt, system.initial_state(), probe)
+        step_full = _seconds_per_step(system, fine, system.initial_state(), probe)
         step_pilot = (step_full if pilot_system is system else
-                      _seconds_per_step(pilot_system, fine.scheme, fine.dt, start_state, probe))
+                      _seconds_per_step(pilot_system, pilot_fine, start_state, probe))
     except integrate.BlowUpError as error:
         raise TuningError(f"the fine solver itself is unstable: {error}; {FINE_ADVICE}") from None
     serial_estimate = step_full * fine_steps * n_slices

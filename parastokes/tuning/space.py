@@ -233,6 +233,10 @@ class Space:
         if len(set(parameters)) < len(parameters):
             raise TuningError(f"tune: parameters {list(parameters)} name one twice; give each once")
         for scheme in self.schemes:
+            if scheme == integrate.AUTO.name:
+                raise TuningError("tune: the coarse candidates take fixed steps, which 'auto' "
+                                  "cannot; choose among " + ", ".join(sorted(integrate.SCHEMES))
+                                  + " (F itself may be 'auto' with fine.rtol)")
             if scheme not in integrate.SCHEMES:
                 known = sorted(integrate.SCHEMES)
                 raise TuningError(f"tune: unknown scheme {scheme!r}; use one of {known}")
