@@ -99,7 +99,8 @@ def test_coinciding_rounded_steps_raise_before_work(monkeypatch):
         calls.append(args)
         return original(*args, **kwargs)
 
-    monkeypatch.setattr(integrate, "propagate", recording_propagate)
+    # a Propagator calls the propagate of its own module (parastokes.integrate.runs)
+    monkeypatch.setattr(integrate.runs, "propagate", recording_propagate)
     with pytest.raises(ValueError, match="distinct"):
         g(0.0, 0.05, system.initial_state())  # both steps round to one step of 0.05
     assert calls == []
