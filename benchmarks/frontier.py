@@ -100,7 +100,7 @@ PROBLEMS: dict[str, Problem] = {
         "rod refined to M = 601 (ε⁰ = 5σ_f), longer slices", {**ROD, "n_points": 601},
         ("rk2", 7.58e-7), 0.0025, 4, 1e-5, 1.0, ("rk2", 3.79e-7), (("rk2", 7.58e-7),),
         max_iterations=3, best=("rk2", 7.58e-7)),
-    # the smoke test's: the paper's rod cut to a fifth (L = 12, M = 61, σ_f and ε as Table 4's)
+    # a smoke run (`--problems quick`, a minute): Table 4's rod cut to a fifth (L = 12, M = 61)
     "quick": Problem(
         "a fifth of Table 4's rod (M = 61, L = 12)", {**ROD, "n_points": 61, "length": 12},
         ("rk2", 1.16e-5), 0.001, 4, 1e-6, 0.004, ("rk4", 6.1e-6), (("rk2", 1.16e-5),),
