@@ -156,7 +156,11 @@ def test_vesicle_units_and_rules():
     )
     assert r.epsilon == pytest.approx(0.3 * r.grid_spacing)  # 0.3 l_max
     assert r.lagrange["stiffness"] == pytest.approx([0.06, 0.07])  # relative to kappa0 = 0.1
-    assert "coarse.grid_factor" in issues_of(VESICLE, "coarse.grid_factor=2")
+    # a coarser icosphere: a power of 2 up to 2^subdivisions (round 5), nothing else
+    config.loads(VESICLE, overrides=["coarse.grid_factor=2"])
+    assert "power of 2" in issues_of(VESICLE, "coarse.grid_factor=3")["coarse.grid_factor"]
+    too_fine = issues_of(VESICLE, "coarse.grid_factor=8")["coarse.grid_factor"]
+    assert "at most 2^subdivisions" in too_fine
     assert "coarse.lagrange.bending" in issues_of(VESICLE, "coarse.lagrange.bending=[0.5, 0.6]")
     assert "output.tracked_points" in issues_of(VESICLE, "output.tracked_points=[5000]")
     assert "model.epsilon_unit" in issues_of(VESICLE, 'model.epsilon_unit="sigma_f"')

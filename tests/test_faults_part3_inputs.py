@@ -129,6 +129,39 @@ def test_a_stop_asked_for_during_a_read_ends_it(tmp_path):
         signals.clear()
 
 
+
+def _readers():
+    """Every reader of a file the package takes, as (name, call on a path)."""
+    from parastokes import flow
+    from parastokes.config.placement import read_poses
+    from parastokes.flow.movie import check_mp4
+    from parastokes.kinds.rigid.shapes import load_points
+    from parastokes.output import plots
+    from parastokes.parareal.best_serial import load_serial_runs
+
+    return {
+        "configuration": config.load, "poses": read_poses, "points": lambda p: load_points(str(p)),
+        "serial runs": load_serial_runs, "summary": io.read_summary, "arrays": io.load_arrays,
+        "trajectory": io.read_trajectory, "flow": flow.read_grid,
+        "measurements": lambda p: plots.draw_benchmark(p, p.parent),
+        "movie": lambda p: check_mp4(p, p), "record": files._complete,
+    }
+
+
+def test_every_reader_refuses_a_pipe_at_once_through_the_one_reader(tmp_path, alarm):
+    """A named pipe given to any reader is refused by the bounded reader's check (one line
+    naming it), never opened for waiting (the alarm fails a read that blocks)."""
+    readers = _readers()
+    assert set(readers) == set(files.INPUTS)  # (a new kind of input gets its reader here)
+    for kind, read in readers.items():
+        if kind == "movie":  # (the encoder's own temporary file: an empty one is refused first)
+            continue
+        pipe = tmp_path / f"{kind.replace(' ', '_')}.h5"
+        os.mkfifo(pipe)
+        with pytest.raises(ValueError, match=r"a named pipe \(FIFO\), not a regular file; give "
+                                             + re.escape(files.INPUTS[kind][0])):
+            read(pipe)
+
 def test_a_memory_error_is_one_line_naming_the_cause(capsys, monkeypatch):
     def exhausted(*_args, **_kwargs):
         raise MemoryError()  # (str(MemoryError()) is empty)
@@ -138,12 +171,40 @@ def test_a_memory_error_is_one_line_naming_the_cause(capsys, monkeypatch):
     code = cli.main(["predict", *TABLE4, "--serial", str(SERIAL_RUNS), "--target", "1e-6"])
     assert code == cli.ExitCode.CONFIG
     err = capsys.readouterr().err
-    assert err.splitlines() == ["error: out of memory (MemoryError): use fewer points, slices or "
-                                "workers, or a machine with more memory"]
+    assert err.splitlines() == ["error: out of memory (MemoryError): give smaller files "
+                                "(--serial, --measured's summary.json), or a machine with more "
+                                "memory"]
     # an error without a message and without a known cause still names its type
     assert cli.report(IsADirectoryError(), cli.Console(quiet=True), "predict") == 2
     assert capsys.readouterr().err.splitlines() == ["error: IsADirectoryError"]
 
+
+#: Runs predict with the address space limited to what the process holds plus 150 MiB, once the
+#: modules it needs are imported and the configuration read (`ulimit -v` without guessing the
+#: interpreter's own size).
+_LIMITED_PREDICT = """
+import resource, sys
+from parastokes import cli, config
+import parastokes.cli.predict, parastokes.parareal.best_serial
+config.load("experiments/table4_g1.toml")
+size = int(next(l for l in open("/proc/self/status") if l.startswith("VmSize")).split()[1])
+resource.setrlimit(resource.RLIMIT_AS, (size * 1024 + (150 << 20), resource.RLIM_INFINITY))
+sys.exit(cli.main(["predict", "experiments/table4_g1.toml", "--cores", "40", "--ratio", "0.0267",
+                   "--serial", sys.argv[1], "--target", "1e-6"]))
+"""
+
+
+def test_out_of_memory_under_a_memory_limit_is_one_line(tmp_path):
+    """A file of serial runs under its cap (14 MiB) whose million records need more memory than
+    the limit leaves: a real MemoryError, exit 2, one line (was: an empty `error: `)."""
+    path = tmp_path / "runs.json"
+    path.write_text(json.dumps({"cases": {"x": {"rows": [{"a": i} for i in range(10**6)]}}}))
+    done = subprocess.run([sys.executable, "-c", _LIMITED_PREDICT, str(path)], cwd=ROOT, env=ENV,
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == cli.ExitCode.CONFIG, done.stderr
+    assert done.stderr.splitlines() == ["error: out of memory (MemoryError): give smaller files "
+                                        "(--serial, --measured's summary.json), or a machine "
+                                        "with more memory"]
 
 # ---- 1, 2: a device or a pipe as --serial or as a suspension's poses -------------------------
 @pytest.mark.parametrize("source", ["/dev/zero", "fifo"])

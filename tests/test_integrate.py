@@ -13,8 +13,8 @@ from parastokes.integrate import SCHEMES, BlowUpError, Propagator
 from parastokes.testing import fitted_order
 
 ORDERS = {"euler": 1, "rk2": 2, "rk4": 4, "rk23": 3, "rk45": 5, "lieuler": 1, "ros2": 2,
-          "ros2-krylov": 2, "ros34pw2": 3}
-IMPLICIT = {"lieuler", "ros2", "ros2-krylov", "ros34pw2"}
+          "ros2-krylov": 2, "ros34pw2": 3, "ros34pw2-krylov": 3}
+IMPLICIT = {"lieuler", "ros2", "ros2-krylov", "ros34pw2", "ros34pw2-krylov"}
 
 
 @pytest.fixture(scope="module")

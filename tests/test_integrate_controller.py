@@ -28,11 +28,11 @@ class Scripted:
         return np.zeros(1), np.full(1, err)
 
 
-def _drive(errors, q=2, t1=10.0, h0=1.0):
+def _drive(errors, q=2, t1=10.0, h0=1.0, pi=True):
     stepper = Scripted(errors)
     try:
         _, counts = controller.adaptive_steps(stepper, q, np.zeros(1), 0.0, t1, h0, 1.0, 1.0,
-                                              lambda t, x, i: True)
+                                              lambda t, x, i: True, pi=pi)
     except IndexError:  # the script ran out: the steps so far are the answer
         counts = None
     return stepper.steps, counts
@@ -52,6 +52,25 @@ def test_the_growth_factor_is_safety_times_err_to_minus_one_over_q_plus_one(q):
     assert controller.factor(0.5, q, True) == pytest.approx(SAFETY * 0.5 ** (-1 / (q + 1)))
     steps, _ = _drive([0.5, 0.5], q=q)
     assert steps[1][1] / steps[0][1] == pytest.approx(SAFETY * 0.5 ** (-1 / (q + 1)))
+
+
+@pytest.mark.parametrize("q", [1, 2, 4])
+def test_after_two_accepted_steps_the_factor_is_pi_control(q):
+    """err^(-0.7/(q+1)) prev^(0.4/(q+1)) (Gustafsson), prev floored at 1e-4 as in DOPRI5."""
+    pi = SAFETY * 0.5 ** (-0.7 / (q + 1)) * 0.25 ** (0.4 / (q + 1))
+    assert controller.factor(0.5, q, True, 0.25) == pytest.approx(pi)
+    steps, _ = _drive([0.25, 0.5, 0.0, 1e-9], q=q)
+    assert steps[2][1] / steps[1][1] == pytest.approx(pi)  # the second accepted step: PI
+    assert steps[1][1] / steps[0][1] == pytest.approx(SAFETY * 0.25 ** (-1 / (q + 1)))
+    # a rejected step is sized by the elementary controller, whatever came before
+    assert controller.factor(4.0, q, False, 0.25) == controller.factor(4.0, q, False)
+    steps, _ = _drive([0.0, 1e-9, 0.5], q=q, t1=1e6)  # prev = max(0, 1e-4): err 1e-9 after err 0
+    assert steps[2][1] / steps[1][1] == pytest.approx(
+        min(GROW, SAFETY * 1e-9 ** (-0.7 / (q + 1)) * 1e-4 ** (0.4 / (q + 1))))
+    assert controller.factor(0.5, q, True, 1e-4) < GROW  # the floor keeps PI finite
+    # without pi (the Rosenbrock schemes) every step is sized by the elementary controller
+    steps, _ = _drive([0.25, 0.5, 0.0, 1e-9], q=q, pi=False)
+    assert steps[2][1] / steps[1][1] == pytest.approx(SAFETY * 0.5 ** (-1 / (q + 1)))
 
 
 def test_growth_and_shrinkage_are_clipped():
@@ -123,3 +142,18 @@ def test_every_scheme_says_whether_it_is_adaptive():
     assert adaptive == {"rk23", "rk45", "ros2", "ros2-krylov"} | {
         name for name, s in integrate.SCHEMES.items() if s.implicit and s.b_low is not None}
     assert not integrate.SCHEMES["lieuler"].adaptive and not integrate.SCHEMES["rk4"].adaptive
+
+
+def test_pi_control_sizes_the_explicit_pairs_only(monkeypatch):
+    """Changing the PI exponents changes an rk23 run and leaves a ros2 run alone."""
+    system = Counted(lam=(-1.0, -100.0))
+    x0 = system.initial_state()
+
+    def runs():
+        return [integrate.run(system, x0, 0.0, 1.0, s, 1e-3, rtol=1e-5) for s in ("ros2", "rk23")]
+
+    (ros2, rk23) = runs()
+    monkeypatch.setattr(controller, "PI_BETA", 0.0)
+    (ros2_b, rk23_b) = runs()
+    assert np.array_equal(ros2.state, ros2_b.state) and ros2.n_steps == ros2_b.n_steps
+    assert rk23.n_steps != rk23_b.n_steps

@@ -415,3 +415,31 @@ def test_a_lattice_has_its_spacing_exactly_and_is_centred():
     np.testing.assert_allclose(c[0], [-0.5, -3.0, 6.25])
     np.testing.assert_array_equal(placement.lattice([1, 1, 1], [9.0] * 3, [1.0, 2.0, 3.0]),
                                   [[1.0, 2.0, 3.0]])
+
+
+# ---- the best serial run's interval and problem checks (parareal/best_serial.py) --------------
+def test_the_best_serial_run_is_checked_against_f_and_the_interval_it_was_measured_over(
+        tmp_path):
+    """Measured runs of F = rk2 at 1e-6 over T = 0.002: the same F over another T, another
+    step or another scheme is refused naming both; the same problem (to round-off) is not; the
+    best run reaching a target is the one with the least CPU relative to F."""
+    import json
+
+    from parastokes.parareal.best_serial import load_serial_runs
+
+    path = tmp_path / "serial.json"
+    path.write_text(json.dumps({"cases": {"tiny": {
+        "t1": 0.002, "reference": {"scheme": "rk2", "dt": 1e-6},
+        "rows": [{"scheme": "rk2", "dt": 4e-6, "error": 1e-7, "cpu": 2.5, "fine_cpu": 10.0},
+                 {"scheme": "euler", "dt": 2e-6, "error": 1e-4, "cpu": 1.0, "fine_cpu": 10.0},
+                 {"scheme": "rk4", "dt": 1e-5, "error": 1e-9, "cpu": 5.0, "fine_cpu": 10.0}]}}}))
+    runs = load_serial_runs(path)
+    runs.check_fine("rk2", 1e-6 * (1 + 1e-12), 0.002 * (1 - 1e-12))
+    for scheme, dt, span in (("rk2", 1e-6, 0.004), ("rk2", 1e-6, 0.001), ("rk2", 2e-6, 0.002),
+                             ("rk4", 1e-6, 0.002)):
+        with pytest.raises(ValueError, match=r"measured against F = rk2 at dt = 1e-06 over "
+                                             r"T = 0.002, but the configuration's F is"):
+            runs.check_fine(scheme, dt, span)
+    assert runs.best(1e-3).scheme == "euler"  # 10x less CPU than F; rk2 4x, rk4 2x
+    assert runs.best(1e-7).scheme == "rk2"  # euler's error is too large
+    assert runs.best(1e-9).scheme == "rk4" and runs.best(1e-10) is runs.reference

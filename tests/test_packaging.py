@@ -37,3 +37,9 @@ def test_the_citation_file_has_the_packages_version_license_and_the_paper():
     assert [(a["given-names"], a["family-names"]) for a in paper["authors"]] == [
         ("Weifan", "Liu"), ("Minghao W.", "Rostami")]
     assert "doi" not in paper  # the paper's text states none: never invented
+
+
+def test_the_changelog_opens_with_the_packages_version():
+    text = (ROOT / "CHANGELOG.md").read_text(encoding="utf-8")
+    first = re.search(r"^## (\S+) ", text, re.M)
+    assert first is not None and first.group(1) == _project()["version"]

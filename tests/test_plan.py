@@ -272,7 +272,11 @@ def test_predict_without_a_baseline_says_none_was_measured(tmp_path, capsys):
          'execution.executor = "gpu"'),
     ],
 )
-def test_bad_input_exits_2_before_any_work(tmp_path, capsys, flags, message):
+def test_bad_input_exits_2_before_any_work(tmp_path, capsys, monkeypatch, flags, message):
+    # a GPU as if present, so that plan's own refusal of the gpu executor is what answers
+    from parastokes.gpu import device
+
+    monkeypatch.setattr(device, "missing", lambda: None)
     source = tmp_path / "rod.toml"
     source.write_text(CONFIG)
     code = cli.main(["plan", str(source), *flags, "--out", str(tmp_path / "PLAN.toml")])
@@ -378,7 +382,10 @@ def test_shipped_best_serial_configs_pass_check(path):
     assert not math.isnan(cfg.fine.dt)
 
 
-def test_best_serial_folder_holds_one_config_per_problem_of_the_target_table():
+def test_best_serial_folder_holds_one_config_per_problem_of_the_target_table(monkeypatch):
+    from parastokes.gpu import device
+
+    monkeypatch.setattr(device, "missing", lambda: None)  # plan's refusal, not check's
     names = sorted(p.stem for p in (EXPERIMENTS / "best_serial").glob("*.toml"))
     assert names == ["rod601", "table4_rod301", "table5_rod301_eps7", "table7_vesicle"]
     with pytest.raises(PlanError, match="gpu"):
@@ -436,3 +443,32 @@ def test_own_error_falls_back_to_half_the_step_where_twice_it_blows_up(monkeypat
     assert pilot.own_error(system, state, 0.0, 1.0, "rk2", 1e-6, state) == pytest.approx(1e-6)
     del answers[2e-6]  # 2τ unstable: 4 |F_τ - F_τ/2| / 3
     assert pilot.own_error(system, state, 0.0, 1.0, "rk2", 1e-6, state) == pytest.approx(4e-6 / 3)
+
+
+def test_a_parareal_route_is_written_as_a_config_that_runs(tmp_path):
+    """The Parareal route's PLAN.toml (plan_config with tune's choice), as check and run read
+    it: F, the coarse solver, slices, K, the schedule and the threads of the route."""
+    from types import SimpleNamespace
+
+    from parastokes.planning.command import plan_config
+    from parastokes.tuning import Settings
+    from parastokes.tuning.report import toml_dumps
+
+    source = tmp_path / "rod.toml"
+    source.write_text(CONFIG)
+    cfg, _ = config.load(source)
+    fine = Run("rk2", 5e-6, None, "r", "measured", 1e-8, 1.0, 1.0)
+    coarse = Settings("euler", lagrange=(("epsilon", (1.1, 1.2)),), dt=1e-5)
+    route = routes.parareal_route(1.0, 1.0, 0.1, 1, 2, "pipelined", "")
+    data = plan_config(cfg, route, fine, fine, SimpleNamespace(chosen=SimpleNamespace(
+        settings=coarse)))
+    path = tmp_path / "PLAN.toml"
+    path.write_text(toml_dumps(data))
+    planned, _ = config.load(path)
+    assert (planned.fine.scheme, planned.fine.dt) == ("rk2", 5e-6)
+    assert planned.parareal.n_slices == 2 and planned.parareal.max_iterations == 1
+    assert planned.parareal.schedule == "pipelined" and planned.run.mode == "parareal"
+    assert planned.coarse.dt == 1e-5 and planned.execution.threads == 1
+    assert cli.main(["run", str(path), "--out", str(tmp_path / "run"), "-q", "--set",
+                     "output.figures=false", "--set", "output.trajectory=false"]) == 0
+    assert json.loads((tmp_path / "run" / "summary.json").read_text())["iterations"] == 1

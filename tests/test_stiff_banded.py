@@ -215,12 +215,12 @@ def test_adaptive_steps_factorize_less_often_than_they_change_the_step(monkeypat
     monkeypatch.setattr(stepper, "REFRESH", 1000)
     system = Forced(lam=(-1.0, -1e3))
     runs = [integrate.run(system, system.initial_state(), 0.0, 1.0, "ros2", 1e-3,
-                          rtol=1e-5, atol=1e-7) for _ in range(2)]
+                          rtol=1e-4, atol=1e-6) for _ in range(2)]
     assert np.array_equal(runs[0].state, runs[1].state)
     assert (runs[0].n_steps, runs[0].n_rejected) == (runs[1].n_steps, runs[1].n_rejected)
     per_run = len(made) // 2
-    assert runs[0].n_steps > 10 and per_run < (runs[0].n_steps + runs[0].n_rejected) / 2
-    assert np.abs(runs[0].state - system.exact(1.0)).max() < 1e-4
+    assert runs[0].n_steps > 100 and per_run < (runs[0].n_steps + runs[0].n_rejected) / 4
+    assert np.abs(runs[0].state - system.exact(1.0)).max() < 2e-4
 
 
 def test_banded_and_general_factorizations_give_the_same_run(monkeypatch):

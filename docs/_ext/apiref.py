@@ -10,6 +10,10 @@
 - Sibling-relative references: ``:mod:`.registry``` in a docstring of ``parastokes.coarse.x``
   means ``parastokes.registry.coarse``, as in a relative import; Sphinx alone searches every
   module ending in ``.registry`` and finds several.
+- Attribute docs are prose: napoleon reads the first line of the documentation of an attribute,
+  a constant or a property as ``type: description`` when it holds a colon, so "Columns of the
+  state: ..." showed "Columns of the state" as its type and the rest cut off (``Rosenbrock.g``,
+  75 others). Their types come from the annotations; the text stays whole.
 """
 
 from __future__ import annotations
@@ -25,6 +29,7 @@ from sphinx import addnodes
 from sphinx.application import Sphinx
 from sphinx.ext import autosummary
 from sphinx.ext.autosummary import Autosummary
+from sphinx.ext.napoleon.docstring import GoogleDocstring
 from sphinx.transforms.post_transforms import SphinxPostTransform
 
 
@@ -94,7 +99,15 @@ class SiblingReferences(SphinxPostTransform):
 ABBREVIATIONS = ("eq.", "eqs.", "Eq.", "Eqs.")
 
 
+def prose_attribute(self: GoogleDocstring) -> tuple[str, list[str]]:
+    """napoleon's ``_consume_inline_attribute`` without the inline type: (no type, the whole
+    documentation parsed as a docstring of its own, sections included)."""
+    lines = [self._lines.next(), *self._dedent(self._consume_to_end())]
+    return "", self.__class__(lines, self._config).lines()
+
+
 def setup(app: Sphinx) -> dict:
+    GoogleDocstring._consume_inline_attribute = prose_attribute  # (NumpyDocstring's too)
     autosummary.WELL_KNOWN_ABBREVIATIONS = tuple(
         dict.fromkeys((*autosummary.WELL_KNOWN_ABBREVIATIONS, *ABBREVIATIONS)))
     app.add_directive("public-names", PublicNames)

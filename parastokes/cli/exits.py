@@ -14,7 +14,7 @@ from collections.abc import Callable
 from concurrent.futures.process import BrokenProcessPool
 from typing import TYPE_CHECKING, Any, TypeAlias
 
-from ..core.signals import Terminated, interrupt, terminate
+from ..core.signals import Terminated, interrupt, terminate, what_completed
 from .console import Console
 from .launch import is_manager, mpi_processes
 
@@ -41,6 +41,7 @@ SMALLER = {
     "flow": "use a smaller --resolution or --dpi (a plane rather than a box)",
     "movie": "use a smaller --size or --resolution, or fewer --frames",
     "plot": "plot fewer runs at once",
+    "predict": "give smaller files (--serial, --measured's summary.json)",
 }
 
 
@@ -165,7 +166,10 @@ def report(error: BaseException, console: Console, command: str = "run") -> Exit
     notes = [f"  {note}" for note in getattr(error, "__notes__", ())]
     if code in (ExitCode.INTERRUPTED, ExitCode.TERMINATED, ExitCode.HANGUP):
         what = {130: "interrupted", 143: "terminated (SIGTERM)", 129: "hung up (SIGHUP)"}[code]
-        if resumable:
+        done = what_completed()
+        if done is not None:
+            lines = [f"{what} after the command had completed: {done}"]
+        elif resumable:
             lines = [f"{what}: the workers are stopped and the checkpoint is consistent; rerun "
                      "with --resume to continue"]
         else:

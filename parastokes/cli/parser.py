@@ -20,7 +20,8 @@ def parser() -> argparse.ArgumentParser:
         "flow (Liu & Rostami).",
         epilog="Exit codes: 0 ok, 1 unexpected error (a bug), 2 bad configuration, usage or output "
         "directory (in use, finished, damaged file, unwritable), 3 numerical blow-up (last good "
-        "state saved), 4 worker/parallel failure, 130 interrupted (Ctrl-C), 143 terminated "
+        "state saved; or a monitor above its limit with --monitor-fatal), 4 worker/parallel "
+        "failure, 130 interrupted (Ctrl-C), 143 terminated "
         "(SIGTERM), 129 hung up (SIGHUP); after 4, 130, 143 and 129 the checkpoint is consistent "
         "and --resume continues.",
     )

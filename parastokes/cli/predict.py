@@ -119,6 +119,8 @@ def best_serial(args: argparse.Namespace, cfg: Any, measured: dict | None
         errors = (measured or {}).get("errors") or []
         target = float(errors[-1]) if errors else None
         if target is not None and not (math.isfinite(target) and target > 0):
+            if args.serial is None:  # no serial run reaches it; the cache is only consulted
+                return None
             raise ValueError(f"predict: the last error η^K of the run in {args.measured} is "
                              f"{target:g}, which no serial run is measured to reach: give "
                              "--target ETA")

@@ -50,7 +50,12 @@ def run_and_report(
         f"stability monitor: max {monitor['max']:.3g} at the slice boundaries "
         f"(limit {monitor['limit']:g})"
     )
-    console.print(f"results in {args.out}/ (summary.json, trajectory.h5/.xdmf, figures)")
+    output = cfg.output
+    written = ["summary.json", *(["trajectory.h5/.xdmf"] if output.trajectory else []),
+               *(["flow.h5/.xdmf/.png"] if output.trajectory and output.flow_every is not None
+                 else []),
+               *(["figures"] if output.figures else [])]
+    console.print(f"results in {args.out}/ ({', '.join(written)})")
     return ExitCode.OK
 
 

@@ -44,7 +44,7 @@ def measured_evaluations(system: System, scheme: str, t0: float, span: float, st
     run untimed (compilation, cached colourings)."""
     x0 = system.initial_state()
     dt = span / steps
-    integrate.run(system, x0, t0, t0 + dt, scheme, dt)
+    integrate.run(system, x0, t0, t0 + dt, scheme, dt, rtol=rtol, atol=atol)
     system.rates(t0, x0)
     evaluation = _cpu(lambda: [system.rates(t0, x0) for _ in range(PROBE_EVALUATIONS)])
     run = _cpu(lambda: integrate.run(system, x0, t0, t0 + span, scheme, dt, rtol=rtol, atol=atol))
@@ -58,8 +58,8 @@ def evaluations_per_step(cfg: Any, resolved: Any, scheme: str, steps: int, grid:
     run's body (on its coarser grid with ``grid`` > 1): the stages of a fixed-step explicit scheme,
     else :func:`measured_evaluations` over the run's first slice, or over its first ``probe``
     steps (a fine solver, too long to run whole); ``system``: the built body, to build it once."""
-    if not integrate.lookup(scheme).implicit and rtol is None:
-        return float(integrate.lookup(scheme).stages)
+    if rtol is None and not integrate.SCHEMES[scheme].implicit:  # ("auto" has rtol)
+        return float(integrate.SCHEMES[scheme].stages)
     body = system if system is not None else build_system(cfg, resolved)
     if grid > 1:
         body = body.coarsened(grid)[0]  # type: ignore[attr-defined]

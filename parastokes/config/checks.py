@@ -91,8 +91,9 @@ def kernel_threads(cfg: Config) -> int:
 
 def steps_on_slice(slice_length: float, dt: float, path: str, what: str,
                    warnings: list[str] | None) -> int:
-    """Steps of size ~``dt`` on a slice; warns (unless ``warnings`` is None) when dt does not divide
-    it (Richardson steps r^q τ rarely do; eq. 27's weights are computed for the steps taken)."""
+    """Steps of size about ``dt`` on a slice; warns (unless ``warnings`` is None) when dt does
+    not divide it (Richardson steps r^q τ rarely do; eq. 27's weights are computed for the steps
+    taken)."""
     n = integrate.n_steps(0.0, slice_length, dt)
     used = slice_length / n
     if warnings is not None and abs(used - dt) > 1e-9 * dt:

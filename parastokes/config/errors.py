@@ -114,14 +114,14 @@ def _field(loc: tuple[Any, ...], data: Any) -> tuple[type[BaseModel] | None, Any
     the nearest known one by its fields' annotations (``scene.repulsion`` in ``scene``)."""
     for start in range(len(loc) - 1, -1, -1):
         cls = _section_class(loc[:start], data)
-        for key in loc[start:-1] if cls is not None else ():
+        for key in loc[start:-1]:
+            if cls is None:
+                break
             if isinstance(key, int):
                 continue  # (an item of a list of tables)
             field = cls.model_fields.get(str(key))
             found = _models(field.annotation) if field is not None else []
             cls = found[0] if len(found) == 1 else None
-            if cls is None:
-                break
         if cls is not None:
             return cls, cls.model_fields.get(str(loc[-1]))
     return None, None

@@ -53,7 +53,8 @@ from . import locks, signals
 __all__ = [
     "INPUTS", "CorruptFileError", "FileWriteError", "GuardedFile", "InputFileError",
     "OutputInUse", "Staging", "atomic_write", "check_input", "commit_set", "describe_os_error",
-    "hold_names", "is_resource_error", "open_input", "read_input", "read_npz", "recover_sets",
+    "hold_names", "is_resource_error", "open_input", "read_input", "read_npz", "read_record",
+    "recover_sets",
     "remove_stale", "staged", "temporary_name", "write_npz", "write_text",
 ]
 
@@ -184,6 +185,20 @@ def read_input(path: str | os.PathLike, kind: str) -> bytes:
     return b"".join(chunks)
 
 
+def read_record(path: str | os.PathLike) -> bytes:
+    """The bytes of one of the package's own records ``path`` (a lock, a manifest, a commit's
+    journal), bounded as a ``record`` input (:func:`open_input`) but, unlike
+    :func:`read_input`, read whole without honouring a stop asked for: the clean-ups that run
+    after an interrupt (releasing a lock, completing a move) read them."""
+    what, limit = INPUTS["record"]
+    with open_input(path, "record") as handle:
+        data = handle.read(limit + 1)
+    if len(data) > limit:
+        raise InputFileError(path, f"larger than {_size(limit)} (it grew while it was read): "
+                                   "no record file is that large", f"give {what}")
+    return data
+
+
 def describe_os_error(error: OSError) -> str:
     """``error``'s cause in words, with what to do for a full disk or a reached limit."""
     reason = error.strerror or str(error)
@@ -235,17 +250,6 @@ def temporary_owner(path: str | os.PathLike) -> int | None:
     return int(pid) if pid.isdigit() else None
 
 
-def _running(pid: int) -> bool:
-    """Whether a process ``pid`` runs on this host."""
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:  # (another user's)
-        pass
-    return True
-
-
 def remove_stale(path: str | os.PathLike) -> list[Path]:
     """Remove the temporary files of ``path`` (``NAME.<pid>.tmp``, :func:`temporary_name`) that
     another writer, killed while writing it, left behind: those whose process no longer runs on
@@ -259,7 +263,8 @@ def remove_stale(path: str | os.PathLike) -> list[Path]:
             continue
         try:
             info = entry.lstat()
-            if stat.S_ISREG(info.st_mode) and info.st_mtime < _STARTED and not _running(pid):
+            stale = info.st_mtime < _STARTED and not locks.process_alive(pid)
+            if stale and stat.S_ISREG(info.st_mode):
                 entry.unlink()
                 removed.append(entry)
         except OSError:  # (gone meanwhile, or not ours to remove)
@@ -292,6 +297,7 @@ class Staging:
         name (give it the format explicitly: the name ends in ``.tmp``); :meth:`commit` refuses
         it if that writer left it missing or empty."""
         path = Path(path)
+        recover_sets(path.parent)  # (a set cut short keeps its temporary files until moved)
         remove_stale(path)
         self._files[path] = temporary_name(path)
         self._unchecked.add(path)
@@ -407,7 +413,7 @@ def _complete(journal: Path) -> list[Path]:
     """Move every temporary file of the set in ``journal`` still there into place, then remove
     the journal; the files moved."""
     try:
-        pairs = [(Path(tmp), Path(path)) for tmp, path in json.loads(journal.read_text())]
+        pairs = [(Path(tmp), Path(path)) for tmp, path in json.loads(read_record(journal))]
     except (OSError, ValueError, TypeError) as error:
         raise CorruptFileError(journal, f"the journal of a cut-short commit cannot be read "
                                f"({error})", "remove it (the files it names stay as they "

@@ -69,10 +69,10 @@ def holder(record: dict) -> str:
 
 def owner(path: Path) -> dict | None:
     """The lock record in ``path``; None if it is gone or unreadable (a lock being written)."""
-    from .files import read_input  # (files imports this module)
+    from .files import read_record  # (files imports this module)
 
     try:
-        record = json.loads(read_input(path, "record"))
+        record = json.loads(read_record(path))
     except (OSError, ValueError):
         return None
     return record if isinstance(record, dict) else None

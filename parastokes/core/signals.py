@@ -17,10 +17,13 @@ import signal
 from collections.abc import Callable
 from typing import Any
 
-__all__ = ["Terminated", "clear", "honour", "interrupt", "quiet", "terminate"]
+__all__ = ["Terminated", "clear", "completed", "honour", "interrupt", "quiet", "terminate",
+           "what_completed"]
 
 #: The signal asked for and not yet ended the command with (at most one).
 _pending: list[int] = []
+#: What the command has completed and put in place (said if a stop comes after it).
+_completed: list[str] = []
 
 
 class Terminated(KeyboardInterrupt):
@@ -65,6 +68,18 @@ def quiet(previous: Callable[[Any], object]) -> Callable[[Any], object]:
     return hook
 
 
+def completed(what: str) -> None:
+    """Record that the command's work is complete and in place (``what``: where, in words), so
+    that a stop arriving afterwards says so instead of calling it cut short."""
+    _completed[:] = [what]
+
+
+def what_completed() -> str | None:
+    """What :func:`completed` recorded during this command, or None."""
+    return _completed[0] if _completed else None
+
+
 def clear() -> None:
-    """Forget the stop asked for (the command it ended is over)."""
+    """Forget the stop asked for and what was completed (the command it ended is over)."""
     _pending.clear()
+    _completed.clear()

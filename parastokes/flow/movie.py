@@ -73,18 +73,22 @@ def _bodies_limits(run: RunFrames) -> np.ndarray:
 
 def draw_bodies_frame(fig: Figure, run: RunFrames, frame: int, limits: np.ndarray) -> None:
     """The bodies of ``frame`` in the x-y and x-z planes on the fixed ``limits``, at true scale
-    (a micrometre as long across as up)."""
-    axes = fig.subplots(2, 1, sharex=True)
+    (a micrometre as long across as up), each panel as tall as its extent makes it (no gap
+    between flat panels), its axis named by a horizontal label beside it (a rotated one hung far
+    above and below a flat panel), what z measures in the panel's title."""
+    extent = limits[:, 1] - limits[:, 0]
+    axes = fig.subplots(2, 1, sharex=True, height_ratios=[extent[1], extent[2]])
     for ax, (i, j) in zip(axes, ((0, 1), (0, 2)), strict=True):
         draw_bodies(ax, run.data["bodies"], frame, (i, j), color="C0")
         ax.set_xlim(*limits[i])
         ax.set_ylim(*limits[j])
         ax.set_aspect("equal", adjustable="box")
-        ax.set_ylabel(f"{'xyz'[j]} (μm)" + (" (distance to the wall)" if j == 2 and run.wall
-                                            else ""))
+        ax.set_ylabel(f"{'xyz'[j]}\n(μm)", rotation=0, ha="right", va="center")
         ax.ticklabel_format(axis="y", useOffset=False)
     axes[-1].set_xlabel("x (μm)")
     axes[0].set_title(f"t = {run.times[frame]:.5g} s ({run.data['run']})", fontsize=9)
+    if run.wall:
+        axes[1].set_title("z: the distance to the wall", fontsize=8)
 
 
 def _ffmpeg(path: Path) -> str:

@@ -104,9 +104,9 @@ class Member:
 
 def block_monitor(threads: int, part: Any, join: Any, value: Any) -> Any:
     """``monitor(x, b, tid, body, red)``: member b's monitor (every thread of the block gets it), a
-    fixed-order tree reduction by ``join`` of the threads' ``part``s (e.g. max of the rods' length
-    changes; sum of the vesicle's areas), then ``value`` of the result; ``red`` is the block's
-    shared array of ``threads`` numbers."""
+    fixed-order tree reduction by ``join`` of the threads' values of ``part`` (e.g. max of the
+    rods' length changes; sum of the vesicle's areas), then ``value`` of the result; ``red`` is
+    the block's shared array of ``threads`` numbers."""
 
     @cuda.jit(device=True)
     def monitor(x, b, tid, body, red):

@@ -58,10 +58,10 @@ def segment(stepper: Stepper, x: np.ndarray, t0: float, t1: float, h: float,
             until: Callable[[float, np.ndarray, float, float], bool] | None = None
             ) -> tuple[np.ndarray, AdaptiveResult]:
     """:func:`.controller.adaptive_steps` of ``stepper`` from ``(t0, x)`` toward ``t1`` (see
-    there), its failures as :class:`BlowUpError`."""
+    there; PI control for an explicit pair), its failures as :class:`BlowUpError`."""
     try:
         return adaptive_steps(stepper, estimate_order(stepper.scheme), x, t0, t1, h, *tol,
-                              watch, until)
+                              watch, until, pi=not stepper.scheme.implicit)
     except stiff.StiffSolveError as error:
         raise solve_blowup(error, stepper.steps, x) from error
     except StepSizeError as error:

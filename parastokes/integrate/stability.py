@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Callable
 
 import numpy as np
 
@@ -61,6 +62,7 @@ def largest_stable_step(
     t0: float = 0.0,
     rtol: float = 0.05,
     relative: bool = False,
+    stop: Callable[[], None] | None = None,
 ) -> float:
     """Largest step in ``[dt_lo, dt_hi]`` keeping the monitor within ``system.monitor_limit``
     (``relative``: within the limit of its value at ``dt_lo``, i.e. of the body's own change,
@@ -71,7 +73,8 @@ def largest_stable_step(
     most ``result * (1 + rtol)`` failed. The paper picks its coarse steps "close to the largest time
     step permitted" (section 5.1.1, Fig. 3) with the limits of docs/physics.md (rod length 1%,
     vesicle area 0.01%). ``dt_lo`` must pass (ValueError otherwise); if ``dt_hi`` passes it is
-    returned with a warning.
+    returned with a warning. ``stop`` is called before every trial run (a caller's budget: it
+    raises to abandon the search).
     """
     if not 0 < dt_lo < dt_hi:
         raise ValueError(f"dt_lo, dt_hi: need 0 < dt_lo < dt_hi, got {dt_lo}, {dt_hi}")
@@ -80,14 +83,17 @@ def largest_stable_step(
     if not rtol > 0:
         raise ValueError(f"rtol: must be positive, got {rtol}")
 
+    check = stop or (lambda: None)
     threshold = None
     if relative:  # the run at dt_lo sets the threshold, so it passes by construction
+        check()
         physical = _worst_monitor(system, scheme, dt_lo, t_span, x0, t0, math.inf)
         if physical is None:
             raise ValueError(f"dt_lo: {dt_lo:g} is not stable over t_span={t_span:g}")
         threshold = system.monitor_limit + physical
 
     def ok(dt: float) -> bool:
+        check()
         return is_stable(system, scheme, dt, t_span, x0=x0, t0=t0, limit=threshold)
 
     if not relative and not ok(dt_lo):

@@ -8,6 +8,21 @@ from collections.abc import Sequence
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..core.contracts import StepFailure
+
+
+class ContactError(StepFailure, ValueError):
+    """Two bodies' surfaces overlap or touch (``names``): at the start a configuration error
+    (a ``ValueError``), inside a step a blow-up (a :class:`StepFailure`: the integrator keeps
+    the last good state and names the time)."""
+
+    def __init__(self, message: str, names: tuple[str, str]) -> None:
+        super().__init__(message)
+        self.names = names
+
+    def __reduce__(self):
+        return type(self), (str(self), self.names)
+
 #: Largest nearest-neighbour spacing allowed, in units of the local ε: with wider gaps between
 #: blobs the surface leaks (docs/validation.md, "Rigid bodies": the drag error against the
 #: spacing/ε ratio). The usual choice, ε = half the spacing (Khatri & Cortez), is a ratio of 2.
@@ -64,10 +79,10 @@ def check_placements(
     pair = _closest_overlap(points, spacings)
     if pair is not None:
         a, b, closest, limit = pair
-        raise ValueError(
+        raise ContactError(
             f"{names[a]} and {names[b]} overlap or touch: their surfaces come "
             f"{closest:.4g} apart, under half the surface spacing ({limit:.4g}): move them "
-            f"apart or refine both surfaces"
+            f"apart or refine both surfaces", (names[a], names[b])
         )
 
 

@@ -102,12 +102,15 @@ class RigidSurface:
     def __len__(self) -> int:
         return len(self.points)
 
-    def place(self, center=(0.0, 0.0, 0.0), rotation: np.ndarray | None = None) -> PlacedSurface:
-        """This surface at ``center`` turned by ``rotation`` (3x3 proper orthogonal)."""
+    def place(self, center=(0.0, 0.0, 0.0), rotation: np.ndarray | None = None,
+              label: str | None = None) -> PlacedSurface:
+        """This surface at ``center`` turned by ``rotation`` (3x3 proper orthogonal), named
+        ``label`` (default: the surface's name) in messages."""
         return PlacedSurface(
             self,
             np.asarray(center, dtype=np.float64),
             np.eye(3) if rotation is None else np.asarray(rotation, float),
+            label,
         )
 
     def self_factor(self, mu: float):
@@ -125,16 +128,18 @@ class RigidSurface:
 @dataclass(frozen=True)
 class PlacedSurface:
     """A :class:`RigidSurface` at ``center`` (3,) with orientation ``rotation`` (3, 3): lab points
-    x_i = center + rotation @ p_i."""
+    x_i = center + rotation @ p_i; ``label``: the body's name in messages (default: the
+    surface's, which copies of one surface share)."""
 
     surface: RigidSurface
     center: np.ndarray
     rotation: np.ndarray
+    label: str | None = None
     points: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         c, r = self.center, self.rotation
-        name = self.surface.name
+        name = self.name
         if c.shape != (3,) or not np.all(np.isfinite(c)):
             raise ValueError(f"{name}: center must be 3 finite numbers, got {c!r}")
         if (
@@ -150,7 +155,7 @@ class PlacedSurface:
 
     @property
     def name(self) -> str:
-        return self.surface.name
+        return self.label or self.surface.name
 
     @property
     def epsilon(self) -> np.ndarray:

@@ -216,7 +216,8 @@ def velocity(
 
     Returns
     -------
-    u, or (u, w) when ``angular``: arrays shaped like ``targets``.
+    u or (u, w)
+        u, and w too with ``angular``: arrays shaped like ``targets``.
     """
     if torque_blob not in ("psi", "phi"):
         raise ValueError(f"torque_blob: must be 'psi' or 'phi', got {torque_blob!r}")

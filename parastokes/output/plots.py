@@ -345,7 +345,7 @@ def draw_benchmark(
     files written; a missing file or one without either section raises (FileNotFoundError,
     ValueError)."""
     json_path = Path(json_path)
-    if not json_path.is_file():
+    if not json_path.exists():
         raise FileNotFoundError(f"benchmark file {json_path} not found")
     try:
         data = json.loads(read_input(json_path, "measurements").decode("utf-8"))

@@ -45,7 +45,7 @@ from ..core.files import (
     CorruptFileError,
     Staging,
     hold_names,
-    read_input,
+    read_record,
     recover_sets,
     staged,
     temporary_owner,
@@ -122,7 +122,7 @@ class RunDirectory:
 
     def _previous_results(self) -> set[str]:
         try:
-            names = json.loads(read_input(self.path / MANIFEST, "record"))["files"]
+            names = json.loads(read_record(self.path / MANIFEST))["files"]
             return {str(n) for n in names}
         except (OSError, ValueError, KeyError, TypeError):
             return set(RESULT_FILES) | set(_OLD_FIGURES)
@@ -204,12 +204,14 @@ class RunDirectory:
                  sorted(p.name for p in self.state.iterdir() if p.name in STATE_FILES))
         _write_names(self.staging / _COMMIT, names, state)
         self._roll_forward()
+        signals.completed(f"the run's results are complete in {self.path} "
+                          f"({', '.join(n for n in names if n != 'config.toml')})")
         return names
 
     def _roll_forward(self) -> None:
         record = self.staging / _COMMIT
         try:
-            data = json.loads(read_input(record, "record"))
+            data = json.loads(read_record(record))
             names, state = list(data["files"]), data.get("state")
         except (OSError, ValueError, KeyError, TypeError, AttributeError) as error:
             raise CorruptFileError(

@@ -144,9 +144,9 @@ def load_serial_runs(path: str | os.PathLike, case: str | None = None) -> Serial
         raise ValueError(f"{where}: rows must be a list of runs, got {rows!r}; {_REMEDY}")
     runs = []
     for i, row in enumerate(rows):
-        scheme, dt, error, cpu, fine_cpu = (_field(row, key, f"{where}, row {i}")
-                                            for key in ("scheme", "dt", "error", "cpu", "fine_cpu"))
-        runs.append(SerialRow(scheme, float(dt), float(error), fine_cpu / cpu))
+        scheme, dt, eta, cpu, fine_cpu = (_field(row, key, f"{where}, row {i}")
+                                          for key in ("scheme", "dt", "error", "cpu", "fine_cpu"))
+        runs.append(SerialRow(scheme, float(dt), float(eta), fine_cpu / cpu))
     return SerialRuns(case, float(_field(entry, "t1", where)), reference, tuple(runs),
                       entry.get("problem"), str(path))
 
@@ -162,8 +162,8 @@ def _field(record: Any, key: str, where: str) -> Any:
     if key == "scheme":
         good, wanted = isinstance(value, str) and value != "", "a scheme's name"
     else:
-        number = isinstance(value, int | float) and not isinstance(value, bool)
-        good = number and math.isfinite(value) and (value >= 0 if key == "error" else value > 0)
+        good = (isinstance(value, int | float) and not isinstance(value, bool)
+                and math.isfinite(value) and (value >= 0 if key == "error" else value > 0))
         wanted = "a finite number at least 0" if key == "error" else "a positive finite number"
     if not good:
         raise ValueError(f"{where}: {key} must be {wanted}, got {value!r}; {_REMEDY}")

@@ -127,6 +127,12 @@ def advice(setup: Setup, label: str, error: BlowUpError, where: str,
     cfg = setup.config
     span = cfg.time.t1 - cfg.time.t0
     step = solver_step(cfg, setup.resolved, label)
+    if " overlap or touch" in error.reason:  # (mobility.checks.ContactError, names in reason)
+        return ("the bodies came into contact, where the mobility problem can no longer tell "
+                "their surfaces apart; a smaller step does not help: enable [scene] repulsion "
+                "(e.g. repulsion = { range = 0.5, force = F0 }, a push of F0 at contact that "
+                "vanishes a range apart; docs/bodies.md) to keep them apart, or start them "
+                "farther apart")
     if " returned " in error.reason:  # a body's own method at the (finite) last good state
         return ("the body's own function named above gives non-finite values, so a smaller step "
                 "does not help: fix that function (or the values it is given)")

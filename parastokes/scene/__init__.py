@@ -338,7 +338,8 @@ class Scene:
         """The surfaces of the implicit bodies at ``(t, state)``, in :attr:`implicit_bodies`
         order, their loads with the repulsion's added: what the coupled solve takes."""
         blocks = self.blocks(state)
-        surfaces = [self.bodies[i].surface(t, blocks[i]) for i in self.implicit_bodies]
+        surfaces = [dataclasses.replace(self.bodies[i].surface(t, blocks[i]), name=self.names[i])
+                    for i in self.implicit_bodies]  # (named as the scene names them)
         if self.repulsion is not None:
             force, torque = repulsion_loads(surfaces, self.repulsion, self.wall)
             surfaces = [dataclasses.replace(s, force=s.force + f, torque=s.torque + q)

@@ -10,8 +10,10 @@ their order for any ``A``; Hairer & Wanner, *Solving ODEs II*, section IV.7):
 - :mod:`.local`: the regularized Stokeslet mobility restricted to near pairs (sparse);
 - :mod:`.jacobian`: ``A`` of a system (its own ``stiff_jacobian``, else local mobility × load
   Jacobian, else zero);
-- :mod:`.solve`: the stage solves (sparse LU of ``I - hγA``, or GMRES on the exact Jacobian by
-  finite differences of the rates, preconditioned by that LU);
+- :mod:`.banded`: ``A = M K`` in one compiled block product, and ``I - hγA`` in LAPACK's banded
+  layout;
+- :mod:`.solve`: the stage solves (banded or sparse LU of ``I - hγA``, or GMRES on the exact
+  Jacobian by finite differences of the rates, preconditioned by that LU);
 - :mod:`.stepper`: a step of a scheme, and with its embedded solution (the adaptive steps'
   controller is :mod:`parastokes.integrate.controller`).
 """

@@ -19,6 +19,7 @@ reports it as a blow-up (``integrate.BlowUpError``, exit 3 of a run) with advice
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -79,18 +80,19 @@ class Factorization:
         self.hgamma = hgamma
         n = matrix.shape[0]
         kl, ku = bandwidth(matrix)
-        self.banded = max(kl, ku) < n // 8
-        if self.banded:
+        self._band: tuple[np.ndarray, np.ndarray, int, int] | None = None
+        self._superlu: Any = None
+        if max(kl, ku) < n // 8:
             ab = band_storage(matrix, hgamma, kl, ku)
             with LAPACK, blas_threads(1):
                 lu, piv, info = lapack.dgbtrf(ab, kl, ku, overwrite_ab=1)
             singular = info > 0 or not np.isfinite(lu[kl + ku]).all()
-            self._factors = (lu, piv, kl, ku)
+            self._band = (lu, piv, kl, ku)
             reason = f"U[{info - 1}, {info - 1}] = 0"
         else:
             system = sp.eye_array(n, format="csc") - hgamma * sp.csc_array(matrix)
             try:
-                self._factors = spla.splu(system, permc_spec=_ordering(matrix))
+                self._superlu = spla.splu(system, permc_spec=_ordering(matrix))
                 singular = False
             except RuntimeError as error:  # "Factor is exactly singular"
                 singular, reason = True, str(error)
@@ -98,11 +100,16 @@ class Factorization:
             raise StiffSolveError(t, float("nan"), 0, f"I - h*gamma*A is singular ({reason}); "
                                   "use a smaller step")
 
+    @property
+    def banded(self) -> bool:
+        """Whether LAPACK's banded LU holds the factors (else SuperLU)."""
+        return self._band is not None
+
     def solve(self, v: np.ndarray) -> np.ndarray:
         """``(I - hγ A)⁻¹ v``."""
-        if not self.banded:
-            return self._factors.solve(v)
-        lu, piv, kl, ku = self._factors
+        if self._band is None:
+            return self._superlu.solve(v)
+        lu, piv, kl, ku = self._band
         with LAPACK:
             return lapack.dgbtrs(lu, kl, ku, v, piv)[0]
 

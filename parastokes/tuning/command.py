@@ -16,7 +16,8 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-__all__ = ["PILOT_POINTS", "add_arguments", "config_space", "main", "outputs", "pilot_system"]
+__all__ = ["PILOT_POINTS", "add_arguments", "command_line", "config_space", "main", "outputs",
+           "pilot_system"]
 
 #: Nodes per rod of the pilot rod when the run's rod is longer (the quick variants' 61).
 PILOT_POINTS = 61
@@ -115,6 +116,32 @@ def _space(cfg: Any, args: argparse.Namespace, compare: tuple) -> Any:
     return replace(parse_space(flags, config_space(cfg)), extra=compare)
 
 
+#: The options of ``tune`` that TUNED.toml's header records, in the order they are written.
+_RECORDED = ("cores", "target", "budget", "schemes", "parameters", "reach", "nodes",
+             "richardson", "grid_factors", "step_fractions", "pilot_slices", "pilot_points",
+             "exhaustive", "compare", "set")
+
+
+def command_line(args: argparse.Namespace) -> str:
+    """The ``parastokes tune`` command that ``args`` stand for, every option given (not
+    ``--out`` and ``--overwrite``, which say where, not what): TUNED.toml's header."""
+    words = ["parastokes", "tune", str(args.config)]
+    for name in _RECORDED:
+        value = getattr(args, name, None)
+        flag = "--" + name.replace("_", "-")
+        if value is None or value is False or (name in ("compare", "set") and not value):
+            continue
+        if value is True:
+            words.append(flag)
+        elif name == "set":
+            words += [item for key in value for item in ("--set", str(key))]
+        elif isinstance(value, list):
+            words += [flag, *map(str, value)] if value else [flag]  # (--parameters: none)
+        else:
+            words += [flag, f"{value:g}" if isinstance(value, float) else str(value)]
+    return " ".join(words)
+
+
 def outputs(out: str | Path, overwrite: bool) -> tuple[Path, Path, Path]:
     """The three files ``tune`` writes (TUNED.toml, its .json record and its .png figure),
     checked before the search: distinct (``--out`` must not end in .json or .png), and as every
@@ -201,7 +228,8 @@ def main(args: argparse.Namespace, console: Any) -> int:
         if result.chosen is not None:
             dumped = {k: v for k, v in cfg.model_dump(mode="json", exclude_none=True).items()
                       if k != "model"} | cfg.model.tables()
-            text = config_text(dumped, result, args.cores, args.config).encode()
+            text = config_text(dumped, result, args.cores, args.config,
+                               command_line(args)).encode()
             staging.write(out, lambda handle: handle.write(text))
     _print_report(console, report)
     if result.chosen is None:

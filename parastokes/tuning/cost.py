@@ -87,7 +87,7 @@ def predicted_errors(
     errors: Sequence[float], pilot_slices: int, n_slices: int, up_to: int,
     rho: float | None = None,
 ) -> list[float]:
-    """η^k of the run for k = 1..``up_to`` from the pilot's η^k at T_P (module docstring);
+    """η^k of the run for k = 1, ..., ``up_to`` from the pilot's η^k at T_P (module docstring);
     ``rho`` replaces the contraction read from ``errors`` (needed when there is one)."""
     scale = n_slices / pilot_slices
     out = [e * scale for e in errors]

@@ -169,7 +169,7 @@ class Pilot:
         return Screen(float(times[1]), start_state, state, float(defect), seconds)
 
     def measure(self, coarse: Any, iterations: int, known: Screen | None = None) -> PilotRun:
-        """Algorithm 1 on the window: η^k at T_P for k = 1..``iterations`` (< P); ``known`` is
+        """Algorithm 1 on the window: η^k at T_P for k = 1, ..., ``iterations`` (< P); ``known`` is
         the screen of the same solver (its call is reused)."""
         start = time.perf_counter()
         times = self.times

@@ -115,11 +115,18 @@ def toml_dumps(data: Mapping[str, Any], header: str = "") -> str:
     return "\n".join(lines) + "\n"
 
 
-def config_text(config: Mapping[str, Any], result: Any, cores: int, source: str) -> str:
+def config_text(config: Mapping[str, Any], result: Any, cores: int, source: str,
+                command: str | None = None) -> str:
     """TUNED.toml: ``config`` (a configuration dumped as a dict) with the chosen [coarse],
-    parareal.n_slices = cores, max_iterations = the predicted N_it, workers = cores."""
+    parareal.n_slices = cores, max_iterations = the predicted N_it, workers = cores; its title
+    says that it was tuned, from ``source``, and its header the whole ``command`` (every flag;
+    default: the source, cores and target)."""
     chosen = result.chosen
+    target = result.report["problem"]["target"]
     data = {k: v for k, v in config.items() if k != "tune"}
+    title = data.get("title")
+    data["title"] = (f"tuned from {source} for {cores} cores, η* = {target:g}"
+                     + (f": {title}" if title else ""))
     data["coarse"] = chosen.settings.coarse_table()
     data["parareal"] = {**data["parareal"], "n_slices": cores,
                         "max_iterations": chosen.iterations}
@@ -131,9 +138,9 @@ def config_text(config: Mapping[str, Any], result: Any, cores: int, source: str)
             execution["allow_oversubscribe"] = True
     data["execution"] = execution
     predicted = chosen.predicted()
+    command = command or f"parastokes tune {source} --cores {cores} --target {target:g}"
     header = (
-        f"Tuned by `parastokes tune {source} --cores {cores} --target "
-        f"{result.report['problem']['target']:g}`: {chosen.settings.label()}\n"
+        f"Tuned by `{command}`: {chosen.settings.label()}\n"
         f"predicted: speedup {predicted['speedup']:.3g} (eq. 14), N_it = "
         f"{predicted['iterations']}, gamma_G/gamma_F = {predicted['gamma_ratio']:.3g}; "
         "see TUNED.json"
@@ -149,17 +156,17 @@ def _fmt(value: Any, spec: str) -> str:
 
 def table(report: Mapping[str, Any], rows: int = 8) -> str:
     """A short text table: baseline, chosen and the best measured candidates."""
-    head = (f"{'':2}{'candidate':44} {'τ_c/τ_f':>8} {'N_G':>4} {'ρ(DG)':>7} {'η¹ pilot':>9} "
+    head = (f"{'':3}{'candidate':44} {'τ_c/τ_f':>8} {'N_G':>4} {'ρ(DG)':>7} {'η¹ pilot':>9} "
             f"{'contr.':>8} {'N_it':>4} {'γ_G/γ_F':>8} {'speedup':>8}")
     lines = [head]
     measured = [c for c in report["candidates"] if c["pilot"]["eta1"] is not None]
     measured.sort(key=lambda c: -(c["predicted"]["speedup"] or 0))
     chosen = report["chosen"]
+    baseline = report["baseline"]
     for c in measured[:rows]:
-        mark = "* " if chosen is not None and c["label"] == chosen["label"] and \
-            c["dt"] == chosen["dt"] else "  "
-        if c["label"] == report["baseline"]["label"] and c["dt"] == report["baseline"]["dt"]:
-            mark = "b "
+        won = chosen is not None and (c["label"], c["dt"]) == (chosen["label"], chosen["dt"])
+        base = (c["label"], c["dt"]) == (baseline["label"], baseline["dt"])
+        mark = ("*" if won else " ") + ("b" if base else " ") + " "
         lines.append(
             f"{mark}{c['label'][:44]:44} {_fmt(c.get('dt_ratio'), '8.3g')} "
             f"{c['n_auxiliary']:>4} {_fmt(c['stability']['spectral_radius'], '7.4g')} "
@@ -171,7 +178,8 @@ def table(report: Mapping[str, Any], rows: int = 8) -> str:
     counts: dict[str, int] = {}
     for c in report["candidates"]:
         counts[c["status"]] = counts.get(c["status"], 0) + 1
-    lines.append("(* chosen, b baseline) " + ", ".join(f"{v} {k}" for k, v in counts.items()))
+    lines.append(f"(* chosen, b baseline) {len(report['candidates'])} candidates with the "
+                 "baseline: " + ", ".join(f"{v} {k}" for k, v in counts.items()))
     return "\n".join(lines)
 
 

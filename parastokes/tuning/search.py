@@ -20,6 +20,7 @@ candidate would choose. docs/tuning.md explains the choices and reports measurem
 from __future__ import annotations
 
 import heapq
+import logging
 import math
 import signal
 import time
@@ -32,6 +33,7 @@ import numpy as np
 from .. import integrate
 from ..core.contracts import System
 from ..core.values import is_integer, is_real
+from ..integrate import stability as stable_steps
 from ..parallel import TaskError
 from ..parareal.transfer import Transfer
 from . import cost, slice_map, stability
@@ -262,6 +264,25 @@ def _coarsened(system: System, factor: int) -> tuple[System, Transfer]:
     return coarsened(factor)
 
 
+class _OutOfBudget(Exception):
+    """The search's budget ran out inside a candidate's stage (its step-limit bisection)."""
+
+
+class _HeldBack(logging.Filter):
+    """Holds back and counts ``integrate.largest_stable_step``'s warning that the largest step
+    tried is stable (implicit schemes: once per step-limit search); the search says it once."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.count = 0
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if record.getMessage().startswith("largest_stable_step: dt_hi="):
+            self.count += 1
+            return False
+        return True
+
+
 def _accepted_speedup(cand: Candidate) -> float:
     assert cand.speedup is not None  # (set with the status "accepted")
     return cand.speedup
@@ -287,6 +308,15 @@ class _Search:
         self.base_errors: list[float] = []
         self.base_rho: float | None = None
         self.calibrations: list[tuple[Settings, list[float]]] = []
+        #: The budget's end on ``clock`` while a candidate that it binds is worked on, else None.
+        self.deadline: float | None = None
+
+    def charge(self) -> None:
+        """Called before every trial run of a step-limit bisection: :class:`_OutOfBudget` once
+        the budget is spent (an implicit scheme's bisection runs whole slices at the fine
+        step)."""
+        if self.deadline is not None and self.clock() > self.deadline:
+            raise _OutOfBudget
 
     # ---- step limits ----
     def _grid_system(self, grid: int) -> tuple[System, np.ndarray]:
@@ -309,7 +339,8 @@ class _Search:
             lo, hi = self.pilot.fine.dt, span / fewest
             try:
                 self.limits[key] = stability.step_limit(system, settings.scheme, x0,
-                                                        self.pilot.t0, span, lo, max(hi, 2 * lo))
+                                                        self.pilot.t0, span, lo, max(hi, 2 * lo),
+                                                        stop=self.charge)
             except ValueError:
                 self.limits[key] = math.nan
         return self.limits[key]
@@ -317,9 +348,11 @@ class _Search:
     def estimated_step(self, settings: Settings) -> float:
         """The step limit model that orders unscreened candidates: the baseline scheme's measured
         plain limit (no bisection for another scheme before one of its candidates is screened),
-        scaled by the schemes' real stability intervals and the parameters (_LIMIT_MODEL)."""
-        if integrate.SCHEMES[settings.scheme].implicit:  # no stability interval to scale
-            return self.limit(settings) * settings.step_fraction
+        scaled by the schemes' real stability intervals and the parameters (_LIMIT_MODEL). An
+        implicit scheme has no stability interval to scale: its largest step searched (half a
+        slice), an optimistic bound measured by :meth:`step` when its turn comes."""
+        if integrate.SCHEMES[settings.scheme].implicit:
+            return self.pilot.slice_length / IMPLICIT_MIN_STEPS * settings.step_fraction
         plain = self.limit(Settings(self.base_scheme, grid=settings.grid))
         plain *= _INTERVAL.get(settings.scheme, 2.0) / _INTERVAL.get(self.base_scheme, 2.0)
         factor = math.prod((value / self.theta0[name]) ** _LIMIT_MODEL[name]
@@ -532,6 +565,15 @@ class _Search:
         return cand
 
 
+def _counts(candidates: list[Candidate]) -> dict[str, int]:
+    """How many of ``candidates`` (the baseline among them) ended with each status; they add up
+    to all of them."""
+    counts: dict[str, int] = {}
+    for cand in candidates:
+        counts[cand.status] = counts.get(cand.status, 0) + 1
+    return counts
+
+
 def _key(search: _Search, cand: Candidate) -> float:
     """The search's estimate of a queued candidate: its (re)screened speedup once screened, else
     its optimistic speedup (at the model step until its real step is known)."""
@@ -671,7 +713,13 @@ def tune(
     search.notes = notes
     base_scheme = "euler" if "euler" in space.schemes else space.schemes[0]
     progress.note(f"baseline: plain {base_scheme} at its largest safe step")
-    baseline = search.baseline(base_scheme, frugal)
+    held = _HeldBack()  # (removed when the search ends)
+    stable_steps.log.addFilter(held)
+    try:
+        baseline = search.baseline(base_scheme, frugal)
+    except BaseException:
+        stable_steps.log.removeFilter(held)
+        raise
 
     candidates = [Candidate(s) for s in space.candidates(pilot_system.params, reaches)
                   if s != Settings(base_scheme)]
@@ -692,6 +740,11 @@ def tune(
     stopped, done = None, 0
     spent: dict[bool, list[float]] = {False: [], True: []}  # screen / measure times
     ordered = len(queue)
+    weighed_out = len(candidates) - ordered
+    if weighed_out:
+        progress.note(f"{len(candidates)} candidates besides the baseline: {weighed_out} pruned "
+                      f"by their weights (Σ|w_j v_q| > {space.max_weight:g}), {ordered} to "
+                      "search")
     progress.start(ordered)
     try:
         while queue:
@@ -717,6 +770,7 @@ def tune(
             heapq.heapify(queue)
             n = entry[2]
             before = cand.seconds
+            search.deadline = None if cand.given else started + budget
             # the bound a candidate must beat: the best measured (not when given or exhaustive)
             floor = -math.inf if exhaustive or cand.given else best
             if screened:
@@ -743,10 +797,20 @@ def tune(
                     spent[True].append(cand.seconds - before)
                 done += 1
                 progress.advance(cand.settings.label())
+    except _OutOfBudget:  # inside a candidate's step-limit bisection
+        stopped = "budget"
     except KeyboardInterrupt as stop:  # Ctrl-C, or SIGTERM/SIGHUP as the CLI raises them
         stopped = STOPPED_BY.get(getattr(stop, "signum", None), "interrupted")
     finally:
         progress.finish()
+        search.deadline = None
+        stable_steps.log.removeFilter(held)
+    if held.count:
+        notes.append(f"the largest step tried was stable in {held.count} step-limit "
+                     f"search{'es' if held.count > 1 else ''} (half a slice for an implicit "
+                     "scheme, a tenth for an explicit one): those steps are bounded by accuracy, "
+                     "which the pilot measures, not by stability")
+        progress.note(f"note: {notes[-1]}")
     for cand in candidates:
         if cand.status == "pending":
             cand.status = "not reached"
@@ -767,7 +831,8 @@ def tune(
               "fraction": cpu / serial_estimate, "budget": budget},
         search={"stopped": stopped, "evaluated": done, "ordered": ordered,
                 "screened": sum(c.screen is not None for c in candidates),
-                "total": len(everything), "reference_radius": search.reference_radius,
+                "total": len(everything), "weighed_out": weighed_out,
+                "counts": _counts(everything), "reference_radius": search.reference_radius,
                 "notes": notes},
         full_points=len(system.positions(system.initial_state())),
     )

@@ -21,6 +21,7 @@ Three cheap measurements, in the order the tuner uses them:
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -38,16 +39,18 @@ GROWTH = 100.0
 
 
 def step_limit(
-    system: System, scheme: str, x0: np.ndarray, t0: float, span: float, dt_lo: float, dt_hi: float
+    system: System, scheme: str, x0: np.ndarray, t0: float, span: float, dt_lo: float,
+    dt_hi: float, stop: Callable[[], None] | None = None,
 ) -> float:
     """Largest step (1 % bisection) keeping ``system.monitor`` within its limit of its value at
     ``dt_lo`` over ``span`` (the monitor's physical change at a perturbed parameter, e.g. the
-    area of a vesicle of larger viscosity, is not an instability).
+    area of a vesicle of larger viscosity, is not an instability). ``stop`` is called before
+    every trial run (the search's budget: it raises to abandon the bisection).
 
     Raises ValueError (caught by the caller) when even ``dt_lo`` blows up.
     """
     return integrate.largest_stable_step(
-        system, scheme, span, dt_lo, dt_hi, x0=x0, t0=t0, rtol=0.01, relative=True
+        system, scheme, span, dt_lo, dt_hi, x0=x0, t0=t0, rtol=0.01, relative=True, stop=stop
     )
 
 

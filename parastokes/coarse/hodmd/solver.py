@@ -107,8 +107,8 @@ class HodmdCoarse:
     def extrapolate(self, differences: np.ndarray, window: int, d: int | None = None,
                     at: float | None = None) -> np.ndarray:
         """H[·](T_n): the HODMD extrapolation (``d`` delayed copies, default ``self.d``) of the
-        snapshots 0..``window`` of ``differences`` (rows 1.. of a trace, or a difference of two)
-        to snapshot time ``at`` (default S, the end of the slice), group by group."""
+        snapshots 0, ..., ``window`` of ``differences`` (rows 1.. of a trace, or a difference of
+        two) to snapshot time ``at`` (default S, the end of the slice), group by group."""
         snaps = differences[: window + 1]
         out = np.zeros(snaps.shape[1:])
         target = float(self.snapshots if at is None else at)
@@ -167,7 +167,7 @@ class HodmdCoarse:
 
 def trajectory(propagator: PropagatorLike, t_start: float, h: float, count: int,
                x: np.ndarray) -> list[np.ndarray]:
-    """The states of ``propagator`` from ``x`` at t_start + j h, j = 0..``count``, in one run:
+    """The states of ``propagator`` from ``x`` at t_start + j h, j = 0, ..., ``count``, in one run:
 
     - on a coarser grid (:class:`OnCoarseGrid`) the run stays there, each snapshot prolonged;
     - an extrapolated solver (eq. 30) runs each auxiliary solver on through the snapshots, one

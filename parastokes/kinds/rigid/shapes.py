@@ -225,7 +225,7 @@ def load_points(source: str) -> np.ndarray:
         points = np.asarray(make(), dtype=float)
     else:
         path = Path(source)
-        if not path.is_file():
+        if not path.exists():
             raise ValueError(f"points: no file {source!r}; give a .npy or text file of (N, 3) "
                              "points, or a \"module:function\" that returns them")
         raw = read_input(path, "points")

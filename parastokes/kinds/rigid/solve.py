@@ -87,7 +87,7 @@ def _rigid_surface(s: Surface) -> RigidSurface:
 def placed(s: Surface) -> PlacedSurface:
     """``s`` as a :class:`parastokes.mobility.PlacedSurface` (its rigid surface kept when fixed
     in its body frame)."""
-    return _rigid_surface(s).place(s.center, s.rotation)
+    return _rigid_surface(s).place(s.center, s.rotation, s.name)
 
 
 def mobility(surfaces: list[Surface], mu: float, wall: bool, background: np.ndarray | None,
