@@ -95,7 +95,12 @@ PROBLEMS: dict[str, Problem] = {
         "Table 7's vesicle (T = 100)", VESICLE, ("rk2", 0.00379), 2.5, 40, 1e-6, 100.0,
         ("rk4", 0.002), (("euler", 0.00379), ("rk2", 0.00379)),
         max_iterations=5),
-    # the smoke test's: the paper's rod cut to a fifth (L = 12, M = 61, σ_f and ε as Table 4's)
+    # the 601-point rod's winner again on slices 5 times longer (a fifth of the full one's)
+    "rod601_long": Problem(
+        "rod refined to M = 601 (ε⁰ = 5σ_f), longer slices", {**ROD, "n_points": 601},
+        ("rk2", 7.58e-7), 0.0025, 4, 1e-5, 1.0, ("rk2", 3.79e-7), (("rk2", 7.58e-7),),
+        max_iterations=3, best=("rk2", 7.58e-7)),
+    # a smoke run (`--problems quick`, a minute): Table 4's rod cut to a fifth (L = 12, M = 61)
     "quick": Problem(
         "a fifth of Table 4's rod (M = 61, L = 12)", {**ROD, "n_points": 61, "length": 12},
         ("rk2", 1.16e-5), 0.001, 4, 1e-6, 0.004, ("rk4", 6.1e-6), (("rk2", 1.16e-5),),
@@ -146,6 +151,9 @@ CANDIDATES: dict[str, dict[str, Candidate]] = {
             "implicit on a coarse grid", {"scheme": "ros34pw2", "dt": 6.25e-4, "grid_factor": 3}),
         "ros34pw2 6.25e-4": Candidate("implicit", {"scheme": "ros34pw2", "dt": 6.25e-4}),
     },
+    "rod601_long": {
+        "ros34pw2 1.25e-4": Candidate("implicit", {"scheme": "ros34pw2", "dt": 1.25e-4}),
+    },
     "quick": {
         "grid 3, eps [1.2, 1.4], euler 2.2e-5": Candidate(
             "coarse grid, Lagrange in ε", _grid(3, [1.2, 1.4], "euler", 2.2e-5)),
@@ -166,6 +174,7 @@ CANDIDATES: dict[str, dict[str, Candidate]] = {
         "grid 2, eps [0.8, 1], euler 5e-6": Candidate(
             "coarse grid, Lagrange in ε", _grid(2, [0.8, 1.0], "euler", 5e-6)),
         "ros34pw2 2.5e-4": Candidate("implicit", {"scheme": "ros34pw2", "dt": 2.5e-4}),
+        "ros34pw2 1.25e-4": Candidate("implicit", {"scheme": "ros34pw2", "dt": 1.25e-4}),
         "grid 2, eps 0.5, ros34pw2 2.5e-4": Candidate(
             "implicit on a coarse grid", {"scheme": "ros34pw2", "dt": 2.5e-4, "grid_factor": 2}),
         "ros2-krylov 1.25e-4": Candidate("implicit", {"scheme": "ros2-krylov", "dt": 1.25e-4}),
