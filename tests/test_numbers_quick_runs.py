@@ -30,6 +30,7 @@ QUICK = sorted(p.stem for p in (Path(__file__).parents[1] / "experiments" / "qui
 LATER = {"quick_eta1_scene_coarse": ["scene_sphere_and_rod_coarse"],
          "quick_eta1_round4": ["cloud_sediments", "rods_25", "suspension_64_spheres",
                                "table4_ros2"],
+         "quick_eta1_round5": ["stiff_rod601", "stiff_rod601_rk2"],
          "quick_eta1_circles": ["bacterium_circles"]}
 #: Later variants that take longer than a default test may (measured on 2 loaded cores:
 #: cloud_sediments 37 s, suspension_64_spheres 310 s): run under ``-m slow``.

@@ -87,11 +87,15 @@ def test_a_scene_config_with_a_grid_factor_resolves_the_coarse_rows():
         with pytest.raises(config.ConfigError) as error:
             config.load(quick, [override])
         assert (where, message) in [(w, m[: len(message)]) for w, m in error.value.issues]
-    vesicle = ('[scene]\nviscosity = 1e-3\n[[bodies]]\nkind = "vesicle"\nsubdivisions = 1\n'
-               + SERIAL_SOLVERS.replace("dt_ratio = 2\n", "dt_ratio = 2\ngrid_factor = 2\n"))
-    with pytest.raises(config.ConfigError, match=r"coarse.grid_factor: none of the scene's "
-                                                 r"bodies \(vesicle\) has a coarser grid"):
-        config.loads(vesicle)
+    def vesicle(subdivisions: int) -> str:
+        return (f'[scene]\nviscosity = 1e-3\n[[bodies]]\nkind = "vesicle"\n'
+                f"subdivisions = {subdivisions}\n"
+                + SERIAL_SOLVERS.replace("dt_ratio = 2\n", "dt_ratio = 2\ngrid_factor = 2\n"))
+
+    config.loads(vesicle(1))  # a vesicle has the icosphere one level coarser (round 5)
+    with pytest.raises(config.ConfigError, match=r"coarse.grid_factor: vesicle: must be a power "
+                                                 r"of 2 of at most 2\^subdivisions = 1"):
+        config.loads(vesicle(0))  # ... but not below the icosahedron
 
 
 def test_the_round_trip_keeps_the_sphere_pose_exactly(quick_scene):

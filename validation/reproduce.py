@@ -548,7 +548,7 @@ def run_job(job: Job, layout: Layout) -> None:
 
 # ---- the scheduler -----------------------------------------------------------------------------
 def _alive(pid: int | None) -> bool:
-    from parastokes.output.rundir import process_alive
+    from parastokes.core.locks import process_alive
 
     return pid is not None and pid > 0 and process_alive(pid)
 
