@@ -330,6 +330,9 @@ class ProgressFile:
     def note(self, text: str) -> None:
         print(text, flush=True)
 
+    def warn(self, text: str) -> None:
+        print(f"warning: {text}", file=sys.stderr, flush=True)
+
     def start(self, what: str, total: int, done: int = 0) -> None:
         self.state.update(phase=what, done=done, total=total)
         print(f"{what}: {total} {'slices' if what == 'serial' else 'iterations'}", flush=True)

@@ -263,14 +263,16 @@ def _fixed_pair_issues(cfg: Config) -> list[tuple[str, str]]:
     """An embedded explicit pair (rk23, rk45) or "auto" without ``rtol`` in ``[fine]`` or
     ``[coarse]``: "auto" takes adaptive steps only, and a pair on a fixed step is its high-order
     tableau with an estimate nobody reads."""
-    sections = (("fine", cfg.fine), ("coarse", cfg.coarse))
-    return [(f"{key}.rtol", f"required by the scheme {section.scheme!r} (adaptive steps); "
-             "give rtol, or a fixed-step scheme such as rk4")
-            for key, section in sections
-            if getattr(section, "scheme", None) in (*integrate.SCHEMES, integrate.AUTO.name)
-            and integrate.lookup(section.scheme).adaptive
-            and not integrate.lookup(section.scheme).implicit
-            and getattr(section, "rtol", None) is None]
+    issues = []
+    for key, section in (("fine", cfg.fine), ("coarse", cfg.coarse)):
+        scheme = getattr(section, "scheme", None)
+        if scheme not in (*integrate.SCHEMES, integrate.AUTO.name):
+            continue
+        s = integrate.lookup(scheme)
+        if s.adaptive and not s.implicit and getattr(section, "rtol", None) is None:
+            issues.append((f"{key}.rtol", f"required by the scheme {scheme!r} (adaptive steps); "
+                           "give rtol, or a fixed-step scheme such as rk4"))
+    return issues
 
 
 def _fine_steps_issue(cfg: Config, n_points: int, warnings: list[str]) -> str | None:

@@ -117,7 +117,7 @@ def write_grid(stem: str | os.PathLike, grid: Grid, times: np.ndarray, velocitie
 
 def read_grid(path: str | os.PathLike) -> tuple[Grid, np.ndarray, np.ndarray]:
     """The grid, times (F,) and velocities (F, nz, ny, nx, 3) of a file of :func:`write_grid`."""
-    path = Path(path) if Path(path).suffix == ".h5" else suffixed(path, ".h5")
+    path = Path(path) if Path(path).suffix == ".h5" else suffixed(Path(path), ".h5")
     check_input(path, "flow")  # (h5py opens it by name: a pipe would block it)
     with h5py.File(path, "r", locking=False) as f:
         if f.attrs.get("format") != FORMAT:

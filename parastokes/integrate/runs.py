@@ -29,7 +29,7 @@ from .base import (
 )
 from .explicit import explicit_step
 from .implicit import implicit_stepper
-from .schemes import AUTO, SCHEMES, AnyScheme, Auto, lookup, scheme_order
+from .schemes import AUTO, SCHEMES, AnyScheme, Auto, fixed_step_scheme, lookup, scheme_order
 
 __all__ = ["Propagator", "n_steps", "propagate", "run", "run_result", "step", "tolerances"]
 
@@ -180,20 +180,20 @@ def run(
     n = n_steps(t0, t1, dt)
     tol = None if rtol is None and atol is None and s is not AUTO else tolerances(s, rtol, atol)
     if tol is not None and n:
-        run_adaptive = auto_run if s is AUTO else functools.partial(adaptive_run, scheme=s)
-        return run_adaptive(system, np.asarray(x, dtype=float), t0, t1, dt, tol,
-                            blowup_factor)
+        start = np.asarray(x, dtype=float)
+        if isinstance(s, Auto):
+            return auto_run(system, start, t0, t1, dt, tol, blowup_factor)
+        return adaptive_run(system, start, t0, t1, dt, tol, blowup_factor, scheme=s)
     if n == 0:
         return RunResult(system.project(np.array(x, dtype=float)), system.monitor(x), 0, dt)
     h = (t1 - t0) / n
     if abs(h - dt) > 1e-12 * dt:
         log.debug("step adjusted from %.6g to %.6g: %d steps divide [%g, %g]", dt, h, n, t0, t1)
-    return stepping(
-        system, s, np.asarray(x, dtype=float), t0, h, n, blowup_factor, compiled=compiled
-    )
+    return stepping(system, fixed_step_scheme(s), np.asarray(x, dtype=float), t0, h, n,
+                    blowup_factor, compiled=compiled)
 
 
-def tolerances(scheme: str | AnyScheme, rtol: float | None, atol: float | None
+def tolerances(scheme: str | AnyScheme | Auto, rtol: float | None, atol: float | None
                ) -> tuple[float, float]:
     """``(rtol, atol)`` checked for the adaptive steps of ``scheme``: ``rtol`` given (``atol``
     alone is refused, not ignored), both finite and positive (``atol`` None: ``rtol``),

@@ -176,10 +176,6 @@ class Auto:
 AUTO = Auto()
 
 
-#: The scheme ``"auto"``.
-AUTO = Auto()
-
-
 def lookup(scheme: str | AnyScheme | Auto) -> AnyScheme | Auto:
     """The scheme named ``scheme`` (an entry of :data:`SCHEMES`, or ``"auto"``; a scheme
     object passes through); ValueError naming the known ones."""
@@ -229,3 +225,13 @@ def real_stability_boundary(s: Scheme, resolution: float = 1e-4) -> float:
     z = -np.arange(resolution, 10.0, resolution)
     unstable = np.abs(np.polynomial.polynomial.polyval(z, coefs)) > 1.0 + 1e-12
     return float(-z[np.argmax(unstable)] - resolution)
+
+
+def fixed_step_scheme(scheme: str | AnyScheme | Auto) -> AnyScheme:
+    """The scheme ``scheme`` (:func:`lookup`) for steps of a given size; ValueError for
+    ``"auto"``, which takes adaptive steps only."""
+    s = lookup(scheme)
+    if isinstance(s, Auto):
+        raise ValueError("scheme: 'auto' takes adaptive steps only; give rtol (and atol), or "
+                         f"a scheme of fixed steps: one of {sorted(SCHEMES)}")
+    return s

@@ -13,7 +13,7 @@ import numpy as np
 from ..core.contracts import System
 from .base import BLOWUP_FACTOR, BlowUpError
 from .runs import stepping
-from .schemes import AnyScheme, lookup
+from .schemes import AnyScheme, fixed_step_scheme
 
 __all__ = ["is_stable", "largest_stable_step"]
 
@@ -44,7 +44,7 @@ def _worst_monitor(system: System, scheme: str | AnyScheme, dt: float, t_span: f
     x = system.initial_state() if x0 is None else np.asarray(x0, dtype=float)
     n = max(1, math.ceil(t_span / dt - 1e-9))
     try:
-        res = stepping(system, lookup(scheme), x, t0, dt, n, BLOWUP_FACTOR,
+        res = stepping(system, fixed_step_scheme(scheme), x, t0, dt, n, BLOWUP_FACTOR,
                         stop_above=stop_above)
     except BlowUpError:
         return None

@@ -306,9 +306,10 @@ def search(system: System, x0: np.ndarray, t0: float, t1: float, fine: integrate
     x0 = np.asarray(x0, dtype=float)
     # load (or, on a cold numba cache, compile) every loop before the clock starts, as tune does
     for name in dict.fromkeys([fine.scheme, *integrate.SCHEMES]):
-        tol = {"rtol": fine.rtol, "atol": fine.atol} if name == fine.scheme else {}
+        own = name == fine.scheme
         try:
-            integrate.run(system, x0, t0, t0 + fine.dt, name, fine.dt, **tol)
+            integrate.run(system, x0, t0, t0 + fine.dt, name, fine.dt,
+                          rtol=fine.rtol if own else None, atol=fine.atol if own else None)
         except integrate.BlowUpError:
             pass
     started = clock()

@@ -8,7 +8,7 @@ import os
 import platform
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -180,7 +180,7 @@ def _execute(
                 "python": platform.python_version(),
             },
         }
-    alarm = monitor_warning(summary["monitor"])
+    alarm = monitor_warning(cast(dict[str, float], summary["monitor"]))
     if alarm is not None:
         summary["warnings"] = [*resolved.warnings, alarm]
         reporter.warn(alarm)

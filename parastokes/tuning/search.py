@@ -652,9 +652,10 @@ def tune(
     for body, x in {id(system): (system, system.initial_state()),
                  id(pilot_system): (pilot_system, start_state)}.values():
         for scheme in dict.fromkeys((fine.scheme, *space.schemes)):
-            tol = {"rtol": fine.rtol, "atol": fine.atol} if scheme == fine.scheme else {}
+            own = scheme == fine.scheme
             try:
-                integrate.run(body, x, t0, t0 + fine.dt, scheme, fine.dt, **tol)
+                integrate.run(body, x, t0, t0 + fine.dt, scheme, fine.dt,
+                              rtol=fine.rtol if own else None, atol=fine.atol if own else None)
             except integrate.BlowUpError:
                 pass  # reported below, where the fine solver's steps are timed
     started, wall, cpu = clock(), time.perf_counter(), time.process_time()
