@@ -169,6 +169,18 @@ def test_a_scenes_hook_error_names_the_body(tmp_path, capsys):
     with pytest.raises(contract.BodyError, match=r"^bodies\[1\] \('late'\): LateRaisingHook\."
                                                  r"load_jacobian\(t, state\) raised KeyError"):
         scene.stiff_jacobian(0.05, scene.initial_state())
+    # a NaN only later: a blow-up (exit 3) that names the body too, not only its class
+    scene = Scene((uh.Hooked(), uh.LateNaNHook(height=5.0)), viscosity=1.0, shear_rate=1.0,
+                  names=("good", "late"))
+    with pytest.raises(jacobian.NonFiniteJacobian,
+                       match=r"^bodies\[1\] \('late'\): LateNaNHook\.load_jacobian\(t, state\) "
+                             r"returned NaN at t = 0\.05") as caught:
+        scene.stiff_jacobian(0.05, scene.initial_state())
+    assert caught.value.t == 0.05
+    with pytest.raises(integrate.BlowUpError, match=r"bodies\[1\] \('late'\): LateNaNHook"
+                       ) as blown:  # and so in a run: a blow-up there
+        integrate.run(scene, scene.initial_state(), 0.0, 0.1, "ros2", 0.01)
+    assert cli.exit_code(blown.value) == cli.ExitCode.BLOWUP
 
 
 # ---- item 4: the GPU executor without a device ---------------------------------------------------

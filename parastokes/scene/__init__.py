@@ -52,7 +52,7 @@ from ..bodies import contract
 from ..bodies.geometry import crossed_wall
 from ..bodies.sources import FluidSources, fluid_sources
 from ..registry import loops as registry
-from ..stiff.jacobian import block_jacobian, local_jacobian
+from ..stiff.jacobian import NonFiniteJacobian, block_jacobian, local_jacobian
 from . import coarse as scene_coarse
 from .coarse import SceneTransfer
 from .compiled import scene_loop
@@ -295,6 +295,9 @@ class Scene:
             except contract.BodyError as error:  # a user's hook: which body of the scene
                 raise contract.BodyError(f"bodies[{i}] ({self.names[i]!r}): {error}",
                                          error.method) from None
+            except NonFiniteJacobian as error:  # a blow-up (exit 3), also naming the body
+                raise NonFiniteJacobian(t, f"bodies[{i}] ({self.names[i]!r}): {error.method}",
+                                        error.kind) from None
         return block_jacobian(parts, len(state), max(cols))
 
     def bracket(self, r1: np.ndarray, r2: np.ndarray) -> np.ndarray:

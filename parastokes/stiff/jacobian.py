@@ -68,7 +68,7 @@ def _hook(system: Any, call: str, t: float, x: np.ndarray) -> Any:
     name = f"{type(system).__name__}.{call}(t, state)"
     try:
         return getattr(system, call)(t, x)
-    except contract.BodyError:
+    except (contract.BodyError, NonFiniteJacobian):  # a scene's: its bodies' hooks, named
         raise
     except Exception as error:
         raise contract.BodyError(f"{name} raised {type(error).__name__} at t = {t:.10g}: "
