@@ -32,6 +32,7 @@ STIFF = {"rows": [
 # The layout of adaptive.py's file: the explicit run apart, rows with rtol.
 ADAPTIVE = {"rk2": {"dt": 1e-5, "error": 1e-6, "cpu": 4.0, "steps": 10}, "rows": [
     {"scheme": "rk23", "rtol": 1e-3, "error": 1e-4, "cpu": 2.0},
+    {"scheme": "rk23", "rtol": 1e-4, "error": 2e-5, "cpu": 1.8},
     {"scheme": "auto", "rtol": 1e-3, "error": 3e-3, "cpu": 1.0},
     {"scheme": "auto", "rtol": 1e-4, "error": 0.0, "cpu": 3.0},
     {"scheme": "ros34pw2", "rtol": 1e-3, "error": 4e-3, "cpu": 6.0},
@@ -48,7 +49,8 @@ def test_points_per_family_are_cpu_ratio_then_error(wp):
                                      "ros34pw2, J every 10": [(1.5, 2e-3)]}
     # adaptive.py's ratios against its own rk2 (4.0 s); its ros34pw2 kept apart from file 1's.
     assert got["adaptive"] == {"ros34pw2": [(0.125, 5e-3), (0.375, 6e-4)],
-                               "rk23": [(0.5, 1e-4)], "ros34pw2 (file 2)": [(1.5, 4e-3)]}
+                               "rk23": [(0.5, 1e-4), (0.45, 2e-5)],  # by error, not CPU
+                               "ros34pw2 (file 2)": [(1.5, 4e-3)]}
     # An error that rounds to zero cannot sit on a log axis: left out, not invented.
     assert got["auto"] == {"auto": [(0.25, 3e-3)]}
 
