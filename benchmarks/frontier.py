@@ -1,4 +1,4 @@
-"""Coarse solvers against an F at its stability limit (issue 48): the measured frontier.
+"""Coarse solvers against an F at its stability limit: the measured frontier.
 
 For each problem of the target table (docs/benchmarks.md, "Parareal against the fastest serial
 run (round 5)") this script measures, on a documented shortened analogue (P_s slices of a given
@@ -579,7 +579,7 @@ def ship(name: str, label: str, iterations: int) -> pathlib.Path:
     problem = PROBLEMS[name]
     path = SHIPPED / f"{name}_best.toml"
     path.parent.mkdir(parents=True, exist_ok=True)
-    comment = (f"Issue 48 / docs/benchmarks.md, \"Parareal against the fastest serial run (round "
+    comment = (f"docs/benchmarks.md, \"Parareal against the fastest serial run (round "
                f"5)\": {problem.title}.\nF = {problem.fine[0]} at {problem.fine[1]:g} (at forward "
                f"Euler's stability limit); G = {label}; K = {iterations} (measured on the "
                f"shortened analogue,\nbenchmarks/frontier.py). Written by "
