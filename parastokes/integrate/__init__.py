@@ -75,7 +75,6 @@ from .base import (
     projected,
 )
 from .controller import StepSizeError
-from .explicit import combine as _combine  # noqa: F401 (loop.py and gpu cite it)
 from .runs import (
     Propagator,
     _python_steps,  # noqa: F401 (tests run it beside a compiled loop)

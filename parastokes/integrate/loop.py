@@ -5,7 +5,7 @@
 steps of ~0.5 ms) that Python (packing the kernel's input, building the stage states, the
 per-step checks) cost 20-35% of the two kernel evaluations of a step. :func:`run_steps` runs the
 same tableau (including the RKMK commutator terms of RK4, see :mod:`parastokes.integrate`) in one
-compiled call, exactly as :func:`parastokes.integrate._python_steps` does:
+compiled call, exactly as :func:`parastokes.integrate.runs._python_steps` does:
 
 - stage ``i``'s state is ``advance(x, Σ_j a_ij k_j + brackets, dt)`` of the old state and its
   rates ``k_i`` are evaluated at ``t + c_i dt``; the step ends with ``advance(x, Σ_j b_j k_j +
@@ -167,7 +167,7 @@ def tableau_arrays(scheme: Scheme) -> tuple[np.ndarray, ...]:
 
 @njit(error_model="numpy")  # not cached on its own: compiled into each cached loop (see _loop_for)
 def _combine(data, coefs, k, brackets, stage, dt, out):
-    """``integrate._combine`` into ``out``: Σ_j coefs[j] k_j (non-zero terms, in order) plus
+    """``integrate.explicit.combine`` into ``out``: Σ_j coefs[j] k_j (non-zero terms, in order) plus
     ``coefficient * dt * bracket(k_p, k_q)`` for the bracket rows of this ``stage`` (-1: the
     final combination, whose rows have no stage column)."""
     first = True
@@ -298,7 +298,7 @@ def run_steps(
     """``n`` steps of ``scheme`` from ``(t0, x)``, the kernels on ``system.n_threads`` threads;
     ``make_data(system, threads)`` builds the system's compiled data.
 
-    Returns what :func:`parastokes.integrate._python_steps` returns: ``(last state kept, worst
+    Returns what :func:`parastokes.integrate.runs._python_steps` returns: ``(last state kept, worst
     monitor, steps kept, outcome, monitor that ended the run)``, the outcome one of
     ``integrate.DONE``, ``ABOVE``, ``NON_FINITE``, ``BEYOND`` (``nan`` monitor for a non-finite
     state). The steps run in compiled calls of about :data:`CALL_SECONDS` each (the first ones
