@@ -98,3 +98,15 @@ def test_the_eigenvalue_estimate_of_a_step_on_a_linear_problem():
     rho, _ = auto.pair_rho(stepper.scheme, stepper.k, 1e-3)
     assert rho == pytest.approx(300.0, rel=1e-9)
     assert real_stability_boundary(stepper.scheme) == pytest.approx(3.3066, abs=2e-4)
+
+
+def test_auto_takes_no_fixed_steps_anywhere():
+    """'auto' is adaptive only: a fixed-step run and the stability search refuse it in one line
+    (integrate.schemes.fixed_step_scheme), before a step is taken."""
+    system = Calming()
+    with pytest.raises(ValueError, match="rtol: required by the scheme 'auto'"):
+        integrate.run(system, system.initial_state(), 0.0, 1.0, "auto", 1e-3)
+    with pytest.raises(ValueError, match="'auto' takes adaptive steps only"):
+        integrate.is_stable(system, "auto", 1e-3, 1e-2)
+    assert system.calls[0] == 0
+    assert integrate.schemes.fixed_step_scheme("rk2") is integrate.SCHEMES["rk2"]
