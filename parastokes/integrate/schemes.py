@@ -212,7 +212,8 @@ def real_stability_boundary(s: Scheme, resolution: float = 1e-4) -> float:
     leaves the unit disc along the negative real axis (``-z``, to ``resolution``): the largest
     ``h|λ|`` of a stable step on a real negative eigenvalue ``λ`` (Hairer & Wanner, *Solving
     ODEs II*, IV.2: 2 for Euler and Heun, 2.51 for Bogacki-Shampine, 2.79 for RK4, 3.31 for
-    Dormand-Prince)."""
+    Dormand-Prince); the first crossing found on a grid of ``resolution``, then bisected to
+    round-off."""
     n = s.stages
     a = np.zeros((n, n))
     for i, row in enumerate(s.a):
@@ -222,9 +223,16 @@ def real_stability_boundary(s: Scheme, resolution: float = 1e-4) -> float:
     for _ in range(n):
         coefs.append(float(b @ v))
         v = a @ v
-    z = -np.arange(resolution, 10.0, resolution)
-    unstable = np.abs(np.polynomial.polynomial.polyval(z, coefs)) > 1.0 + 1e-12
-    return float(-z[np.argmax(unstable)] - resolution)
+    def unstable(y: np.ndarray | float) -> np.ndarray:
+        return np.abs(np.polynomial.polynomial.polyval(-np.asarray(y), coefs)) > 1.0 + 1e-12
+
+    y = np.arange(resolution, 10.0, resolution)
+    hi = float(y[np.argmax(unstable(y))])
+    lo = hi - resolution
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if unstable(mid) else (mid, hi)
+    return lo
 
 
 def fixed_step_scheme(scheme: str | AnyScheme | Auto) -> AnyScheme:

@@ -45,6 +45,7 @@ import numpy as np
 from .. import integrate
 from ..core.contracts import System
 from ..core.files import atomic_write
+from ..integrate.schemes import Scheme, real_stability_boundary
 from ..parareal.best_serial import cached_entries
 from ..parareal.metrics import relative_change
 from ..tuning.pilot import own_error
@@ -115,32 +116,13 @@ class Run:
         return asdict(self)
 
 
-def real_stability_interval(scheme: Any, upper: float = 20.0, step: float = 1e-3) -> float | None:
+def real_stability_interval(scheme: Any) -> float | None:
     """The stability interval [-Y, 0] of an explicit Runge-Kutta tableau on the negative real
-    axis: the largest Y with ``|R(-y)| <= 1`` for every y in (0, Y], ``R(z) = 1 + z bᵀ(I - zA)⁻¹ 1``
-    (forward Euler and RK2: 2, classical RK4: 2.785); None for a scheme without an explicit
-    tableau (``a``, ``b``)."""
-    a, b = getattr(scheme, "a", None), getattr(scheme, "b", None)
-    if a is None or b is None or getattr(scheme, "implicit", False):
+    axis (:func:`parastokes.integrate.schemes.real_stability_boundary`: forward Euler and RK2:
+    2, classical RK4: 2.785); None for a scheme without an explicit tableau."""
+    if not isinstance(scheme, Scheme) or scheme.implicit:
         return None
-    s = len(b)
-    matrix = np.zeros((s, s))
-    for i, row in enumerate(a):
-        matrix[i, : len(row)] = row
-    weights, ones = np.asarray(b, dtype=float), np.ones(s)
-
-    def amplification(y: float) -> float:
-        stages = np.linalg.solve(np.eye(s) + y * matrix, ones)
-        return abs(1.0 - y * float(weights @ stages))
-
-    y = step
-    while y <= upper and amplification(y) <= 1.0 + 1e-12:
-        y += step
-    lo, hi = y - step, y  # refine the crossing by bisection
-    for _ in range(40):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if amplification(mid) <= 1.0 + 1e-12 else (lo, mid)
-    return lo
+    return real_stability_boundary(scheme)
 
 
 def _adaptive(s: Any) -> bool:
