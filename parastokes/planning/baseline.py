@@ -125,10 +125,6 @@ def real_stability_interval(scheme: Any) -> float | None:
     return real_stability_boundary(scheme)
 
 
-def _adaptive(s: Any) -> bool:
-    return bool(getattr(s, "adaptive", getattr(s, "b_low", None) is not None))
-
-
 def _auto_available(system: System) -> bool:
     """Whether ``integrate`` offers ``scheme = "auto"`` (added by the stiffness switching)."""
     try:
@@ -154,7 +150,7 @@ def candidates(euler_limit: float | None, target: float, span: float,
     if euler_limit is not None:
         for name, s in schemes.items():
             interval = real_stability_interval(s)
-            if interval is not None and euler and not _adaptive(s):  # (a pair: rtol only)
+            if interval is not None and euler and not s.adaptive:  # (a pair: rtol only)
                 limit = euler_limit * interval / euler
                 runs += [Run(name, _round(min(f * limit, largest)), family=f"{name} fixed")
                          for f in EXPLICIT_FRACTIONS]
@@ -163,7 +159,7 @@ def candidates(euler_limit: float | None, target: float, span: float,
                 runs += [Run(name, _round(min(m * euler_limit, largest)), family=f"{name} fixed")
                          for m in IMPLICIT_MULTIPLES]
     first = euler_limit if euler_limit is not None else largest
-    adaptive = [name for name, s in schemes.items() if _adaptive(s)] + (["auto"] if auto else [])
+    adaptive = [name for name, s in schemes.items() if s.adaptive] + (["auto"] if auto else [])
     for name in adaptive:
         runs += [Run(name, _round(min(first, largest)), rtol=_round(f * target),
                      family=f"{name} adaptive") for f in RTOL_FACTORS]
