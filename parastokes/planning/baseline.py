@@ -48,6 +48,7 @@ from ..core.files import atomic_write
 from ..integrate.schemes import Scheme, real_stability_boundary
 from ..parareal.best_serial import cached_entries
 from ..parareal.metrics import relative_change
+from ..tuning.cost import compile_loops
 from ..tuning.pilot import own_error
 
 __all__ = ["F_FACTOR", "Baseline", "Run", "cached", "candidates", "cheapest", "choose_runs",
@@ -282,14 +283,7 @@ def search(system: System, x0: np.ndarray, t0: float, t1: float, fine: integrate
     problem's fingerprint recorded with the result."""
     notes: list[str] = []
     x0 = np.asarray(x0, dtype=float)
-    # load (or, on a cold numba cache, compile) every loop before the clock starts, as tune does
-    for name in dict.fromkeys([fine.scheme, *integrate.SCHEMES]):
-        own = name == fine.scheme
-        try:
-            integrate.run(system, x0, t0, t0 + fine.dt, name, fine.dt,
-                          rtol=fine.rtol if own else None, atol=fine.atol if own else None)
-        except integrate.BlowUpError:
-            pass
+    compile_loops(system, x0, t0, fine, integrate.SCHEMES)
     started = clock()
     probe_steps = max(1, min(50, integrate.n_steps(t0, t1, fine.dt)))
     start = clock()

@@ -647,17 +647,9 @@ def tune(
 
     space.check(pilot_system.params, grid_ok)
     reaches = reach_table(pilot_system)
-    # load (or, on a cold numba cache, compile) the stepping loops before the clock starts, so
-    # that compiling is not charged to the search (a fresh checkout's vesicle: 21 % instead of 14)
     for body, x in {id(system): (system, system.initial_state()),
                  id(pilot_system): (pilot_system, start_state)}.values():
-        for scheme in dict.fromkeys((fine.scheme, *space.schemes)):
-            own = scheme == fine.scheme
-            try:
-                integrate.run(body, x, t0, t0 + fine.dt, scheme, fine.dt,
-                              rtol=fine.rtol if own else None, atol=fine.atol if own else None)
-            except integrate.BlowUpError:
-                pass  # reported below, where the fine solver's steps are timed
+        cost.compile_loops(body, x, t0, fine, space.schemes)
     started, wall, cpu = clock(), time.perf_counter(), time.process_time()
     slice_length = (t1 - t0) / n_slices
     fine_steps = integrate.n_steps(0.0, slice_length, fine.dt)
