@@ -220,7 +220,12 @@ def test_compiled_adaptive_steps_are_the_python_steps(swimmer, name):
     assert isinstance(adaptive.stepper_for(rod, SCHEMES[name], compiled=False),
                       integrate.explicit.PairStepper)
     rejected = []
+    new = SCHEMES[name].stages - 1  # first same as last
     for rtol in (1e-3, 1e-5):
+        pair = adaptive.stepper_for(rod, SCHEMES[name])
+        _, counts = adaptive.segment(pair, rod.project(x0), 0.0, 2e-3, 1e-5, (rtol, rtol / 10),
+                                     adaptive.Watch(rod, x0, 100.0))
+        assert pair.evaluations == 1 + new * (counts.accepted + counts.rejected)
         a, b = _both(rod, x0, name, rtol)
         assert (a.n_steps, a.n_rejected, a.dt, a.max_monitor) == (
             b.n_steps, b.n_rejected, b.dt, b.max_monitor)

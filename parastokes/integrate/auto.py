@@ -12,23 +12,24 @@ steps that share them (measured on the paper's rod, docs/stiff.md), plus the two
 allows is about the same for both; the explicit one is capped by stability at ``h ρ`` below
 its boundary on the negative real axis (:func:`.schemes.real_stability_boundary`: 2.51).
 
-- **Explicit phase.** Every :data:`RHO_EVERY` accepted steps, one step of a power iteration on
-  the rates' Jacobian by a finite difference of the rates at the step's end (one evaluation:
-  the rates there are the pair's last stage), started from the direction of the step's error
-  estimate ``Σ (b_l - b̂_l) k_l`` (where stability limits the step, the stiff modes dominate
-  it). Where ``h ρ`` exceeded :data:`STIFF_FRACTION` of the boundary at :data:`STIFF_CHECKS`
-  checks in a row, stability sets the step, and the implicit scheme is tried with one step of
-  the break-even size ``h* = h C_I / C_E`` (:meth:`Costs.break_even`): if its error estimate
-  accepts it, the implicit step covers at least as much time per evaluation and the run goes
-  on implicit from there (the step is kept); else the run stays explicit, remembers the step
-  the implicit scheme would take (``h*`` times the controller's factor) and tries again only
-  where the explicit step then costs more per unit time than that one would, and not before
-  the explicit phase has spent :data:`RETRY` times the cost of an implicit step.
+- **Explicit phase.** After every :data:`RHO_EVERY` accepted steps, one step of a power
+  iteration on the rates' Jacobian by a finite difference of the rates at the step's end (one
+  evaluation: the rates there are the pair's last stage), started from the direction of the
+  step's error estimate ``Σ (b_l - b̂_l) k_l`` (where stability limits the step, the stiff
+  modes dominate it). Where ``h ρ`` exceeds :data:`STIFF_FRACTION` of the boundary
+  (:data:`STIFF_CHECKS` checks in a row), stability sets the step, and the implicit scheme is
+  tried with one step of :data:`TRIAL` times the break-even size ``h_E C_I / C_E``
+  (:meth:`Costs.break_even`): if its error estimate accepts it, implicit steps cover time at
+  least TRIAL times more cheaply and the run goes on implicit from there (the step is kept);
+  else the run stays explicit, remembers the step the implicit scheme would take (the trial
+  step times the controller's factor) and tries again only where the explicit step then costs
+  more per unit time than that one would, and not before the explicit phase has spent
+  :data:`RETRY` times the cost of an implicit step.
 - **Implicit phase.** After every accepted step, a power-iteration step (two evaluations);
-  where the explicit pair at ``min(h, STIFF_FRACTION boundary / ρ)`` (``h`` the step the
-  accuracy allows now) would cost less per unit time than the implicit step ``h``
-  (:meth:`Costs.explicit_cheaper`) for :data:`BACK_STEPS` steps in a row, the run switches
-  back, from that step.
+  where the explicit pair at ``min(h, EXPLICIT_FRACTION boundary / ρ)`` (``h`` the step the
+  accuracy allows now; rk23's step where stability limits it) would cost less per unit time
+  than the implicit step ``h`` (:meth:`Costs.explicit_cheaper`) for :data:`BACK_STEPS` steps
+  in a row, the run switches back, from that step.
 
 Every switch is logged (INFO: the time, the scheme, the costs compared) and kept in the result
 (:attr:`RunResult.switches`, with the steps of each scheme in :attr:`RunResult.by_scheme`; a
@@ -69,9 +70,15 @@ IMPLICIT_EVALS = 20.0
 #: shifted one).
 PROBE_EVALS = 2.0
 #: One power-iteration step (one evaluation) every RHO_EVERY accepted explicit steps.
-RHO_EVERY = 4
+RHO_EVERY = 8
 #: Stiff where h ρ > STIFF_FRACTION x the boundary at STIFF_CHECKS checks in a row.
-STIFF_FRACTION, STIFF_CHECKS = 0.9, 2
+STIFF_FRACTION, STIFF_CHECKS = 0.8, 1
+#: Where stability limits it, rk23's step under the PI controller is h ρ ≈ EXPLICIT_FRACTION x
+#: its boundary (measured on the paper's rod: 2.27 / 2.51).
+EXPLICIT_FRACTION = 0.9
+#: The trial step of the implicit scheme: TRIAL x the break-even step (a switch must win by
+#: that much at least, so that a run near the break-even does not switch back and forth).
+TRIAL = 2.0
 #: Back to explicit where it is the cheaper for BACK_STEPS implicit steps in a row.
 BACK_STEPS = 5
 #: After a trial step that failed, or a switch back, no trial before the explicit phase has
@@ -136,15 +143,13 @@ class _Explicit:
                  implicit_step: float, budget: float) -> None:
         self.system, self.stepper, self.costs, self.boundary = system, stepper, costs, boundary
         self.implicit_step, self.budget = implicit_step, budget
-        self.steps = self.stiff = 0
+        self.stiff = 0
         self.rho, self.direction, self.step = 0.0, np.zeros(0), math.nan
 
     def __call__(self, t: float, x: np.ndarray, step: float, h: float) -> bool:
-        self.steps += 1
-        self.budget -= self.costs.explicit
+        """After every RHO_EVERY-th accepted step (``step`` the last)."""
+        self.budget -= RHO_EVERY * self.costs.explicit
         self.step = step
-        if self.steps % RHO_EVERY:
-            return False
         scheme = self.stepper.scheme
         assert isinstance(scheme, Scheme) and scheme.fsal  # its last stage: the rates at x
         if not self.direction.size:
@@ -167,7 +172,7 @@ class _Implicit:
 
     def explicit_step(self, h: float) -> float:
         """The explicit pair's step where the accuracy allows ``h``: capped by stability."""
-        return min(h, STIFF_FRACTION * self.boundary / self.rho) if self.rho > 0 else h
+        return min(h, EXPLICIT_FRACTION * self.boundary / self.rho) if self.rho > 0 else h
 
     def __call__(self, t: float, x: np.ndarray, step: float, h: float) -> bool:
         self.rho, self.direction = power_step(self.system, t, x, self.direction)
@@ -194,11 +199,11 @@ def auto_run(system: System, x: np.ndarray, t0: float, t1: float, dt: float,
     while t < t1:
         stepper = stepper_for(system, pair, compiled)
         explicit = _Explicit(system, stepper, costs, boundary, implicit_step, budget)
-        x, done = segment(stepper, x, t, t1, h, tol, watch, explicit)
+        x, done = segment(stepper, x, t, t1, h, tol, watch, explicit, every=RHO_EVERY)
         t, h = done.end, done.last_step
         counts[pair.name][0] += done.accepted
         counts[pair.name][1] += done.rejected
-        trial = costs.break_even(explicit.step)
+        trial = TRIAL * costs.break_even(explicit.step)
         if t >= t1:
             break
         budget = RETRY * costs.implicit
@@ -213,15 +218,16 @@ def auto_run(system: System, x: np.ndarray, t0: float, t1: float, dt: float,
         if not (err <= 1.0 and watch(t + trial, x_new, 0)):
             counts[implicit.name][1] += 1
             implicit_step = trial * factor(err, q, True)
-            log.info("auto: stays %s at t=%.10g: a step of %s of %.4g (the break-even %g/%g x "
-                     "the explicit %.4g) has err %.3g > 1", pair.name, t, implicit.name, trial,
-                     costs.implicit, costs.explicit, explicit.step, err)
+            log.info("auto: stays %s at t=%.10g: a step of %s of %.4g (%g x the break-even %g/%g "
+                     "x the explicit %.4g) has err %.3g > 1", pair.name, t, implicit.name, trial,
+                     TRIAL, costs.implicit, costs.explicit, explicit.step, err)
             continue
         switches.append((t, implicit.name, (
             f"stiff: h ρ = {explicit.step * explicit.rho:.3g} > {STIFF_FRACTION:g} x "
             f"{pair.name}'s stability boundary {boundary:.3g}, and {implicit.name} took a step "
-            f"of {trial:.4g} = {costs.implicit:g}/{costs.explicit:g} x {pair.name}'s "
-            f"{explicit.step:.4g} (err {err:.3g}): as cheap per unit time or cheaper")))
+            f"of {trial:.4g} = {TRIAL:g} x {costs.implicit:g}/{costs.explicit:g} x "
+            f"{pair.name}'s {explicit.step:.4g} (err {err:.3g}): {TRIAL:g} x cheaper per unit "
+            "time or more")))
         log.info("auto: %s from t=%.10g, %s", implicit.name, t, switches[-1][2])
         t, x = t + trial, x_new
         counts[implicit.name][0] += 1

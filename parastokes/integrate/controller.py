@@ -140,7 +140,7 @@ def adaptive_steps(stepper: EstimatingStepper, q: int, x: np.ndarray, t0: float,
                    h0: float, rtol: float, atol: float,
                    accept: Callable[[float, np.ndarray, int], bool],
                    until: Callable[[float, np.ndarray, float, float], bool] | None = None,
-                   pi: bool = False) -> tuple[np.ndarray, AdaptiveResult]:
+                   pi: bool = False, every: int = 1) -> tuple[np.ndarray, AdaptiveResult]:
     """Steps from ``(t0, x)`` to ``t1`` whose estimated local error stays within ``rtol`` and
     ``atol`` (:func:`error_norm` <= 1), the first of size ``h0``, the next ones by
     :func:`factor` with the estimate's order ``q`` (with ``pi``, PI control from the second
@@ -148,9 +148,9 @@ def adaptive_steps(stepper: EstimatingStepper, q: int, x: np.ndarray, t0: float,
 
     ``accept(t, x_new, step)`` sees every step whose error is small enough; it returns False for
     a state the run cannot keep (its monitor beyond the limit: the step is rejected) and may
-    raise to end the run. ``until(t, x, step, h)``, after each accepted step (``step`` taken,
-    ``h`` the next one) before ``t1``, may stop the steps there. Returns the state where the steps
-    ended and the counts.
+    raise to end the run. ``until(t, x, step, h)``, after every ``every``-th accepted step
+    (``step`` taken, ``h`` the next one) before ``t1``, may stop the steps there. Returns the
+    state where the steps ended and the counts.
     """
     t, h = t0, min(h0, t1 - t0)
     smallest = smallest_step(t0, t1)
@@ -174,6 +174,6 @@ def adaptive_steps(stepper: EstimatingStepper, q: int, x: np.ndarray, t0: float,
             rejected += 1
         if h < smallest:
             raise StepSizeError(t, h)
-        if ok and t < t1 and until is not None and until(t, x, step, h):
+        if ok and t < t1 and until is not None and accepted % every == 0 and until(t, x, step, h):
             break
     return x, AdaptiveResult(accepted, rejected, h, t)

@@ -245,7 +245,7 @@ def _run(x, t0, dt, first, n_steps, tableau, data, limit, stop_above):
 
 
 #: Slots of the ``carry`` array of :func:`_adaptive` (what a call hands to the next).
-T, H, PREVIOUS, KNOWN, ACCEPTED, REJECTED, WORST, LAST = range(8)
+T, H, PREVIOUS, KNOWN, ACCEPTED, REJECTED, WORST, LAST, EVALUATIONS = range(9)
 #: ``carry[KNOWN]``: nothing known at (t, x); ``k[0]`` (the first stage of a rejected step);
 #: ``k[-1]`` (the last stage of an accepted step of a first-same-as-last pair).
 UNKNOWN, FIRST, FSAL = 0.0, 1.0, 2.0
@@ -266,9 +266,9 @@ def _adaptive(x, k, carry, t1, pause, tableau, low, data, control, constants, li
 
     ``k`` (s, n, columns) holds the stages of the last step tried; ``carry`` (in and out) the
     time, next step, last accepted error (PI), which stage is known at ``(t, x)``, the counts,
-    the worst monitor and the last accepted step. Returns :data:`REACHED`, :data:`PAUSED`
-    (after ``pause`` accepted steps before ``t1``) or :data:`TOO_SMALL`; the state reached is
-    written into ``x``.
+    the worst monitor, the last accepted step and the rate evaluations. Returns
+    :data:`REACHED`, :data:`PAUSED` (after ``pause`` accepted steps before ``t1``) or
+    :data:`TOO_SMALL`; the state reached is written into ``x``.
     """
     c, a, b, stage_brackets, final_brackets = tableau
     b_low, low_brackets = low
@@ -287,6 +287,8 @@ def _adaptive(x, k, carry, t1, pause, tableau, low, data, control, constants, li
             k[0, :, :] = k[s - 1]
         elif known == UNKNOWN:
             rates_into(data, t, state, work, k[0])
+            carry[EVALUATIONS] += 1
+        carry[EVALUATIONS] += s - 1
         for st in range(1, s):
             _combine(data, a[st, :st], k, stage_brackets, st, step, comb)
             rates_into(data, t + c[st] * step, advance(data, state, comb, step), work, k[st])
@@ -424,23 +426,24 @@ class CompiledPair:
     """Adaptive steps of an explicit embedded pair on a system's compiled parts
     (:func:`_adaptive`): what :func:`parastokes.integrate.controller.adaptive_steps` does with a
     :class:`parastokes.integrate.explicit.PairStepper`, the same steps (tested: counts equal,
-    states equal to round-off), in compiled calls of about :data:`CALL_SECONDS`, or of one
-    accepted step each where ``until`` watches the steps.
+    states equal to round-off), in compiled calls of about :data:`CALL_SECONDS`, or of
+    ``every`` accepted steps each where ``until`` watches the steps.
 
-    ``steps`` counts the steps tried, ``k`` (s, n, columns) holds the stages of the last one
-    (as ``PairStepper.k``)."""
+    ``steps`` counts the steps tried and ``evaluations`` the rate evaluations of the last
+    :meth:`steps_from`; ``k`` (s, n, columns) holds the stages of the last step (as
+    ``PairStepper.k``)."""
 
     def __init__(self, system: ThreadedSystem, make_data: Callable[[Any, int], tuple],
                  scheme: Scheme) -> None:
         assert scheme.b_low is not None
         self.system, self.make_data, self.scheme = system, make_data, scheme
-        self.steps = 0
+        self.steps = self.evaluations = 0
         self.k = np.empty((scheme.stages, 0, 0))
 
     def steps_from(self, x: np.ndarray, t0: float, t1: float, h0: float, q: int,
                    tol: tuple[float, float], limit: float, worst: float,
                    until: Callable[[float, np.ndarray, float, float], bool] | None = None,
-                   pi: bool = True) -> tuple[np.ndarray, AdaptiveResult, float]:
+                   pi: bool = True, every: int = 1) -> tuple[np.ndarray, AdaptiveResult, float]:
         """The steps of :func:`.controller.adaptive_steps` (the same arguments; ``limit`` the
         monitor's, ``worst`` the worst monitor so far): the state reached, the counts, and the
         worst monitor seen. Raises :class:`.controller.StepSizeError` as it does."""
@@ -451,8 +454,8 @@ class CompiledPair:
                np.array(s.low_brackets, dtype=float).reshape(-1, 3))
         control = np.array([q, tol[0], tol[1], pi, controller.smallest_step(t0, t1), s.fsal],
                            dtype=float)
-        carry = np.array([t0, min(h0, t1 - t0), 0.0, UNKNOWN, 0, 0, worst, math.nan])
-        chunk = 1 if until is not None else 8
+        carry = np.array([t0, min(h0, t1 - t0), 0.0, UNKNOWN, 0, 0, worst, math.nan, 0])
+        chunk = every if until is not None else 8
         with kernel_threads(self.system.n_threads) as threads:
             data = self.make_data(self.system, threads)
             loop = _loop_for(data, _adaptive)
@@ -462,6 +465,7 @@ class CompiledPair:
                 outcome = loop(x, self.k, carry, float(t1), chunk, tableau, low, data, control,
                                controller.constants(), float(limit))
                 self.steps = int(carry[ACCEPTED] + carry[REJECTED])
+                self.evaluations = int(carry[EVALUATIONS])
                 if outcome == TOO_SMALL:
                     raise StepSizeError(carry[T], carry[H])
                 if outcome == REACHED:
