@@ -55,7 +55,7 @@ def test_a_stiff_problem_switches_to_implicit_and_takes_far_fewer_steps(caplog):
     assert f"auto: {auto.IMPLICIT} from t={t:.10g}, stiff" in caplog.text
     assert run.n_steps + run.n_rejected < (explicit.n_steps + explicit.n_rejected) / 20
     by = {name: (accepted, rejected) for name, accepted, rejected in run.by_scheme}
-    assert by["rk23"][0] >= auto.RHO_EVERY * auto.STIFF_CHECKS  # explicit until seen stiff
+    assert by["rk23"][0] >= auto.RHO_EVERY  # explicit until seen stiff
     assert sum(a for a, _ in by.values()) == run.n_steps
     error = np.abs(run.state - Counted(lam=(-1.0, -1e4)).exact(0.3)).max()
     assert error < 3e-3
@@ -158,8 +158,8 @@ def test_auto_takes_the_same_steps_compiled_and_in_python():
     """On a rod, the explicit phases in the compiled loop and in Python: the same switches,
     counts and state."""
     rod = models.rod_swimmer(n_points=41, length=8.0)
-    a, b = (integrate.run(rod, rod.initial_state(), 0.0, 4e-3, "auto", 1e-5, rtol=1e-3,
-                          atol=1e-4, compiled=compiled) for compiled in (True, False))
+    a, b = (integrate.run(rod, rod.initial_state(), 0.0, 4e-3, "auto", 1e-5, rtol=1e-2,
+                          atol=1e-3, compiled=compiled) for compiled in (True, False))
     assert a.switches and a.switches == b.switches and a.by_scheme == b.by_scheme
     assert np.array_equal(a.state, b.state)
 

@@ -16,15 +16,16 @@ its boundary on the negative real axis (:func:`.schemes.real_stability_boundary`
   iteration on the rates' Jacobian by a finite difference of the rates at the step's end (one
   evaluation: the rates there are the pair's last stage), started from the direction of the
   step's error estimate ``Σ (b_l - b̂_l) k_l`` (where stability limits the step, the stiff
-  modes dominate it). Where ``h ρ`` exceeds :data:`STIFF_FRACTION` of the boundary
-  (:data:`STIFF_CHECKS` checks in a row), stability sets the step, and the implicit scheme is
-  tried with one step of :data:`TRIAL` times the break-even size ``h_E C_I / C_E``
+  modes dominate it). Where ``h ρ`` exceeds :data:`STIFF_FRACTION` of the boundary,
+  stability sets the step, and the implicit scheme is tried with one step of :data:`TRIAL`
+  times the break-even size ``h_E C_I / C_E``
   (:meth:`Costs.break_even`): if its error estimate accepts it, implicit steps cover time at
   least TRIAL times more cheaply and the run goes on implicit from there (the step is kept);
   else the run stays explicit, remembers the step the implicit scheme would take (the trial
-  step times the controller's factor) and tries again only where the explicit step then costs
-  more per unit time than that one would, and not before the explicit phase has spent
-  :data:`RETRY` times the cost of an implicit step.
+  step times the controller's factor) and tries again only where that step would be TRIAL
+  times cheaper per unit time than the explicit step then, and not before the explicit phase
+  has spent :data:`RETRY` times the cost of an implicit step (ρ is estimated only where a
+  trial could follow).
 - **Implicit phase.** After every accepted step, a power-iteration step (two evaluations);
   where the explicit pair at ``min(h, EXPLICIT_FRACTION boundary / ρ)`` (``h`` the step the
   accuracy allows now; rk23's step where stability limits it) would cost less per unit time
@@ -71,8 +72,8 @@ IMPLICIT_EVALS = 20.0
 PROBE_EVALS = 2.0
 #: One power-iteration step (one evaluation) every RHO_EVERY accepted explicit steps.
 RHO_EVERY = 8
-#: Stiff where h ρ > STIFF_FRACTION x the boundary at STIFF_CHECKS checks in a row.
-STIFF_FRACTION, STIFF_CHECKS = 0.8, 1
+#: Stability sets the explicit step where h ρ > STIFF_FRACTION x the boundary.
+STIFF_FRACTION = 0.8
 #: Where stability limits it, rk23's step under the PI controller is h ρ ≈ EXPLICIT_FRACTION x
 #: its boundary (measured on the paper's rod: 2.27 / 2.51).
 EXPLICIT_FRACTION = 0.9
@@ -143,22 +144,21 @@ class _Explicit:
                  implicit_step: float, budget: float) -> None:
         self.system, self.stepper, self.costs, self.boundary = system, stepper, costs, boundary
         self.implicit_step, self.budget = implicit_step, budget
-        self.stiff = 0
         self.rho, self.direction, self.step = 0.0, np.zeros(0), math.nan
 
     def __call__(self, t: float, x: np.ndarray, step: float, h: float) -> bool:
         """After every RHO_EVERY-th accepted step (``step`` the last)."""
         self.budget -= RHO_EVERY * self.costs.explicit
         self.step = step
+        if self.budget > 0 or self.costs.explicit_cheaper(TRIAL * step, self.implicit_step):
+            return False  # no trial due, whatever ρ: not estimated
         scheme = self.stepper.scheme
         assert isinstance(scheme, Scheme) and scheme.fsal  # its last stage: the rates at x
         if not self.direction.size:
             self.direction = _error_direction(scheme, self.stepper.k)
         self.rho, self.direction = power_step(self.system, t, x, self.direction,
                                               np.array(self.stepper.k[-1]))
-        self.stiff = self.stiff + 1 if step * self.rho > STIFF_FRACTION * self.boundary else 0
-        return (self.stiff >= STIFF_CHECKS and self.budget <= 0
-                and not self.costs.explicit_cheaper(step, self.implicit_step))
+        return step * self.rho > STIFF_FRACTION * self.boundary
 
 
 class _Implicit:
