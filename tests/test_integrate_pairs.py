@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 from fractions import Fraction
+from typing import NamedTuple
 
 import numpy as np
 import pytest
@@ -273,3 +274,20 @@ def test_compiled_adaptive_steps_reject_a_state_beyond_the_monitors_limit(swimme
                           compiled=compiled)
         errors.append((caught.value.t, caught.value.step))
     assert errors[0] == errors[1] and errors[0][1] > 30
+
+
+class _UserData(NamedTuple):
+    """A compiled system's data of a type from outside the package (a user's body)."""
+
+    values: np.ndarray
+
+
+def test_a_users_data_gets_its_own_copy_of_each_compiled_loop():
+    """integrate.loop._loop_for: the fixed-step and the adaptive loop each get a copy of their
+    own for a user's data type (one per loop and set of modules: not the same copy twice)."""
+    data = _UserData(np.zeros(1))
+    fixed, pairs = loop._loop_for(data), loop._loop_for(data, loop._adaptive)
+    assert fixed is not pairs and fixed is loop._loop_for(data)
+    assert fixed.py_func.__qualname__ == "_run_for_test_integrate_pairs"
+    assert pairs.py_func.__qualname__ == "_adaptive_for_test_integrate_pairs"
+    assert loop._loop_for((1.0, np.zeros(1)), loop._adaptive) is loop._adaptive

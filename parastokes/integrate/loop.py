@@ -27,9 +27,15 @@ also supplies :func:`loads_into` and :func:`body_rates_into` (its Python ``loads
 ``body_rates``) can be stepped in a scene's compiled loop (:mod:`parastokes.scene.compiled`);
 :func:`register_parts` registers its type for both loops.
 
+:class:`CompiledPair` runs the adaptive steps of an embedded explicit pair on the same parts
+(:func:`_adaptive`), as :func:`parastokes.integrate.controller.adaptive_steps` takes them in
+Python: the same steps, bit for bit, since both call the controller's compiled error norm and
+step factor (docs/stiff.md, "Adaptive explicit pairs").
+
 numba caches each compiled function keyed on its own source file only: after editing a system's
-parts (or anything they call) in another file, delete the ``__pycache__`` folders before timing
-or testing, or the cached loop still runs the old parts. A fresh checkout or install has no cache.
+parts (or anything they call, the arithmetic of :mod:`.controller` included; its constants are
+read at each call) in another file, delete the ``__pycache__`` folders before timing or
+testing, or the cached loop still runs the old parts. A fresh checkout or install has no cache.
 """
 
 from __future__ import annotations
