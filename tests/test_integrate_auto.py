@@ -69,18 +69,34 @@ def test_a_nonstiff_problem_stays_explicit_within_its_tolerance():
         assert np.abs(run.state - system.exact(1.0)).max() < 3 * rtol
 
 
-def test_stiff_but_cheaper_explicit_stays_explicit_after_one_trial_step(caplog):
-    """Stability sets rk23's step (h ρ ≈ 2.3), but the accuracy of ω = 30 allows ros34pw2 less
-    than TRIAL x the break-even 22/3.125 times it: its one trial step is rejected, the run stays
-    explicit, and no trial follows while the explicit step costs less than the one estimated."""
+def _trials(caplog):
+    """The times of the rejected trials logged."""
+    return [float(t) for t in re.findall(r"auto: stays rk23 at t=(\S+): a step", caplog.text)]
+
+
+def test_stiff_but_cheaper_explicit_stays_explicit_after_failed_trial_steps(caplog):
+    """Stability sets rk23's step (h ρ ≈ 2.1) where the smooth part varies least (twice a period
+    of sin ωt, ω = 30), but the accuracy then allows ros34pw2 less than TRIAL x the break-even
+    22/3.125 times it: each trial step (one there) is rejected and the run stays explicit."""
     with caplog.at_level(logging.INFO, logger="parastokes.integrate.auto"):
         run = _run(Fast(lam=(-1.0, -2e4)), 1e-7, t1=0.3)
     assert run.switches == ()
-    assert dict((n, (a, r)) for n, a, r in run.by_scheme)[auto.IMPLICIT] == (0, 1)
-    assert caplog.text.count("auto: stays rk23") == 1
+    trials = _trials(caplog)
+    assert dict((n, (a, r)) for n, a, r in run.by_scheme)[auto.IMPLICIT] == (0, len(trials))
+    assert len(trials) == 3 and np.diff(trials) == pytest.approx([0.1, 0.1], abs=0.01)
     assert re.search(r"2 x the break-even 22/3.125 x the explicit .* has err [\d.]+ > 1",
                      caplog.text)
     assert np.abs(run.state - Fast(lam=(-1.0, -2e4)).exact(0.3)).max() < 3e-7
+
+
+def test_failed_trials_back_off_geometrically(caplog):
+    """Stiff at every check, the trials failing: the explicit steps between two trials double
+    (RETRY x C_I x 2^n evaluations after n failures; the steps here are about equal, so the
+    times between trials double)."""
+    with caplog.at_level(logging.INFO, logger="parastokes.integrate.auto"):
+        _run(Fast(lam=(-1.0, -2e5), omega=100.0), 1e-7, t1=0.012)
+    gaps = np.diff(_trials(caplog))
+    assert len(gaps) >= 3 and gaps[1:4] / gaps[:3] == pytest.approx([2.0] * 3, rel=0.25)
 
 
 def test_auto_switches_back_once_the_stiffness_is_gone():

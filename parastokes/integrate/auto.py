@@ -21,11 +21,12 @@ its boundary on the negative real axis (:func:`.schemes.real_stability_boundary`
   times the break-even size ``h_E C_I / C_E``
   (:meth:`Costs.break_even`): if its error estimate accepts it, implicit steps cover time at
   least TRIAL times more cheaply and the run goes on implicit from there (the step is kept);
-  else the run stays explicit, remembers the step the implicit scheme would take (the trial
-  step times the controller's factor) and tries again only where that step would be TRIAL
-  times cheaper per unit time than the explicit step then, and not before the explicit phase
-  has spent :data:`RETRY` times the cost of an implicit step (ρ is estimated only where a
-  trial could follow).
+  else the run stays explicit and tries again once the explicit phase has spent
+  ``RETRY 2^n`` times the cost of an implicit step after ``n`` failed trials in a row (a
+  geometric back-off: the trials cost a bounded and falling share of the run; ρ is estimated
+  only where a trial could follow). One implicit stepper serves the whole run, so that a trial
+  reuses the approximate Jacobian and its factorization of the last one while they are fresh
+  (``stiff.REFRESH`` steps; a W-method keeps its order with an older ``A``).
 - **Implicit phase.** After every accepted step, a power-iteration step (two evaluations);
   where the explicit pair at ``min(h, EXPLICIT_FRACTION boundary / ρ)`` (``h`` the step the
   accuracy allows now; rk23's step where stability limits it) would cost less per unit time
@@ -82,9 +83,9 @@ EXPLICIT_FRACTION = 0.9
 TRIAL = 2.0
 #: Back to explicit where it is the cheaper for BACK_STEPS implicit steps in a row.
 BACK_STEPS = 5
-#: After a trial step that failed, or a switch back, no trial before the explicit phase has
-#: spent RETRY implicit steps' worth of evaluations.
-RETRY = 25.0
+#: After a switch back, no trial before the explicit phase has spent RETRY implicit steps'
+#: worth of evaluations; after n trials in a row that failed, 2^n times that.
+RETRY = 10.0
 
 
 @dataclass(frozen=True)
@@ -141,16 +142,16 @@ class _Explicit:
     of the implicit scheme is due (the module docstring)."""
 
     def __init__(self, system: System, stepper: Stepper, costs: Costs, boundary: float,
-                 implicit_step: float, budget: float) -> None:
+                 budget: float) -> None:
         self.system, self.stepper, self.costs, self.boundary = system, stepper, costs, boundary
-        self.implicit_step, self.budget = implicit_step, budget
+        self.budget = budget
         self.rho, self.direction, self.step = 0.0, np.zeros(0), math.nan
 
     def __call__(self, t: float, x: np.ndarray, step: float, h: float) -> bool:
         """After every RHO_EVERY-th accepted step (``step`` the last)."""
         self.budget -= RHO_EVERY * self.costs.explicit
         self.step = step
-        if self.budget > 0 or self.costs.explicit_cheaper(TRIAL * step, self.implicit_step):
+        if self.budget > 0:
             return False  # no trial due, whatever ρ: not estimated
         scheme = self.stepper.scheme
         assert isinstance(scheme, Scheme) and scheme.fsal  # its last stage: the rates at x
@@ -195,10 +196,11 @@ def auto_run(system: System, x: np.ndarray, t0: float, t1: float, dt: float,
     t, h = t0, dt
     switches: list[tuple[float, str, str]] = []
     counts = {pair.name: [0, 0], implicit.name: [0, 0]}
-    implicit_step, budget = math.inf, 0.0
+    budget, failed = 0.0, 0
+    solver = stepper_for(system, implicit)  # one for the run: its Jacobian serves every trial
     while t < t1:
         stepper = stepper_for(system, pair, compiled)
-        explicit = _Explicit(system, stepper, costs, boundary, implicit_step, budget)
+        explicit = _Explicit(system, stepper, costs, boundary, budget)
         x, done = segment(stepper, x, t, t1, h, tol, watch, explicit, every=RHO_EVERY)
         t, h = done.end, done.last_step
         counts[pair.name][0] += done.accepted
@@ -206,10 +208,9 @@ def auto_run(system: System, x: np.ndarray, t0: float, t1: float, dt: float,
         trial = TRIAL * costs.break_even(explicit.step)
         if t >= t1:
             break
-        budget = RETRY * costs.implicit
+        budget = RETRY * costs.implicit * 2.0 ** failed
         if t + trial >= t1:  # too little time left to pay for a switch
             continue
-        solver = stepper_for(system, implicit)
         try:
             x_new, x_low = solver.step_with_estimate(t, x, trial)
             err = error_norm(x, x_new, x_low, *tol)
@@ -217,7 +218,7 @@ def auto_run(system: System, x: np.ndarray, t0: float, t1: float, dt: float,
             err = math.inf
         if not (err <= 1.0 and watch(t + trial, x_new, 0)):
             counts[implicit.name][1] += 1
-            implicit_step = trial * factor(err, q, True)
+            failed += 1
             log.info("auto: stays %s at t=%.10g: a step of %s of %.4g (%g x the break-even %g/%g "
                      "x the explicit %.4g) has err %.3g > 1", pair.name, t, implicit.name, trial,
                      TRIAL, costs.implicit, costs.explicit, explicit.step, err)
@@ -229,7 +230,7 @@ def auto_run(system: System, x: np.ndarray, t0: float, t1: float, dt: float,
             f"{pair.name}'s {explicit.step:.4g} (err {err:.3g}): {TRIAL:g} x cheaper per unit "
             "time or more")))
         log.info("auto: %s from t=%.10g, %s", implicit.name, t, switches[-1][2])
-        t, x = t + trial, x_new
+        t, x, failed = t + trial, x_new, 0
         counts[implicit.name][0] += 1
         calm = _Implicit(system, explicit.direction, costs, boundary)
         x, done = segment(solver, x, t, t1, trial * factor(err, q, True), tol, watch, calm)
@@ -238,11 +239,11 @@ def auto_run(system: System, x: np.ndarray, t0: float, t1: float, dt: float,
         counts[implicit.name][1] += done.rejected
         if t >= t1:
             break
-        implicit_step, h = h, calm.explicit_step(h)
         switches.append((t, pair.name, (
-            f"not stiff enough: {pair.name} at {h:.4g} (ρ = {calm.rho:.4g}) costs "
-            f"{costs.explicit:g} evaluations a step, {implicit.name} at {implicit_step:.4g} "
-            f"{costs.implicit:g}: explicit the cheaper for {BACK_STEPS} steps")))
+            f"not stiff enough: {pair.name} at {calm.explicit_step(h):.4g} (ρ = "
+            f"{calm.rho:.4g}) costs {costs.explicit:g} evaluations a step, {implicit.name} at "
+            f"{h:.4g} {costs.implicit:g}: explicit the cheaper for {BACK_STEPS} steps")))
+        h = calm.explicit_step(h)
         log.info("auto: %s from t=%.10g, %s", pair.name, t, switches[-1][2])
     accepted = sum(c[0] for c in counts.values())
     return RunResult(projected(system, x, t1), watch.worst, accepted, h,
