@@ -70,8 +70,9 @@ def test_a_nonstiff_problem_stays_explicit_within_its_tolerance():
 
 
 def _trials(caplog):
-    """The times of the rejected trials logged."""
-    return [float(t) for t in re.findall(r"auto: stays rk23 at t=(\S+): a step", caplog.text)]
+    """The times and errors of the rejected trials logged."""
+    found = re.findall(r"auto: stays rk23 at t=(\S+): a step .* has err (\S+) > 1", caplog.text)
+    return np.array([(float(t), float(err)) for t, err in found]).reshape(-1, 2)
 
 
 def test_stiff_but_cheaper_explicit_stays_explicit_after_failed_trial_steps(caplog):
@@ -81,7 +82,7 @@ def test_stiff_but_cheaper_explicit_stays_explicit_after_failed_trial_steps(capl
     with caplog.at_level(logging.INFO, logger="parastokes.integrate.auto"):
         run = _run(Fast(lam=(-1.0, -2e4)), 1e-7, t1=0.3)
     assert run.switches == ()
-    trials = _trials(caplog)
+    trials = _trials(caplog)[:, 0]
     assert dict((n, (a, r)) for n, a, r in run.by_scheme)[auto.IMPLICIT] == (0, len(trials))
     assert len(trials) == 3 and np.diff(trials) == pytest.approx([0.1, 0.1], abs=0.01)
     assert re.search(r"2 x the break-even 22/3.125 x the explicit .* has err [\d.]+ > 1",
@@ -90,13 +91,15 @@ def test_stiff_but_cheaper_explicit_stays_explicit_after_failed_trial_steps(capl
 
 
 def test_failed_trials_back_off_geometrically(caplog):
-    """Stiff at every check, the trials failing: the explicit steps between two trials double
-    (RETRY x C_I x 2^n evaluations after n failures; the steps here are about equal, so the
-    times between trials double)."""
+    """Stiff at every check, the trials failing: the explicit steps between two trials grow
+    as RETRY x C_I x 2^(n-1) err_n^(1/3) evaluations after the n-th failure of error err_n (the
+    steps here are about equal, so the times between trials grow alike)."""
     with caplog.at_level(logging.INFO, logger="parastokes.integrate.auto"):
-        _run(Fast(lam=(-1.0, -2e5), omega=100.0), 1e-7, t1=0.012)
-    gaps = np.diff(_trials(caplog))
-    assert len(gaps) >= 3 and gaps[1:4] / gaps[:3] == pytest.approx([2.0] * 3, rel=0.25)
+        _run(Fast(lam=(-1.0, -2e5), omega=100.0), 1e-7, t1=0.1)
+    trials = _trials(caplog)
+    gaps, severity = np.diff(trials[:, 0]), np.minimum(trials[:, 1], auto.ERR_MAX) ** (1 / 3)
+    assert len(gaps) >= 3
+    assert gaps[1:3] / gaps[:2] == pytest.approx(2.0 * severity[1:3] / severity[:2], rel=0.25)
 
 
 def test_auto_switches_back_once_the_stiffness_is_gone():

@@ -22,9 +22,10 @@ its boundary on the negative real axis (:func:`.schemes.real_stability_boundary`
   (:meth:`Costs.break_even`): if its error estimate accepts it, implicit steps cover time at
   least TRIAL times more cheaply and the run goes on implicit from there (the step is kept);
   else the run stays explicit and tries again once the explicit phase has spent
-  ``RETRY 2^n`` times the cost of an implicit step after ``n`` failed trials in a row (a
-  geometric back-off: the trials cost a bounded and falling share of the run; ρ is estimated
-  only where a trial could follow). One implicit stepper serves the whole run, so that a trial
+  ``RETRY 2^(n-1) err^(1/(q+1))`` times the cost of an implicit step after the ``n``-th failed
+  trial in a row, of error ``err`` (a geometric back-off, longer the farther the trial
+  missed: the trials cost a bounded and falling share of the run; ρ is estimated only where a
+  trial could follow). One implicit stepper serves the whole run, so that a trial
   reuses the approximate Jacobian and its factorization of the last one while they are fresh
   (``stiff.REFRESH`` steps; a W-method keeps its order with an older ``A``).
 - **Implicit phase.** After every accepted step, a power-iteration step (two evaluations);
@@ -84,8 +85,10 @@ TRIAL = 2.0
 #: Back to explicit where it is the cheaper for BACK_STEPS implicit steps in a row.
 BACK_STEPS = 5
 #: After a switch back, no trial before the explicit phase has spent RETRY implicit steps'
-#: worth of evaluations; after n trials in a row that failed, 2^n times that.
-RETRY = 10.0
+#: worth of evaluations; after the n-th failed trial in a row, with error err, 2^(n-1)
+#: min(err, ERR_MAX)^(1/(q+1)) times that (the last factor: how far the implicit step the
+#: accuracy allows was below the trial's, by the controller's law).
+RETRY, ERR_MAX = 10.0, 1e3
 
 
 @dataclass(frozen=True)
@@ -208,8 +211,8 @@ def auto_run(system: System, x: np.ndarray, t0: float, t1: float, dt: float,
         trial = TRIAL * costs.break_even(explicit.step)
         if t >= t1:
             break
-        budget = RETRY * costs.implicit * 2.0 ** failed
-        if t + trial >= t1:  # too little time left to pay for a switch
+        if t + trial >= t1:  # too little time left to pay for a switch: explicit to the end
+            budget = math.inf
             continue
         try:
             x_new, x_low = solver.step_with_estimate(t, x, trial)
@@ -218,6 +221,7 @@ def auto_run(system: System, x: np.ndarray, t0: float, t1: float, dt: float,
             err = math.inf
         if not (err <= 1.0 and watch(t + trial, x_new, 0)):
             counts[implicit.name][1] += 1
+            budget = RETRY * costs.implicit * 2.0 ** failed * min(err, ERR_MAX) ** (1 / (q + 1))
             failed += 1
             log.info("auto: stays %s at t=%.10g: a step of %s of %.4g (%g x the break-even %g/%g "
                      "x the explicit %.4g) has err %.3g > 1", pair.name, t, implicit.name, trial,
@@ -243,7 +247,7 @@ def auto_run(system: System, x: np.ndarray, t0: float, t1: float, dt: float,
             f"not stiff enough: {pair.name} at {calm.explicit_step(h):.4g} (ρ = "
             f"{calm.rho:.4g}) costs {costs.explicit:g} evaluations a step, {implicit.name} at "
             f"{h:.4g} {costs.implicit:g}: explicit the cheaper for {BACK_STEPS} steps")))
-        h = calm.explicit_step(h)
+        h, budget = calm.explicit_step(h), RETRY * costs.implicit
         log.info("auto: %s from t=%.10g, %s", pair.name, t, switches[-1][2])
     accepted = sum(c[0] for c in counts.values())
     return RunResult(projected(system, x, t1), watch.worst, accepted, h,
