@@ -129,13 +129,27 @@ def test_tune_runs_an_adaptive_fine_solver_with_its_rtol(scheme):
     assert res.chosen is not None
 
 
-def test_tune_refuses_auto_as_a_coarse_candidate_in_one_line():
-    from parastokes import tuning
+def test_tune_schemes_auto_searches_auto_on_the_rtol_ladder(tmp_path):
+    """``--schemes auto``: adaptive candidates only (docs/tuning.md), beside the plain Euler
+    baseline; each measured with its steps per slice, auto's switches among them."""
+    import json
 
-    rod = _tune_rod()
-    with pytest.raises(tuning.TuningError, match="'auto' cannot"):
-        tuning.tune(integrate.Propagator(rod, "rk2", 1e-6), t0=0.0, t1=2e-3, n_slices=2,
-                    cores=2, target=1e-3, space=tuning.Space(schemes=("auto",)))
+    from test_tune import CONFIG
+
+    from parastokes import cli
+
+    source = tmp_path / "rod.toml"
+    source.write_text(CONFIG.replace("nodes = [2, 3]", "nodes = [2]"))
+    out = tmp_path / "TUNED.toml"
+    assert cli.main(["tune", str(source), "--cores", "4", "--target", "1e-4", "--out", str(out),
+                     "-q", "--schemes", "auto", "--coarse-rtols", "1e-3", "--parameters",
+                     "--exhaustive"]) == 0
+    report = json.loads(out.with_suffix(".json").read_text())
+    assert report["baseline"]["scheme"] == "euler" and report["baseline"]["rtol"] is None
+    (row,) = [c for c in report["candidates"] if c["scheme"] == "auto"]
+    assert (row["scheme"], row["rtol"], row["richardson"]["m"]) == ("auto", 1e-3, 0)
+    assert row["screen"]["steps"]["accepted"] > 0 and "switches" in row["adaptive_steps"]
+    assert "--schemes auto --parameters --coarse-rtols 0.001" in out.read_text()
 
 
 # ---- plan: adaptive runs (and auto) in the serial baseline -----------------------------------
