@@ -44,9 +44,12 @@ def test_the_rtol_ladder_gives_one_adaptive_candidate_per_rtol_without_richardso
     assert all(c.m == 0 and c.step_fraction == 1.0 and c.atol is None for c in adaptive)
     assert not any(c.scheme in ("rk45", "auto") and not c.adaptive for c in found)
     assert len({c.label() for c in found}) == len(found)  # each labelled apart (rtol shown)
-    # the default ladder
-    default = Space(schemes=("rk23",), parameters=(), richardson=(0,))
-    assert [c.rtol for c in default.candidates(THETA0)] == list(COARSE_RTOLS)
+    # the default ladder: for the schemes that take adaptive steps only; a Rosenbrock scheme
+    # gets adaptive candidates only from a ladder given (its fixed-step search as it was)
+    default = Space(schemes=("rk23", "ros2"), parameters=(), richardson=(0,),
+                    step_fractions=(1.0,))
+    assert [(c.scheme, c.rtol) for c in default.candidates(THETA0)] == [
+        *(("rk23", r) for r in COARSE_RTOLS), ("ros2", None)]
 
 
 @pytest.mark.parametrize(

@@ -12,9 +12,11 @@ optional class attribute ``tuning_reach`` (the vesicle's reach the nodes of Tabl
 A scheme with an error estimate (``integrate.SCHEMES[name].adaptive``, and ``"auto"``) also gives
 adaptive candidates: every auxiliary solver takes adaptive steps within ``rtol`` (and ``atol``),
 one candidate per value of the ladder :attr:`Space.coarse_rtols`, as fixed-step candidates take
-one per step fraction. Richardson extrapolation needs the fixed steps r^q τ of eq. 26, so
-adaptive candidates have m = 0 (``parareal.adaptive_tolerances``); the embedded explicit pairs and
-``"auto"`` take adaptive steps only (``config.check`` refuses them on a fixed step).
+one per step fraction (a Rosenbrock scheme, which also takes fixed steps, only when the ladder is
+given: ``--schemes ros2`` alone searches what it did before). Richardson extrapolation needs the
+fixed steps r^q τ of eq. 26, so adaptive candidates have m = 0 (``parareal.adaptive_tolerances``);
+the embedded explicit pairs and ``"auto"`` take adaptive steps only (``config.check`` refuses them
+on a fixed step).
 """
 
 from __future__ import annotations
@@ -245,8 +247,9 @@ class Space:
       ``nodes``: node counts of the first parameter (the others use at most 3);
     - ``richardson``: depths m to try, with ratio ``r``; ``grid_factors``: coarse grids (rods);
     - ``step_fractions``: coarse steps as fractions of the largest safe step;
-    - ``coarse_rtols``: the rtol ladder of the adaptive candidates of the schemes that take
-      adaptive steps (:func:`takes_rtol`; None: :data:`COARSE_RTOLS`), atol = rtol;
+    - ``coarse_rtols``: the rtol ladder of the adaptive candidates, atol = rtol: of the schemes
+      that take adaptive steps only (:func:`adaptive_only`; None: :data:`COARSE_RTOLS`), and,
+      when given, of every scheme that takes rtol (:func:`takes_rtol`: the Rosenbrock ones);
     - ``max_weight``: candidates with ``Σ|w_j v_q|`` above it are pruned before any measurement;
     - ``extra``: solvers with their own step (e.g. the paper's, :func:`settings_from_config`),
       always measured, never pruned.
@@ -364,7 +367,8 @@ class Space:
         """Every structure of the space (without step), plain solvers first; ``reach`` is the
         node table (:func:`reach_table`, default :data:`REACH`). A scheme gives fixed-step
         candidates (one per step fraction) unless it takes adaptive steps only, and adaptive
-        ones (one per rtol of the ladder, m = 0) when it takes rtol."""
+        ones (one per rtol of the ladder, m = 0) when it takes adaptive steps only, or takes
+        rtol and the ladder is given."""
         reach = REACH if reach is None else reach
         seen: set[Settings] = set()
         for scheme, subset, m, grid in itertools.product(
@@ -391,7 +395,8 @@ class Space:
                     for level, count in itertools.product(self.reach, self.nodes)
                 ]
             fixed = not adaptive_only(scheme)
-            rtols = self.rtols() if takes_rtol(scheme) and m == 0 else ()
+            laddered = not fixed or (self.coarse_rtols is not None and takes_rtol(scheme))
+            rtols = self.rtols() if laddered and m == 0 else ()
             for settings in found:
                 if any(v <= 0.0 for _, values in settings.lagrange for v in values):
                     continue  # nodes below θ⁰ that reach zero: not a physical system
