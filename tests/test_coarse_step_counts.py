@@ -1,5 +1,6 @@
 """An adaptive coarse solver's step counts (``Timings.coarse_steps``) are the same under both
-schedules, on every executor, and on resume: the counts of a step replayed from the memo of a
+schedules (standard == pipelined on the serial and process executors:
+tests/test_adaptive_everywhere.py), and on resume: the counts of a step replayed from the memo of a
 stopped session are the ones kept with it (not recomputed), those of completed sweeps come from
 the checkpoint (docs/parareal.md, "Adaptive coarse steps")."""
 
@@ -44,18 +45,6 @@ def test_add_steps_sums_key_by_key_and_skips_uncounted_steps():
     assert add_steps(None, a) == a and add_steps(None, a) is not a  # a copy, not the step's
     assert add_steps(a, None) == a
     assert add_steps(a, b) == {"accepted": 8, "rejected": 3, "switches": 4}
-
-
-def test_pipelined_counts_equal_the_standard_schedule_on_serial_and_processes(standard):
-    with parallel.make_executor("serial") as executor:
-        serial = _solve(executor, "pipelined")
-    with parallel.make_executor("processes", 2) as executor:
-        pooled = _solve(executor, "pipelined")
-    assert len(standard.timings.coarse_steps) == ITERATIONS + 1
-    assert standard.timings.coarse_steps[0]["accepted"] > 0
-    assert serial.timings.coarse_steps == standard.timings.coarse_steps
-    assert pooled.timings.coarse_steps == standard.timings.coarse_steps
-    assert np.array_equal(serial.states, standard.states)
 
 
 class _FailsOnce:
