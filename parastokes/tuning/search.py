@@ -11,6 +11,10 @@ reference and measures the plain baseline, then searches the candidates of the
 - measure: the stability verdict of its combined slice map (ρ(DG), :mod:`.slice_map`), the pilot
   run (η^k, :mod:`.pilot`) and the prediction (:mod:`.cost`).
 
+An adaptive candidate (``Settings.rtol``: its auxiliary solvers' controller chooses the steps)
+skips the step limit and margin; its screen counts the steps it took, which set its bound, and
+its pilot run measures γ_G from its real calls (an adaptive G's cost depends on the state).
+
 The next candidate is the one with the highest estimate: its optimistic speedup before the
 screen, its screened speedup after. A candidate whose optimistic speedup at its own step cannot
 beat the best measured one is pruned: without a budget the search chooses what measuring every
