@@ -30,6 +30,10 @@ class Calming(Counted):
         return lam * (x - math.sin(t)) + math.cos(t)
 
 
+#: The cost of an implicit step in auto, in evaluations.
+_C_I = auto.IMPLICIT_EVALS + auto.PROBE_EVALS
+
+
 def _run(system, rtol, scheme="auto", t1=1.0):
     return integrate.run(system, system.initial_state(), 0.0, t1, scheme, 1e-4, rtol=rtol)
 
@@ -51,7 +55,7 @@ def test_a_stiff_problem_switches_to_implicit_and_takes_far_fewer_steps(caplog):
     assert [name for _, name, _ in run.switches] == [auto.IMPLICIT]
     t, _, reason = run.switches[0]
     assert 0 < t < 0.05 and "> 0.8 x rk23's stability boundary 2.51" in reason
-    assert "= 2 x 22/3.125 x rk23's" in reason
+    assert f"= 2 x {_C_I:g}/3.125 x rk23's" in reason
     assert f"auto: {auto.IMPLICIT} from t={t:.10g}, stiff" in caplog.text
     assert run.n_steps + run.n_rejected < (explicit.n_steps + explicit.n_rejected) / 20
     by = {name: (accepted, rejected) for name, accepted, rejected in run.by_scheme}
@@ -78,28 +82,27 @@ def _trials(caplog):
 def test_stiff_but_cheaper_explicit_stays_explicit_after_failed_trial_steps(caplog):
     """Stability sets rk23's step (h ρ ≈ 2.1) where the smooth part varies least (twice a period
     of sin ωt, ω = 30), but the accuracy then allows ros34pw2 less than TRIAL x the break-even
-    22/3.125 times it: each trial step (one there) is rejected and the run stays explicit."""
+    C_I/3.125 times it: each trial step (one there) is rejected and the run stays explicit."""
     with caplog.at_level(logging.INFO, logger="parastokes.integrate.auto"):
         run = _run(Fast(lam=(-1.0, -2e4)), 1e-7, t1=0.3)
     assert run.switches == ()
     trials = _trials(caplog)[:, 0]
     assert dict((n, (a, r)) for n, a, r in run.by_scheme)[auto.IMPLICIT] == (0, len(trials))
     assert len(trials) == 3 and np.diff(trials) == pytest.approx([0.1, 0.1], abs=0.01)
-    assert re.search(r"2 x the break-even 22/3.125 x the explicit .* has err [\d.]+ > 1",
+    assert re.search(rf"2 x the break-even {_C_I:g}/3.125 x the explicit .* has err [\d.]+ > 1",
                      caplog.text)
     assert np.abs(run.state - Fast(lam=(-1.0, -2e4)).exact(0.3)).max() < 3e-7
 
 
-def test_failed_trials_back_off_geometrically(caplog):
-    """Stiff at every check, the trials failing: the explicit steps between two trials grow
-    as RETRY x C_I x 2^(n-1) err_n^(1/3) evaluations after the n-th failure of error err_n (the
-    steps here are about equal, so the times between trials grow alike)."""
-    with caplog.at_level(logging.INFO, logger="parastokes.integrate.auto"):
-        _run(Fast(lam=(-1.0, -2e5), omega=100.0), 1e-7, t1=0.1)
-    trials = _trials(caplog)
-    gaps, severity = np.diff(trials[:, 0]), np.minimum(trials[:, 1], auto.ERR_MAX) ** (1 / 3)
-    assert len(gaps) >= 3
-    assert gaps[1:3] / gaps[:2] == pytest.approx(2.0 * severity[1:3] / severity[:2], rel=0.25)
+def test_failed_trials_back_off_geometrically():
+    """After the n-th failed trial in a row of error err: RETRY C_I 2^(n-1) err^(1/(q+1))
+    evaluations before the next (err capped at ERR_MAX)."""
+    costs = auto.Costs(explicit=3.0, implicit=20.0)
+    assert costs.retry(1, 8.0, 2) == pytest.approx(auto.RETRY * 20.0 * 2.0, rel=1e-15)
+    assert costs.retry(3, 8.0, 2) == pytest.approx(auto.RETRY * 20.0 * 4.0 * 2.0, rel=1e-15)
+    assert costs.retry(1, 16.0, 3) == pytest.approx(auto.RETRY * 20.0 * 2.0, rel=1e-15)
+    assert costs.retry(2, 1e9, 2) == costs.retry(2, auto.ERR_MAX, 2)
+    assert costs.retry(2, math.inf, 2) == pytest.approx(auto.RETRY * 20.0 * 2.0 * 10.0)
 
 
 def test_auto_switches_back_once_the_stiffness_is_gone():

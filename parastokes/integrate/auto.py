@@ -68,7 +68,7 @@ IMPLICIT = "ros34pw2"
 #: Rate evaluations' worth of CPU per step of IMPLICIT on the paper's rod (301 points; its
 #: stages, f_t, banded solves, and every stiff.REFRESH steps its Jacobian and factorization),
 #: measured against one evaluation of the rates in one process (docs/stiff.md).
-IMPLICIT_EVALS = 20.0
+IMPLICIT_EVALS = 16.0
 #: Evaluations of ρ's power iteration per implicit step (the rates at the state and at a
 #: shifted one).
 PROBE_EVALS = 2.0
@@ -109,6 +109,12 @@ class Costs:
         """Whether explicit steps of ``explicit_step`` cost fewer evaluations per unit time
         than implicit steps of ``implicit_step``: ``C_E / h_E < C_I / h_I``."""
         return self.explicit * implicit_step < self.implicit * explicit_step
+
+    def retry(self, failed: int, err: float, q: int) -> float:
+        """The evaluations the explicit phase spends before the next trial after the
+        ``failed``-th failed trial in a row, of error ``err`` (estimate of order ``q``):
+        ``RETRY C_I 2^(failed-1) min(err, ERR_MAX)^(1/(q+1))``."""
+        return RETRY * self.implicit * 2.0 ** (failed - 1) * min(err, ERR_MAX) ** (1 / (q + 1))
 
     def break_even(self, explicit_step: float) -> float:
         """The implicit step that costs as much per unit time as ``explicit_step``:
@@ -221,8 +227,8 @@ def auto_run(system: System, x: np.ndarray, t0: float, t1: float, dt: float,
             err = math.inf
         if not (err <= 1.0 and watch(t + trial, x_new, 0)):
             counts[implicit.name][1] += 1
-            budget = RETRY * costs.implicit * 2.0 ** failed * min(err, ERR_MAX) ** (1 / (q + 1))
             failed += 1
+            budget = costs.retry(failed, err, q)
             log.info("auto: stays %s at t=%.10g: a step of %s of %.4g (%g x the break-even %g/%g "
                      "x the explicit %.4g) has err %.3g > 1", pair.name, t, implicit.name, trial,
                      TRIAL, costs.implicit, costs.explicit, explicit.step, err)
