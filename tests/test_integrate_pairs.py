@@ -262,6 +262,29 @@ def test_compiled_adaptive_steps_do_not_depend_on_how_the_calls_are_split(swimme
     assert a == b and np.array_equal(xa, xb) and len(seen) == a.accepted - 1
 
 
+@pytest.mark.parametrize("compiled", [True, False])
+def test_steps_stopped_and_resumed_are_the_steps_run_through(swimmer, compiled):
+    """A segment stopped by ``until`` and resumed with the same stepper, from the state it
+    returned and with its last accepted error (PI control), takes the steps of one segment
+    run through: the first stage is known (first same as last) and the controller goes on."""
+    rod, x0 = swimmer
+    x0 = rod.project(x0)
+    tol = (1e-5, 1e-6)
+    through = adaptive.stepper_for(rod, SCHEMES["rk23"], compiled)
+    x_all, all_ = adaptive.segment(through, x0, 0.0, 2e-3, 1e-5, tol, adaptive.Watch(rod, x0, 100))
+    pair = adaptive.stepper_for(rod, SCHEMES["rk23"], compiled)
+    watch = adaptive.Watch(rod, x0, 100.0)
+    x, first = adaptive.segment(pair, x0, 0.0, 2e-3, 1e-5, tol, watch, lambda *a: True, 40)
+    x, second = adaptive.segment(pair, x, first.end, 2e-3, first.last_step, tol, watch,
+                                 previous=first.previous)
+    assert first.accepted == 40 and first.previous is not None
+    assert np.array_equal(x, x_all) and second.end == all_.end
+    assert first.accepted + second.accepted == all_.accepted
+    assert first.rejected + second.rejected == all_.rejected
+    if compiled:
+        assert pair.evaluations == through.evaluations
+
+
 def test_compiled_adaptive_steps_reject_a_state_beyond_the_monitors_limit(swimmer):
     """A limit below the starting monitor: every step is rejected until the steps are too
     small, in the compiled loop as in Python (the same blow-up)."""

@@ -61,16 +61,19 @@ def stepper_for(system: System, scheme: AnyScheme, compiled: bool = True) -> Ste
 def segment(stepper: Stepper, x: np.ndarray, t0: float, t1: float, h: float,
             tol: tuple[float, float], watch: Watch,
             until: Callable[[float, np.ndarray, float, float], bool] | None = None,
-            every: int = 1) -> tuple[np.ndarray, AdaptiveResult]:
+            every: int = 1, previous: float | None = None) -> tuple[np.ndarray, AdaptiveResult]:
     """:func:`.controller.adaptive_steps` of ``stepper`` from ``(t0, x)`` toward ``t1`` (see
-    there; PI control for an explicit pair), its failures as :class:`BlowUpError`."""
+    there; PI control for an explicit pair), its failures as :class:`BlowUpError`. A stepper
+    that ended the last segment at ``(t0, x)`` (the same array) goes on with its first stage
+    known (first same as last) and, with ``previous``, its PI control."""
     q, pi = estimate_order(stepper.scheme), not stepper.scheme.implicit
     try:
         if isinstance(stepper, CompiledPair):
             x, counts, watch.worst = stepper.steps_from(x, t0, t1, h, q, tol, watch.limit,
-                                                        watch.worst, until, pi, every)
+                                                        watch.worst, until, pi, every, previous)
             return x, counts
-        return adaptive_steps(stepper, q, x, t0, t1, h, *tol, watch, until, pi=pi, every=every)
+        return adaptive_steps(stepper, q, x, t0, t1, h, *tol, watch, until, pi=pi, every=every,
+                              previous=previous)
     except stiff.StiffSolveError as error:
         raise solve_blowup(error, stepper.steps, x) from error
     except StepSizeError as error:

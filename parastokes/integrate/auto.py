@@ -205,18 +205,19 @@ def auto_run(system: System, x: np.ndarray, t0: float, t1: float, dt: float,
     t, h = t0, dt
     switches: list[tuple[float, str, str]] = []
     counts = {pair.name: [0, 0], implicit.name: [0, 0]}
-    budget, failed = 0.0, 0
+    budget, failed, previous = 0.0, 0, None
     solver = stepper_for(system, implicit)  # one for the run: its Jacobian serves every trial
+    stepper = stepper_for(system, pair, compiled)  # goes on after a failed trial
     while t < t1:
-        stepper = stepper_for(system, pair, compiled)
         explicit = _Explicit(system, stepper, costs, boundary, budget)
-        x, done = segment(stepper, x, t, t1, h, tol, watch, explicit, every=RHO_EVERY)
+        x, done = segment(stepper, x, t, t1, h, tol, watch, explicit, RHO_EVERY, previous)
         t, h = done.end, done.last_step
         counts[pair.name][0] += done.accepted
         counts[pair.name][1] += done.rejected
         trial = TRIAL * costs.break_even(explicit.step)
         if t >= t1:
             break
+        previous = done.previous  # the explicit steps go on where a trial fails
         if t + trial >= t1:  # too little time left to pay for a switch: explicit to the end
             budget = math.inf
             continue
@@ -240,7 +241,7 @@ def auto_run(system: System, x: np.ndarray, t0: float, t1: float, dt: float,
             f"{pair.name}'s {explicit.step:.4g} (err {err:.3g}): {TRIAL:g} x cheaper per unit "
             "time or more")))
         log.info("auto: %s from t=%.10g, %s", implicit.name, t, switches[-1][2])
-        t, x, failed = t + trial, x_new, 0
+        t, x, failed, previous = t + trial, x_new, 0, None
         counts[implicit.name][0] += 1
         calm = _Implicit(system, explicit.direction, costs, boundary)
         x, done = segment(solver, x, t, t1, trial * factor(err, q, True), tol, watch, calm)

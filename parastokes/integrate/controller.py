@@ -134,17 +134,22 @@ class AdaptiveResult:
     last_step: float
     #: Where the steps ended: ``t1``, or earlier where ``until`` stopped them.
     end: float = math.nan
+    #: The last accepted error of PI control (None without), to go on from ``end``.
+    previous: float | None = None
 
 
 def adaptive_steps(stepper: EstimatingStepper, q: int, x: np.ndarray, t0: float, t1: float,
                    h0: float, rtol: float, atol: float,
                    accept: Callable[[float, np.ndarray, int], bool],
                    until: Callable[[float, np.ndarray, float, float], bool] | None = None,
-                   pi: bool = False, every: int = 1) -> tuple[np.ndarray, AdaptiveResult]:
+                   pi: bool = False, every: int = 1, previous: float | None = None
+                   ) -> tuple[np.ndarray, AdaptiveResult]:
     """Steps from ``(t0, x)`` to ``t1`` whose estimated local error stays within ``rtol`` and
     ``atol`` (:func:`error_norm` <= 1), the first of size ``h0``, the next ones by
     :func:`factor` with the estimate's order ``q`` (with ``pi``, PI control from the second
-    accepted step on), the last one cut to end at ``t1``.
+    accepted step on, or from the first with ``previous``, the last accepted error of steps
+    that ended at ``(t0, x)``: :attr:`AdaptiveResult.previous`), the last one cut to end at
+    ``t1``.
 
     ``accept(t, x_new, step)`` sees every step whose error is small enough; it returns False for
     a state the run cannot keep (its monitor beyond the limit: the step is rejected) and may
@@ -155,7 +160,7 @@ def adaptive_steps(stepper: EstimatingStepper, q: int, x: np.ndarray, t0: float,
     t, h = t0, min(h0, t1 - t0)
     smallest = smallest_step(t0, t1)
     accepted = rejected = 0
-    previous = None  # the error of the last accepted step (PI control)
+    previous = previous if pi else None  # the error of the last accepted step (PI control)
     while t < t1:
         last = lands(t, h, t1)
         step = t1 - t if last else h
@@ -176,4 +181,4 @@ def adaptive_steps(stepper: EstimatingStepper, q: int, x: np.ndarray, t0: float,
             raise StepSizeError(t, h)
         if ok and t < t1 and until is not None and accepted % every == 0 and until(t, x, step, h):
             break
-    return x, AdaptiveResult(accepted, rejected, h, t)
+    return x, AdaptiveResult(accepted, rejected, h, t, previous)

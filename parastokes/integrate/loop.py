@@ -435,9 +435,8 @@ class CompiledPair:
     states equal to round-off), in compiled calls of about :data:`CALL_SECONDS`, or of
     ``every`` accepted steps each where ``until`` watches the steps.
 
-    ``steps`` counts the steps tried and ``evaluations`` the rate evaluations of the last
-    :meth:`steps_from`; ``k`` (s, n, columns) holds the stages of the last step (as
-    ``PairStepper.k``)."""
+    ``steps`` counts the steps tried and ``evaluations`` the rate evaluations; ``k`` (s, n,
+    columns) holds the stages of the last step (as ``PairStepper.k``)."""
 
     def __init__(self, system: ThreadedSystem, make_data: Callable[[Any, int], tuple],
                  scheme: Scheme) -> None:
@@ -445,33 +444,43 @@ class CompiledPair:
         self.system, self.make_data, self.scheme = system, make_data, scheme
         self.steps = self.evaluations = 0
         self.k = np.empty((scheme.stages, 0, 0))
+        #: Where the last call ended, ``(t, the state returned)``, and what was known there.
+        self._end: tuple[float, np.ndarray | None] = (math.nan, None)
+        self._known = UNKNOWN
 
     def steps_from(self, x: np.ndarray, t0: float, t1: float, h0: float, q: int,
                    tol: tuple[float, float], limit: float, worst: float,
                    until: Callable[[float, np.ndarray, float, float], bool] | None = None,
-                   pi: bool = True, every: int = 1) -> tuple[np.ndarray, AdaptiveResult, float]:
+                   pi: bool = True, every: int = 1, previous: float | None = None
+                   ) -> tuple[np.ndarray, AdaptiveResult, float]:
         """The steps of :func:`.controller.adaptive_steps` (the same arguments; ``limit`` the
         monitor's, ``worst`` the worst monitor so far): the state reached, the counts, and the
-        worst monitor seen. Raises :class:`.controller.StepSizeError` as it does."""
+        worst monitor seen. Raises :class:`.controller.StepSizeError` as it does. From the
+        state the last call returned (the same array, at its end), the stage known there is
+        used, as a :class:`parastokes.integrate.explicit.PairStepper` does."""
         s = self.scheme
+        known = self._known if x is self._end[1] and t0 == self._end[0] else UNKNOWN
         x = np.array(x, dtype=float, order="C")  # the compiled calls write the state into it
         tableau = tableau_arrays(s)
         low = (np.array(s.b_low, dtype=float),
                np.array(s.low_brackets, dtype=float).reshape(-1, 3))
         control = np.array([q, tol[0], tol[1], pi, controller.smallest_step(t0, t1), s.fsal],
                            dtype=float)
-        carry = np.array([t0, min(h0, t1 - t0), 0.0, UNKNOWN, 0, 0, worst, math.nan, 0])
+        carry = np.array([t0, min(h0, t1 - t0), previous if pi and previous else 0.0, known,
+                          0, 0, worst, math.nan, 0])
         chunk = every if until is not None else 8
+        steps, evaluations = self.steps, self.evaluations
         with kernel_threads(self.system.n_threads) as threads:
             data = self.make_data(self.system, threads)
             loop = _loop_for(data, _adaptive)
-            self.k = np.empty((s.stages, x.shape[0], data.rate_columns))
+            if known == UNKNOWN:
+                self.k = np.empty((s.stages, x.shape[0], data.rate_columns))
             while True:
                 start, before = time.perf_counter(), carry[ACCEPTED]
                 outcome = loop(x, self.k, carry, float(t1), chunk, tableau, low, data, control,
                                controller.constants(), float(limit))
-                self.steps = int(carry[ACCEPTED] + carry[REJECTED])
-                self.evaluations = int(carry[EVALUATIONS])
+                self.steps = steps + int(carry[ACCEPTED] + carry[REJECTED])
+                self.evaluations = evaluations + int(carry[EVALUATIONS])
                 if outcome == TOO_SMALL:
                     raise StepSizeError(carry[T], carry[H])
                 if outcome == REACHED:
@@ -480,7 +489,9 @@ class CompiledPair:
                     chunk = _next_chunk(chunk, start, int(carry[ACCEPTED] - before))
                 elif until(carry[T], x, carry[LAST], carry[H]):
                     break
-        result = AdaptiveResult(int(carry[ACCEPTED]), int(carry[REJECTED]), carry[H], carry[T])
+        self._end, self._known = (carry[T], x), carry[KNOWN]
+        result = AdaptiveResult(int(carry[ACCEPTED]), int(carry[REJECTED]), carry[H], carry[T],
+                                carry[PREVIOUS] if pi and carry[PREVIOUS] > 0 else None)
         return x, result, carry[WORST]
 
 
