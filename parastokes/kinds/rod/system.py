@@ -147,12 +147,12 @@ class RodSystem(FluidBody):
 
     def load_jacobian(self, t: float, state: np.ndarray) -> sp.bsr_array:
         """The Jacobian of :meth:`loads` (rows [f, n] per node) in the rates' coordinates
-        (columns [u, w] per node): 6 x 6 blocks on :meth:`load_coupling`'s pattern, by the
+        (columns [u, w] per node): 6 x 6 blocks on the pattern of :meth:`load_coupling`, by the
         compiled segment-wise central differences of :mod:`.jacobian` (the hook of
         :func:`parastokes.stiff.jacobian.load_jacobian`)."""
         n_rods, ds, a, b, table, *wave = self.mechanics
         state = np.ascontiguousarray(state, dtype=float)
-        pattern = self.load_coupling()
+        pattern = banded(self.n_rods, self.n_points, 1)  # the rod's own, not a subclass's
         blocks = load_blocks(state, n_rods, ds, a, b,
                              kirchhoff.preferred_strain(table, float(t), *wave),
                              fd_step(state), pattern.indptr, pattern.indices)
