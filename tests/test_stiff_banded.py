@@ -193,15 +193,34 @@ def test_band_storage_is_lapacks_layout():
 
 
 @pytest.mark.parametrize("kl", [5, 200])
-def test_factorization_solves_as_a_dense_solve(kl):
-    """Banded (LAPACK, a band below n/8) and general (SuperLU) factorizations of I - hγA solve
-    like numpy's dense solve."""
+def test_factorization_solves_as_a_dense_solve(kl, monkeypatch):
+    """Banded (LAPACK, a band below n/8; its elimination in double here) and general
+    (SuperLU) factorizations of I - hγA solve like numpy's dense solve."""
+    monkeypatch.setattr(solve, "BAND_PRECISION", np.float64)
     dense = _banded_matrix(kl=kl, ku=3)
     lu = Factorization(sp.csr_array(dense), 0.05, 0.0)
     assert lu.banded == (kl < 240 // 8)
     rhs = np.random.default_rng(4).standard_normal(240)
     expected = np.linalg.solve(np.eye(240) - 0.05 * dense, rhs)
     assert np.allclose(lu.solve(rhs), expected, rtol=1e-10, atol=1e-12)
+
+
+def test_single_precision_factors_solve_one_fixed_matrix_in_double():
+    """The default banded LU eliminates in single precision and solves in double on those
+    factors: the solves are those of one matrix I - hγA' (linear to double's round-off, as a
+    W-method needs), A' within single precision of A (the solve off the exact one by about
+    1e-7, far more than double's round-off: the elimination really is single)."""
+    assert solve.BAND_PRECISION == np.float32
+    dense = _banded_matrix(kl=5, ku=3)
+    lu = Factorization(sp.csr_array(dense), 0.05, 0.0)
+    rng = np.random.default_rng(8)
+    v, w = rng.standard_normal((2, 240))
+    x, y = lu.solve(v), lu.solve(w)
+    combined = lu.solve(0.3 * v - 2.0 * w)
+    assert np.abs(combined - (0.3 * x - 2.0 * y)).max() < 1e-13 * np.abs(combined).max()
+    exact = np.linalg.solve(np.eye(240) - 0.05 * dense, v)
+    off = np.abs(x - exact).max() / np.abs(exact).max()
+    assert 1e-10 < off < 1e-5
 
 
 @pytest.mark.parametrize("kl", [2, 200])
@@ -323,16 +342,21 @@ def test_adaptive_steps_factorize_less_often_than_they_change_the_step(monkeypat
 
 
 def test_banded_and_general_factorizations_give_the_same_run(monkeypatch):
-    """The rod's run with A's band factorized by LAPACK equals (to 1e-10) the run with SuperLU
-    (the band reported as the whole matrix)."""
+    """The rod's run with A's band factorized by LAPACK in double equals (to 1e-10) the run
+    with SuperLU (the band reported as the whole matrix), and in single (the default) to
+    1e-7: a W-method on A within single precision of A."""
     rod = models.rod_swimmer(n_points=61, length=12.0, epsilon=0.3, n_threads=1)
     x0 = rod.initial_state()
+    single = integrate.run(rod, x0, 0.0, 5e-4, "ros34pw2", 1e-4).state
+    monkeypatch.setattr(solve, "BAND_PRECISION", np.float64)
     assert Factorization(jacobian.local_jacobian(rod, 0.0, x0, 6 * len(x0)), 1e-4, 0.0).banded
     a = integrate.run(rod, x0, 0.0, 5e-4, "ros34pw2", 1e-4).state
     monkeypatch.setattr(solve, "bandwidth", lambda matrix: (matrix.shape[0], matrix.shape[0]))
     assert not Factorization(jacobian.local_jacobian(rod, 0.0, x0, 6 * len(x0)), 1e-4, 0.0).banded
     b = integrate.run(rod, x0, 0.0, 5e-4, "ros34pw2", 1e-4).state
     assert np.allclose(a, b, rtol=0, atol=1e-10 * np.abs(a).max())
+    moved = np.abs(single - a)[:, :3].max() / np.abs(a[:, :3] - x0[:, :3]).max()
+    assert 1e-13 < moved < 1e-6
 
 
 @pytest.mark.parametrize("width", [3, 2])

@@ -135,33 +135,31 @@ def _near_band(points, m_ptr, m_idx, eps, cutoff, viscosity, angular, strips, lp
             diag, i3, q, p1, p2 = diag * scale, i3 * scale, q * scale, p1 * scale, p2 * scale
             first = (j - i + lp) * cols
             kf, out = strips[j], row[:, first:first + strip]
-            for e in range(strip):
-                f0, f1, f2 = kf[0, e], kf[1, e], kf[2, e]
-                rf = i3 * (x * f0 + y * f1 + z * f2)
-                u0 = diag * f0 + rf * x
-                u1 = diag * f1 + rf * y
-                u2 = diag * f2 + rf * z
-                if angular:
+            if angular:  # the branch outside the loop over the strip: it vectorizes
+                for e in range(strip):
+                    f0, f1, f2 = kf[0, e], kf[1, e], kf[2, e]
                     n0, n1, n2 = kf[3, e], kf[4, e], kf[5, e]
+                    rf = i3 * (x * f0 + y * f1 + z * f2)
                     rn = p2 * (x * n0 + y * n1 + z * n2)
-                    out[0, e] += u0 - i3 * (y * n2 - z * n1)
-                    out[1, e] += u1 - i3 * (z * n0 - x * n2)
-                    out[2, e] += u2 - i3 * (x * n1 - y * n0)
+                    out[0, e] += diag * f0 + rf * x - i3 * (y * n2 - z * n1)
+                    out[1, e] += diag * f1 + rf * y - i3 * (z * n0 - x * n2)
+                    out[2, e] += diag * f2 + rf * z - i3 * (x * n1 - y * n0)
                     out[3, e] += p1 * n0 + rn * x - q * (y * f2 - z * f1)
                     out[4, e] += p1 * n1 + rn * y - q * (z * f0 - x * f2)
                     out[5, e] += p1 * n2 + rn * z - q * (x * f1 - y * f0)
-                else:
-                    out[0, e] += u0
-                    out[1, e] += u1
-                    out[2, e] += u2
+            else:
+                for e in range(strip):
+                    f0, f1, f2 = kf[0, e], kf[1, e], kf[2, e]
+                    rf = i3 * (x * f0 + y * f1 + z * f2)
+                    out[0, e] += diag * f0 + rf * x
+                    out[1, e] += diag * f1 + rf * y
+                    out[2, e] += diag * f2 + rf * z
+        # out to the band: column c, rows r = i size + a with -kl <= c - r <= ku
         col0 = (i - lo) * cols
-        for e in range(width * cols):
-            col = col0 + e
-            if 0 <= col < data.shape[1]:
-                for a in range(size):
-                    r = ku + i * size + a - col
-                    if 0 <= r <= kl + ku:  # outside: a strip's padding, zero
-                        data[r, col] = row[a, e]
+        for col in range(max(col0, 0), min(col0 + width * cols, data.shape[1])):
+            top = ku + i * size - col  # data's row of (i size, col)
+            for a in range(max(0, -top), min(size, kl + ku + 1 - top)):
+                data[top + a, col] = row[a, col - col0]
 
 
 def near_product(points: np.ndarray, epsilon: float, viscosity: float, angular: bool,
@@ -232,22 +230,26 @@ def _fill(ptr, idx, blk, hgamma, kl, ku, ab):  # pragma: no cover - compiled
                     ab[kl + ku + i * rows + a - col, col] -= hgamma * blk[p, a, b]
 
 
-def band_storage(matrix: sp.sparray, hgamma: float, kl: int, ku: int) -> np.ndarray:
-    """``I - hγ A`` in LAPACK's layout for dgbtrf: (2 kl + ku + 1, n) in Fortran order, entry
-    (i, j) at row ``kl + ku + i - j`` of column j (the first kl rows are dgbtrf's room for
-    fill; a C-ordered array would be copied by scipy's wrapper, 2.6 ms of 5 on the paper's
-    rod). :func:`near_product`'s band (a ``dia_array`` with offsets ku down to -kl) is these
-    rows already: one scaled copy."""
+def band_storage(matrix: sp.sparray, hgamma: float, kl: int, ku: int,
+                 dtype: type = np.float64) -> np.ndarray:
+    """``I - hγ A`` in LAPACK's layout for dgbtrf (sgbtrf: ``dtype`` float32): (2 kl + ku + 1,
+    n) in Fortran order, entry (i, j) at row ``kl + ku + i - j`` of column j (the first kl rows
+    are dgbtrf's room for fill; a C-ordered array would be copied by scipy's wrapper, 2.6 ms of
+    5 on the paper's rod). :func:`near_product`'s band (a ``dia_array`` with offsets ku down to
+    -kl) is these rows already: one scaled copy."""
     n = matrix.shape[0]
-    ab = np.zeros((2 * kl + ku + 1, n), order="F")  # LAPACK's order: dgbtrf copies no more
     if isinstance(matrix, sp.dia_array) and np.array_equal(matrix.offsets,
                                                             np.arange(ku, -kl - 1, -1)):
-        np.multiply(matrix.data, -hgamma, out=ab[kl:])
-    elif isinstance(matrix, sp.bsr_array):
+        ab = np.zeros((2 * kl + ku + 1, n), dtype=dtype, order="F")
+        np.multiply(matrix.data, -hgamma, out=ab[kl:], casting="same_kind")
+        ab[kl + ku] += 1.0
+        return ab
+    ab = np.zeros((2 * kl + ku + 1, n), order="F")  # LAPACK's order: dgbtrf copies no more
+    if isinstance(matrix, sp.bsr_array):
         _fill(matrix.indptr.astype(np.int64), matrix.indices.astype(np.int64),
               np.ascontiguousarray(matrix.data), float(hgamma), kl, ku, ab)
     else:
         coo = sp.coo_array(matrix)
         np.add.at(ab, (kl + ku + coo.row - coo.col, coo.col), -hgamma * coo.data)
     ab[kl + ku] += 1.0
-    return ab
+    return ab.astype(dtype, order="F", copy=False)

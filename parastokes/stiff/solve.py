@@ -70,10 +70,20 @@ def _ordering(matrix: sp.sparray) -> str:
     return "NATURAL" if narrow(*bandwidth(matrix), matrix.shape[0]) else "COLAMD"
 
 
+#: The precision of the banded LU's elimination (dgbtrf or sgbtrf). Single: the factors of
+#: ``I - hγ A'`` with A' = A + O(2^-24 ‖I - hγA‖ / hγ) (single precision's backward error),
+#: kept in double for the solves, which are then exact for A' to double's round-off: a W-method
+#: on A' (any A keeps its order), bit-reproducible, at half the factorization's CPU
+#: (docs/benchmarks.md, "Stiff bodies: cheaper implicit steps").
+BAND_PRECISION = np.float32
+_GBTRF = {"f": lapack.sgbtrf, "d": lapack.dgbtrf}
+
+
 class Factorization:
     """The LU factorization of ``I - hγ A`` (``A`` sparse, square, nonzero): LAPACK's banded
-    dgbtrf (on one BLAS thread, :func:`parastokes.mobility.threads.blas_threads`) when ``A``'s
-    band is below an eighth of its size (a rod's or chain's points in order), else SuperLU; a
+    LU in :data:`BAND_PRECISION` (on one BLAS thread,
+    :func:`parastokes.mobility.threads.blas_threads`) when ``A``'s band is below an eighth of
+    its size (a rod's or chain's points in order), else SuperLU; a
     singular matrix is a :class:`StiffSolveError` at time ``t``. ``solve(v)`` solves with it
     (``v`` flat)."""
 
@@ -84,11 +94,12 @@ class Factorization:
         self._band: tuple[np.ndarray, np.ndarray, int, int] | None = None
         self._superlu: Any = None
         if narrow(kl, ku, n):
-            ab = band_storage(matrix, hgamma, kl, ku)
+            ab = band_storage(matrix, hgamma, kl, ku, BAND_PRECISION)
             with LAPACK, blas_threads(1):
-                lu, piv, info = lapack.dgbtrf(ab, kl, ku, overwrite_ab=1)
+                lu, piv, info = _GBTRF[ab.dtype.char](ab, kl, ku, overwrite_ab=1)
             singular = info > 0 or not np.isfinite(lu[kl + ku]).all()
-            self._band = (lu, piv, kl, ku)
+            # the solves in double on these factors: exactly those of I - hγ A' (W-method)
+            self._band = (lu.astype(float, order="F"), piv, kl, ku)
             reason = f"U[{info - 1}, {info - 1}] = 0"
         else:
             system = sp.eye_array(n, format="csc") - hgamma * sp.csc_array(matrix)
