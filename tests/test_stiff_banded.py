@@ -412,3 +412,21 @@ def test_the_rods_load_jacobian_hook_is_the_coloured_differences():
     assert np.abs(hook.toarray() - fd).max() < 1e-9 * np.abs(fd).max()
     np.testing.assert_array_equal(jacobian.load_jacobian(rod, 0.013, x).toarray(),
                                   hook.toarray())  # the schemes' K is the hook's
+
+
+@pytest.mark.parametrize("shape", ["cloud", "rod along z", "coincident"])
+def test_sorted_pairs_are_every_pair_within_the_cutoff(shape):
+    """The compiled sort and sweep against all n² distances: the same pairs (at most the
+    cutoff apart, self pairs included), sources ascending per target; a rod along z (the sweep
+    along its longest extent) and repeated points too."""
+    rng = np.random.default_rng(9)
+    points = {"cloud": rng.uniform(0.0, 3.0, size=(80, 3)),
+              "rod along z": np.stack([0.01 * rng.standard_normal(60), np.zeros(60),
+                                       np.linspace(0.0, 12.0, 60)], axis=1),
+              "coincident": np.repeat(rng.uniform(0.0, 2.0, size=(20, 3)), 2, axis=0)}[shape]
+    cutoff = 0.8
+    indptr, source = local.sorted_pairs(points, cutoff)
+    distance = np.linalg.norm(points[:, None] - points[None], axis=2)
+    for i in range(len(points)):
+        row = source[indptr[i]:indptr[i + 1]]
+        assert list(row) == list(np.flatnonzero(distance[i] <= cutoff)), i
