@@ -430,3 +430,23 @@ def test_sorted_pairs_are_every_pair_within_the_cutoff(shape):
     for i in range(len(points)):
         row = source[indptr[i]:indptr[i + 1]]
         assert list(row) == list(np.flatnonzero(distance[i] <= cutoff)), i
+
+
+@pytest.mark.parametrize("precision", [np.float32, np.float64])
+def test_band_solve_is_lapacks_dgbtrs_on_the_same_factors(precision):
+    """The compiled solve of the banded factors (single or double precision, read as they are)
+    against LAPACK's dgbtrs on the same factors in double: the same solution to round-off, on
+    a matrix whose elimination pivots (row interchanges happen) with kl != ku."""
+    from scipy.linalg import lapack
+
+    kl, ku = 7, 4
+    dense = np.eye(200) - 0.8 * _banded_matrix(n=200, kl=kl, ku=ku, seed=10)
+    ab = banded.band_storage(sp.csr_array(np.eye(200) - dense), 1.0, kl, ku, precision)
+    lu, piv, info = (lapack.sgbtrf if precision == np.float32 else lapack.dgbtrf)(ab, kl, ku)
+    assert info == 0 and np.any(piv != np.arange(200))
+    rhs = np.random.default_rng(11).standard_normal(200)
+    expected = lapack.dgbtrs(lu.astype(float, order="F"), kl, ku, rhs, piv)[0]
+    got = solve.band_solve(lu, kl, ku, piv, rhs)
+    assert np.abs(got - expected).max() < 1e-12 * np.abs(expected).max()
+    if precision == np.float64:
+        assert np.allclose(got, np.linalg.solve(dense, rhs), rtol=1e-10, atol=1e-12)

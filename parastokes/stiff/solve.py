@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from numba import njit
 from scipy.linalg import lapack
 
 from ..mobility.threads import LAPACK, blas_threads
@@ -45,6 +46,33 @@ GMRES_RTOL_ORDER3 = 1e-7
 GMRES_ACCEPT = 1e-3
 #: The most GMRES iterations of one stage solve.
 GMRES_MAXITER = 60
+
+
+@njit(cache=True, error_model="numpy")
+def band_solve(lu, kl, ku, piv, b):  # pragma: no cover - compiled
+    """``x`` with ``P L U x = b`` from the factors of dgbtrf or sgbtrf (``lu``, ``piv`` as scipy
+    returns them: 0-based), in double whatever the factors' precision: LAPACK's dgbtrs
+    (L with its row interchanges, then U of bandwidth kl + ku), reading single-precision
+    factors as they are (half dgbtrs's memory, no conversion) and exact for them to double's
+    round-off, so the solves are linear in ``b``."""
+    n = lu.shape[1]
+    kv = kl + ku  # the diagonal's row
+    x = b.copy()
+    for j in range(n - 1):
+        pivot = piv[j]
+        if pivot != j:
+            x[pivot], x[j] = x[j], x[pivot]
+        xj = x[j]
+        if xj != 0.0:
+            for i in range(1, min(kl, n - j - 1) + 1):
+                x[j + i] -= np.float64(lu[kv + i, j]) * xj
+    for j in range(n - 1, -1, -1):
+        if x[j] != 0.0:
+            x[j] /= np.float64(lu[kv, j])
+            xj = x[j]
+            for i in range(max(0, j - kv), j):
+                x[i] -= np.float64(lu[kv + i - j, j]) * xj
+    return x
 
 
 class StiffSolveError(RuntimeError):
@@ -72,8 +100,8 @@ def _ordering(matrix: sp.sparray) -> str:
 
 #: The precision of the banded LU's elimination (dgbtrf or sgbtrf). Single: the factors of
 #: ``I - hγ A'`` with A' = A + O(2^-24 ‖I - hγA‖ / hγ) (single precision's backward error),
-#: kept in double for the solves, which are then exact for A' to double's round-off: a W-method
-#: on A' (any A keeps its order), bit-reproducible, at half the factorization's CPU
+#: solved in double (:func:`band_solve`), exact for A' to double's round-off: a W-method on A'
+#: (any A keeps its order), bit-reproducible, at half the factorization's CPU
 #: (docs/benchmarks.md, "Stiff bodies: cheaper implicit steps").
 BAND_PRECISION = np.float32
 _GBTRF = {"f": lapack.sgbtrf, "d": lapack.dgbtrf}
@@ -98,8 +126,7 @@ class Factorization:
             with LAPACK, blas_threads(1):
                 lu, piv, info = _GBTRF[ab.dtype.char](ab, kl, ku, overwrite_ab=1)
             singular = info > 0 or not np.isfinite(lu[kl + ku]).all()
-            # the solves in double on these factors: exactly those of I - hγ A' (W-method)
-            self._band = (lu.astype(float, order="F"), piv, kl, ku)
+            self._band = (lu, piv, kl, ku)
             reason = f"U[{info - 1}, {info - 1}] = 0"
         else:
             system = sp.eye_array(n, format="csc") - hgamma * sp.csc_array(matrix)
@@ -122,8 +149,7 @@ class Factorization:
         if self._band is None:
             return self._superlu.solve(v)
         lu, piv, kl, ku = self._band
-        with LAPACK:
-            return lapack.dgbtrs(lu, kl, ku, v, piv)[0]
+        return band_solve(lu, kl, ku, piv, np.asarray(v, dtype=float))
 
 
 class StageSolver:
