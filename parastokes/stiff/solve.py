@@ -63,15 +63,19 @@ def band_solve(lu, kl, ku, piv, b):  # pragma: no cover - compiled
         if pivot != j:
             x[pivot], x[j] = x[j], x[pivot]
         xj = x[j]
-        if xj != 0.0:
-            for i in range(1, min(kl, n - j - 1) + 1):
-                x[j + i] -= np.float64(lu[kv + i, j]) * xj
+        if xj != 0.0:  # the multipliers: rows kv + 1.. of column j (slices: they vectorize)
+            lm = min(kl, n - j - 1)
+            column, below = lu[kv + 1:kv + 1 + lm, j], x[j + 1:j + 1 + lm]
+            for i in range(lm):
+                below[i] -= np.float64(column[i]) * xj
     for j in range(n - 1, -1, -1):
         if x[j] != 0.0:
             x[j] /= np.float64(lu[kv, j])
             xj = x[j]
-            for i in range(max(0, j - kv), j):
-                x[i] -= np.float64(lu[kv + i - j, j]) * xj
+            first = max(0, j - kv)
+            column, above = lu[kv + first - j:kv, j], x[first:j]
+            for i in range(j - first):
+                above[i] -= np.float64(column[i]) * xj
     return x
 
 
