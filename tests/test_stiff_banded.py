@@ -87,8 +87,9 @@ def test_fused_near_product_is_the_reference_product_in_lapacks_layout(kind):
     if kind == "rod":
         body, x = _bent_rod()
     else:
-        body = ChainSystem(n_beads=40, tilt=0.3, stretch=1.1, epsilon=0.3)
+        body = ChainSystem(n_beads=40, tilt=0.3, stretch=1.1, epsilon=0.8)  # pairs: 2 beads
         x = body.initial_state()
+        x[:, 1] += 0.3 * np.cos(np.linspace(0.0, 2.0, len(x)))
         x[:, 2] += 0.2 * np.sin(np.linspace(0.0, 3.0, len(x)))
     expected, k = _reference_product(body, x)
     a = jacobian.local_jacobian(body, 0.0, x, expected.shape[0])
