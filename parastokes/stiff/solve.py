@@ -1,8 +1,9 @@
 """The stage solves of the linearly implicit schemes: ``(I - h γ A) k = r`` over the rates.
 
 - :class:`StageSolver` with ``krylov=False``: ``A`` is the approximate Jacobian of
-  :mod:`.jacobian`, factorized once (:class:`Factorization`: LAPACK's banded LU when ``A`` is
-  banded in the body's own point order, as a rod's is, else scipy's SuperLU; O(points) entries)
+  :mod:`.jacobian`, factorized once (:class:`Factorization`: LAPACK's banded LU, eliminated in
+  :data:`BAND_PRECISION` and solved in double by :func:`band_solve`, when ``A`` is banded in
+  the body's own point order, as a rod's is, else scipy's SuperLU; O(points) entries)
   and reused for every stage and every step that keeps the same ``A`` and a step within a
   factor of the factorized one (:mod:`.stepper`). No dense (3N)² matrix is ever formed.
 - ``krylov=True``: the exact Jacobian of the rates, applied matrix-free by a forward difference
@@ -30,8 +31,8 @@ from scipy.linalg import lapack
 from ..mobility.threads import LAPACK, blas_threads
 from .banded import band_storage, bandwidth, narrow
 
-__all__ = ["GMRES_ACCEPT", "GMRES_MAXITER", "GMRES_RTOL", "GMRES_RTOL_ORDER3", "Factorization",
-           "StageSolver", "StiffSolveError"]
+__all__ = ["BAND_PRECISION", "GMRES_ACCEPT", "GMRES_MAXITER", "GMRES_RTOL", "GMRES_RTOL_ORDER3",
+           "Factorization", "StageSolver", "StiffSolveError", "band_solve"]
 
 #: Relative residual of the GMRES stage solves, as scipy's GMRES measures it (W-methods keep
 #: their order with an inexact Jacobian, so the stage systems need not be solved to round-off).
