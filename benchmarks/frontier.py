@@ -696,8 +696,9 @@ def k40_reference(setup: Any, problem: Problem, work: pathlib.Path) -> np.ndarra
 
 
 def k40_parareal(setup: Any, problem: Problem, iterations: int, work: pathlib.Path,
-                 identity: dict[str, Any]) -> None:
-    """Parareal over the 40 slices (serial executor, tol 0, ``iterations`` iterations) with a
+                 identity: dict[str, Any], workers: int = 1) -> None:
+    """Parareal over the 40 slices (tol 0, ``iterations`` iterations; the fine solves in this
+    process, or on ``workers`` > 1 worker processes: the same iterates, bit for bit) with a
     checkpoint that a rerun resumes (one of another ``identity`` is refused); each iterate
     X_N^k at T is kept as ``iterate_K.npy``, its increment and the CPU time so far in
     ``iterates.json``."""
@@ -713,10 +714,13 @@ def k40_parareal(setup: Any, problem: Problem, iterations: int, work: pathlib.Pa
         record["cpu"] = time.process_time() - start
         _save(log, record)
 
-    parareal.run(setup.fine, setup.coarse, setup.system.initial_state(), t0=0.0,
-                 t1=problem.t1, n_slices=problem.slices, tol=0.0, max_iterations=iterations,
-                 checkpoint=parareal.Checkpoint(work / "parareal.npz", identity),
-                 on_iteration=keep)
+    from parastokes.parallel import make_executor
+
+    with make_executor("processes" if workers > 1 else "serial", workers) as pool:
+        parareal.run(setup.fine, setup.coarse, setup.system.initial_state(), t0=0.0,
+                     t1=problem.t1, n_slices=problem.slices, tol=0.0, max_iterations=iterations,
+                     executor=pool, checkpoint=parareal.Checkpoint(work / "parareal.npz", identity),
+                     on_iteration=keep)
 
 
 def k40_errors(reference: np.ndarray, iterates: Sequence[np.ndarray]) -> list[float]:
@@ -763,9 +767,11 @@ def k40_summary(name: str, label: str, work: pathlib.Path) -> dict[str, Any]:
     }
 
 
-def k40(name: str, label: str, iterations: int, part: str = "all") -> dict[str, Any]:
+def k40(name: str, label: str, iterations: int, part: str = "all", workers: int = 1
+        ) -> dict[str, Any]:
     """``--k40``: F's serial solution (``part`` "reference"), the Parareal run ("parareal") or
-    both ("all") over 40 slices of ``name``'s slice length with G = ``label``, resumable; then
+    both ("all") over 40 slices of ``name``'s slice length with G = ``label``, resumable (the
+    fine solves of the iterations on ``workers`` processes where > 1); then
     ``OUT/k40_NAME.json`` from what is on disk (``part`` "summary": only that)."""
     problem = k40_problem(name)
     work = K40_WORK / name
@@ -776,7 +782,8 @@ def k40(name: str, label: str, iterations: int, part: str = "all") -> dict[str, 
             k40_reference(setup, problem, work)
         if part in ("parareal", "all"):
             k40_parareal(setup, problem, iterations, work,
-                         {"problem": name, "label": label, "fine": list(problem.fine)})
+                         {"problem": name, "label": label, "fine": list(problem.fine)},
+                         workers)
     result = k40_summary(name, label, work)
     _save(OUT / f"k40_{name}.json", result)
     return result
@@ -818,6 +825,8 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument("--k40-part", choices=("all", "reference", "parareal", "summary"),
                         default="all", help="with --k40: only F's serial solution, only the "
                         "Parareal run (two processes at once), or only the summary")
+    parser.add_argument("--k40-workers", type=int, default=1,
+                        help="with --k40: worker processes for the fine solves (1: in-process)")
     parser.add_argument("--limits", action="store_true",
                         help="forward Euler's limits of the coarse systems (limits_measured.json)")
     args = parser.parse_args(argv)
@@ -826,7 +835,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         return
     if args.k40:
         name, label, k = args.k40
-        print(json.dumps(k40(name, label, int(k), args.k40_part), indent=1))
+        print(json.dumps(k40(name, label, int(k), args.k40_part, args.k40_workers), indent=1))
         return
     if args.emulate:
         name, label, k = args.emulate

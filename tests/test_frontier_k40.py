@@ -93,6 +93,18 @@ def test_kept_iterates_give_the_runs_own_errors_and_a_resumed_run_continues(fron
         frontier.k40_parareal(setup, problem, 3, work, {"label": "another G"})
 
 
+@pytest.mark.slow  # (two worker processes start and compile: a minute on a loaded machine)
+def test_worker_processes_give_the_same_iterates(frontier, tmp_path):
+    setup, problem = _setup(frontier), frontier.k40_problem("tiny")
+    for workers in (1, 2):
+        (tmp_path / str(workers)).mkdir()
+        frontier.k40_parareal(setup, problem, 1, tmp_path / str(workers), {}, workers=workers)
+    assert np.array_equal(np.load(tmp_path / "1" / "iterate_1.npy"),
+                          np.load(tmp_path / "2" / "iterate_1.npy"))
+    record = json.loads((tmp_path / "2" / "iterates.json").read_text())
+    assert list(record["increments"]) == ["1"] and record["increments"]["1"] > 0
+
+
 def _fake_run(frontier, errors, slices_done=40):
     """The analogue's results (F's own error 2^-22, the fastest serial run twice cheaper than F)
     and a 40-slice run whose iterates at T lie exactly ``errors`` (relative) from F's."""
