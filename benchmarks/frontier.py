@@ -762,7 +762,7 @@ def k40_summary(name: str, label: str, work: pathlib.Path) -> dict[str, Any]:
             measured, problem.target, own, done["fine"]["cpu_per_time"],
             done["best"]["cpu_per_time"]),
         "cpu": {"reference": reference.get("cpu"), "reference_slices": reference.get(
-            "slices_done", 0), "parareal": record.get("cpu")},
+            "slices_done", 0), "parareal_main_process": record.get("cpu")},
         "load_average": _load_average(),
     }
 
