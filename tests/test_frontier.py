@@ -115,3 +115,15 @@ def test_round5_configuration_checks_and_runs_quick(path):
     result = parareal.run(setup.fine, setup.coarse, x0, 0.0, cfg.time.t1, 2, tol=0.0,
                           max_iterations=1)
     assert result.iterations == 1 and np.isfinite(result.states).all()
+
+
+def test_the_profile_counts_a_call_inside_a_timed_one_as_the_outer_piece(frontier):
+    """f_t's forward difference evaluates the rates: those count as f_t, not as stage rates;
+    a call of its own counts as its piece."""
+    timer = frontier._PieceTimer()
+    rates = timer.wrap("stage rates", lambda: sum(range(20000)))
+    time_derivative = timer.wrap("f_t", lambda: rates() - rates())
+    time_derivative()
+    rates()
+    assert timer.calls == {**dict.fromkeys(frontier.PIECES, 0), "f_t": 1, "stage rates": 1}
+    assert timer.seconds["f_t"] > 0.0 and timer.seconds["stage rates"] > 0.0
