@@ -127,13 +127,19 @@ IMPLICIT = small_rod(model="epsilon = 5").replace(
     'scheme = "ros34pw2"\ndt_ratio = 10')
 
 
-def test_the_coarse_keys_reach_the_auxiliary_solvers_stepper():
-    cfg, resolved = config.loads(IMPLICIT, overrides=["coarse.jacobian_every=10",
-                                                       "coarse.hold_time_derivative=true"])
+@pytest.mark.parametrize(("keys", "refresh", "hold"), [
+    (["coarse.jacobian_every=10", "coarse.hold_time_derivative=true"], 10, True),
+    (["coarse.jacobian_every=10"], 10, False), (["coarse.hold_time_derivative=true"], None, True)])
+def test_the_coarse_keys_reach_the_auxiliary_solvers_stepper(keys, refresh, hold):
+    cfg, resolved = config.loads(IMPLICIT, overrides=keys)
     coarse = config.build(cfg, resolved).coarse
     scheme = coarse.auxiliary[0][0].scheme
-    assert (scheme.name, scheme.refresh, scheme.hold_time_derivative) == ("ros34pw2", 10, True)
-    assert checked_stepper(coarse.system, scheme).refresh == 10
+    assert (scheme.name, scheme.refresh, scheme.hold_time_derivative) == ("ros34pw2", refresh,
+                                                                          hold)
+    assert checked_stepper(coarse.system, scheme).refresh == (refresh or 5)
+
+
+def test_without_the_keys_the_auxiliary_solvers_take_the_scheme_by_name():
     cfg, resolved = config.loads(IMPLICIT)
     assert config.build(cfg, resolved).coarse.auxiliary[0][0].scheme == "ros34pw2"
 
