@@ -207,6 +207,8 @@ CANDIDATES: dict[str, dict[str, Candidate]] = {
         "ros34pw2 6.25e-4": Candidate("implicit", {"scheme": "ros34pw2", "dt": 6.25e-4}),
         "ros34pw2 6.25e-4, A every 10, f_t held": Candidate(
             "implicit", _implicit("ros34pw2", 6.25e-4, 10, True)),
+        "ros34pw2 1.25e-3, A every 20, f_t held": Candidate(
+            "implicit", _implicit("ros34pw2", 1.25e-3, 20, True)),
     },
     "rod601": {
         "grid 2, eps [0.8, 1], euler 5e-6": Candidate(
@@ -556,6 +558,29 @@ def profile_slice(name: str, label: str, repeats: int = 3, evaluations: int = 20
             "load_average": _load_average()}
 
 
+def interleaved_alphas(name: str, labels: Sequence[str], rounds: int = 5) -> dict[str, Any]:
+    """alpha of each candidate ``label`` measured in ``rounds`` interleaved rounds (each round
+    one ``measure_slice_costs`` per candidate, F timed beside each G): the median ratio per
+    candidate. Under a shared machine's changing load a candidate's alpha from its own
+    frontier run moves by tens of percent; interleaved, the candidates see the same load."""
+    from parastokes import parareal
+
+    problem = PROBLEMS[name]
+    setups = {label: build(problem, CANDIDATES[name][label].coarse) for label in labels}
+    ratios: dict[str, list[float]] = {label: [] for label in labels}
+    loads = [_load_average()]
+    for _ in range(rounds):
+        for label, setup in setups.items():
+            costs = parareal.measure_slice_costs(setup.fine, setup.coarse, 0.0,
+                                                 problem.slice_length,
+                                                 setup.system.initial_state(), repeats=1,
+                                                 clock=time.process_time)
+            ratios[label].append(costs.task_ratio())
+        loads.append(_load_average())
+    return {label: {"ratios": r, "median": float(np.median(r)), "load_average": loads}
+            for label, r in ratios.items()}
+
+
 # ---- tables -------------------------------------------------------------------------------------
 
 def load_problem(name: str) -> dict[str, Any]:
@@ -810,11 +835,20 @@ def main(argv: Sequence[str] | None = None) -> None:
                         "propagators, benchmarks/pipeline.py)")
     parser.add_argument("--profile", nargs=2, metavar=("PROBLEM", "LABEL"),
                         help="where one coarse slice of LABEL's CPU goes (PROBLEM_profile.json)")
+    parser.add_argument("--alphas", nargs="+", metavar="PROBLEM ROUNDS LABEL",
+                        help="alpha of these candidates in ROUNDS interleaved rounds "
+                        "(PROBLEM_alphas.json)")
     parser.add_argument("--limits", action="store_true",
                         help="forward Euler's limits of the coarse systems (limits_measured.json)")
     args = parser.parse_args(argv)
     if args.limits:
         _save(OUT / "limits_measured.json", limits())
+        return
+    if args.alphas:
+        name, rounds, *labels = args.alphas
+        for label, value in interleaved_alphas(name, labels, int(rounds)).items():
+            print(label, value, flush=True)
+            _store(name, "alphas", label, value)
         return
     if args.profile:
         name, label = args.profile
