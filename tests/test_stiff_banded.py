@@ -13,6 +13,8 @@ import scipy.sparse as sp
 from test_stiff import Forced
 
 from parastokes import integrate, models
+from parastokes.kinds.chain import ChainSystem
+from parastokes.scene import Scene
 from parastokes.stiff import ROSENBROCK, StiffSolveError, banded, jacobian, local, solve, stepper
 from parastokes.stiff.solve import Factorization
 
@@ -56,6 +58,103 @@ def test_the_rods_a_is_the_near_mobility_times_the_load_jacobian():
     a = jacobian.local_jacobian(rod, 0.0, x, 6 * len(x)).toarray()
     expected = (m @ sp.csr_array(k)).toarray()
     assert np.allclose(a, expected, rtol=0, atol=1e-13 * np.abs(expected).max())
+
+
+def _reference_product(body, x):
+    """M_near @ K of ``body`` at ``x`` through the stored near mobility and scipy's product."""
+    size = 6 if getattr(body, "angular", False) else 3
+    k = sp.bsr_array(jacobian.load_jacobian(body, 0.0, x), blocksize=(size, size))
+    m = local.near_mobility(body.positions(x), body.epsilon, body.viscosity, size == 6,
+                            jacobian.CUTOFF * body.epsilon)
+    return (m @ sp.csr_array(k)).toarray(), k
+
+
+def _bent_rod():
+    rod = models.rod_swimmer(n_points=101, length=20.0, epsilon=0.4, n_threads=1)
+    x = rod.initial_state()
+    s = np.linspace(0.0, 1.0, len(x))
+    x[:, 1] += 0.5 * np.sin(3.0 * s)  # bent out of line: every pair's separation has y
+    x[:, 2] += 0.3 * s ** 2           # and z, so no block entry is zero by symmetry
+    return rod, rod.project(x)
+
+
+@pytest.mark.parametrize("kind", ["rod", "chain"])
+def test_fused_near_product_is_the_reference_product_in_lapacks_layout(kind):
+    """The one-pass product (M's blocks never stored) on a bent rod (6 x 6 blocks, loads on
+    the two neighbours) and a chain (3 x 3, two neighbours each side): the matrix M @ K to
+    round-off, a dia_array whose row ku + i - j of column j is entry (i, j), Fortran order,
+    with the reference's band."""
+    if kind == "rod":
+        body, x = _bent_rod()
+    else:
+        body = ChainSystem(n_beads=40, tilt=0.3, stretch=1.1, epsilon=0.3)
+        x = body.initial_state()
+        x[:, 2] += 0.2 * np.sin(np.linspace(0.0, 3.0, len(x)))
+    expected, k = _reference_product(body, x)
+    a = jacobian.local_jacobian(body, 0.0, x, expected.shape[0])
+    assert isinstance(a, sp.dia_array) and a.data.flags.f_contiguous
+    kl, ku = banded.bandwidth(sp.bsr_array(expected, blocksize=k.blocksize))
+    assert banded.bandwidth(a) == (kl, ku) and a.data.shape == (kl + ku + 1, len(expected))
+    assert list(a.offsets) == list(range(ku, -kl - 1, -1))
+    scale = np.abs(expected).max()
+    assert np.abs(a.toarray() - expected).max() < 1e-13 * scale
+    rows, cols = np.nonzero(np.abs(expected) > 1e-6 * scale)
+    np.testing.assert_allclose(a.data[ku + rows - cols, cols], expected[rows, cols], rtol=0,
+                               atol=1e-13 * scale)
+
+
+def test_near_product_beyond_an_eighth_of_its_size_is_the_general_product():
+    """Points in no order along a line (a vesicle's, a curled rod's): the band is wide, and
+    near_product gives the block product of the stored mobility, the same matrix."""
+    rng = np.random.default_rng(6)
+    points = rng.uniform(0.0, 3.0, size=(40, 3))
+    k, dk = _random_bsr(rng, 40, 40, (6, 6), 0.1)
+    a = banded.near_product(points, 0.5, 2.0, True, 1.5, k)
+    assert isinstance(a, sp.bsr_array)
+    m = local.near_mobility(points, 0.5, 2.0, True, 1.5).toarray()
+    assert np.allclose(a.toarray(), m @ dk, rtol=0, atol=1e-13 * np.abs(m @ dk).max())
+
+
+def test_near_product_refuses_a_load_jacobian_of_other_blocks():
+    rng = np.random.default_rng(7)
+    k, _ = _random_bsr(rng, 10, 10, (3, 3), 0.3)
+    with pytest.raises(ValueError, match="expected"):
+        banded.near_product(rng.uniform(size=(10, 3)), 0.5, 1.0, True, 1.5, k)
+
+
+def test_a_scene_of_a_rod_and_a_chain_composes_their_fused_products():
+    """A scene's A (its stiff_jacobian) holds each body's fused band product on its diagonal
+    blocks, padded to the widest rates: the reference products there, zero elsewhere."""
+    rod, x_rod = _bent_rod()
+    chain = ChainSystem(n_beads=12, tilt=0.3, stretch=1.1, viscosity=rod.viscosity,
+                        epsilon=0.3, height=30.0, wall=True)
+    scene = Scene((rod, chain), viscosity=rod.viscosity, wall=True)
+    x = scene.stack([x_rod, chain.initial_state()])
+    a = sp.csr_array(scene.stiff_jacobian(0.0, x)).toarray()
+    expected = np.zeros_like(a)
+    n_rod = 6 * len(x_rod)
+    expected[:n_rod, :n_rod] = _reference_product(rod, x_rod)[0]
+    chain_a = _reference_product(chain, chain.initial_state())[0]
+    for i in range(3):  # the chain's 3 rates per bead in rows and columns of 6
+        for j in range(3):
+            expected[n_rod + i::6, n_rod + j::6] = chain_a[i::3, j::3]
+    assert np.abs(a - expected).max() < 1e-13 * np.abs(expected).max()
+    assert np.abs(a[n_rod:, n_rod:]).max() > 0
+
+
+def test_band_storage_of_the_fused_band_is_that_of_the_block_product():
+    """I - hγA from the fused dia band and from the BSR product: the same LAPACK array."""
+    rod, x = _bent_rod()
+    expected = _reference_product(rod, x)[0]
+    bsr = sp.bsr_array(expected, blocksize=(6, 6))
+    kl, ku = banded.bandwidth(bsr)
+    fused = banded.band_storage(jacobian.local_jacobian(rod, 0.0, x, len(expected)), 0.7, kl,
+                                ku)
+    assert fused.flags.f_contiguous and not fused[:kl].any()
+    scale = 0.7 * np.abs(expected).max()
+    assert np.abs(fused - banded.band_storage(bsr, 0.7, kl, ku)).max() < 1e-13 * scale
+    assert np.all(fused[kl + ku] != 0.0) and fused[kl + ku, 5] == pytest.approx(
+        1.0 - 0.7 * expected[5, 5], rel=1e-12)
 
 
 def test_bandwidth_of_blocks_counts_every_entry_of_a_block():

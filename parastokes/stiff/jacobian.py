@@ -6,7 +6,8 @@ In order of preference (docs/stiff.md, "Which Jacobian"):
    rates, point-major (a :class:`parastokes.scene.Scene` composes its bodies' this way);
 2. for a body on the MRS fluid (``loads``, ``epsilon``, ``viscosity``): the near-pair mobility
    (:func:`.local.near_mobility`, pairs within :data:`CUTOFF` ε) times the Jacobian of its loads,
-   ``A = M_near K``. ``K`` is the body's ``load_jacobian(t, state)`` if it has one (checked
+   ``A = M_near K`` (:func:`.banded.near_product`: in LAPACK's band layout for a rod or
+   chain). ``K`` is the body's ``load_jacobian(t, state)`` if it has one (checked
    against finite differences by ``parastokes.testing.check_system``), else coloured finite
    differences (:mod:`.coloring`) over its declared ``load_coupling()`` pattern (the package's
    rod, vesicle and chain declare theirs), else dense finite differences (a user body without
@@ -32,9 +33,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..bodies import contract
-from .banded import block_product
+from .banded import near_product
 from .coloring import fd_jacobian
-from .local import near_mobility
 from .solve import StiffSolveError
 
 __all__ = ["CUTOFF", "NonFiniteJacobian", "block_jacobian", "has_stiff_part", "jacobian_check",
@@ -155,7 +155,7 @@ def has_stiff_part(system: Any) -> bool:
 
 
 def local_jacobian(system: Any, t: float, x: np.ndarray, n_rates: int
-                   ) -> sp.csr_array | sp.bsr_array | None:
+                   ) -> sp.csr_array | sp.bsr_array | sp.dia_array | None:
     """``A`` of ``system`` at ``(t, x)`` over its ``n_rates`` rates flattened point-major, or
     None (no stiff part known: the schemes step it explicitly); see the module docstring."""
     x = np.asarray(x, dtype=float)
@@ -168,10 +168,10 @@ def local_jacobian(system: Any, t: float, x: np.ndarray, n_rates: int
     if not _local_model(system):
         return None
     angular = bool(getattr(system, "angular", False))
-    k = load_jacobian(system, t, x)
-    m = near_mobility(system.positions(x), float(system.epsilon), float(system.viscosity),
-                      angular, CUTOFF * float(system.epsilon))
-    return block_product(m, sp.bsr_array(k, blocksize=(m.blocksize[0], _rate_columns(system))))
+    size = _rate_columns(system)  # = the loads per point (_local_model)
+    k = sp.bsr_array(load_jacobian(system, t, x), blocksize=(size, size))
+    return near_product(system.positions(x), float(system.epsilon), float(system.viscosity),
+                        angular, CUTOFF * float(system.epsilon), k)
 
 
 def probe_hooks(system: Any, t: float, x: np.ndarray) -> None:

@@ -13,12 +13,15 @@ whose order does not depend on it.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import scipy.sparse as sp
 from numba import njit
 from scipy.spatial import cKDTree
 
-__all__ = ["near_mobility", "near_pairs"]
+__all__ = ["coefficients", "near_mobility", "near_pairs", "pair_block", "pair_blocks",
+           "sorted_pairs", "taper"]
 
 _EIGHT_PI = 8.0 * np.pi
 
@@ -33,31 +36,59 @@ def near_pairs(points: np.ndarray, cutoff: float) -> tuple[np.ndarray, np.ndarra
             np.concatenate([own, pairs[:, 1], pairs[:, 0]]))
 
 
-@njit(cache=True, error_model="numpy")
-def _pair_blocks(r, eps, angular, out):  # pragma: no cover - compiled
-    e2 = eps * eps
-    for p in range(r.shape[0]):
-        x, y, z = r[p, 0], r[p, 1], r[p, 2]
-        r2 = x * x + y * y + z * z
-        i3 = (r2 + e2) ** -1.5
-        i5 = i3 / (r2 + e2)
-        diag = (r2 + 2.0 * e2) * i3
-        v = (x, y, z)
-        for a in range(3):
-            for b in range(3):
-                out[p, a, b] = i3 * v[a] * v[b] + (diag if a == b else 0.0)
-        if not angular:
-            continue
-        q = 0.5 * (2.0 * r2 + 5.0 * e2) * i5
-        p1 = -0.5 * (r2 - 2.0 * e2) * i5  # -1/4 of 8π × (4)'s p1
-        p2 = 1.5 * i5                      # -1/4 of 8π × (4)'s p2
+@njit(cache=True, error_model="numpy", inline="always")
+def coefficients(r2, e2):  # pragma: no cover - compiled
+    """The scalars of 8π μ × a pair's mobility block at squared distance ``r2``, ε² = ``e2``:
+    ``(diag, i3, q, p1, p2)`` of the Stokeslet diag I + i3 r rᵀ, the rotlet -i3 [r]ₓ, the
+    curl -q [r]ₓ and the dipole p1 I + p2 r rᵀ (:func:`pair_blocks`)."""
+    i3 = (r2 + e2) ** -1.5
+    i5 = i3 / (r2 + e2)
+    return ((r2 + 2.0 * e2) * i3, i3, 0.5 * (2.0 * r2 + 5.0 * e2) * i5,
+            -0.5 * (r2 - 2.0 * e2) * i5,  # -1/4 of 8π × (4)'s p1
+            1.5 * i5)                      # -1/4 of 8π × (4)'s p2
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def pair_block(x, y, z, e2, angular, out):  # pragma: no cover - compiled
+    """8π μ × the mobility block of the pair at separation (x, y, z) into ``out`` (V, V), with
+    ε² = ``e2`` (:func:`coefficients`)."""
+    diag, i3, q, p1, p2 = coefficients(x * x + y * y + z * z, e2)
+    v = (x, y, z)
+    for a in range(3):
+        for b in range(3):
+            out[a, b] = i3 * v[a] * v[b] + (diag if a == b else 0.0)
+    if angular:
         # [r]_x rows: (0, -z, y), (z, 0, -x), (-y, x, 0)
         cross = ((0.0, -z, y), (z, 0.0, -x), (-y, x, 0.0))
         for a in range(3):
             for b in range(3):
-                out[p, a, 3 + b] = -i3 * cross[a][b]
-                out[p, 3 + a, b] = -q * cross[a][b]
-                out[p, 3 + a, 3 + b] = p2 * v[a] * v[b] + (p1 if a == b else 0.0)
+                out[a, 3 + b] = -i3 * cross[a][b]
+                out[3 + a, b] = -q * cross[a][b]
+                out[3 + a, 3 + b] = p2 * v[a] * v[b] + (p1 if a == b else 0.0)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def taper(r2, cutoff, viscosity):  # pragma: no cover - compiled
+    """The factor of a pair at squared distance ``r2`` in the near mobility: Wendland's
+    compactly supported C² function (1 - q)⁴ (4q + 1) of q = r / ``cutoff`` (0 from q = 1 on),
+    positive definite in three dimensions (Wendland, Adv. Comput. Math. 4, 1995), so the
+    mobility tapered by it stays positive semi-definite (Schur's product theorem), over 8π μ."""
+    q = min(math.sqrt(r2) / cutoff, 1.0)
+    s = 1.0 - q
+    return s * s * s * s * (4.0 * q + 1.0) / (_EIGHT_PI * viscosity)
+
+
+@njit(cache=True, error_model="numpy")
+def _pair_blocks(r, eps, angular, cutoff, viscosity, out):  # pragma: no cover - compiled
+    e2 = eps * eps
+    for p in range(r.shape[0]):
+        x, y, z = r[p, 0], r[p, 1], r[p, 2]
+        pair_block(x, y, z, e2, angular, out[p])
+        if cutoff > 0.0:
+            scale = taper(x * x + y * y + z * z, cutoff, viscosity)
+            for a in range(out.shape[1]):
+                for b in range(out.shape[2]):
+                    out[p, a, b] *= scale
 
 
 def pair_blocks(r: np.ndarray, eps: float, angular: bool) -> np.ndarray:
@@ -68,32 +99,30 @@ def pair_blocks(r: np.ndarray, eps: float, angular: bool) -> np.ndarray:
     r = np.ascontiguousarray(r, dtype=float)
     size = 6 if angular else 3
     out = np.empty((len(r), size, size))
-    _pair_blocks(r, float(eps), bool(angular), out)
+    _pair_blocks(r, float(eps), bool(angular), 0.0, 1.0, out)
     return out
 
 
-def wendland(q: np.ndarray) -> np.ndarray:
-    """Wendland's compactly supported C² function (1 - q)⁴ (4q + 1) for q < 1, else 0:
-    positive definite in three dimensions (Wendland, Adv. Comput. Math. 4, 1995), so the
-    mobility tapered by it stays positive semi-definite (Schur's product theorem)."""
-    q = np.minimum(q, 1.0)
-    return (1.0 - q) ** 4 * (4.0 * q + 1.0)
+def sorted_pairs(points: np.ndarray, cutoff: float) -> tuple[np.ndarray, np.ndarray]:
+    """The pairs of :func:`near_pairs` as compressed rows: ``(indptr, source)`` with the
+    sources of target ``i`` in ``source[indptr[i]:indptr[i + 1]]``, ascending."""
+    target, source = near_pairs(points, cutoff)
+    order = np.lexsort((source, target))
+    indptr = np.zeros(len(points) + 1, dtype=np.int64)
+    np.cumsum(np.bincount(target, minlength=len(points)), out=indptr[1:])
+    return indptr, source[order].astype(np.int64)
 
 
 def near_mobility(points: np.ndarray, epsilon: float, viscosity: float, angular: bool,
                   cutoff: float) -> sp.bsr_array:
-    """The free-space mobility of the pairs closer than ``cutoff``, tapered by :func:`wendland`:
+    """The free-space mobility of the pairs closer than ``cutoff``, tapered by :func:`taper`:
     (n V, n V) sparse in blocks of V x V, V = 6 (``[u, w]`` from ``[f, n]``) with ``angular``,
     else 3, point-major rows and columns."""
     points = np.ascontiguousarray(points, dtype=float)
-    target, source = near_pairs(points, cutoff)
-    order = np.lexsort((source, target))
-    target, source = target[order], source[order]
-    r = points[target] - points[source]
-    blocks = pair_blocks(r, float(epsilon), angular)
-    blocks *= (wendland(np.sqrt(np.einsum("pk,pk->p", r, r)) / cutoff)
-               / (_EIGHT_PI * viscosity))[:, None, None]
-    n, v = len(points), blocks.shape[1]
-    indptr = np.zeros(n + 1, dtype=np.int64)
-    np.cumsum(np.bincount(target, minlength=n), out=indptr[1:])
+    indptr, source = sorted_pairs(points, cutoff)
+    target = np.repeat(np.arange(len(points)), np.diff(indptr))
+    n, v = len(points), 6 if angular else 3
+    blocks = np.empty((len(source), v, v))
+    _pair_blocks(points[target] - points[source], float(epsilon), bool(angular), float(cutoff),
+                 float(viscosity), blocks)
     return sp.bsr_array((blocks, source, indptr), shape=(n * v, n * v))

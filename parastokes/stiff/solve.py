@@ -27,7 +27,7 @@ import scipy.sparse.linalg as spla
 from scipy.linalg import lapack
 
 from ..mobility.threads import LAPACK, blas_threads
-from .banded import band_storage, bandwidth
+from .banded import band_storage, bandwidth, narrow
 
 __all__ = ["GMRES_ACCEPT", "GMRES_MAXITER", "GMRES_RTOL", "GMRES_RTOL_ORDER3", "Factorization",
            "StageSolver", "StiffSolveError"]
@@ -67,7 +67,7 @@ class StiffSolveError(RuntimeError):
 def _ordering(matrix: sp.sparray) -> str:
     """SuperLU's column ordering: the natural one for a banded matrix (a rod's or chain's points
     in order along it: no fill outside the band, measured 2x faster to factorize), else COLAMD."""
-    return "NATURAL" if max(bandwidth(matrix)) < matrix.shape[0] // 8 else "COLAMD"
+    return "NATURAL" if narrow(*bandwidth(matrix), matrix.shape[0]) else "COLAMD"
 
 
 class Factorization:
@@ -83,7 +83,7 @@ class Factorization:
         kl, ku = bandwidth(matrix)
         self._band: tuple[np.ndarray, np.ndarray, int, int] | None = None
         self._superlu: Any = None
-        if max(kl, ku) < n // 8:
+        if narrow(kl, ku, n):
             ab = band_storage(matrix, hgamma, kl, ku)
             with LAPACK, blas_threads(1):
                 lu, piv, info = lapack.dgbtrf(ab, kl, ku, overwrite_ab=1)
