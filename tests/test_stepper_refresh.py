@@ -156,3 +156,18 @@ def test_the_coarse_keys_with_an_explicit_scheme_or_below_one_are_refused_by_che
     assert "coarse.jacobian_every" in dict(info.value.issues)
     assert math.isfinite(config.loads(explicit, overrides=[
         "coarse.hold_time_derivative=false"])[1].coarse_dt)
+
+
+def test_predicts_measured_step_cost_takes_the_keys_too(monkeypatch):
+    """``parastokes predict`` measures an implicit G's evaluations per step with the scheme its
+    auxiliary solvers run (A every 10 steps, f_t held), not the scheme's default."""
+    from parastokes.coarse import extrapolated, step_cost
+
+    timed = []
+    monkeypatch.setattr(step_cost, "measured_evaluations",
+                        lambda system, scheme, *args: timed.append(scheme) or 1.0)
+    cfg, resolved = config.loads(IMPLICIT, overrides=["coarse.jacobian_every=10",
+                                                       "coarse.hold_time_derivative=true"])
+    extrapolated.operation_counts(cfg, resolved, [(cfg.coarse, resolved)])
+    (scheme,) = timed  # (F, rk2 on fixed steps, is counted by its stages)
+    assert (scheme.name, scheme.refresh, scheme.hold_time_derivative) == ("ros34pw2", 10, True)

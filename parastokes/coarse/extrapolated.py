@@ -225,13 +225,9 @@ class Extrapolated(CoarseSection):
               ) -> parareal.Extrapolated | parareal.OnCoarseGrid:
         """G of eq. 30 with the base step τ = τ_c / r^m (``resolved.coarse_base_dt``)."""
         richardson = self.richardson
-        scheme: str | Rosenbrock = self.scheme
-        if self.jacobian_every is not None or self.hold_time_derivative:
-            scheme = refreshed_every(ROSENBROCK[self.scheme], self.jacobian_every,
-                                     self.hold_time_derivative)
         return parareal.extrapolated(
             system,
-            scheme,
+            self.auxiliary_scheme(),
             resolved.coarse_base_dt,
             lagrange=resolved.lagrange or None,
             richardson={"m": richardson.m, "r": richardson.r} if richardson.m else None,
@@ -239,6 +235,14 @@ class Extrapolated(CoarseSection):
             rtol=self.rtol,
             atol=self.atol,
         )
+
+    def auxiliary_scheme(self) -> str | Rosenbrock:
+        """The auxiliary solvers' scheme: its name, or with ``jacobian_every`` or
+        ``hold_time_derivative`` the linearly implicit scheme that carries them."""
+        if self.jacobian_every is None and not self.hold_time_derivative:
+            return self.scheme
+        return refreshed_every(ROSENBROCK[self.scheme], self.jacobian_every,
+                               self.hold_time_derivative)
 
     def gamma_ratio(self, cfg: Any, resolved: Any, cores: int) -> float:
         """γ_G/γ_F from operation counts: rate evaluations per slice times (points)² (the O(N²)
@@ -265,7 +269,7 @@ def operation_counts(cfg: Any, resolved: Any, sections: Sequence[tuple[Extrapola
     coarse = []
     for section, res in sections:
         steps = max(res.coarse_steps)
-        coarse.append(steps * evaluations_per_step(cfg, res, section.scheme, steps,
+        coarse.append(steps * evaluations_per_step(cfg, res, section.auxiliary_scheme(), steps,
                                                    section.grid_factor, section.rtol,
                                                    section.atol, system=body))
     return resolved.fine_steps * per_fine * resolved.n_points**2, coarse
