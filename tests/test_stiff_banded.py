@@ -87,8 +87,9 @@ def test_fused_near_product_is_the_reference_product_in_lapacks_layout(kind):
     if kind == "rod":
         body, x = _bent_rod()
     else:
-        body = ChainSystem(n_beads=40, tilt=0.3, stretch=1.1, epsilon=0.3)
+        body = ChainSystem(n_beads=40, tilt=0.3, stretch=1.1, epsilon=0.8)  # pairs: 2 beads
         x = body.initial_state()
+        x[:, 1] += 0.3 * np.cos(np.linspace(0.0, 2.0, len(x)))
         x[:, 2] += 0.2 * np.sin(np.linspace(0.0, 3.0, len(x)))
     expected, k = _reference_product(body, x)
     a = jacobian.local_jacobian(body, 0.0, x, expected.shape[0])
@@ -193,15 +194,34 @@ def test_band_storage_is_lapacks_layout():
 
 
 @pytest.mark.parametrize("kl", [5, 200])
-def test_factorization_solves_as_a_dense_solve(kl):
-    """Banded (LAPACK, a band below n/8) and general (SuperLU) factorizations of I - hγA solve
-    like numpy's dense solve."""
+def test_factorization_solves_as_a_dense_solve(kl, monkeypatch):
+    """Banded (LAPACK, a band below n/8; its elimination in double here) and general
+    (SuperLU) factorizations of I - hγA solve like numpy's dense solve."""
+    monkeypatch.setattr(solve, "BAND_PRECISION", np.float64)
     dense = _banded_matrix(kl=kl, ku=3)
     lu = Factorization(sp.csr_array(dense), 0.05, 0.0)
     assert lu.banded == (kl < 240 // 8)
     rhs = np.random.default_rng(4).standard_normal(240)
     expected = np.linalg.solve(np.eye(240) - 0.05 * dense, rhs)
     assert np.allclose(lu.solve(rhs), expected, rtol=1e-10, atol=1e-12)
+
+
+def test_single_precision_factors_solve_one_fixed_matrix_in_double():
+    """The default banded LU eliminates in single precision and solves in double on those
+    factors: the solves are those of one matrix I - hγA' (linear to double's round-off, as a
+    W-method needs), A' within single precision of A (the solve off the exact one by about
+    1e-7, far more than double's round-off: the elimination really is single)."""
+    assert solve.BAND_PRECISION == np.float32
+    dense = _banded_matrix(kl=5, ku=3)
+    lu = Factorization(sp.csr_array(dense), 0.05, 0.0)
+    rng = np.random.default_rng(8)
+    v, w = rng.standard_normal((2, 240))
+    x, y = lu.solve(v), lu.solve(w)
+    combined = lu.solve(0.3 * v - 2.0 * w)
+    assert np.abs(combined - (0.3 * x - 2.0 * y)).max() < 1e-13 * np.abs(combined).max()
+    exact = np.linalg.solve(np.eye(240) - 0.05 * dense, v)
+    off = np.abs(x - exact).max() / np.abs(exact).max()
+    assert 1e-10 < off < 1e-5
 
 
 @pytest.mark.parametrize("kl", [2, 200])
@@ -323,16 +343,21 @@ def test_adaptive_steps_factorize_less_often_than_they_change_the_step(monkeypat
 
 
 def test_banded_and_general_factorizations_give_the_same_run(monkeypatch):
-    """The rod's run with A's band factorized by LAPACK equals (to 1e-10) the run with SuperLU
-    (the band reported as the whole matrix)."""
+    """The rod's run with A's band factorized by LAPACK in double equals (to 1e-10) the run
+    with SuperLU (the band reported as the whole matrix), and in single (the default) to
+    1e-7: a W-method on A within single precision of A."""
     rod = models.rod_swimmer(n_points=61, length=12.0, epsilon=0.3, n_threads=1)
     x0 = rod.initial_state()
+    single = integrate.run(rod, x0, 0.0, 5e-4, "ros34pw2", 1e-4).state
+    monkeypatch.setattr(solve, "BAND_PRECISION", np.float64)
     assert Factorization(jacobian.local_jacobian(rod, 0.0, x0, 6 * len(x0)), 1e-4, 0.0).banded
     a = integrate.run(rod, x0, 0.0, 5e-4, "ros34pw2", 1e-4).state
     monkeypatch.setattr(solve, "bandwidth", lambda matrix: (matrix.shape[0], matrix.shape[0]))
     assert not Factorization(jacobian.local_jacobian(rod, 0.0, x0, 6 * len(x0)), 1e-4, 0.0).banded
     b = integrate.run(rod, x0, 0.0, 5e-4, "ros34pw2", 1e-4).state
     assert np.allclose(a, b, rtol=0, atol=1e-10 * np.abs(a).max())
+    moved = np.abs(single - a)[:, :3].max() / np.abs(a[:, :3] - x0[:, :3]).max()
+    assert 1e-13 < moved < 1e-6
 
 
 @pytest.mark.parametrize("width", [3, 2])
@@ -363,3 +388,66 @@ def test_coloured_differences_are_the_analytic_jacobian(width):
     got = coloring.fd_jacobian(function, lambda y, d, h: y + h * d, x, 3,
                                coloring.banded(1, n, 1), 1e-6).toarray()
     assert np.allclose(got, expected, rtol=0, atol=1e-8)
+
+
+def test_the_rods_load_jacobian_hook_is_the_coloured_differences():
+    """RodSystem.load_jacobian (compiled, segment by segment) on two bent and twisted rods
+    beating at t = 0.013 (a preferred strain that depends on t and on the half point): the
+    coloured central differences of its loads, to their round-off (relative 1e-9)."""
+    from parastokes.stiff import coloring
+
+    rod = models.rod_swimmer(n_points=21, length=4.0, epsilon=0.4, n_threads=1)
+    rod = dataclasses.replace(rod, n_rods=2, spacing=3.0)
+    x = rod.initial_state()
+    s = np.tile(np.linspace(0.0, 1.0, 21), 2)
+    x[:, 1] += 0.4 * np.sin(3.0 * s) + 0.1 * np.arange(42) // 21
+    x[:, 2] += 0.2 * s ** 2
+    twist = np.zeros((42, 6))
+    twist[:, 3:] = 0.3 * np.stack([np.cos(5 * s), s, np.sin(4 * s)], axis=1)
+    x = rod.advance(x, twist, 1.0)  # frames no longer along the centre line
+    hook = rod.load_jacobian(0.013, x)
+    assert isinstance(hook, sp.bsr_array) and hook.blocksize == (6, 6)
+    loads = jacobian._loads_function(rod, 0.013)
+    fd = coloring.fd_jacobian(loads, rod.advance, x, 6, rod.load_coupling(),
+                              jacobian.fd_step(x)).toarray()
+    assert np.abs(hook.toarray() - fd).max() < 1e-9 * np.abs(fd).max()
+    np.testing.assert_array_equal(jacobian.load_jacobian(rod, 0.013, x).toarray(),
+                                  hook.toarray())  # the schemes' K is the hook's
+
+
+@pytest.mark.parametrize("shape", ["cloud", "rod along z", "coincident"])
+def test_sorted_pairs_are_every_pair_within_the_cutoff(shape):
+    """The compiled sort and sweep against all n² distances: the same pairs (at most the
+    cutoff apart, self pairs included), sources ascending per target; a rod along z (the sweep
+    along its longest extent) and repeated points too."""
+    rng = np.random.default_rng(9)
+    points = {"cloud": rng.uniform(0.0, 3.0, size=(80, 3)),
+              "rod along z": np.stack([0.01 * rng.standard_normal(60), np.zeros(60),
+                                       np.linspace(0.0, 12.0, 60)], axis=1),
+              "coincident": np.repeat(rng.uniform(0.0, 2.0, size=(20, 3)), 2, axis=0)}[shape]
+    cutoff = 0.8
+    indptr, source = local.sorted_pairs(points, cutoff)
+    distance = np.linalg.norm(points[:, None] - points[None], axis=2)
+    for i in range(len(points)):
+        row = source[indptr[i]:indptr[i + 1]]
+        assert list(row) == list(np.flatnonzero(distance[i] <= cutoff)), i
+
+
+@pytest.mark.parametrize("precision", [np.float32, np.float64])
+def test_band_solve_is_lapacks_dgbtrs_on_the_same_factors(precision):
+    """The compiled solve of the banded factors (single or double precision, read as they are)
+    against LAPACK's dgbtrs on the same factors in double: the same solution to round-off, on
+    a matrix whose elimination pivots (row interchanges happen) with kl != ku."""
+    from scipy.linalg import lapack
+
+    kl, ku = 7, 4
+    dense = np.eye(200) - 0.8 * _banded_matrix(n=200, kl=kl, ku=ku, seed=10)
+    ab = banded.band_storage(sp.csr_array(np.eye(200) - dense), 1.0, kl, ku, precision)
+    lu, piv, info = (lapack.sgbtrf if precision == np.float32 else lapack.dgbtrf)(ab, kl, ku)
+    assert info == 0 and np.any(piv != np.arange(200))
+    rhs = np.random.default_rng(11).standard_normal(200)
+    expected = lapack.dgbtrs(lu.astype(float, order="F"), kl, ku, rhs, piv)[0]
+    got = solve.band_solve(lu, kl, ku, piv, rhs)
+    assert np.abs(got - expected).max() < 1e-12 * np.abs(expected).max()
+    if precision == np.float64:
+        assert np.allclose(got, np.linalg.solve(dense, rhs), rtol=1e-10, atol=1e-12)

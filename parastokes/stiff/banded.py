@@ -94,16 +94,16 @@ def _reach(m_ptr, m_idx, k_ptr, k_idx, rows, cols):  # pragma: no cover - compil
 
 @njit(cache=True)
 def _dense_rows(k_ptr, k_idx, k_blk, k_lo, width):  # pragma: no cover - compiled
-    """The block rows of ``k`` as dense strips: ``out[j, c, (l - j + k_lo) cols + b]`` =
-    entry (c, b) of block (j, l), ``width`` blocks per strip."""
+    """The block rows of ``k`` as dense strips, column-major: ``out[j, (l - j + k_lo) cols + b,
+    c]`` = entry (c, b) of block (j, l), ``width`` blocks per strip."""
     rows, cols = k_blk.shape[1], k_blk.shape[2]
-    out = np.zeros((len(k_ptr) - 1, rows, width * cols))
+    out = np.zeros((len(k_ptr) - 1, width * cols, rows))
     for j in range(len(k_ptr) - 1):
         for q in range(k_ptr[j], k_ptr[j + 1]):
             first = (k_idx[q] - j + k_lo) * cols
-            for c in range(rows):
-                for b in range(cols):
-                    out[j, c, first + b] = k_blk[q, c, b]
+            for b in range(cols):
+                for c in range(rows):
+                    out[j, first + b, c] = k_blk[q, c, b]
     return out
 
 
@@ -112,15 +112,16 @@ def _near_band(points, m_ptr, m_idx, eps, cutoff, viscosity, angular, strips, lp
                kl, ku, data):  # pragma: no cover - compiled
     """``data`` = M K in LAPACK's band layout (entry (r, c) at ``data[ku + r - c, c]``). Per
     point i, each pair (i, j) of M multiplies K's strip j (:func:`_dense_rows`) into the block
-    row of i (``width`` blocks from point i - ``lo``; pair j at block j - i + ``lp``), which
-    is then written out. M's block is never formed: with r = X_i - X_j, the strip's force rows
-    k_f and torque rows k_n (``angular``) and the scalars of :func:`.local.coefficients` times
-    :func:`.local.taper`, the velocity rows gain diag k_f + i3 r (r·k_f) - i3 r × k_n and the
-    angular ones -q r × k_f + p1 k_n + p2 r (r·k_n), column by column of the strip."""
-    strip = strips.shape[2]
+    row of i, held column by column (``width`` blocks from point i - ``lo``; pair j at block
+    j - i + ``lp``), which is then written out. M's block is never formed: with r = X_i - X_j,
+    a column's force rows k_f and torque rows k_n (``angular``) and the scalars of
+    :func:`.local.coefficients` times :func:`.local.taper`, the velocity rows gain
+    diag k_f + i3 r (r·k_f) - i3 r × k_n and the angular ones -q r × k_f + p1 k_n + p2 r (r·k_n)
+    (a column's six rows next to each other in memory: they vectorize)."""
+    strip = strips.shape[1]
     size = 6 if angular else 3
     cols = data.shape[1] // (len(m_ptr) - 1)
-    row = np.empty((size, width * cols))
+    row = np.empty((width * cols, size))
     e2 = eps * eps
     for i in range(len(m_ptr) - 1):
         row[:] = 0.0
@@ -134,34 +135,29 @@ def _near_band(points, m_ptr, m_idx, eps, cutoff, viscosity, angular, strips, lp
             scale = taper(r2, cutoff, viscosity)
             diag, i3, q, p1, p2 = diag * scale, i3 * scale, q * scale, p1 * scale, p2 * scale
             first = (j - i + lp) * cols
-            kf, out = strips[j], row[:, first:first + strip]
             for e in range(strip):
-                f0, f1, f2 = kf[0, e], kf[1, e], kf[2, e]
+                k, out = strips[j, e], row[first + e]
+                f0, f1, f2 = k[0], k[1], k[2]
                 rf = i3 * (x * f0 + y * f1 + z * f2)
-                u0 = diag * f0 + rf * x
-                u1 = diag * f1 + rf * y
-                u2 = diag * f2 + rf * z
                 if angular:
-                    n0, n1, n2 = kf[3, e], kf[4, e], kf[5, e]
+                    n0, n1, n2 = k[3], k[4], k[5]
                     rn = p2 * (x * n0 + y * n1 + z * n2)
-                    out[0, e] += u0 - i3 * (y * n2 - z * n1)
-                    out[1, e] += u1 - i3 * (z * n0 - x * n2)
-                    out[2, e] += u2 - i3 * (x * n1 - y * n0)
-                    out[3, e] += p1 * n0 + rn * x - q * (y * f2 - z * f1)
-                    out[4, e] += p1 * n1 + rn * y - q * (z * f0 - x * f2)
-                    out[5, e] += p1 * n2 + rn * z - q * (x * f1 - y * f0)
+                    out[0] += diag * f0 + rf * x - i3 * (y * n2 - z * n1)
+                    out[1] += diag * f1 + rf * y - i3 * (z * n0 - x * n2)
+                    out[2] += diag * f2 + rf * z - i3 * (x * n1 - y * n0)
+                    out[3] += p1 * n0 + rn * x - q * (y * f2 - z * f1)
+                    out[4] += p1 * n1 + rn * y - q * (z * f0 - x * f2)
+                    out[5] += p1 * n2 + rn * z - q * (x * f1 - y * f0)
                 else:
-                    out[0, e] += u0
-                    out[1, e] += u1
-                    out[2, e] += u2
+                    out[0] += diag * f0 + rf * x
+                    out[1] += diag * f1 + rf * y
+                    out[2] += diag * f2 + rf * z
+        # out to the band: column c, rows r = i size + a with -kl <= c - r <= ku
         col0 = (i - lo) * cols
-        for e in range(width * cols):
-            col = col0 + e
-            if 0 <= col < data.shape[1]:
-                for a in range(size):
-                    r = ku + i * size + a - col
-                    if 0 <= r <= kl + ku:  # outside: a strip's padding, zero
-                        data[r, col] = row[a, e]
+        for col in range(max(col0, 0), min(col0 + width * cols, data.shape[1])):
+            top = ku + i * size - col  # data's row of (i size, col)
+            for a in range(max(0, -top), min(size, kl + ku + 1 - top)):
+                data[top + a, col] = row[col - col0, a]
 
 
 def near_product(points: np.ndarray, epsilon: float, viscosity: float, angular: bool,
@@ -232,22 +228,26 @@ def _fill(ptr, idx, blk, hgamma, kl, ku, ab):  # pragma: no cover - compiled
                     ab[kl + ku + i * rows + a - col, col] -= hgamma * blk[p, a, b]
 
 
-def band_storage(matrix: sp.sparray, hgamma: float, kl: int, ku: int) -> np.ndarray:
-    """``I - hγ A`` in LAPACK's layout for dgbtrf: (2 kl + ku + 1, n) in Fortran order, entry
-    (i, j) at row ``kl + ku + i - j`` of column j (the first kl rows are dgbtrf's room for
-    fill; a C-ordered array would be copied by scipy's wrapper, 2.6 ms of 5 on the paper's
-    rod). :func:`near_product`'s band (a ``dia_array`` with offsets ku down to -kl) is these
-    rows already: one scaled copy."""
+def band_storage(matrix: sp.sparray, hgamma: float, kl: int, ku: int,
+                 dtype: type = np.float64) -> np.ndarray:
+    """``I - hγ A`` in LAPACK's layout for dgbtrf (sgbtrf: ``dtype`` float32): (2 kl + ku + 1,
+    n) in Fortran order, entry (i, j) at row ``kl + ku + i - j`` of column j (the first kl rows
+    are dgbtrf's room for fill; a C-ordered array would be copied by scipy's wrapper, 2.6 ms of
+    5 on the paper's rod). :func:`near_product`'s band (a ``dia_array`` with offsets ku down to
+    -kl) is these rows already: one scaled copy."""
     n = matrix.shape[0]
-    ab = np.zeros((2 * kl + ku + 1, n), order="F")  # LAPACK's order: dgbtrf copies no more
     if isinstance(matrix, sp.dia_array) and np.array_equal(matrix.offsets,
                                                             np.arange(ku, -kl - 1, -1)):
-        np.multiply(matrix.data, -hgamma, out=ab[kl:])
-    elif isinstance(matrix, sp.bsr_array):
+        ab = np.zeros((2 * kl + ku + 1, n), dtype=dtype, order="F")
+        np.multiply(matrix.data, -hgamma, out=ab[kl:], casting="same_kind")
+        ab[kl + ku] += 1.0
+        return ab
+    ab = np.zeros((2 * kl + ku + 1, n), order="F")  # LAPACK's order: dgbtrf copies no more
+    if isinstance(matrix, sp.bsr_array):
         _fill(matrix.indptr.astype(np.int64), matrix.indices.astype(np.int64),
               np.ascontiguousarray(matrix.data), float(hgamma), kl, ku, ab)
     else:
         coo = sp.coo_array(matrix)
         np.add.at(ab, (kl + ku + coo.row - coo.col, coo.col), -hgamma * coo.data)
     ab[kl + ku] += 1.0
-    return ab
+    return ab.astype(dtype, order="F", copy=False)

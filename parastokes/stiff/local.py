@@ -2,8 +2,8 @@
 
 The stiff modes of a body are short (a rod's bending modes of a few Δs, a vesicle's spring
 modes of one edge), and the fluid couples them through the kernels within a few ε of each
-point. :func:`near_mobility` keeps the pairs of points closer than ``cutoff`` (a k-d tree,
-scipy.spatial) and writes their blocks in free space, from the formulas of
+point. :func:`near_mobility` keeps the pairs of points closer than ``cutoff`` (a compiled sort
+and sweep, :func:`sorted_pairs`) and writes their blocks in free space, from the formulas of
 :mod:`parastokes.mrs.reference` ((1)-(4) of docs/kernels.md; the torque blob ψ_ε of the
 default variant): force -> velocity (Stokeslet), torque -> velocity (rotlet), force -> angular
 velocity (½ curl of the Stokeslet), torque -> angular velocity (potential dipole). The wall's
@@ -18,22 +18,11 @@ import math
 import numpy as np
 import scipy.sparse as sp
 from numba import njit
-from scipy.spatial import cKDTree
 
-__all__ = ["coefficients", "near_mobility", "near_pairs", "pair_block", "pair_blocks",
+__all__ = ["coefficients", "near_mobility", "pair_block", "pair_blocks",
            "sorted_pairs", "taper"]
 
 _EIGHT_PI = 8.0 * np.pi
-
-
-def near_pairs(points: np.ndarray, cutoff: float) -> tuple[np.ndarray, np.ndarray]:
-    """Target and source indices of every ordered pair closer than ``cutoff``, self pairs
-    included."""
-    pairs = cKDTree(points).query_pairs(cutoff, output_type="ndarray")
-    n = len(points)
-    own = np.arange(n)
-    return (np.concatenate([own, pairs[:, 0], pairs[:, 1]]),
-            np.concatenate([own, pairs[:, 1], pairs[:, 0]]))
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -103,14 +92,60 @@ def pair_blocks(r: np.ndarray, eps: float, angular: bool) -> np.ndarray:
     return out
 
 
+@njit(cache=True)
+def _sweep(points, cutoff, order, axis):  # pragma: no cover - compiled
+    """:func:`sorted_pairs` by sort and sweep: the points in ``order`` along ``axis``, each
+    against those that follow within ``cutoff`` along it; a pass that counts, one that
+    fills."""
+    n = len(points)
+    c2 = cutoff * cutoff
+    indptr = np.zeros(n + 1, dtype=np.int64)
+    source = np.empty(0, dtype=np.int64)
+    fill = np.zeros(n, dtype=np.int64)
+    for counting in (True, False):
+        for i in range(n):  # self pairs
+            if counting:
+                indptr[i + 1] += 1
+            else:
+                source[fill[i]] = i
+                fill[i] += 1
+        for a in range(n):
+            i = order[a]
+            for b in range(a + 1, n):
+                j = order[b]
+                if points[j, axis] - points[i, axis] > cutoff:
+                    break
+                d0 = points[i, 0] - points[j, 0]
+                d1 = points[i, 1] - points[j, 1]
+                d2 = points[i, 2] - points[j, 2]
+                if d0 * d0 + d1 * d1 + d2 * d2 > c2:
+                    continue
+                if counting:
+                    indptr[i + 1] += 1
+                    indptr[j + 1] += 1
+                else:
+                    source[fill[i]] = j
+                    source[fill[j]] = i
+                    fill[i] += 1
+                    fill[j] += 1
+        if counting:
+            indptr[1:] = np.cumsum(indptr[1:])
+            source = np.empty(indptr[n], dtype=np.int64)
+            fill[:] = indptr[:n]
+    for i in range(n):
+        source[indptr[i]:indptr[i + 1]].sort()
+    return indptr, source
+
+
 def sorted_pairs(points: np.ndarray, cutoff: float) -> tuple[np.ndarray, np.ndarray]:
-    """The pairs of :func:`near_pairs` as compressed rows: ``(indptr, source)`` with the
-    sources of target ``i`` in ``source[indptr[i]:indptr[i + 1]]``, ascending."""
-    target, source = near_pairs(points, cutoff)
-    order = np.lexsort((source, target))
-    indptr = np.zeros(len(points) + 1, dtype=np.int64)
-    np.cumsum(np.bincount(target, minlength=len(points)), out=indptr[1:])
-    return indptr, source[order].astype(np.int64)
+    """Every ordered pair of ``points`` at most ``cutoff`` apart, self pairs included, as
+    compressed rows: ``(indptr, source)`` with the sources of target ``i`` in
+    ``source[indptr[i]:indptr[i + 1]]``, ascending; compiled (:func:`_sweep`, along the axis
+    of the points' largest extent: a rod's or chain's length)."""
+    points = np.ascontiguousarray(points, dtype=float)
+    axis = int(np.argmax(np.ptp(points, axis=0))) if len(points) else 0
+    order = np.argsort(points[:, axis], kind="stable")
+    return _sweep(points, float(cutoff), order, axis)
 
 
 def near_mobility(points: np.ndarray, epsilon: float, viscosity: float, angular: bool,
