@@ -211,6 +211,8 @@ CANDIDATES: dict[str, dict[str, Candidate]] = {
             "implicit", _implicit("ros34pw2", 6.25e-4, 10, True)),
         "ros34pw2 1.25e-3, A every 20, f_t held": Candidate(
             "implicit", _implicit("ros34pw2", 1.25e-3, 20, True)),
+        "ros34pw2 1.25e-3, A every 10": Candidate(
+            "implicit", _implicit("ros34pw2", 1.25e-3, 10, False)),
     },
     "rod601": {
         "grid 2, eps [0.8, 1], euler 5e-6": Candidate(
