@@ -213,6 +213,9 @@ CANDIDATES: dict[str, dict[str, Candidate]] = {
             "implicit", _implicit("ros34pw2", 1.25e-3, 20, True)),
         "ros34pw2 1.25e-3, A every 10": Candidate(
             "implicit", _implicit("ros34pw2", 1.25e-3, 10, False)),
+        "ros34pw2 1.25e-3, f_t held": Candidate(
+            "implicit", _implicit("ros34pw2", 1.25e-3, None, True)),
+        "ros34pw2 1e-3": Candidate("implicit", {"scheme": "ros34pw2", "dt": 1e-3}),
     },
     "rod601": {
         "grid 2, eps [0.8, 1], euler 5e-6": Candidate(
