@@ -738,8 +738,8 @@ def ship(name: str, label: str, iterations: int) -> pathlib.Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     comment = (f"docs/benchmarks.md, \"Parareal against the fastest serial run (round "
                f"5)\": {problem.title}.\nF = {problem.fine[0]} at {problem.fine[1]:g} (the fastest "
-               f"serial run, experiments/best_serial/); G = {label}; K = {iterations} (measured on the "
-               f"shortened analogue,\nbenchmarks/frontier.py). Written by "
+               f"serial run, experiments/best_serial/); G = {label}; K = {iterations} (measured on "
+               f"the shortened analogue,\nbenchmarks/frontier.py). Written by "
                f"`python benchmarks/frontier.py --ship {name} '{label}' {iterations}`.")
     path.write_text(toml_text(shipped_config(name, label, iterations), comment))
     return path
