@@ -144,18 +144,24 @@ def test_a_scene_of_a_rod_and_a_chain_composes_their_fused_products():
 
 
 def test_band_storage_of_the_fused_band_is_that_of_the_block_product():
-    """I - hγA from the fused dia band and from the BSR product: the same LAPACK array."""
+    """I - hγA from the fused dia band and from the BSR product: the same LAPACK rows (the
+    first kl, dgbtrf's room for fill, are not set from the dia band), in single precision too,
+    and into a given array."""
     rod, x = _bent_rod()
     expected = _reference_product(rod, x)[0]
     bsr = sp.bsr_array(expected, blocksize=(6, 6))
     kl, ku = banded.bandwidth(bsr)
-    fused = banded.band_storage(jacobian.local_jacobian(rod, 0.0, x, len(expected)), 0.7, kl,
-                                ku)
-    assert fused.flags.f_contiguous and not fused[:kl].any()
+    a = jacobian.local_jacobian(rod, 0.0, x, len(expected))
+    fused = banded.band_storage(a, 0.7, kl, ku)
+    assert fused.flags.f_contiguous and fused.shape == (2 * kl + ku + 1, len(expected))
     scale = 0.7 * np.abs(expected).max()
-    assert np.abs(fused - banded.band_storage(bsr, 0.7, kl, ku)).max() < 1e-13 * scale
-    assert np.all(fused[kl + ku] != 0.0) and fused[kl + ku, 5] == pytest.approx(
-        1.0 - 0.7 * expected[5, 5], rel=1e-12)
+    reference = banded.band_storage(bsr, 0.7, kl, ku)
+    assert not reference[:kl].any()
+    assert np.abs(fused[kl:] - reference[kl:]).max() < 1e-13 * scale
+    assert fused[kl + ku, 5] == pytest.approx(1.0 - 0.7 * expected[5, 5], rel=1e-12)
+    out = np.full_like(fused, np.nan, dtype=np.float32)
+    single = banded.band_storage(a, 0.7, kl, ku, np.float32, out=out)
+    assert single is out and np.allclose(single[kl:], fused[kl:], rtol=1e-6, atol=1e-6 * scale)
 
 
 def test_bandwidth_of_blocks_counts_every_entry_of_a_block():
@@ -451,3 +457,49 @@ def test_band_solve_is_lapacks_dgbtrs_on_the_same_factors(precision):
     assert np.abs(got - expected).max() < 1e-12 * np.abs(expected).max()
     if precision == np.float64:
         assert np.allclose(got, np.linalg.solve(dense, rhs), rtol=1e-10, atol=1e-12)
+
+
+def test_spares_keep_freed_arrays_by_shape_and_dtype():
+    """take() hands back a given array only for its shape and dtype, each once; give() keeps the
+    latest ``keep``."""
+    spares = solve.Spares(keep=2)
+    a = np.empty((5, 7), dtype=np.float32, order="F")
+    spares.give(a)
+    assert spares.take((5, 7), np.float64) is not a
+    assert spares.take((7, 5), np.float32) is not a
+    assert spares.take((5, 7), np.float32) is a
+    assert spares.take((5, 7), np.float32) is not a  # once
+    given = [np.empty((2, 2), order="F") for _ in range(3)]
+    for array in given:
+        spares.give(array)
+    assert [id(k) for k in spares._free] == [id(k) for k in given[1:]]
+    kept = [spares.take((2, 2), np.float64) for _ in range(3)]
+    assert kept[0] is given[1] and kept[1] is given[2] and kept[2] is not given[0]
+
+
+def test_a_freed_factorizations_memory_serves_the_next_with_the_same_solves():
+    """The banded factors go back to SPARES when their Factorization is freed, and the next
+    factorization of that shape reuses them: its solves are the same bits as on new memory
+    (dgbtrf reads none of what is left there: here NaN), and two live factorizations never
+    share their factors."""
+    import gc
+
+    rod, x = _bent_rod()
+    a = jacobian.local_jacobian(rod, 0.0, x, 6 * len(x))
+    v = np.random.default_rng(12).standard_normal(6 * len(x))
+    first = Factorization(a, 1e-4, 0.0)
+    expected = first.solve(v)
+    memory = first._band[0]
+    memory_id = id(memory)
+    del first, memory
+    gc.collect()
+    assert any(id(m) == memory_id for m in solve.SPARES._free)
+    for m in solve.SPARES._free:
+        m[...] = np.nan  # whatever was left there
+    second = Factorization(a, 1e-4, 0.0)
+    assert id(second._band[0]) == memory_id
+    assert np.array_equal(second.solve(v), expected)
+    third = Factorization(a, 2e-4, 0.0)  # while the second lives: its own memory
+    assert third._band[0] is not second._band[0]
+    assert np.array_equal(second.solve(v), expected)
+    assert not np.array_equal(third.solve(v), expected)

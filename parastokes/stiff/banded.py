@@ -228,21 +228,33 @@ def _fill(ptr, idx, blk, hgamma, kl, ku, ab):  # pragma: no cover - compiled
                     ab[kl + ku + i * rows + a - col, col] -= hgamma * blk[p, a, b]
 
 
+@njit(cache=True)
+def _scaled_band(data, hgamma, kl, ku, ab):  # pragma: no cover - compiled
+    """Rows kl.. of ``ab`` = -hγ ``data`` (LAPACK's rows of A), plus 1 on the diagonal's row."""
+    for c in range(data.shape[1]):
+        column, source = ab[kl:, c], data[:, c]
+        for r in range(data.shape[0]):
+            column[r] = -hgamma * source[r]
+        ab[kl + ku, c] += 1.0
+
+
 def band_storage(matrix: sp.sparray, hgamma: float, kl: int, ku: int,
-                 dtype: type = np.float64) -> np.ndarray:
+                 dtype: type = np.float64, out: np.ndarray | None = None) -> np.ndarray:
     """``I - hγ A`` in LAPACK's layout for dgbtrf (sgbtrf: ``dtype`` float32): (2 kl + ku + 1,
-    n) in Fortran order, entry (i, j) at row ``kl + ku + i - j`` of column j (the first kl rows
-    are dgbtrf's room for fill; a C-ordered array would be copied by scipy's wrapper, 2.6 ms of
-    5 on the paper's rod). :func:`near_product`'s band (a ``dia_array`` with offsets ku down to
-    -kl) is these rows already: one scaled copy."""
+    n) in Fortran order (into ``out`` if given, of that shape and dtype), entry (i, j) at row
+    ``kl + ku + i - j`` of column j. The first kl rows are dgbtrf's room for fill, which it
+    does not read ("need not be set", LAPACK's documentation): from :func:`near_product`'s band
+    (a ``dia_array`` with offsets ku down to -kl, these rows already: one scaled copy) they are
+    left unset; a C-ordered array would be copied by scipy's wrapper, 2.6 ms of 5 on the
+    paper's rod."""
     n = matrix.shape[0]
+    shape = (2 * kl + ku + 1, n)
     if isinstance(matrix, sp.dia_array) and np.array_equal(matrix.offsets,
                                                             np.arange(ku, -kl - 1, -1)):
-        ab = np.zeros((2 * kl + ku + 1, n), dtype=dtype, order="F")
-        np.multiply(matrix.data, -hgamma, out=ab[kl:], casting="same_kind")
-        ab[kl + ku] += 1.0
+        ab = np.empty(shape, dtype=dtype, order="F") if out is None else out
+        _scaled_band(matrix.data, float(hgamma), kl, ku, ab)
         return ab
-    ab = np.zeros((2 * kl + ku + 1, n), order="F")  # LAPACK's order: dgbtrf copies no more
+    ab = np.zeros(shape, order="F")  # LAPACK's order: dgbtrf copies no more
     if isinstance(matrix, sp.bsr_array):
         _fill(matrix.indptr.astype(np.int64), matrix.indices.astype(np.int64),
               np.ascontiguousarray(matrix.data), float(hgamma), kl, ku, ab)
@@ -250,4 +262,7 @@ def band_storage(matrix: sp.sparray, hgamma: float, kl: int, ku: int,
         coo = sp.coo_array(matrix)
         np.add.at(ab, (kl + ku + coo.row - coo.col, coo.col), -hgamma * coo.data)
     ab[kl + ku] += 1.0
-    return ab.astype(dtype, order="F", copy=False)
+    if out is None:
+        return ab.astype(dtype, order="F", copy=False)
+    out[...] = ab
+    return out

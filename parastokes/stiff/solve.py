@@ -19,6 +19,8 @@ reports it as a blow-up (``integrate.BlowUpError``, exit 3 of a run) with advice
 
 from __future__ import annotations
 
+import threading
+import weakref
 from collections.abc import Callable
 from typing import Any
 
@@ -32,7 +34,7 @@ from ..mobility.threads import LAPACK, blas_threads
 from .banded import band_storage, bandwidth, narrow
 
 __all__ = ["BAND_PRECISION", "GMRES_ACCEPT", "GMRES_MAXITER", "GMRES_RTOL", "GMRES_RTOL_ORDER3",
-           "Factorization", "StageSolver", "StiffSolveError", "band_solve"]
+           "SPARES", "Factorization", "Spares", "StageSolver", "StiffSolveError", "band_solve"]
 
 #: Relative residual of the GMRES stage solves, as scipy's GMRES measures it (W-methods keep
 #: their order with an inexact Jacobian, so the stage systems need not be solved to round-off).
@@ -112,6 +114,39 @@ BAND_PRECISION = np.float32
 _GBTRF = {"f": lapack.sgbtrf, "d": lapack.dgbtrf}
 
 
+class Spares:
+    """Work arrays freed by their owners, kept for the next of the same shape and dtype (the
+    latest ``keep`` in all; thread-safe). A fresh multi-megabyte array costs its page faults on
+    first touch: 0.7 ms for the 2.2 MB of the banded LU of the paper's rod, ten times filling a
+    reused one (docs/benchmarks.md, "Stiff bodies: cheaper implicit steps")."""
+
+    def __init__(self, keep: int = 4) -> None:
+        self._lock = threading.Lock()
+        self._free: list[np.ndarray] = []
+        self.keep = keep
+
+    def take(self, shape: tuple[int, int], dtype: type) -> np.ndarray:
+        """A kept array of ``shape`` and ``dtype`` (contents unset), else a new one; Fortran
+        order."""
+        with self._lock:
+            for i, array in enumerate(self._free):
+                if array.shape == shape and array.dtype == dtype:
+                    return self._free.pop(i)
+        return np.empty(shape, dtype=dtype, order="F")
+
+    def give(self, array: np.ndarray) -> None:
+        """Keep ``array`` (no longer used by anyone) for a later :meth:`take`, forgetting the
+        oldest kept beyond ``keep``."""
+        with self._lock:
+            self._free.append(array)
+            del self._free[:-self.keep]
+
+
+#: The banded factorizations' arrays: a Factorization gives its factors back when it is freed
+#: (the stepper drops the old one before it factorizes anew).
+SPARES = Spares()
+
+
 class Factorization:
     """The LU factorization of ``I - hγ A`` (``A`` sparse, square, nonzero): LAPACK's banded
     LU in :data:`BAND_PRECISION` (on one BLAS thread,
@@ -127,9 +162,11 @@ class Factorization:
         self._band: tuple[np.ndarray, np.ndarray, int, int] | None = None
         self._superlu: Any = None
         if narrow(kl, ku, n):
-            ab = band_storage(matrix, hgamma, kl, ku, BAND_PRECISION)
+            ab = band_storage(matrix, hgamma, kl, ku, BAND_PRECISION,
+                              out=SPARES.take((2 * kl + ku + 1, n), BAND_PRECISION))
             with LAPACK, blas_threads(1):
                 lu, piv, info = _GBTRF[ab.dtype.char](ab, kl, ku, overwrite_ab=1)
+            weakref.finalize(self, SPARES.give, lu)  # the factors' memory, for the next one
             singular = info > 0 or not np.isfinite(lu[kl + ku]).all()
             self._band = (lu, piv, kl, ku)
             reason = f"U[{info - 1}, {info - 1}] = 0"
