@@ -324,7 +324,7 @@ def search(system: System, x0: np.ndarray, t0: float, t1: float, fine: integrate
                                reference_state)
     else:
         notes.append("F takes adaptive steps: its own error is not estimated")
-    reference = Run(fine.scheme, fine.dt, fine.rtol, "F", "reference",
+    reference = Run(integrate.lookup(fine.scheme).name, fine.dt, fine.rtol, "F", "reference",
                     0.0 if fine_error is None else fine_error, reference_cpu,
                     reference_cpu * scale, "the configuration's F (the reference)")
     euler_limit = None
