@@ -50,9 +50,11 @@ import numpy as np
 
 from .. import stiff
 from ..core.contracts import StepFailure, System
-from .adaptive import Stepper, Watch, segment, stepper_for
+from .adaptive import Watch, segment, stepper_for
 from .base import RunResult, advance, projected, rates
 from .controller import error_norm, estimate_order, factor
+from .explicit import PairStepper
+from .loop import CompiledPair
 from .schemes import SCHEMES, Scheme, real_stability_boundary
 
 __all__ = ["Costs", "auto_run", "power_step"]
@@ -150,8 +152,8 @@ class _Explicit:
     """The explicit phase's watch (``until`` of :func:`.adaptive.segment`): True where a trial
     of the implicit scheme is due (the module docstring)."""
 
-    def __init__(self, system: System, stepper: Stepper, costs: Costs, boundary: float,
-                 budget: float) -> None:
+    def __init__(self, system: System, stepper: PairStepper | CompiledPair, costs: Costs,
+                 boundary: float, budget: float) -> None:
         self.system, self.stepper, self.costs, self.boundary = system, stepper, costs, boundary
         self.budget = budget
         self.rho, self.direction, self.step = 0.0, np.zeros(0), math.nan
@@ -208,6 +210,7 @@ def auto_run(system: System, x: np.ndarray, t0: float, t1: float, dt: float,
     budget, failed, previous = 0.0, 0, None
     solver = stepper_for(system, implicit)  # one for the run: its Jacobian serves every trial
     stepper = stepper_for(system, pair, compiled)  # goes on after a failed trial
+    assert isinstance(solver, stiff.Stepper) and not isinstance(stepper, stiff.Stepper)
     while t < t1:
         explicit = _Explicit(system, stepper, costs, boundary, budget)
         x, done = segment(stepper, x, t, t1, h, tol, watch, explicit, RHO_EVERY, previous)

@@ -471,7 +471,7 @@ class CompiledPair:
         chunk = every if until is not None else 8
         steps, evaluations = self.steps, self.evaluations
         with kernel_threads(self.system.n_threads) as threads:
-            data = self.make_data(self.system, threads)
+            data: Any = self.make_data(self.system, threads)
             loop = _loop_for(data, _adaptive)
             if known == UNKNOWN:
                 self.k = np.empty((s.stages, x.shape[0], data.rate_columns))
@@ -501,7 +501,8 @@ def compiled_pair(system: System, scheme: Scheme) -> CompiledPair | None:
     loop = registry.compiled_loop(system)
     if not (isinstance(loop, functools.partial) and loop.func is run_steps):
         return None
-    return CompiledPair(*loop.args, scheme)
+    owner, make_data = loop.args
+    return CompiledPair(owner, make_data, scheme)
 
 
 def register_parts(cls: type, make_data: Callable[[Any, int], tuple], fluid: type | None = None,
