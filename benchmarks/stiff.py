@@ -513,10 +513,10 @@ def figure() -> None:
 SHORT_RODS = {"rod301": (301, 1.0, 1.2e-5), "rod601": (601, 0.5, 7.58e-7)}
 SHORT_T = 0.005
 #: The rod of 1201 points (``--parts short1201``, ε = 5Δs) over its own, shorter T: RK4 at
-#: half its limit over 0.005 s would take about 1.5 hours of CPU here. Its explicit step: just
-#: below forward Euler's limit LIMIT1201 s, bisected over that T (docs/benchmarks.md).
-LIMIT1201 = None
-SHORT_ROD1201 = {"rod1201": (1201, 0.25, LIMIT1201)}
+#: half its limit over 0.005 s would take about 1.5 hours of CPU here. Its explicit step: 0.95
+#: of forward Euler's limit 5.11e-8 s, bisected over that T (``integrate.largest_stable_step(
+#: rod, "euler", 2.5e-4, 2e-8, 1.2e-7, rtol=0.02)``, 160 s of CPU).
+SHORT_ROD1201 = {"rod1201": (1201, 0.25, 4.85e-8)}
 SHORT_T1201 = 2.5e-4
 
 

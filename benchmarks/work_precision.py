@@ -31,8 +31,10 @@ PROBLEMS: dict[str, tuple[tuple[str, ...], str, str]] = {
     "rod301": (("short_rod301.json", "adaptive_rod301.json"),
                "rod M = 301, ε = 1 μm, above the wall, T = 0.005 s",
                "file 1: benchmarks/stiff.py --parts short; file 2: benchmarks/adaptive.py"),
-    "rod601": (("short_rod601.json",), "rod M = 601, ε = 0.5 μm, above the wall, T = 0.005 s",
-               "benchmarks/stiff.py --parts short"),
+    "rod601": (("short_rod601.json", "adaptive_rod601.json"),
+               "rod M = 601, ε = 0.5 μm, above the wall, T = 0.005 s",
+               "file 1: benchmarks/stiff.py --parts short; "
+               "file 2: benchmarks/adaptive.py --problem rod601"),
     "vesicle": (("vesicle.json",), "vesicle, 642 points, shear 0.1, κ = 0.1, T = 10",
                 "benchmarks/stiff.py --parts vesicle"),
 }
@@ -86,6 +88,13 @@ def series(files: list[dict[str, Any]]) -> dict[str, dict[str, list[tuple[float,
     return out
 
 
+def skipped(files: list[dict[str, Any]]) -> list[str]:
+    """``"SCHEME at rtol R"`` for each run the files record as not run (``adaptive.py``'s
+    ``skipped``: its predicted CPU time was above the cap)."""
+    return [f"{s['scheme']} at rtol {s['rtol']:g}" for data in files
+            for s in data.get("skipped", [])]
+
+
 def draw(name: str) -> pathlib.Path:
     """The diagram of problem ``name`` of :data:`PROBLEMS`, saved as a PNG; returns its path."""
     import matplotlib
@@ -102,6 +111,9 @@ def draw(name: str) -> pathlib.Path:
             ax.loglog(*zip(*points, strict=True), style, label=f"{fam}: {label}",
                       color="black" if fam == "auto" else next(colors),
                       markersize=10 if fam == "auto" else 6)
+    if skipped(data):
+        ax.text(0.01, 0.01, "not run (predicted CPU above the cap): " + ", ".join(skipped(data)),
+                transform=ax.transAxes, fontsize=6, wrap=True)
     ax.set_xlabel("CPU time / RK2 at the explicit limit (same process)")
     ax.set_ylabel("error at T (relative)")
     ax.set_title(f"{title}\n{command}", fontsize=10)

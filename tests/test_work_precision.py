@@ -72,3 +72,10 @@ def test_every_problem_file_is_readable(wp):
             data = json.loads((wp.OUT / name).read_text())
             assert wp.explicit_cpu(data) > 0
             assert any(wp.series([data]).values())
+
+
+def test_skipped_runs_are_named(wp):
+    files = [STIFF, {**ADAPTIVE, "skipped": [{"scheme": "rk45", "rtol": 1e-8, "cap": 300.0},
+                                              {"scheme": "auto", "rtol": 1e-7, "cap": 300.0}]}]
+    assert wp.skipped(files) == ["rk45 at rtol 1e-08", "auto at rtol 1e-07"]
+    assert wp.skipped([STIFF]) == []
