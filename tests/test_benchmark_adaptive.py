@@ -11,7 +11,7 @@ import pytest
 from bench_modules import benchmark_module
 
 from benchmarks import stiff
-from parastokes import models
+from parastokes import integrate, models
 
 
 @pytest.fixture(scope="module")
@@ -85,10 +85,19 @@ def test_relative_error_is_position_error_over_largest_displacement():
 @pytest.fixture()
 def tiny(ad, tmp_path, monkeypatch):
     """A rod of 11 points over T = 2e-4 s as problem ``tiny``, files under ``tmp_path``, and
-    every run timed at 1 s of CPU (so that the cap's decisions are exact)."""
+    RK2's run timed at 2 s of CPU, every other at 1 s (so that the cap's decisions are exact)."""
     monkeypatch.setattr(ad, "OUT", tmp_path)
     monkeypatch.setattr(stiff, "OUT", tmp_path)
-    monkeypatch.setattr(stiff, "_timed", lambda run: (run(), 1.0))
+    schemes = []
+    run = integrate.run
+
+    def recorded(system, x0, t0, t1, scheme, *args, **kw):
+        schemes.append(scheme)
+        return run(system, x0, t0, t1, scheme, *args, **kw)
+
+    monkeypatch.setattr(integrate, "run", recorded)
+    monkeypatch.setattr(stiff, "_timed", lambda f: (schemes.clear(), f(),
+                                                    2.0 if schemes == ["rk2"] else 1.0)[1:])
     problem = ad.Problem(lambda: models.rod_swimmer(n_points=11, length=2.0, epsilon=1.0),
                          2e-4, 1e-5, 1e-5, "tiny", 5e-6, 1.5)
     monkeypatch.setitem(ad.PROBLEMS, "tiny", lambda: problem)
@@ -96,25 +105,28 @@ def tiny(ad, tmp_path, monkeypatch):
 
 
 def test_measure_skips_above_the_cap_and_resumes(ad, tiny):
-    data = ad.measure("tiny", [1e-3, 1e-2], ["rk23", "ros34pw2"], cap=1.5)
-    assert data["rk2"]["cpu"] == 1.0 and data["reference"]["dt"] == 5e-6
-    # rk23 at 1e-2: floor 1.19 s <= 1.5 runs; at 1e-3: 1 s x 10^(1/3) = 2.15 s, skipped.
-    # ros34pw2 likewise (no floor): 1e-2 runs, 1e-3 is predicted 2.15 s.
-    assert [(r["scheme"], r["rtol"]) for r in data["rows"]] == [("rk23", 1e-2),
-                                                                ("ros34pw2", 1e-2)]
-    assert all(r["cpu_over_rk2"] == 1.0 and 0 < r["error"] < 0.1 for r in data["rows"])
+    data = ad.measure("tiny", [1e-3, 1e-2, 1e-5], ["rk23", "ros34pw2"], cap=2.2)
+    assert data["rk2"]["cpu"] == 2.0 and data["reference"]["dt"] == 5e-6
+    # rk23's floor, 2 s x 3/2 x 2/2.5127 = 2.39 s, is above the cap from the first rtol on;
+    # ros34pw2 (no floor) runs at 1e-2 (1 s) and 1e-3 (predicted 1 s x 10^(1/3) = 2.15 s), not
+    # at 1e-5 (1 s x 100^(1/3) = 4.64 s, from 1e-3's 1 s).
+    assert [(r["scheme"], r["rtol"]) for r in data["rows"]] == [("ros34pw2", 1e-2),
+                                                                ("ros34pw2", 1e-3)]
+    assert all(r["cpu_over_rk2"] == 0.5 and 0 < r["error"] < 0.1 for r in data["rows"])
     assert [(s["scheme"], s["rtol"], round(s["predicted_cpu"], 3)) for s in data["skipped"]] == [
-        ("rk23", 1e-3, 2.154), ("ros34pw2", 1e-3, 2.154)]
+        ("rk23", 1e-2, 2.388), ("rk23", 1e-3, 2.388), ("rk23", 1e-5, 2.388),
+        ("ros34pw2", 1e-5, 4.642)]
+    assert "stability floor" in data["skipped"][0]["why"]
     assert json.loads(tiny.read_text()) == json.loads(json.dumps(data))
     # Resumed with a larger cap: the measured rows are kept as they were (an edited value
-    # survives), the skipped runs are measured now and leave the skipped list.
+    # survives, RK2's too), the skipped runs are measured now and leave the skipped list.
     saved = json.loads(tiny.read_text())
     saved["rows"][0]["error"] = 123.0
     tiny.write_text(json.dumps(saved))
-    again = ad.measure("tiny", [1e-2, 1e-3], ["rk23", "ros34pw2"], cap=3.0)
-    assert again["rows"][0]["error"] == 123.0
-    assert [(r["scheme"], r["rtol"]) for r in again["rows"][2:]] == [("rk23", 1e-3),
-                                                                     ("ros34pw2", 1e-3)]
+    again = ad.measure("tiny", [1e-2, 1e-3, 1e-5], ["rk23", "ros34pw2"], cap=5.0)
+    assert again["rows"][0]["error"] == 123.0 and again["rk2"]["cpu"] == 2.0
+    assert [(r["scheme"], r["rtol"]) for r in again["rows"][2:]] == [
+        ("rk23", 1e-2), ("rk23", 1e-3), ("rk23", 1e-5), ("ros34pw2", 1e-5)]
     assert again["skipped"] == []
 
 
