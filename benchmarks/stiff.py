@@ -619,6 +619,18 @@ def linalg_part() -> dict[str, Any]:
     return data
 
 
+def short_steps(limit: float, t1: float) -> dict[str, list[float]]:
+    """The fixed steps of ``--parts short`` over T = ``t1``: forward Euler and RK2 at ``limit``,
+    the implicit schemes at steps of T = :data:`SHORT_T` scaled by ``t1 / SHORT_T`` (the same
+    number of steps), to 3 significant digits."""
+    steps = {"ros2": [2.5e-4, 1.25e-4, 6.25e-5],
+             "ros34pw2": [1e-3, 5e-4, 2.5e-4, 1.25e-4, 6.25e-5],
+             "ros2-krylov": [2.5e-4, 1.25e-4],
+             "ros34pw2-krylov": [5e-4, 2.5e-4, 1.25e-4]}
+    return {"euler": [limit], "rk2": [limit],
+            **{k: [float(f"{v * t1 / SHORT_T:.3g}") for v in vs] for k, vs in steps.items()}}
+
+
 def short_part(rods: dict[str, tuple[int, float, float]] = SHORT_RODS,
                t1: float = SHORT_T) -> dict[str, Any]:
     """Work-precision over T = ``t1`` on the rods ``rods`` (name: points, ε, explicit step):
@@ -631,14 +643,8 @@ def short_part(rods: dict[str, tuple[int, float, float]] = SHORT_RODS,
     scale = t1 / SHORT_T
     for name, (m, eps, limit) in rods.items():
         rod = models.rod_swimmer(n_points=m, epsilon=eps, n_threads=1)
-        steps = {"ros2": [2.5e-4, 1.25e-4, 6.25e-5],
-                 "ros34pw2": [1e-3, 5e-4, 2.5e-4, 1.25e-4, 6.25e-5],
-                 "ros2-krylov": [2.5e-4, 1.25e-4],
-                 "ros34pw2-krylov": [5e-4, 2.5e-4, 1.25e-4]}
-        steps = {"euler": [limit], "rk2": [limit],
-                 **{k: [float(f"{scale * v:.3g}") for v in vs] for k, vs in steps.items()}}
         key = f"short_{name}"
-        data = work_precision(key, rod, t1, float(f"{0.5 * limit:.2g}"), steps,
+        data = work_precision(key, rod, t1, float(f"{0.5 * limit:.2g}"), short_steps(limit, t1),
                               {"ros34pw2": [5, 10]})
         reference = np.load(OUT / f".{key}_reference.npy")
         x0 = rod.initial_state()

@@ -144,3 +144,14 @@ def test_main_redo_and_bad_arguments(ad, tiny, capsys):
             ad.main(["--problem", "tiny", *bad] if bad[0] != "--problem" else bad)
         assert exit_.value.code == 2
         assert word in capsys.readouterr().err
+
+
+def test_short_steps_keep_the_step_counts_over_a_shorter_t():
+    base = stiff.short_steps(1.2e-5, stiff.SHORT_T)
+    assert base["rk2"] == base["euler"] == [1.2e-5]
+    assert base["ros34pw2"] == [1e-3, 5e-4, 2.5e-4, 1.25e-4, 6.25e-5]
+    short = stiff.short_steps(4.85e-8, 2.5e-4)  # the rod of 1201 points: T / 20
+    assert short["rk2"] == short["euler"] == [4.85e-8]
+    assert short["ros34pw2"] == [5e-5, 2.5e-5, 1.25e-5, 6.25e-6, 3.12e-6]
+    assert short["ros34pw2-krylov"] == [2.5e-5, 1.25e-5, 6.25e-6]
+    assert short.keys() == base.keys()
