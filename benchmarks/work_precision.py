@@ -17,6 +17,7 @@ from __future__ import annotations
 import json
 import math
 import pathlib
+import textwrap
 from typing import Any
 
 from parastokes import integrate
@@ -35,9 +36,10 @@ PROBLEMS: dict[str, tuple[tuple[str, ...], str, str]] = {
                "rod M = 601, ε = 0.5 μm, above the wall, T = 0.005 s",
                "file 1: benchmarks/stiff.py --parts short; "
                "file 2: benchmarks/adaptive.py --problem rod601"),
-    "rod1201": (("short_rod1201.json",),
+    "rod1201": (("short_rod1201.json", "adaptive_rod1201.json"),
                 "rod M = 1201, ε = 0.25 μm, above the wall, T = 2.5e-4 s",
-                "benchmarks/stiff.py --parts short1201"),
+                "file 1: benchmarks/stiff.py --parts short1201; "
+                "file 2: benchmarks/adaptive.py --problem rod1201"),
     "vesicle": (("vesicle.json", "adaptive_vesicle.json"),
                 "vesicle, 642 points, shear 0.1, κ = 0.1, T = 10",
                 "file 1: benchmarks/stiff.py --parts vesicle; "
@@ -116,10 +118,11 @@ def draw(name: str) -> pathlib.Path:
             ax.loglog(*zip(*points, strict=True), style, label=f"{fam}: {label}",
                       color="black" if fam == "auto" else next(colors),
                       markersize=10 if fam == "auto" else 6)
+    label = "CPU time / RK2 at the explicit limit (same process)"
     if skipped(data):
-        ax.text(0.01, 0.01, "not run (predicted CPU above the cap): " + ", ".join(skipped(data)),
-                transform=ax.transAxes, fontsize=6, wrap=True)
-    ax.set_xlabel("CPU time / RK2 at the explicit limit (same process)")
+        label += "\n" + textwrap.fill("not run (predicted CPU above the cap): "
+                                      + ", ".join(skipped(data)), 110)
+    ax.set_xlabel(label, fontsize=9)
     ax.set_ylabel("error at T (relative)")
     ax.set_title(f"{title}\n{command}", fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
