@@ -6,6 +6,9 @@ Run from the repository root::
 
     PYTHONPATH=. python benchmarks/work_precision.py
 
+It also prints, per ``auto`` run, the cheapest fixed-step run of the same problem reaching its
+error and auto's CPU over that run's (:func:`auto_against_fixed`).
+
 Writes ``docs/figures/stiff/work_precision_{rod301,rod601,rod1201,vesicle}.png``. The CPU axis
 is each run's CPU time over that of RK2 just below forward Euler's limit measured in the same
 process (the entry ``rk2`` of ``adaptive.py``'s files; the RK2 row of largest step in the files of
@@ -95,6 +98,39 @@ def series(files: list[dict[str, Any]]) -> dict[str, dict[str, list[tuple[float,
     return out
 
 
+def _fixed_runs(files: list[dict[str, Any]]) -> list[tuple[float, float, str]]:
+    """``(cpu ratio, error, "SCHEME at DT s")`` of every fixed-step run of ``files`` with a
+    finite, positive error (``adaptive.py``'s ``rk2`` entry included)."""
+    out = []
+    for data in files:
+        base = explicit_cpu(data)
+        rows = data["rows"] + ([dict(data["rk2"], scheme="rk2")] if "rk2" in data else [])
+        out += [(r["cpu"] / base, r["error"], f"{r['scheme']} at {r['dt']:g} s") for r in rows
+                if family(r).startswith("fixed") and math.isfinite(r["error"]) and r["error"] > 0]
+    return out
+
+
+def auto_against_fixed(files: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Per ``auto`` run of ``files``: its rtol, error, CPU ratio, the cheapest fixed-step run
+    (by CPU ratio) whose error is at most auto's (None where none is), auto's CPU over that
+    run's and its error over its rtol: the target's "within 1.3x of the best fixed choice,
+    error within 3x of the tolerance"."""
+    fixed = _fixed_runs(files)
+    out = []
+    for data in files:
+        base = explicit_cpu(data)
+        for r in data["rows"]:
+            if r["scheme"] != "auto":
+                continue
+            cpu = r["cpu"] / base
+            best = min((f for f in fixed if f[1] <= r["error"]), default=None)
+            out.append({"rtol": r["rtol"], "error": r["error"], "cpu": cpu,
+                        "best": best and best[2], "best_cpu": best and best[0],
+                        "over_best": best and cpu / best[0],
+                        "error_over_rtol": r["error"] / r["rtol"]})
+    return out
+
+
 def skipped(files: list[dict[str, Any]]) -> list[str]:
     """``"SCHEME at rtol R"`` for each run the files record as not run (``adaptive.py``'s
     ``skipped``: its predicted CPU time was above the cap)."""
@@ -135,8 +171,13 @@ def draw(name: str) -> pathlib.Path:
 
 
 def main() -> int:
-    for name in PROBLEMS:
+    for name, (files, _, _) in PROBLEMS.items():
         print(draw(name))
+        for a in auto_against_fixed([json.loads((OUT / f).read_text()) for f in files]):
+            best = (f"{a['best']} ({a['best_cpu']:.3g}): {a['over_best']:.2f}x" if a["best"]
+                    else "no fixed run reaches it")
+            print(f"  auto rtol {a['rtol']:g}: error {a['error']:.2g} "
+                  f"({a['error_over_rtol']:.2g} x rtol), CPU {a['cpu']:.3g}; best fixed {best}")
     return 0
 
 
