@@ -155,3 +155,23 @@ def test_short_steps_keep_the_step_counts_over_a_shorter_t():
     assert short["ros34pw2"] == [5e-5, 2.5e-5, 1.25e-5, 6.25e-6, 3.12e-6]
     assert short["ros34pw2-krylov"] == [2.5e-5, 1.25e-5, 6.25e-6]
     assert short.keys() == base.keys()
+
+
+def test_the_committed_rod301_file_resumes_without_a_run(ad, tmp_path, monkeypatch):
+    """The file written before ``--problem`` existed (no load, no code, no skipped) is read
+    as it is: each of its (scheme, rtol) counts as measured and its RK2 is kept."""
+    original = json.loads((ad.OUT / "adaptive_rod301.json").read_text())
+    (tmp_path / "adaptive_rod301.json").write_text(json.dumps(original))
+    monkeypatch.setattr(ad, "OUT", tmp_path)
+    monkeypatch.setattr(stiff, "OUT", tmp_path)
+    monkeypatch.setattr(stiff, "reference_state", lambda *a: (None, None))
+
+    def no_run(*args, **kw):
+        raise AssertionError("a measured run was run again")
+
+    monkeypatch.setattr(integrate, "run", no_run)
+    rows = original["rows"]
+    scheme = rows[0]["scheme"]
+    data = ad.measure("rod301", [r["rtol"] for r in rows if r["scheme"] == scheme], [scheme],
+                      cap=60.0)
+    assert data["rows"] == rows and data["rk2"] == original["rk2"]
