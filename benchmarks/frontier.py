@@ -21,6 +21,10 @@ each one finishes (a rerun skips what is there: ``--redo LABEL`` measures one ag
 
     PYTHONPATH=. NUMBA_NUM_THREADS=1 python benchmarks/frontier.py --problems table4
     PYTHONPATH=. python benchmarks/frontier.py --table           # the tables of docs/benchmarks.md
+
+``--k40 PROBLEM LABEL K`` checks an analogue's K on P = 40 slices of the same length: eta^1..eta^K
+of a real Parareal run against F's serial solution, both resumable (``out/k40/PROBLEM/``), summed
+up in ``docs/figures/frontier/k40_PROBLEM.json`` (docs/planning.md, "K at 40 slices").
 """
 
 from __future__ import annotations
@@ -655,6 +659,136 @@ def emulate(name: str, label: str, iterations: int, fine_s: float = 1.0) -> dict
     return emulation_case(CORES, entry["alpha"], iterations, fine_s, entry["n_auxiliary"])
 
 
+# ---- K at 40 slices: the analogue's K checked on the full slice count ---------------------------
+
+#: Where ``--k40`` keeps its resumable state (F's serial solution, the Parareal checkpoint, the
+#: iterates X_N^k); git ignores ``out/``.
+K40_WORK = pathlib.Path("out/k40")
+
+
+def k40_problem(name: str) -> Problem:
+    """``name``'s analogue stretched to P = 40 slices of the same length (T = 40 x slice): Table
+    4's rod over its full T = 1, ``rod601_long`` over T = 0.1."""
+    problem = PROBLEMS[name]
+    return Problem(problem.title, problem.model, problem.fine, problem.slice_length, CORES,
+                   problem.target, problem.full_t1, problem.reference, problem.serial,
+                   problem.max_iterations, problem.best)
+
+
+def k40_reference(setup: Any, problem: Problem, work: pathlib.Path) -> np.ndarray:
+    """F's serial solution at T_0..T_40 (``parareal.serial_solution``'s slices, bit for bit),
+    saved after every slice so that a killed run continues from its last slice."""
+    from parastokes import parareal
+
+    times = parareal.time_points(0.0, problem.t1, problem.slices)
+    path, log = work / "reference.npy", work / "reference.json"
+    x0 = setup.system.initial_state()
+    states = np.load(path) if path.exists() else np.full((problem.slices + 1, *x0.shape), np.nan)
+    states[0] = x0
+    progress = _load(log) or {"slices_done": 0, "cpu": 0.0}
+    for n in range(progress["slices_done"] + 1, problem.slices + 1):
+        states[n], cpu = _cpu(lambda n=n: setup.fine(times[n - 1], times[n], states[n - 1]))
+        np.save(work / "reference.tmp.npy", states)
+        (work / "reference.tmp.npy").replace(path)
+        progress = {"slices_done": n, "cpu": progress["cpu"] + cpu}
+        _save(log, progress)
+    return states
+
+
+def k40_parareal(setup: Any, problem: Problem, iterations: int, work: pathlib.Path,
+                 identity: dict[str, Any], workers: int = 1) -> None:
+    """Parareal over the 40 slices (tol 0, ``iterations`` iterations; the fine solves in this
+    process, or on ``workers`` > 1 worker processes: the same iterates, bit for bit) with a
+    checkpoint that a rerun resumes (one of another ``identity`` is refused); each iterate
+    X_N^k at T is kept as ``iterate_K.npy``, its increment and the CPU time so far in
+    ``iterates.json``."""
+    from parastokes import parareal
+
+    log = work / "iterates.json"
+    record = _load(log)
+    start = time.process_time() - record.get("cpu", 0.0)
+
+    def keep(it: Any) -> None:
+        np.save(work / f"iterate_{it.iteration}.npy", it.final_state)
+        record.setdefault("increments", {})[str(it.iteration)] = it.increment
+        record["cpu"] = time.process_time() - start
+        _save(log, record)
+
+    from parastokes.parallel import make_executor
+
+    with make_executor("processes" if workers > 1 else "serial", workers) as pool:
+        parareal.run(setup.fine, setup.coarse, setup.system.initial_state(), t0=0.0,
+                     t1=problem.t1, n_slices=problem.slices, tol=0.0, max_iterations=iterations,
+                     executor=pool, checkpoint=parareal.Checkpoint(work / "parareal.npz", identity),
+                     on_iteration=keep)
+
+
+def k40_errors(reference: np.ndarray, iterates: Sequence[np.ndarray]) -> list[float]:
+    """eta^k = eq. 34's relative error at T of each iterate against F's serial solution (over the
+    whole state, as ``measure_candidate``'s runs)."""
+    from parastokes.parareal import relative_change
+
+    return [relative_change(x, reference[-1]) for x in iterates]
+
+
+def k40_summary(name: str, label: str, work: pathlib.Path) -> dict[str, Any]:
+    """What is known so far: eta^k at 40 slices (once F's serial solution is complete), K, the
+    analogue's eta^k and alpha, and the predicted speedups with the 40-slice K (alpha carries
+    over: a ratio of costs per slice of the same length)."""
+    problem = k40_problem(name)
+    analogue = load_problem(name)
+    entry = analogue["candidates"][label]
+    done = summary(analogue)
+    own = done["fine"]["error"]
+    reference = _load(work / "reference.json")
+    record = _load(work / "iterates.json")
+    ks = sorted(int(k) for k in record.get("increments", {}))
+    complete = reference.get("slices_done") == problem.slices
+    errors = (k40_errors(np.load(work / "reference.npy"),
+                         [np.load(work / f"iterate_{k}.npy") for k in ks]) if complete else None)
+    measured = {"alpha": entry["alpha"], "n_auxiliary": entry.get("n_auxiliary", 1),
+                "errors": errors}
+    return {
+        "problem": name, "label": label, "coarse": entry["coarse"],
+        "slices": problem.slices, "slice_length": problem.slice_length, "t1": problem.t1,
+        "fine": list(problem.fine), "target": problem.target, "fine_own_error": own,
+        "analogue": {"slices": PROBLEMS[name].slices, "t1": PROBLEMS[name].t1,
+                     "errors": entry["errors"],
+                     "K": iterations_to_reach(entry["errors"], problem.target, own)},
+        "alpha": entry["alpha"], "iterations": ks,
+        "increments": [record["increments"][str(k)] for k in ks], "errors": errors,
+        "K": iterations_to_reach(errors, problem.target, own),
+        "speedups": None if errors is None else assess(
+            measured, problem.target, own, done["fine"]["cpu_per_time"],
+            done["best"]["cpu_per_time"]),
+        "cpu": {"reference": reference.get("cpu"), "reference_slices": reference.get(
+            "slices_done", 0), "parareal_main_process": record.get("cpu")},
+        "load_average": _load_average(),
+    }
+
+
+def k40(name: str, label: str, iterations: int, part: str = "all", workers: int = 1
+        ) -> dict[str, Any]:
+    """``--k40``: F's serial solution (``part`` "reference"), the Parareal run ("parareal") or
+    both ("all") over 40 slices of ``name``'s slice length with G = ``label``, resumable (the
+    fine solves of the iterations on ``workers`` processes where > 1); then
+    ``OUT/k40_NAME.json`` from what is on disk (``part`` "summary": only that)."""
+    problem = k40_problem(name)
+    work = K40_WORK / name
+    work.mkdir(parents=True, exist_ok=True)
+    if part != "summary":
+        setup = build(problem, CANDIDATES[name][label].coarse)
+        if part in ("reference", "all"):
+            k40_reference(setup, problem, work)
+        if part in ("parareal", "all"):
+            k40_parareal(setup, problem, iterations, work,
+                         {"problem": name, "label": label, "fine": list(problem.fine)},
+                         workers)
+    result = k40_summary(name, label, work)
+    _save(OUT / f"k40_{name}.json", result)
+    return result
+
+
 def _store(name: str, key: str, label: str, value: Any) -> None:
     """Into ``OUT/NAME_KEY.json`` under ``label`` (beside the candidates' file, which a
     measuring process rewrites whole)."""
@@ -685,11 +819,23 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument("--emulate", nargs=3, metavar=("PROBLEM", "LABEL", "K"),
                         help="EMULATION at 40 threads with LABEL's measured alpha (sleeping "
                         "propagators, benchmarks/pipeline.py)")
+    parser.add_argument("--k40", nargs=3, metavar=("PROBLEM", "LABEL", "K"),
+                        help="eta^1..eta^K of G = LABEL over 40 slices of PROBLEM's slice length "
+                        "against F's serial solution (resumable; OUT/k40_PROBLEM.json)")
+    parser.add_argument("--k40-part", choices=("all", "reference", "parareal", "summary"),
+                        default="all", help="with --k40: only F's serial solution, only the "
+                        "Parareal run (two processes at once), or only the summary")
+    parser.add_argument("--k40-workers", type=int, default=1,
+                        help="with --k40: worker processes for the fine solves (1: in-process)")
     parser.add_argument("--limits", action="store_true",
                         help="forward Euler's limits of the coarse systems (limits_measured.json)")
     args = parser.parse_args(argv)
     if args.limits:
         _save(OUT / "limits_measured.json", limits())
+        return
+    if args.k40:
+        name, label, k = args.k40
+        print(json.dumps(k40(name, label, int(k), args.k40_part, args.k40_workers), indent=1))
         return
     if args.emulate:
         name, label, k = args.emulate

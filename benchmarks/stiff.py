@@ -29,8 +29,10 @@ Run from the repository root (each part resumes from its JSON: a row already mea
 
 - ``linalg``: the pieces of a linearly implicit step (loads' Jacobian, near mobility, their
   product, factorization, stage solve) over one evaluation of the rates, on the rods of 301
-  and 601 points, beside the same pieces as they were before round 5; the counts of Jacobians
-  and factorizations of a fixed and an adaptive ROS34PW2 run;
+  and 601 points, beside the same pieces as they were at the start of this session (coloured
+  differences, stored M, BSR product, double-precision LU) and before round 5 (SuperLU), with
+  the load average; the counts of Jacobians and factorizations of a fixed and an adaptive
+  ROS34PW2 run;
 - ``short``: work-precision over T = 0.005 s on those rods: forward Euler and RK2 at their
   limit, ROS2, ROS34PW2 and ROS2-Krylov at fixed steps, ROS2 and ROS34PW2 adaptive.
 
@@ -44,6 +46,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import pathlib
 import sys
 import time
@@ -520,10 +523,28 @@ SHORT_ROD1201 = {"rod1201": (1201, 0.25, 4.85e-8)}
 SHORT_T1201 = 2.5e-4
 
 
-def _cpu_per_call(function: Callable[[], Any], repeat: int) -> float:
-    """CPU seconds per call of ``function`` (one warm-up call, then the mean of ``repeat``)."""
-    function()
-    return _timed(lambda: [function() for _ in range(repeat)])[1] / repeat
+#: Rounds of :func:`_interleaved` (each piece timed once per round, the least kept).
+ROUNDS = 9
+
+
+def _interleaved(pieces: dict[str, Callable[[], Any]], repeat: dict[str, int]
+                 ) -> dict[str, float]:
+    """CPU seconds per call of each of ``pieces``: after one warm-up call each, :data:`ROUNDS`
+    rounds that time every piece once (a batch of ``repeat`` calls, default 5) in turn, and
+    the least per piece over the rounds (on a shared machine the other jobs only add: the least
+    is the least disturbed, and the pieces meet the same moments)."""
+    def batch(function: Callable[[], Any], n: int) -> None:
+        for _ in range(n):  # each result dropped before the next call, as a run drops them
+            function()
+
+    for function in pieces.values():
+        function()
+    best = dict.fromkeys(pieces, math.inf)
+    for _ in range(ROUNDS):
+        for key, function in pieces.items():
+            n = repeat.get(key, 5)
+            best[key] = min(best[key], _timed(lambda f=function, n=n: batch(f, n))[1] / n)
+    return best
 
 
 def _linalg_rod(m: int, eps: float) -> dict[str, Any]:
@@ -531,17 +552,37 @@ def _linalg_rod(m: int, eps: float) -> dict[str, Any]:
     import scipy.sparse as sp
     import scipy.sparse.linalg as spla
 
-    from parastokes.stiff import banded, jacobian, local, solve
+    from parastokes.stiff import banded, coloring, jacobian, local, solve
 
     rod = models.rod_swimmer(n_points=m, epsilon=eps, n_threads=1)
     x = rod.initial_state()
     n = rod.rates(0.0, x).size
     hgamma = 2.5e-4 * integrate.SCHEMES["ros34pw2"].gamma
+    cutoff = jacobian.CUTOFF * eps
+
+    def coloured() -> sp.bsr_array:  # the loads' Jacobian before the rod's hook
+        return coloring.fd_jacobian(jacobian._loads_function(rod, 0.0), rod.advance, x, 6,
+                                    rod.load_coupling(), jacobian.fd_step(x))
+
     k = sp.bsr_array(jacobian.load_jacobian(rod, 0.0, x), blocksize=(6, 6))
-    mob = local.near_mobility(rod.positions(x), eps, rod.viscosity, True, jacobian.CUTOFF * eps)
-    a = banded.block_product(mob, k)
+    mob = local.near_mobility(rod.positions(x), eps, rod.viscosity, True, cutoff)
+    a = banded.near_product(rod.positions(x), eps, rod.viscosity, True, cutoff, k)
+    a_bsr = banded.block_product(mob, k)
     lu = solve.Factorization(a, hgamma, 0.0)
     v = np.ones(n)
+
+    def double(matrix: Any) -> solve.Factorization:  # the banded LU in double precision
+        solve.BAND_PRECISION = np.float64
+        try:
+            return solve.Factorization(matrix, hgamma, 0.0)
+        finally:
+            solve.BAND_PRECISION = np.float32
+
+    def session_start() -> None:  # this session's start: coloured K, M, BSR product, dgbtrf
+        product = banded.block_product(
+            local.near_mobility(rod.positions(x), eps, rod.viscosity, True, cutoff),
+            sp.bsr_array(coloured(), blocksize=(6, 6)))
+        double(product)
 
     def before() -> None:  # this round's start: scipy's BSR product, CSC, SuperLU
         system = sp.eye_array(n, format="csc") - hgamma * (mob @ k).tocsc()
@@ -550,22 +591,32 @@ def _linalg_rod(m: int, eps: float) -> dict[str, Any]:
     pieces = {
         "evaluation": lambda: rod.rates(0.0, x),
         "K": lambda: jacobian.load_jacobian(rod, 0.0, x),
-        "M": lambda: local.near_mobility(rod.positions(x), eps, rod.viscosity, True,
-                                         jacobian.CUTOFF * eps),
+        "K_coloured": coloured,
+        "M": lambda: local.near_mobility(rod.positions(x), eps, rod.viscosity, True, cutoff),
         "product": lambda: banded.block_product(mob, k),
+        "fused_product": lambda: banded.near_product(rod.positions(x), eps, rod.viscosity,
+                                                     True, cutoff, k),
         "factorization": lambda: solve.Factorization(a, hgamma, 0.0),
+        "factorization_double": lambda: double(a),
         "stage_solve": lambda: lu.solve(v),
         "fresh": lambda: solve.Factorization(jacobian.local_jacobian(rod, 0.0, x, n), hgamma,
                                              0.0),
+        "session_start_fresh": session_start,
         "before_product_csc_splu": before,
     }
-    cpu = {key: _cpu_per_call(f, 40 if key in ("evaluation", "stage_solve") else 10)
-           for key, f in pieces.items()}
+    load = os.getloadavg()
+    cpu = _interleaved(pieces, {"evaluation": 20, "stage_solve": 20})
     ratio = {key: value / cpu["evaluation"] for key, value in cpu.items()}
+    exact = double(a_bsr).solve(v)
     entry: dict[str, Any] = {"points": m, "unknowns": n, "band": list(banded.bandwidth(a)),
                              "cpu_ms": {key: 1e3 * value for key, value in cpu.items()},
                              "per_evaluation": ratio,
-                             "before_fresh": ratio["K"] + ratio["M"]
+                             "load_average": [round(v, 2) for v in (*load, *os.getloadavg())],
+                             "fused_vs_bsr_product": float(np.abs(a.toarray() - a_bsr.toarray())
+                                                           .max() / np.abs(a_bsr.data).max()),
+                             "single_vs_double_solve": float(np.abs(lu.solve(v) - exact).max()
+                                                             / np.abs(exact).max()),
+                             "before_fresh": ratio["K_coloured"] + ratio["M"]
                              + ratio["before_product_csc_splu"]}
     for scheme, stages in (("ros2", 2), ("ros34pw2", 4)):
         for every in (5, 10):
@@ -602,15 +653,18 @@ def _counts() -> dict[str, Any]:
     return out
 
 
-def linalg_part() -> dict[str, Any]:
+def linalg_part(rods: list[str]) -> dict[str, Any]:
     """The linear algebra of a linearly implicit step on the rods of :data:`SHORT_RODS`, each
-    piece's CPU time over one evaluation of the rates, in one run: the loads' Jacobian K
-    (coloured differences), the near mobility M, the product A = M K, the factorization of
-    I - hγA, one stage solve; the same pieces as before this round (scipy's BSR product, its
-    conversion to CSC and SuperLU); and the counts of Jacobians and factorizations of a fixed
-    and an adaptive ROS34PW2 run on the rod of 301 points."""
+    piece's CPU time over one evaluation of the rates, in one run: the loads' Jacobian K (the
+    rod's hook; the coloured differences), the near mobility M and the product A = M K (the
+    fused pass; stored M and the BSR product), the factorization of I - hγA (single and double
+    precision), one stage solve, a fresh Jacobian and factorization now, at this session's
+    start and before this round (scipy's BSR product, CSC and SuperLU); and the counts of
+    Jacobians and factorizations of a fixed and an adaptive ROS34PW2 run on the rod of 301
+    points."""
     data = _load(OUT / "linalg.json")
-    for name, (m, eps, _) in SHORT_RODS.items():
+    for name in rods:
+        m, eps, _ = SHORT_RODS[name]
         data[name] = _linalg_rod(m, eps)
         print(name, json.dumps(data[name], indent=1), flush=True)
     data["counts_rod301_ros34pw2"] = _counts()
@@ -631,17 +685,19 @@ def short_steps(limit: float, t1: float) -> dict[str, list[float]]:
             **{k: [float(f"{v * t1 / SHORT_T:.3g}") for v in vs] for k, vs in steps.items()}}
 
 
-def short_part(rods: dict[str, tuple[int, float, float]] = SHORT_RODS,
-               t1: float = SHORT_T) -> dict[str, Any]:
-    """Work-precision over T = ``t1`` on the rods ``rods`` (name: points, ε, explicit step):
-    forward Euler and RK2 just below forward Euler's limit, ROS2, ROS34PW2 (Jacobian every 5
-    and 10 steps), ROS2-Krylov and ROS34PW2-Krylov at fixed steps, and ROS2, ROS34PW2 and
-    ROS34PW2-Krylov adaptive across tolerances (atol = rtol/10 μm), against RK4 at half the
-    limit; rows as ``work_precision``'s plus ``rtol``. The implicit steps and the adaptive
-    runs' first step are those of T = :data:`SHORT_T` scaled by ``t1 / SHORT_T``."""
+def short_part(rods: list[str]) -> dict[str, Any]:
+    """Work-precision over T = :data:`SHORT_T` on the rods ``rods`` of :data:`SHORT_RODS`
+    (:data:`SHORT_T1201` on the rod of :data:`SHORT_ROD1201`): forward Euler and RK2 just below
+    forward Euler's limit, ROS2, ROS34PW2 (Jacobian every 5 and 10 steps), ROS2-Krylov and
+    ROS34PW2-Krylov at fixed steps, and ROS2, ROS34PW2 and ROS34PW2-Krylov adaptive across
+    tolerances (atol = rtol/10 μm), against RK4 at half the limit; rows as
+    ``work_precision``'s plus ``rtol``. The implicit steps and the adaptive runs' first step
+    are those of T = :data:`SHORT_T` scaled by ``T / SHORT_T``."""
     out = {}
-    scale = t1 / SHORT_T
-    for name, (m, eps, limit) in rods.items():
+    for name in rods:
+        m, eps, limit = {**SHORT_RODS, **SHORT_ROD1201}[name]
+        t1 = SHORT_T1201 if name in SHORT_ROD1201 else SHORT_T
+        scale = t1 / SHORT_T
         rod = models.rod_swimmer(n_points=m, epsilon=eps, n_threads=1)
         key = f"short_{name}"
         data = work_precision(key, rod, t1, float(f"{0.5 * limit:.2g}"), short_steps(limit, t1),
@@ -653,8 +709,8 @@ def short_part(rods: dict[str, tuple[int, float, float]] = SHORT_RODS,
             for rtol in (1e-2, 1e-3, 1e-4, 1e-5):
                 if (scheme, rtol) in done:
                     continue
-                result, cpu = _timed(lambda s=scheme, r=rtol, body=rod, y=x0: integrate.run(
-                    body, y, 0.0, t1, s, scale * 1e-4, rtol=r, atol=0.1 * r))
+                result, cpu = _timed(lambda s=scheme, r=rtol, body=rod, y=x0, t=t1, h=scale * 1e-4:
+                                     integrate.run(body, y, 0.0, t, s, h, rtol=r, atol=0.1 * r))
                 row = {"scheme": scheme, "rtol": rtol, "dt": None, "refresh": stepper.REFRESH,
                        "error": _relative_error(result.state, reference, x0), "cpu": cpu,
                        "steps": result.n_steps, "rejected": result.n_rejected}
@@ -672,12 +728,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--parts", nargs="+", default=["rod", "vesicle", "parareal"],
                         choices=["rod", "rod601", "vesicle", "parareal", "parareal601",
                                  "best_serial", "linalg", "short", "short1201"])
+    parser.add_argument("--rods", nargs="+", default=list(SHORT_RODS), choices=list(SHORT_RODS),
+                        help="the rods of the parts linalg and short (default: both)")
     args = parser.parse_args(argv)
     for part in args.parts:
+        if part in ("linalg", "short"):
+            {"linalg": linalg_part, "short": short_part}[part](args.rods)
+            continue
         {"rod": rod_part, "rod601": fine_rod_part, "vesicle": vesicle_part,
          "parareal": parareal_part, "parareal601": fine_parareal_part,
-         "best_serial": best_serial_part, "linalg": linalg_part, "short": short_part,
-         "short1201": lambda: short_part(SHORT_ROD1201, SHORT_T1201)}[part]()
+         "best_serial": best_serial_part,
+         "short1201": lambda: short_part(list(SHORT_ROD1201))}[part]()
         figure()
     return 0
 

@@ -21,14 +21,15 @@ def _rod():
     return models.rod_swimmer(n_points=21)
 
 
-def _solve(executor, scheme: str, lagrange: dict | None = None, iterations: int = 2):
+def _solve(executor, scheme: str, lagrange: dict | None = None, iterations: int = 2,
+           schedule: str = "standard"):
     rod = _rod()
     fine = integrate.Propagator(rod, "rk2", 1e-6)
     coarse = parareal.extrapolated(rod, scheme, 2e-5, lagrange=lagrange, rtol=1e-4,
                                    allow_oversubscribe=True)
     result = parareal.run(fine, coarse, rod.initial_state(), t0=0.0, t1=T1, n_slices=N_SLICES,
                            tol=0.0, max_iterations=iterations, executor=executor,
-                           allow_oversubscribe=True)
+                           allow_oversubscribe=True, schedule=schedule)
     return rod, result
 
 
@@ -70,6 +71,21 @@ def test_adaptive_coarse_counts_serial_equal_processes(ros2_serial, pool):
     _, pooled = _solve(pool, "ros2", lagrange={"epsilon": [1.03, 1.06]})
     assert pooled.timings.coarse_steps == serial.timings.coarse_steps
     assert np.array_equal(pooled.states, serial.states)
+
+
+def test_pipelined_counts_equal_the_standard_schedules_on_serial_and_processes(ros2_serial,
+                                                                               pool):
+    """The pipelined schedule takes each coarse step's counts as it combines its auxiliary
+    solves and sums them per iteration (docs/parareal.md): Algorithm 1's counts, bit for bit."""
+    _, standard = ros2_serial
+    with parallel.make_executor("serial") as executor:
+        _, serial = _solve(executor, "ros2", lagrange={"epsilon": [1.03, 1.06]},
+                           schedule="pipelined")
+    _, pooled = _solve(pool, "ros2", lagrange={"epsilon": [1.03, 1.06]}, schedule="pipelined")
+    assert len(standard.timings.coarse_steps) == standard.iterations + 1
+    assert serial.timings.coarse_steps == standard.timings.coarse_steps
+    assert pooled.timings.coarse_steps == standard.timings.coarse_steps
+    assert np.array_equal(serial.states, standard.states)
 
 
 def test_fixed_coarse_reports_no_counts():
@@ -129,13 +145,27 @@ def test_tune_runs_an_adaptive_fine_solver_with_its_rtol(scheme):
     assert res.chosen is not None
 
 
-def test_tune_refuses_auto_as_a_coarse_candidate_in_one_line():
-    from parastokes import tuning
+def test_tune_schemes_auto_searches_auto_on_the_rtol_ladder(tmp_path):
+    """``--schemes auto``: adaptive candidates only (docs/tuning.md), beside the plain Euler
+    baseline; each measured with its steps per slice, auto's switches among them."""
+    import json
 
-    rod = _tune_rod()
-    with pytest.raises(tuning.TuningError, match="'auto' cannot"):
-        tuning.tune(integrate.Propagator(rod, "rk2", 1e-6), t0=0.0, t1=2e-3, n_slices=2,
-                    cores=2, target=1e-3, space=tuning.Space(schemes=("auto",)))
+    from test_tune import CONFIG
+
+    from parastokes import cli
+
+    source = tmp_path / "rod.toml"
+    source.write_text(CONFIG.replace("nodes = [2, 3]", "nodes = [2]"))
+    out = tmp_path / "TUNED.toml"
+    assert cli.main(["tune", str(source), "--cores", "4", "--target", "1e-4", "--out", str(out),
+                     "-q", "--schemes", "auto", "--coarse-rtols", "1e-3", "--parameters",
+                     "--exhaustive", "--pilot-slices", "2", "--set", "time.t1=0.004"]) == 0
+    report = json.loads(out.with_suffix(".json").read_text())
+    assert report["baseline"]["scheme"] == "euler" and report["baseline"]["rtol"] is None
+    (row,) = [c for c in report["candidates"] if c["scheme"] == "auto"]
+    assert (row["scheme"], row["rtol"], row["richardson"]["m"]) == ("auto", 1e-3, 0)
+    assert row["screen"]["steps"]["accepted"] > 0 and "switches" in row["adaptive_steps"]
+    assert "--schemes auto --parameters --coarse-rtols 0.001 --pilot-slices 2" in out.read_text()
 
 
 # ---- plan: adaptive runs (and auto) in the serial baseline -----------------------------------

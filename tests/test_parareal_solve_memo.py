@@ -49,9 +49,9 @@ def test_a_kept_solve_is_returned_only_for_exactly_its_input(tmp_path):
     value = np.array([1.0, 2.0])
     assert memo.get("fine", 3, 2, 0.4, 0.6, x) is None and memo.count() == 0
     memo.put("fine", 3, 2, 0.4, 0.6, x, value, 1.25)
-    kept, seconds = memo.get("fine", 3, 2, 0.4, 0.6, x)
+    kept, seconds, steps = memo.get("fine", 3, 2, 0.4, 0.6, x)
     np.testing.assert_array_equal(kept, value)
-    assert seconds == 1.25 and memo.count() == 1
+    assert seconds == 1.25 and steps is None and memo.count() == 1
     one_ulp = x.copy()
     one_ulp[1] = np.nextafter(x[1], 1.0)
     assert memo.get("fine", 3, 2, 0.4, 0.6, one_ulp) is None  # another input state

@@ -472,3 +472,26 @@ def test_a_parareal_route_is_written_as_a_config_that_runs(tmp_path):
     assert cli.main(["run", str(path), "--out", str(tmp_path / "run"), "-q", "--set",
                      "output.figures=false", "--set", "output.trajectory=false"]) == 0
     assert json.loads((tmp_path / "run" / "summary.json").read_text())["iterations"] == 1
+
+
+@pytest.mark.parametrize("rtol", [None, 1e-5])
+def test_tune_gets_f_with_the_chosen_runs_tolerance(tmp_path, monkeypatch, rtol):
+    """An adaptive F chosen by the search reaches tune with its rtol (the same F the baseline
+    measured), a fixed one without."""
+    import parastokes.tuning as tuning
+    from parastokes.planning import command
+
+    source = tmp_path / "rod.toml"
+    source.write_text(CONFIG)
+    cfg, resolved = config.load(source)
+    seen = {}
+
+    def fake_tune(fine, **_):
+        seen["scheme"], seen["rtol"] = fine.scheme, fine.rtol
+        raise tuning.TuningError("stop here")
+
+    monkeypatch.setattr(tuning, "tune", fake_tune)
+    scheme = "rk2" if rtol is None else "rk23"
+    result, why = command._tune(cfg, resolved, None, Run(scheme, 1e-6, rtol), 2, 1e-4, 1.0)
+    assert result is None and why == "tune: stop here"
+    assert seen == {"scheme": scheme, "rtol": rtol}

@@ -13,6 +13,8 @@ import scipy.sparse as sp
 from test_stiff import Forced
 
 from parastokes import integrate, models
+from parastokes.kinds.chain import ChainSystem
+from parastokes.scene import Scene
 from parastokes.stiff import ROSENBROCK, StiffSolveError, banded, jacobian, local, solve, stepper
 from parastokes.stiff.solve import Factorization
 
@@ -58,6 +60,110 @@ def test_the_rods_a_is_the_near_mobility_times_the_load_jacobian():
     assert np.allclose(a, expected, rtol=0, atol=1e-13 * np.abs(expected).max())
 
 
+def _reference_product(body, x):
+    """M_near @ K of ``body`` at ``x`` through the stored near mobility and scipy's product."""
+    size = 6 if getattr(body, "angular", False) else 3
+    k = sp.bsr_array(jacobian.load_jacobian(body, 0.0, x), blocksize=(size, size))
+    m = local.near_mobility(body.positions(x), body.epsilon, body.viscosity, size == 6,
+                            jacobian.CUTOFF * body.epsilon)
+    return (m @ sp.csr_array(k)).toarray(), k
+
+
+def _bent_rod():
+    rod = models.rod_swimmer(n_points=101, length=20.0, epsilon=0.4, n_threads=1)
+    x = rod.initial_state()
+    s = np.linspace(0.0, 1.0, len(x))
+    x[:, 1] += 0.5 * np.sin(3.0 * s)  # bent out of line: every pair's separation has y
+    x[:, 2] += 0.3 * s ** 2           # and z, so no block entry is zero by symmetry
+    return rod, rod.project(x)
+
+
+@pytest.mark.parametrize("kind", ["rod", "chain"])
+def test_fused_near_product_is_the_reference_product_in_lapacks_layout(kind):
+    """The one-pass product (M's blocks never stored) on a bent rod (6 x 6 blocks, loads on
+    the two neighbours) and a chain (3 x 3, two neighbours each side): the matrix M @ K to
+    round-off, a dia_array whose row ku + i - j of column j is entry (i, j), Fortran order,
+    with the reference's band."""
+    if kind == "rod":
+        body, x = _bent_rod()
+    else:
+        body = ChainSystem(n_beads=40, tilt=0.3, stretch=1.1, epsilon=0.8)  # pairs: 2 beads
+        x = body.initial_state()
+        x[:, 1] += 0.3 * np.cos(np.linspace(0.0, 2.0, len(x)))
+        x[:, 2] += 0.2 * np.sin(np.linspace(0.0, 3.0, len(x)))
+    expected, k = _reference_product(body, x)
+    a = jacobian.local_jacobian(body, 0.0, x, expected.shape[0])
+    assert isinstance(a, sp.dia_array) and a.data.flags.f_contiguous
+    kl, ku = banded.bandwidth(sp.bsr_array(expected, blocksize=k.blocksize))
+    assert banded.bandwidth(a) == (kl, ku) and a.data.shape == (kl + ku + 1, len(expected))
+    assert list(a.offsets) == list(range(ku, -kl - 1, -1))
+    scale = np.abs(expected).max()
+    assert np.abs(a.toarray() - expected).max() < 1e-13 * scale
+    rows, cols = np.nonzero(np.abs(expected) > 1e-6 * scale)
+    np.testing.assert_allclose(a.data[ku + rows - cols, cols], expected[rows, cols], rtol=0,
+                               atol=1e-13 * scale)
+
+
+def test_near_product_beyond_an_eighth_of_its_size_is_the_general_product():
+    """Points in no order along a line (a vesicle's, a curled rod's): the band is wide, and
+    near_product gives the block product of the stored mobility, the same matrix."""
+    rng = np.random.default_rng(6)
+    points = rng.uniform(0.0, 3.0, size=(40, 3))
+    k, dk = _random_bsr(rng, 40, 40, (6, 6), 0.1)
+    a = banded.near_product(points, 0.5, 2.0, True, 1.5, k)
+    assert isinstance(a, sp.bsr_array)
+    m = local.near_mobility(points, 0.5, 2.0, True, 1.5).toarray()
+    assert np.allclose(a.toarray(), m @ dk, rtol=0, atol=1e-13 * np.abs(m @ dk).max())
+
+
+def test_near_product_refuses_a_load_jacobian_of_other_blocks():
+    rng = np.random.default_rng(7)
+    k, _ = _random_bsr(rng, 10, 10, (3, 3), 0.3)
+    with pytest.raises(ValueError, match="expected"):
+        banded.near_product(rng.uniform(size=(10, 3)), 0.5, 1.0, True, 1.5, k)
+
+
+def test_a_scene_of_a_rod_and_a_chain_composes_their_fused_products():
+    """A scene's A (its stiff_jacobian) holds each body's fused band product on its diagonal
+    blocks, padded to the widest rates: the reference products there, zero elsewhere."""
+    rod, x_rod = _bent_rod()
+    chain = ChainSystem(n_beads=12, tilt=0.3, stretch=1.1, viscosity=rod.viscosity,
+                        epsilon=0.3, height=30.0, wall=True)
+    scene = Scene((rod, chain), viscosity=rod.viscosity, wall=True)
+    x = scene.stack([x_rod, chain.initial_state()])
+    a = sp.csr_array(scene.stiff_jacobian(0.0, x)).toarray()
+    expected = np.zeros_like(a)
+    n_rod = 6 * len(x_rod)
+    expected[:n_rod, :n_rod] = _reference_product(rod, x_rod)[0]
+    chain_a = _reference_product(chain, chain.initial_state())[0]
+    for i in range(3):  # the chain's 3 rates per bead in rows and columns of 6
+        for j in range(3):
+            expected[n_rod + i::6, n_rod + j::6] = chain_a[i::3, j::3]
+    assert np.abs(a - expected).max() < 1e-13 * np.abs(expected).max()
+    assert np.abs(a[n_rod:, n_rod:]).max() > 0
+
+
+def test_band_storage_of_the_fused_band_is_that_of_the_block_product():
+    """I - hγA from the fused dia band and from the BSR product: the same LAPACK rows (the
+    first kl, dgbtrf's room for fill, are not set from the dia band), in single precision too,
+    and into a given array."""
+    rod, x = _bent_rod()
+    expected = _reference_product(rod, x)[0]
+    bsr = sp.bsr_array(expected, blocksize=(6, 6))
+    kl, ku = banded.bandwidth(bsr)
+    a = jacobian.local_jacobian(rod, 0.0, x, len(expected))
+    fused = banded.band_storage(a, 0.7, kl, ku)
+    assert fused.flags.f_contiguous and fused.shape == (2 * kl + ku + 1, len(expected))
+    scale = 0.7 * np.abs(expected).max()
+    reference = banded.band_storage(bsr, 0.7, kl, ku)
+    assert not reference[:kl].any()
+    assert np.abs(fused[kl:] - reference[kl:]).max() < 1e-13 * scale
+    assert fused[kl + ku, 5] == pytest.approx(1.0 - 0.7 * expected[5, 5], rel=1e-12)
+    out = np.full_like(fused, np.nan, dtype=np.float32)
+    single = banded.band_storage(a, 0.7, kl, ku, np.float32, out=out)
+    assert single is out and np.allclose(single[kl:], fused[kl:], rtol=1e-6, atol=1e-6 * scale)
+
+
 def test_bandwidth_of_blocks_counts_every_entry_of_a_block():
     """A block tridiagonal matrix of 6 x 6 blocks has bandwidth 11 either side; a lower
     bidiagonal one of 1 x 1 entries (1, 0); the COO and BSR paths agree."""
@@ -94,15 +200,34 @@ def test_band_storage_is_lapacks_layout():
 
 
 @pytest.mark.parametrize("kl", [5, 200])
-def test_factorization_solves_as_a_dense_solve(kl):
-    """Banded (LAPACK, a band below n/8) and general (SuperLU) factorizations of I - hγA solve
-    like numpy's dense solve."""
+def test_factorization_solves_as_a_dense_solve(kl, monkeypatch):
+    """Banded (LAPACK, a band below n/8; its elimination in double here) and general
+    (SuperLU) factorizations of I - hγA solve like numpy's dense solve."""
+    monkeypatch.setattr(solve, "BAND_PRECISION", np.float64)
     dense = _banded_matrix(kl=kl, ku=3)
     lu = Factorization(sp.csr_array(dense), 0.05, 0.0)
     assert lu.banded == (kl < 240 // 8)
     rhs = np.random.default_rng(4).standard_normal(240)
     expected = np.linalg.solve(np.eye(240) - 0.05 * dense, rhs)
     assert np.allclose(lu.solve(rhs), expected, rtol=1e-10, atol=1e-12)
+
+
+def test_single_precision_factors_solve_one_fixed_matrix_in_double():
+    """The default banded LU eliminates in single precision and solves in double on those
+    factors: the solves are those of one matrix I - hγA' (linear to double's round-off, as a
+    W-method needs), A' within single precision of A (the solve off the exact one by about
+    1e-7, far more than double's round-off: the elimination really is single)."""
+    assert solve.BAND_PRECISION == np.float32
+    dense = _banded_matrix(kl=5, ku=3)
+    lu = Factorization(sp.csr_array(dense), 0.05, 0.0)
+    rng = np.random.default_rng(8)
+    v, w = rng.standard_normal((2, 240))
+    x, y = lu.solve(v), lu.solve(w)
+    combined = lu.solve(0.3 * v - 2.0 * w)
+    assert np.abs(combined - (0.3 * x - 2.0 * y)).max() < 1e-13 * np.abs(combined).max()
+    exact = np.linalg.solve(np.eye(240) - 0.05 * dense, v)
+    off = np.abs(x - exact).max() / np.abs(exact).max()
+    assert 1e-10 < off < 1e-5
 
 
 @pytest.mark.parametrize("kl", [2, 200])
@@ -224,16 +349,21 @@ def test_adaptive_steps_factorize_less_often_than_they_change_the_step(monkeypat
 
 
 def test_banded_and_general_factorizations_give_the_same_run(monkeypatch):
-    """The rod's run with A's band factorized by LAPACK equals (to 1e-10) the run with SuperLU
-    (the band reported as the whole matrix)."""
+    """The rod's run with A's band factorized by LAPACK in double equals (to 1e-10) the run
+    with SuperLU (the band reported as the whole matrix), and in single (the default) to
+    1e-7: a W-method on A within single precision of A."""
     rod = models.rod_swimmer(n_points=61, length=12.0, epsilon=0.3, n_threads=1)
     x0 = rod.initial_state()
+    single = integrate.run(rod, x0, 0.0, 5e-4, "ros34pw2", 1e-4).state
+    monkeypatch.setattr(solve, "BAND_PRECISION", np.float64)
     assert Factorization(jacobian.local_jacobian(rod, 0.0, x0, 6 * len(x0)), 1e-4, 0.0).banded
     a = integrate.run(rod, x0, 0.0, 5e-4, "ros34pw2", 1e-4).state
     monkeypatch.setattr(solve, "bandwidth", lambda matrix: (matrix.shape[0], matrix.shape[0]))
     assert not Factorization(jacobian.local_jacobian(rod, 0.0, x0, 6 * len(x0)), 1e-4, 0.0).banded
     b = integrate.run(rod, x0, 0.0, 5e-4, "ros34pw2", 1e-4).state
     assert np.allclose(a, b, rtol=0, atol=1e-10 * np.abs(a).max())
+    moved = np.abs(single - a)[:, :3].max() / np.abs(a[:, :3] - x0[:, :3]).max()
+    assert 1e-13 < moved < 1e-6
 
 
 @pytest.mark.parametrize("width", [3, 2])
@@ -264,3 +394,112 @@ def test_coloured_differences_are_the_analytic_jacobian(width):
     got = coloring.fd_jacobian(function, lambda y, d, h: y + h * d, x, 3,
                                coloring.banded(1, n, 1), 1e-6).toarray()
     assert np.allclose(got, expected, rtol=0, atol=1e-8)
+
+
+def test_the_rods_load_jacobian_hook_is_the_coloured_differences():
+    """RodSystem.load_jacobian (compiled, segment by segment) on two bent and twisted rods
+    beating at t = 0.013 (a preferred strain that depends on t and on the half point): the
+    coloured central differences of its loads, to their round-off (relative 1e-9)."""
+    from parastokes.stiff import coloring
+
+    rod = models.rod_swimmer(n_points=21, length=4.0, epsilon=0.4, n_threads=1)
+    rod = dataclasses.replace(rod, n_rods=2, spacing=3.0)
+    x = rod.initial_state()
+    s = np.tile(np.linspace(0.0, 1.0, 21), 2)
+    x[:, 1] += 0.4 * np.sin(3.0 * s) + 0.1 * np.arange(42) // 21
+    x[:, 2] += 0.2 * s ** 2
+    twist = np.zeros((42, 6))
+    twist[:, 3:] = 0.3 * np.stack([np.cos(5 * s), s, np.sin(4 * s)], axis=1)
+    x = rod.advance(x, twist, 1.0)  # frames no longer along the centre line
+    hook = rod.load_jacobian(0.013, x)
+    assert isinstance(hook, sp.bsr_array) and hook.blocksize == (6, 6)
+    loads = jacobian._loads_function(rod, 0.013)
+    fd = coloring.fd_jacobian(loads, rod.advance, x, 6, rod.load_coupling(),
+                              jacobian.fd_step(x)).toarray()
+    assert np.abs(hook.toarray() - fd).max() < 1e-9 * np.abs(fd).max()
+    np.testing.assert_array_equal(jacobian.load_jacobian(rod, 0.013, x).toarray(),
+                                  hook.toarray())  # the schemes' K is the hook's
+
+
+@pytest.mark.parametrize("shape", ["cloud", "rod along z", "coincident"])
+def test_sorted_pairs_are_every_pair_within_the_cutoff(shape):
+    """The compiled sort and sweep against all n² distances: the same pairs (at most the
+    cutoff apart, self pairs included), sources ascending per target; a rod along z (the sweep
+    along its longest extent) and repeated points too."""
+    rng = np.random.default_rng(9)
+    points = {"cloud": rng.uniform(0.0, 3.0, size=(80, 3)),
+              "rod along z": np.stack([0.01 * rng.standard_normal(60), np.zeros(60),
+                                       np.linspace(0.0, 12.0, 60)], axis=1),
+              "coincident": np.repeat(rng.uniform(0.0, 2.0, size=(20, 3)), 2, axis=0)}[shape]
+    cutoff = 0.8
+    indptr, source = local.sorted_pairs(points, cutoff)
+    distance = np.linalg.norm(points[:, None] - points[None], axis=2)
+    for i in range(len(points)):
+        row = source[indptr[i]:indptr[i + 1]]
+        assert list(row) == list(np.flatnonzero(distance[i] <= cutoff)), i
+
+
+@pytest.mark.parametrize("precision", [np.float32, np.float64])
+def test_band_solve_is_lapacks_dgbtrs_on_the_same_factors(precision):
+    """The compiled solve of the banded factors (single or double precision, read as they are)
+    against LAPACK's dgbtrs on the same factors in double: the same solution to round-off, on
+    a matrix whose elimination pivots (row interchanges happen) with kl != ku."""
+    from scipy.linalg import lapack
+
+    kl, ku = 7, 4
+    dense = np.eye(200) - 0.8 * _banded_matrix(n=200, kl=kl, ku=ku, seed=10)
+    ab = banded.band_storage(sp.csr_array(np.eye(200) - dense), 1.0, kl, ku, precision)
+    lu, piv, info = (lapack.sgbtrf if precision == np.float32 else lapack.dgbtrf)(ab, kl, ku)
+    assert info == 0 and np.any(piv != np.arange(200))
+    rhs = np.random.default_rng(11).standard_normal(200)
+    expected = lapack.dgbtrs(lu.astype(float, order="F"), kl, ku, rhs, piv)[0]
+    got = solve.band_solve(lu, kl, ku, piv, rhs)
+    assert np.abs(got - expected).max() < 1e-12 * np.abs(expected).max()
+    if precision == np.float64:
+        assert np.allclose(got, np.linalg.solve(dense, rhs), rtol=1e-10, atol=1e-12)
+
+
+def test_spares_keep_freed_arrays_by_shape_and_dtype():
+    """take() hands back a given array only for its shape and dtype, each once; give() keeps the
+    latest ``keep``."""
+    spares = solve.Spares(keep=2)
+    a = np.empty((5, 7), dtype=np.float32, order="F")
+    spares.give(a)
+    assert spares.take((5, 7), np.float64) is not a
+    assert spares.take((7, 5), np.float32) is not a
+    assert spares.take((5, 7), np.float32) is a
+    assert spares.take((5, 7), np.float32) is not a  # once
+    given = [np.empty((2, 2), order="F") for _ in range(3)]
+    for array in given:
+        spares.give(array)
+    assert [id(k) for k in spares._free] == [id(k) for k in given[1:]]
+    kept = [spares.take((2, 2), np.float64) for _ in range(3)]
+    assert kept[0] is given[1] and kept[1] is given[2] and kept[2] is not given[0]
+
+
+def test_a_freed_factorizations_memory_serves_the_next_with_the_same_solves():
+    """The banded factors go back to SPARES when their Factorization is freed, and the next
+    factorization of that shape reuses them: its solves are the same bits as on new memory
+    (dgbtrf reads none of what is left there: here NaN), and two live factorizations never
+    share their factors."""
+    import gc
+
+    rod, x = _bent_rod()
+    a = jacobian.local_jacobian(rod, 0.0, x, 6 * len(x))
+    v = np.random.default_rng(12).standard_normal(6 * len(x))
+    first = Factorization(a, 1e-4, 0.0)
+    expected = first.solve(v)
+    memory = first._band[0]
+    memory_id = id(memory)
+    del first, memory
+    gc.collect()
+    assert any(id(m) == memory_id for m in solve.SPARES._free)
+    for m in solve.SPARES._free:
+        m[...] = np.nan  # whatever was left there
+    second = Factorization(a, 1e-4, 0.0)
+    assert id(second._band[0]) == memory_id
+    assert np.array_equal(second.solve(v), expected)
+    third = Factorization(a, 2e-4, 0.0)  # while the second lives: its own memory
+    assert third._band[0] is not second._band[0]
+    assert np.array_equal(second.solve(v), expected)
+    assert not np.array_equal(third.solve(v), expected)

@@ -227,6 +227,10 @@ class Tune(_Section):
     step_fractions: list[Annotated[float, Field(gt=0, le=1)]] | None = Field(
         None, description="Coarse steps as fractions of the largest safe step."
     )
+    coarse_rtols: list[Annotated[float, Field(gt=0, lt=1)]] | None = Field(
+        None, description="The rtol ladder of the adaptive candidates (schemes with an error "
+        "estimate, and auto), atol = rtol (default [1e-2, 1e-3, 1e-4])."
+    )
     max_weight: Positive | None = Field(None, description="Largest Σ|w_j v_q| considered.")
     pilot_slices: int | None = Field(None, ge=2, description="Slices of the pilot window.")
     pilot_points: int | None = Field(

@@ -156,17 +156,31 @@ def _kept_coarse_step(
     memo: SolveMemo | None,
     record: Timings,
     origin: float,
-) -> tuple[np.ndarray, float]:
-    """:func:`_coarse_step` through the memo of the iteration in progress: the value and its wall
-    time; a step computed now is kept in the memo and recorded as a task of ``record``."""
+) -> tuple[np.ndarray, float, dict[str, int] | None]:
+    """:func:`_coarse_step` of G_n^k (``step_of(coarse, k)``) through the memo of the iteration
+    in progress: the value, its wall time and its adaptive step counts (``take_step_counts``;
+    None on fixed steps); a step computed now is kept in the memo with its counts and recorded as
+    a task of ``record``, a kept one brings the counts of the session that computed it."""
     kept = None if memo is None else memo.get("coarse", n, k, times[n - 1], times[n], x)
     if kept is not None:
         return kept
-    value, start, end = _coarse_step(coarse, times, n, x, k)
+    value, start, end = _coarse_step(step_of(coarse, k), times, n, x, k)
+    steps = take_step_counts(coarse)
     record.add_task("coarse", n, k, start, end, MANAGER, origin)
     if memo is not None:
-        memo.put("coarse", n, k, times[n - 1], times[n], x, value, end - start)
-    return value, end - start
+        memo.put("coarse", n, k, times[n - 1], times[n], x, value, end - start, steps)
+    return value, end - start, steps
+
+
+def add_steps(total: dict[str, int] | None, steps: dict[str, int] | None
+              ) -> dict[str, int] | None:
+    """The step counts ``{accepted, rejected, switches}`` of a sweep so far (``total``, None
+    before any counted step) with those of one more coarse step (None: not counted)."""
+    if steps is None:
+        return total
+    if total is None:
+        return dict(steps)
+    return {key: total.get(key, 0) + value for key, value in steps.items()}
 
 
 def coarse_error(exc: BaseException, n: int, k: int) -> TaskError:
@@ -348,16 +362,17 @@ def _initial_sweep(
     guess = initial_guess(coarse, times, x0)
     if guess is not None:  # X^0 given at once: the coarse steps of iteration 0 start from it
         states[:] = guess
+    counts = None
     for n in range(1, n_slices + 1):
-        value, seconds = _kept_coarse_step(
-            step_of(coarse, 0), times, n, states[n - 1], 0, memo, timings, origin
+        value, seconds, steps = _kept_coarse_step(
+            coarse, times, n, states[n - 1], 0, memo, timings, origin
         )
         if guess is None:
             states[n] = initial_state(coarse, times[n - 1], times[n], value)
         traces.append(value)
         timings.coarse[0].append(seconds)
+        counts = add_steps(counts, steps)
     timings.serial_sweeps.append(time.perf_counter() - sweep_start)
-    counts = take_step_counts(coarse)
     if counts is not None:
         timings.coarse_steps.append(counts)
     coarse_values = np.array(traces) if is_tracing(coarse) else states[1:].copy()
@@ -429,19 +444,20 @@ def _iterate(
     coarse_values = progress.coarse_values.copy()
     states[k] = fine_values[0]
     coarse_times = []
+    counts = None
     start = time.perf_counter()
     for n in range(k + 1, len(times)):
-        value, seconds = _kept_coarse_step(
-            step_of(coarse, k), times, n, states[n - 1], k, memo, record, origin
+        value, seconds, steps = _kept_coarse_step(
+            coarse, times, n, states[n - 1], k, memo, record, origin
         )
         coarse_times.append(seconds)
+        counts = add_steps(counts, steps)
         states[n] = correct(
             fine_values[n - k], value, coarse_values[n - 1], project, (n, k, float(times[n])),
             correction_of(coarse, times[n - 1], times[n], k),
         )
         coarse_values[n - 1] = value
     serial_time = time.perf_counter() - start
-    counts = take_step_counts(coarse)
     if counts is not None:
         progress.timings.coarse_steps.append(counts)
 
@@ -514,8 +530,10 @@ class Bookkeeping:
         self.saved = progress.iteration
 
     def initial_sweep_done(self, progress: ckpt.Progress) -> None:
-        """Eq. 9 has completed: write the first checkpoint."""
+        """Eq. 9 has completed: log its adaptive coarse steps, write the first checkpoint."""
         progress.timings.total = time.perf_counter() - self.session_start
+        if progress.timings.coarse_steps:
+            logger.info("parareal k=0 adaptive coarse steps %s", progress.timings.coarse_steps[0])
         if self.checkpoint is not None:
             assert self.memo is not None  # (made with the checkpoint)
             ckpt.save(self.checkpoint, progress, self.key)

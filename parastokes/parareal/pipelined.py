@@ -47,6 +47,7 @@ from .algorithm import (
     Bookkeeping,
     Problem,
     PropagatorLike,
+    add_steps,
     coarse_error,
     correct,
     correction_of,
@@ -58,6 +59,7 @@ from .algorithm import (
     stop_reason,
 )
 from .timings import Timings
+from .transfer import take_step_counts
 
 __all__ = ["AUXILIARY", "COARSE", "FINE", "priority", "run_pipelined"]
 
@@ -175,6 +177,7 @@ class _Pipeline:
     groups: dict = field(default_factory=dict)  # (n, k) -> _Group
     runs: dict = field(default_factory=dict)  # (kind, n, k) -> (start, end)
     coarse_times: dict = field(default_factory=dict)  # (n, k) -> the time of G_n^k (gamma_G)
+    coarse_steps: dict = field(default_factory=dict)  # (n, k) -> G_n^k's adaptive step counts
     fine_times: dict = field(default_factory=dict)  # (n, k) -> the time of F_n^k (gamma_F)
     tasks: list = field(default_factory=list)  # this session's Timings.tasks entries
     finished: set = field(default_factory=set)  # iterations whose X_N^k exists
@@ -182,8 +185,8 @@ class _Pipeline:
     progress: ckpt.Progress | None = None
     completed: int = -1
     earlier_tasks: list = field(default_factory=list)
-    # kept solves found but not yet applied: (kind, n, k, value, seconds). Applying them from a
-    # queue, not from add_fine/add_coarse, keeps the stack flat when a resumed run replays
+    # kept solves found but not yet applied: (kind, n, k, value, seconds, steps). Applying them
+    # from a queue, not from add_fine/add_coarse, keeps the stack flat when a resumed run replays
     # hundreds of kept steps (each applied value enables the next slice's tasks).
     replay: deque = field(default_factory=deque)
     guessed: bool = False  # X^0 came from the coarse solver's initial_guess
@@ -205,7 +208,7 @@ class _Pipeline:
     # ---- tasks ---------------------------------------------------------------------------
     def kept(
         self, kind: str, n: int, k: int, args: tuple[float, float, np.ndarray]
-    ) -> tuple[np.ndarray, float] | None:
+    ) -> tuple[np.ndarray, float, dict[str, int] | None] | None:
         """The solve from the memo of a stopped session (:mod:`.solve_memo`), or None."""
         memo = self.book.memo
         return None if memo is None else memo.get(kind, n, k, *args)
@@ -218,10 +221,12 @@ class _Pipeline:
         args: tuple[float, float, np.ndarray],
         value: np.ndarray,
         seconds: float,
+        steps: dict[str, int] | None = None,
     ) -> None:
-        """Keep a completed solve in the memo (when the run has a checkpoint)."""
+        """Keep a completed solve (a coarse step with its adaptive step counts) in the memo
+        (when the run has a checkpoint)."""
         if self.book.memo is not None:
-            self.book.memo.put(kind, n, k, *args, value, seconds)
+            self.book.memo.put(kind, n, k, *args, value, seconds, steps)
 
     def add_fine(self, n: int, k: int) -> None:
         if k <= self.last and k < self.blocked:
@@ -278,9 +283,11 @@ class _Pipeline:
             self.set_state(n, k, value)
 
     def coarse_done(
-        self, n: int, k: int, value: np.ndarray, begin: float, end: float, duration: float
+        self, n: int, k: int, value: np.ndarray, begin: float, end: float, duration: float,
+        steps: dict[str, int] | None = None,
     ) -> None:
         self.runs[COARSE, n, k] = (begin, end)
+        self.coarse_steps[n, k] = steps
         self.coarse_times[n, k] = duration
         self.coarse_values[n, k] = value
         if k == 0 and self.guessed:
@@ -308,10 +315,12 @@ class _Pipeline:
     def apply_kept(self) -> None:
         """Apply the kept solves found so far, and those they enable, one after the other."""
         while self.replay:
-            kind, n, k, value, seconds = self.replay.popleft()
+            kind, n, k, value, seconds, steps = self.replay.popleft()
             now = time.perf_counter()
-            done = self.fine_done if kind == FINE else self.coarse_done
-            done(n, k, value, now, now, seconds)
+            if kind == FINE:
+                self.fine_done(n, k, value, now, now, seconds)
+            else:
+                self.coarse_done(n, k, value, now, now, seconds, steps)
 
     def job_done(self, job: _Job, future: Future, begin: float, end: float, slot: int) -> None:
         self.tasks.append([job.kind, job.n, job.k, begin, end, slot])
@@ -340,10 +349,12 @@ class _Pipeline:
                     self.fail(k, coarse_error(error, n, k))
                     return
                 done = time.perf_counter()
+                # the counts combine() took off this step's auxiliary results, on the manager
+                steps = take_step_counts(self.coarse)
                 # gamma_G as in Algorithm 1: as if the auxiliary solves had run at once
                 duration = group.longest + done - start
-                self.keep(COARSE, n, k, group.args, value, duration)
-                self.coarse_done(n, k, value, group.begin, done, duration)
+                self.keep(COARSE, n, k, group.args, value, duration, steps)
+                self.coarse_done(n, k, value, group.begin, done, duration, steps)
 
     # ---- failures ------------------------------------------------------------------------
     def error_of(self, job: _Job, exc: BaseException) -> TaskError:
@@ -397,6 +408,14 @@ class _Pipeline:
         times = self.coarse_times if kind == COARSE else self.fine_times
         return [times[n, k] for n in slices], span
 
+    def sweep_steps(self, k: int) -> list[dict[str, int]]:
+        """The adaptive step counts of iteration k's coarse steps summed as Algorithm 1 sums its
+        serial sweep k (``add_steps``): ``[counts]``, or [] when none were counted."""
+        counts = None
+        for n in range(k + 1, self.n_slices + 1):
+            counts = add_steps(counts, self.coarse_steps.get((n, k)))
+        return [] if counts is None else [counts]
+
     def close(self, k: int) -> str | None:
         n_slices = self.n_slices
         coarse, coarse_span = self.durations(COARSE, range(k + 1, n_slices + 1), k)
@@ -411,7 +430,8 @@ class _Pipeline:
             states[0] = x0
             for n in range(1, n_slices + 1):
                 states[n] = self.x[n, 0]
-            timings = Timings(coarse=[coarse], serial_sweeps=[coarse_span], tasks=tasks)
+            timings = Timings(coarse=[coarse], serial_sweeps=[coarse_span], tasks=tasks,
+                              coarse_steps=self.sweep_steps(0))
             errors: list[float] | None = [] if self.book.reference is not None else None
             if is_tracing(self.coarse):
                 traces = np.array([self.coarse_values[n, 0] for n in range(1, n_slices + 1)])
@@ -433,6 +453,7 @@ class _Pipeline:
         timings = progress.timings
         timings.fine.append(fine)
         timings.coarse.append(coarse)
+        timings.coarse_steps.extend(self.sweep_steps(k))
         timings.parallel_sweeps.append(fine_span)
         timings.serial_sweeps.append(coarse_span)
         timings.tasks = tasks

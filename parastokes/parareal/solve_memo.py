@@ -7,8 +7,11 @@ in progress as it completes, one file per solve in a directory beside the checkp
 (``checkpoint.npz`` -> ``checkpoint.solves/``). A resumed run takes a solve from the memo instead
 of computing it when the run's fingerprint, the solve (kind, slice, iteration) and a digest of its
 input (T_{n-1}, T_n and the state, bit for bit) all match, so it reaches the same iterates, to the
-last bit, as a run that was never stopped. The solves of an iteration are forgotten once its
-checkpoint is written, and all of them when the run returns.
+last bit, as a run that was never stopped. A kept coarse step also holds the steps its adaptive
+auxiliary solvers took (``{accepted, rejected, switches}``, None on fixed steps), so the counts of a
+resumed run (``Timings.coarse_steps``) are those of the session that computed the step, not
+recomputed. The solves of an iteration are forgotten once its checkpoint is written, and all of
+them when the run returns.
 """
 
 from __future__ import annotations
@@ -70,9 +73,10 @@ class SolveMemo:
 
     def get(
         self, kind: str, n: int, k: int, t0: float, t1: float, x: np.ndarray
-    ) -> tuple[np.ndarray, float] | None:
-        """The value and wall time of the solve ``kind`` of slice n in iteration k from (t0, x)
-        to t1, when the memo holds it for exactly this input; else None."""
+    ) -> tuple[np.ndarray, float, dict[str, int] | None] | None:
+        """The value, wall time and adaptive step counts (None when not counted) of the solve
+        ``kind`` of slice n in iteration k from (t0, x) to t1, when the memo holds it for exactly
+        this input; else None."""
         path = self._file(kind, n, k)
         if not path.exists():
             return None
@@ -83,7 +87,7 @@ class SolveMemo:
             return None
         if meta.get("digest") != self._digest(kind, n, k, t0, t1, x):
             return None
-        return arrays["value"], float(meta["seconds"])
+        return arrays["value"], float(meta["seconds"]), meta.get("steps")
 
     def put(
         self,
@@ -95,10 +99,13 @@ class SolveMemo:
         x: np.ndarray,
         value: np.ndarray,
         seconds: float,
+        steps: dict[str, int] | None = None,
     ) -> None:
-        """Keep the solve's ``value`` (and its wall time ``seconds``), written atomically."""
+        """Keep the solve's ``value`` (with its wall time ``seconds`` and the adaptive step
+        counts ``steps`` of a coarse step), written atomically."""
         self.directory.mkdir(parents=True, exist_ok=True)
-        meta = {"digest": self._digest(kind, n, k, t0, t1, x), "seconds": float(seconds)}
+        meta = {"digest": self._digest(kind, n, k, t0, t1, x), "seconds": float(seconds),
+                "steps": steps}
         write_npz(self._file(kind, n, k), meta, value=np.asarray(value))
 
     def count(self) -> int:

@@ -40,8 +40,10 @@ class Timings:
       slot 0, 1, ... that ran it or ``MANAGER`` (-1); the data of the Gantt chart.
     - ``schedule``: ``"standard"`` (Algorithm 1) or ``"pipelined"``.
     - ``coarse_steps[k]``: the steps ``{accepted, rejected, switches}`` of the adaptive
-      auxiliary solves of serial sweep k (standard schedule, a coarse solver with ``rtol``;
-      empty otherwise; steps taken from a stopped session's memo are not counted).
+      auxiliary solves of serial sweep k (a coarse solver with ``rtol``; empty otherwise), summed
+      over its coarse steps G_n^k, n = k+1..N, in both schedules; a step taken from a stopped
+      session's memo brings the counts kept with it, and completed sweeps' counts come from the
+      checkpoint.
 
     In the pipelined schedule ``parallel_sweeps[k-1]`` and ``serial_sweeps[k]`` are the spans
     (first start to last end) of iteration k's fine and coarse tasks, which overlap.

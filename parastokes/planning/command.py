@@ -143,8 +143,8 @@ def _tune(cfg: Any, resolved: Any, system: Any, fine: Run, cores: int, target: f
 
     points = cfg.tune.pilot_points or PILOT_POINTS
     try:
-        result = tune(integrate.Propagator(system, fine.scheme, fine.dt), t0=cfg.time.t0,
-                      t1=cfg.time.t1, n_slices=cores, cores=cores, target=target,
+        result = tune(integrate.Propagator(system, fine.scheme, fine.dt, rtol=fine.rtol),
+                      t0=cfg.time.t0, t1=cfg.time.t1, n_slices=cores, cores=cores, target=target,
                       space=config_space(cfg), budget=budget,
                       pilot=pilot_system(cfg, resolved, points),
                       pilot_slices=cfg.tune.pilot_slices)

@@ -10,8 +10,8 @@ their order for any ``A``; Hairer & Wanner, *Solving ODEs II*, section IV.7):
 - :mod:`.local`: the regularized Stokeslet mobility restricted to near pairs (sparse);
 - :mod:`.jacobian`: ``A`` of a system (its own ``stiff_jacobian``, else local mobility × load
   Jacobian, else zero);
-- :mod:`.banded`: ``A = M K`` in one compiled block product, and ``I - hγA`` in LAPACK's banded
-  layout;
+- :mod:`.banded`: ``A = M K`` in one compiled pass straight into LAPACK's band layout (M never
+  stored) or as a block product, and ``I - hγA`` in that layout;
 - :mod:`.solve`: the stage solves (banded or sparse LU of ``I - hγA``, or GMRES on the exact
   Jacobian by finite differences of the rates, preconditioned by that LU);
 - :mod:`.stepper`: a step of a scheme, and with its embedded solution (the adaptive steps'

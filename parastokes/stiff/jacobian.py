@@ -6,7 +6,8 @@ In order of preference (docs/stiff.md, "Which Jacobian"):
    rates, point-major (a :class:`parastokes.scene.Scene` composes its bodies' this way);
 2. for a body on the MRS fluid (``loads``, ``epsilon``, ``viscosity``): the near-pair mobility
    (:func:`.local.near_mobility`, pairs within :data:`CUTOFF` ε) times the Jacobian of its loads,
-   ``A = M_near K``. ``K`` is the body's ``load_jacobian(t, state)`` if it has one (checked
+   ``A = M_near K`` (:func:`.banded.near_product`: in LAPACK's band layout for a rod or
+   chain). ``K`` is the body's ``load_jacobian(t, state)`` if it has one (checked
    against finite differences by ``parastokes.testing.check_system``), else coloured finite
    differences (:mod:`.coloring`) over its declared ``load_coupling()`` pattern (the package's
    rod, vesicle and chain declare theirs), else dense finite differences (a user body without
@@ -32,13 +33,12 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..bodies import contract
-from .banded import block_product
+from .banded import near_product
 from .coloring import fd_jacobian
-from .local import near_mobility
 from .solve import StiffSolveError
 
-__all__ = ["CUTOFF", "NonFiniteJacobian", "block_jacobian", "has_stiff_part", "jacobian_check",
-           "load_jacobian", "local_jacobian", "probe_hooks"]
+__all__ = ["CUTOFF", "NonFiniteJacobian", "block_jacobian", "fd_step", "has_stiff_part",
+           "jacobian_check", "load_jacobian", "local_jacobian", "probe_hooks"]
 
 #: Pairs of points closer than CUTOFF ε enter the near mobility (docs/benchmarks.md, "Stiff
 #: bodies": 3 ε keeps ROS2 stable at 20x the explicit limit on the paper's rod).
@@ -76,13 +76,14 @@ def _hook(system: Any, call: str, t: float, x: np.ndarray) -> Any:
 
 
 def _sparse(system: Any, call: str, matrix: Any, shape: tuple[int, int], what: str, t: float
-            ) -> sp.csr_array:
-    """``matrix`` (what ``system.call`` returned at time ``t``) as a CSR array of ``shape``
-    (BodyError naming ``Type.call`` otherwise; ``what`` says what the shape means), finite
-    (:class:`NonFiniteJacobian` otherwise)."""
+            ) -> sp.csr_array | sp.bsr_array:
+    """``matrix`` (what ``system.call`` returned at time ``t``) as a CSR (or BSR) array of
+    ``shape`` (BodyError naming ``Type.call`` otherwise; ``what`` says what the shape means),
+    finite (:class:`NonFiniteJacobian` otherwise)."""
     name = f"{type(system).__name__}.{call}"
-    try:
-        out = sp.csr_array(matrix, dtype=float)
+    try:  # block-sparse stays so (near_product's K, the rod's hook): no conversion
+        out = (matrix.astype(float, copy=False) if isinstance(matrix, sp.bsr_array)
+               else sp.csr_array(matrix, dtype=float))
     except (TypeError, ValueError) as error:
         raise contract.BodyError(f"{name} returned {type(matrix).__name__} that is no matrix "
                                  f"({error}); expected a sparse or dense matrix", name) from None
@@ -109,11 +110,14 @@ def _loads_function(body: Any, t: float) -> Any:
     return loads
 
 
-def _fd_step(x: np.ndarray) -> float:
+def fd_step(x: np.ndarray) -> float:
+    """The size of the loads' finite differences at state ``x`` (points' rows, positions
+    first): 1e-6 times the largest coordinate, at least 1e-6 (a rotation: 1e-6 radians)."""
     return 1e-6 * max(1.0, float(np.abs(x[:, :3]).max(initial=0.0)))
 
 
-def load_jacobian(body: Any, t: float, x: np.ndarray, *, dense: bool = False) -> sp.csr_array:
+def load_jacobian(body: Any, t: float, x: np.ndarray, *, dense: bool = False
+                  ) -> sp.csr_array | sp.bsr_array:
     """``K``: the Jacobian of the body's loads (rows ``[f, n]`` per point) with respect to its
     rates' coordinates (columns per point): its ``load_jacobian`` if it has one, else coloured
     finite differences over ``load_coupling()`` (``dense``, or without one: every point)."""
@@ -132,7 +136,7 @@ def load_jacobian(body: Any, t: float, x: np.ndarray, *, dense: bool = False) ->
             name = f"{type(body).__name__}.load_coupling()"
             raise contract.BodyError(f"{name} returned shape {sp.csr_array(coupling).shape}; "
                                      f"expected ({n}, {n}): one row and column per point", name)
-    return fd_jacobian(_loads_function(body, t), body.advance, x, rc, coupling, _fd_step(x))
+    return fd_jacobian(_loads_function(body, t), body.advance, x, rc, coupling, fd_step(x))
 
 
 def _is_fluid_body(system: Any) -> bool:
@@ -155,7 +159,7 @@ def has_stiff_part(system: Any) -> bool:
 
 
 def local_jacobian(system: Any, t: float, x: np.ndarray, n_rates: int
-                   ) -> sp.csr_array | sp.bsr_array | None:
+                   ) -> sp.csr_array | sp.bsr_array | sp.dia_array | None:
     """``A`` of ``system`` at ``(t, x)`` over its ``n_rates`` rates flattened point-major, or
     None (no stiff part known: the schemes step it explicitly); see the module docstring."""
     x = np.asarray(x, dtype=float)
@@ -168,10 +172,10 @@ def local_jacobian(system: Any, t: float, x: np.ndarray, n_rates: int
     if not _local_model(system):
         return None
     angular = bool(getattr(system, "angular", False))
-    k = load_jacobian(system, t, x)
-    m = near_mobility(system.positions(x), float(system.epsilon), float(system.viscosity),
-                      angular, CUTOFF * float(system.epsilon))
-    return block_product(m, sp.bsr_array(k, blocksize=(m.blocksize[0], _rate_columns(system))))
+    size = _rate_columns(system)  # = the loads per point (_local_model)
+    k = sp.bsr_array(load_jacobian(system, t, x), blocksize=(size, size))
+    return near_product(system.positions(x), float(system.epsilon), float(system.viscosity),
+                        angular, CUTOFF * float(system.epsilon), k)
 
 
 def probe_hooks(system: Any, t: float, x: np.ndarray) -> None:

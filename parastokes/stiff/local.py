@@ -2,8 +2,8 @@
 
 The stiff modes of a body are short (a rod's bending modes of a few Δs, a vesicle's spring
 modes of one edge), and the fluid couples them through the kernels within a few ε of each
-point. :func:`near_mobility` keeps the pairs of points closer than ``cutoff`` (a k-d tree,
-scipy.spatial) and writes their blocks in free space, from the formulas of
+point. :func:`near_mobility` keeps the pairs of points closer than ``cutoff`` (a compiled sort
+and sweep, :func:`sorted_pairs`) and writes their blocks in free space, from the formulas of
 :mod:`parastokes.mrs.reference` ((1)-(4) of docs/kernels.md; the torque blob ψ_ε of the
 default variant): force -> velocity (Stokeslet), torque -> velocity (rotlet), force -> angular
 velocity (½ curl of the Stokeslet), torque -> angular velocity (potential dipole). The wall's
@@ -13,51 +13,71 @@ whose order does not depend on it.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import scipy.sparse as sp
 from numba import njit
-from scipy.spatial import cKDTree
 
-__all__ = ["near_mobility", "near_pairs"]
+__all__ = ["coefficients", "near_mobility", "pair_block", "pair_blocks",
+           "sorted_pairs", "taper"]
 
 _EIGHT_PI = 8.0 * np.pi
 
 
-def near_pairs(points: np.ndarray, cutoff: float) -> tuple[np.ndarray, np.ndarray]:
-    """Target and source indices of every ordered pair closer than ``cutoff``, self pairs
-    included."""
-    pairs = cKDTree(points).query_pairs(cutoff, output_type="ndarray")
-    n = len(points)
-    own = np.arange(n)
-    return (np.concatenate([own, pairs[:, 0], pairs[:, 1]]),
-            np.concatenate([own, pairs[:, 1], pairs[:, 0]]))
+@njit(cache=True, error_model="numpy", inline="always")
+def coefficients(r2, e2):  # pragma: no cover - compiled
+    """The scalars of 8π μ × a pair's mobility block at squared distance ``r2``, ε² = ``e2``:
+    ``(diag, i3, q, p1, p2)`` of the Stokeslet diag I + i3 r rᵀ, the rotlet -i3 [r]ₓ, the
+    curl -q [r]ₓ and the dipole p1 I + p2 r rᵀ (:func:`pair_blocks`)."""
+    i3 = (r2 + e2) ** -1.5
+    i5 = i3 / (r2 + e2)
+    return ((r2 + 2.0 * e2) * i3, i3, 0.5 * (2.0 * r2 + 5.0 * e2) * i5,
+            -0.5 * (r2 - 2.0 * e2) * i5,  # -1/4 of 8π × (4)'s p1
+            1.5 * i5)                      # -1/4 of 8π × (4)'s p2
 
 
-@njit(cache=True, error_model="numpy")
-def _pair_blocks(r, eps, angular, out):  # pragma: no cover - compiled
-    e2 = eps * eps
-    for p in range(r.shape[0]):
-        x, y, z = r[p, 0], r[p, 1], r[p, 2]
-        r2 = x * x + y * y + z * z
-        i3 = (r2 + e2) ** -1.5
-        i5 = i3 / (r2 + e2)
-        diag = (r2 + 2.0 * e2) * i3
-        v = (x, y, z)
-        for a in range(3):
-            for b in range(3):
-                out[p, a, b] = i3 * v[a] * v[b] + (diag if a == b else 0.0)
-        if not angular:
-            continue
-        q = 0.5 * (2.0 * r2 + 5.0 * e2) * i5
-        p1 = -0.5 * (r2 - 2.0 * e2) * i5  # -1/4 of 8π × (4)'s p1
-        p2 = 1.5 * i5                      # -1/4 of 8π × (4)'s p2
+@njit(cache=True, error_model="numpy", inline="always")
+def pair_block(x, y, z, e2, angular, out):  # pragma: no cover - compiled
+    """8π μ × the mobility block of the pair at separation (x, y, z) into ``out`` (V, V), with
+    ε² = ``e2`` (:func:`coefficients`)."""
+    diag, i3, q, p1, p2 = coefficients(x * x + y * y + z * z, e2)
+    v = (x, y, z)
+    for a in range(3):
+        for b in range(3):
+            out[a, b] = i3 * v[a] * v[b] + (diag if a == b else 0.0)
+    if angular:
         # [r]_x rows: (0, -z, y), (z, 0, -x), (-y, x, 0)
         cross = ((0.0, -z, y), (z, 0.0, -x), (-y, x, 0.0))
         for a in range(3):
             for b in range(3):
-                out[p, a, 3 + b] = -i3 * cross[a][b]
-                out[p, 3 + a, b] = -q * cross[a][b]
-                out[p, 3 + a, 3 + b] = p2 * v[a] * v[b] + (p1 if a == b else 0.0)
+                out[a, 3 + b] = -i3 * cross[a][b]
+                out[3 + a, b] = -q * cross[a][b]
+                out[3 + a, 3 + b] = p2 * v[a] * v[b] + (p1 if a == b else 0.0)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def taper(r2, cutoff, viscosity):  # pragma: no cover - compiled
+    """The factor of a pair at squared distance ``r2`` in the near mobility: Wendland's
+    compactly supported C² function (1 - q)⁴ (4q + 1) of q = r / ``cutoff`` (0 from q = 1 on),
+    positive definite in three dimensions (Wendland, Adv. Comput. Math. 4, 1995), so the
+    mobility tapered by it stays positive semi-definite (Schur's product theorem), over 8π μ."""
+    q = min(math.sqrt(r2) / cutoff, 1.0)
+    s = 1.0 - q
+    return s * s * s * s * (4.0 * q + 1.0) / (_EIGHT_PI * viscosity)
+
+
+@njit(cache=True, error_model="numpy")
+def _pair_blocks(r, eps, angular, cutoff, viscosity, out):  # pragma: no cover - compiled
+    e2 = eps * eps
+    for p in range(r.shape[0]):
+        x, y, z = r[p, 0], r[p, 1], r[p, 2]
+        pair_block(x, y, z, e2, angular, out[p])
+        if cutoff > 0.0:
+            scale = taper(x * x + y * y + z * z, cutoff, viscosity)
+            for a in range(out.shape[1]):
+                for b in range(out.shape[2]):
+                    out[p, a, b] *= scale
 
 
 def pair_blocks(r: np.ndarray, eps: float, angular: bool) -> np.ndarray:
@@ -68,32 +88,76 @@ def pair_blocks(r: np.ndarray, eps: float, angular: bool) -> np.ndarray:
     r = np.ascontiguousarray(r, dtype=float)
     size = 6 if angular else 3
     out = np.empty((len(r), size, size))
-    _pair_blocks(r, float(eps), bool(angular), out)
+    _pair_blocks(r, float(eps), bool(angular), 0.0, 1.0, out)
     return out
 
 
-def wendland(q: np.ndarray) -> np.ndarray:
-    """Wendland's compactly supported C² function (1 - q)⁴ (4q + 1) for q < 1, else 0:
-    positive definite in three dimensions (Wendland, Adv. Comput. Math. 4, 1995), so the
-    mobility tapered by it stays positive semi-definite (Schur's product theorem)."""
-    q = np.minimum(q, 1.0)
-    return (1.0 - q) ** 4 * (4.0 * q + 1.0)
+@njit(cache=True)
+def _sweep(points, cutoff, order, axis):  # pragma: no cover - compiled
+    """:func:`sorted_pairs` by sort and sweep: the points in ``order`` along ``axis``, each
+    against those that follow within ``cutoff`` along it; a pass that counts, one that
+    fills."""
+    n = len(points)
+    c2 = cutoff * cutoff
+    indptr = np.zeros(n + 1, dtype=np.int64)
+    source = np.empty(0, dtype=np.int64)
+    fill = np.zeros(n, dtype=np.int64)
+    for counting in (True, False):
+        for i in range(n):  # self pairs
+            if counting:
+                indptr[i + 1] += 1
+            else:
+                source[fill[i]] = i
+                fill[i] += 1
+        for a in range(n):
+            i = order[a]
+            for b in range(a + 1, n):
+                j = order[b]
+                if points[j, axis] - points[i, axis] > cutoff:
+                    break
+                d0 = points[i, 0] - points[j, 0]
+                d1 = points[i, 1] - points[j, 1]
+                d2 = points[i, 2] - points[j, 2]
+                if d0 * d0 + d1 * d1 + d2 * d2 > c2:
+                    continue
+                if counting:
+                    indptr[i + 1] += 1
+                    indptr[j + 1] += 1
+                else:
+                    source[fill[i]] = j
+                    source[fill[j]] = i
+                    fill[i] += 1
+                    fill[j] += 1
+        if counting:
+            indptr[1:] = np.cumsum(indptr[1:])
+            source = np.empty(indptr[n], dtype=np.int64)
+            fill[:] = indptr[:n]
+    for i in range(n):
+        source[indptr[i]:indptr[i + 1]].sort()
+    return indptr, source
+
+
+def sorted_pairs(points: np.ndarray, cutoff: float) -> tuple[np.ndarray, np.ndarray]:
+    """Every ordered pair of ``points`` at most ``cutoff`` apart, self pairs included, as
+    compressed rows: ``(indptr, source)`` with the sources of target ``i`` in
+    ``source[indptr[i]:indptr[i + 1]]``, ascending; compiled (:func:`_sweep`, along the axis
+    of the points' largest extent: a rod's or chain's length)."""
+    points = np.ascontiguousarray(points, dtype=float)
+    axis = int(np.argmax(np.ptp(points, axis=0))) if len(points) else 0
+    order = np.argsort(points[:, axis], kind="stable")
+    return _sweep(points, float(cutoff), order, axis)
 
 
 def near_mobility(points: np.ndarray, epsilon: float, viscosity: float, angular: bool,
                   cutoff: float) -> sp.bsr_array:
-    """The free-space mobility of the pairs closer than ``cutoff``, tapered by :func:`wendland`:
+    """The free-space mobility of the pairs closer than ``cutoff``, tapered by :func:`taper`:
     (n V, n V) sparse in blocks of V x V, V = 6 (``[u, w]`` from ``[f, n]``) with ``angular``,
     else 3, point-major rows and columns."""
     points = np.ascontiguousarray(points, dtype=float)
-    target, source = near_pairs(points, cutoff)
-    order = np.lexsort((source, target))
-    target, source = target[order], source[order]
-    r = points[target] - points[source]
-    blocks = pair_blocks(r, float(epsilon), angular)
-    blocks *= (wendland(np.sqrt(np.einsum("pk,pk->p", r, r)) / cutoff)
-               / (_EIGHT_PI * viscosity))[:, None, None]
-    n, v = len(points), blocks.shape[1]
-    indptr = np.zeros(n + 1, dtype=np.int64)
-    np.cumsum(np.bincount(target, minlength=n), out=indptr[1:])
+    indptr, source = sorted_pairs(points, cutoff)
+    target = np.repeat(np.arange(len(points)), np.diff(indptr))
+    n, v = len(points), 6 if angular else 3
+    blocks = np.empty((len(source), v, v))
+    _pair_blocks(points[target] - points[source], float(epsilon), bool(angular), float(cutoff),
+                 float(viscosity), blocks)
     return sp.bsr_array((blocks, source, indptr), shape=(n * v, n * v))

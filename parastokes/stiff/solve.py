@@ -1,8 +1,9 @@
 """The stage solves of the linearly implicit schemes: ``(I - h γ A) k = r`` over the rates.
 
 - :class:`StageSolver` with ``krylov=False``: ``A`` is the approximate Jacobian of
-  :mod:`.jacobian`, factorized once (:class:`Factorization`: LAPACK's banded LU when ``A`` is
-  banded in the body's own point order, as a rod's is, else scipy's SuperLU; O(points) entries)
+  :mod:`.jacobian`, factorized once (:class:`Factorization`: LAPACK's banded LU, eliminated in
+  :data:`BAND_PRECISION` and solved in double by :func:`band_solve`, when ``A`` is banded in
+  the body's own point order, as a rod's is, else scipy's SuperLU; O(points) entries)
   and reused for every stage and every step that keeps the same ``A`` and a step within a
   factor of the factorized one (:mod:`.stepper`). No dense (3N)² matrix is ever formed.
 - ``krylov=True``: the exact Jacobian of the rates, applied matrix-free by a forward difference
@@ -18,19 +19,22 @@ reports it as a blow-up (``integrate.BlowUpError``, exit 3 of a run) with advice
 
 from __future__ import annotations
 
+import threading
+import weakref
 from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from numba import njit
 from scipy.linalg import lapack
 
 from ..mobility.threads import LAPACK, blas_threads
-from .banded import band_storage, bandwidth
+from .banded import band_storage, bandwidth, narrow
 
-__all__ = ["GMRES_ACCEPT", "GMRES_MAXITER", "GMRES_RTOL", "GMRES_RTOL_ORDER3", "Factorization",
-           "StageSolver", "StiffSolveError"]
+__all__ = ["BAND_PRECISION", "GMRES_ACCEPT", "GMRES_MAXITER", "GMRES_RTOL", "GMRES_RTOL_ORDER3",
+           "SPARES", "Factorization", "Spares", "StageSolver", "StiffSolveError", "band_solve"]
 
 #: Relative residual of the GMRES stage solves, as scipy's GMRES measures it (W-methods keep
 #: their order with an inexact Jacobian, so the stage systems need not be solved to round-off).
@@ -45,6 +49,37 @@ GMRES_RTOL_ORDER3 = 1e-7
 GMRES_ACCEPT = 1e-3
 #: The most GMRES iterations of one stage solve.
 GMRES_MAXITER = 60
+
+
+@njit(cache=True, error_model="numpy")
+def band_solve(lu, kl, ku, piv, b):  # pragma: no cover - compiled
+    """``x`` with ``P L U x = b`` from the factors of dgbtrf or sgbtrf (``lu``, ``piv`` as scipy
+    returns them: 0-based), in double whatever the factors' precision: LAPACK's dgbtrs
+    (L with its row interchanges, then U of bandwidth kl + ku), reading single-precision
+    factors as they are (half dgbtrs's memory, no conversion) and exact for them to double's
+    round-off, so the solves are linear in ``b``."""
+    n = lu.shape[1]
+    kv = kl + ku  # the diagonal's row
+    x = b.copy()
+    for j in range(n - 1):
+        pivot = piv[j]
+        if pivot != j:
+            x[pivot], x[j] = x[j], x[pivot]
+        xj = x[j]
+        if xj != 0.0:  # the multipliers: rows kv + 1.. of column j (slices: they vectorize)
+            lm = min(kl, n - j - 1)
+            column, below = lu[kv + 1:kv + 1 + lm, j], x[j + 1:j + 1 + lm]
+            for i in range(lm):
+                below[i] -= np.float64(column[i]) * xj
+    for j in range(n - 1, -1, -1):
+        if x[j] != 0.0:
+            x[j] /= np.float64(lu[kv, j])
+            xj = x[j]
+            first = max(0, j - kv)
+            column, above = lu[kv + first - j:kv, j], x[first:j]
+            for i in range(j - first):
+                above[i] -= np.float64(column[i]) * xj
+    return x
 
 
 class StiffSolveError(RuntimeError):
@@ -67,13 +102,56 @@ class StiffSolveError(RuntimeError):
 def _ordering(matrix: sp.sparray) -> str:
     """SuperLU's column ordering: the natural one for a banded matrix (a rod's or chain's points
     in order along it: no fill outside the band, measured 2x faster to factorize), else COLAMD."""
-    return "NATURAL" if max(bandwidth(matrix)) < matrix.shape[0] // 8 else "COLAMD"
+    return "NATURAL" if narrow(*bandwidth(matrix), matrix.shape[0]) else "COLAMD"
+
+
+#: The precision of the banded LU's elimination (dgbtrf or sgbtrf). Single: the factors of
+#: ``I - hγ A'`` with A' = A + O(2^-24 ‖I - hγA‖ / hγ) (single precision's backward error),
+#: solved in double (:func:`band_solve`), exact for A' to double's round-off: a W-method on A'
+#: (any A keeps its order), bit-reproducible, at half the factorization's CPU
+#: (docs/benchmarks.md, "Stiff bodies: cheaper implicit steps").
+BAND_PRECISION = np.float32
+_GBTRF = {"f": lapack.sgbtrf, "d": lapack.dgbtrf}
+
+
+class Spares:
+    """Work arrays freed by their owners, kept for the next of the same shape and dtype (the
+    latest ``keep`` in all; thread-safe). A fresh multi-megabyte array costs its page faults on
+    first touch: 0.7 ms for the 2.2 MB of the banded LU of the paper's rod, ten times filling a
+    reused one (docs/benchmarks.md, "Stiff bodies: cheaper implicit steps")."""
+
+    def __init__(self, keep: int = 4) -> None:
+        self._lock = threading.Lock()
+        self._free: list[np.ndarray] = []
+        self.keep = keep
+
+    def take(self, shape: tuple[int, int], dtype: type) -> np.ndarray:
+        """A kept array of ``shape`` and ``dtype`` (contents unset), else a new one; Fortran
+        order."""
+        with self._lock:
+            for i, array in enumerate(self._free):
+                if array.shape == shape and array.dtype == dtype:
+                    return self._free.pop(i)
+        return np.empty(shape, dtype=dtype, order="F")
+
+    def give(self, array: np.ndarray) -> None:
+        """Keep ``array`` (no longer used by anyone) for a later :meth:`take`, forgetting the
+        oldest kept beyond ``keep``."""
+        with self._lock:
+            self._free.append(array)
+            del self._free[:-self.keep]
+
+
+#: The banded factorizations' arrays: a Factorization gives its factors back when it is freed
+#: (the stepper drops the old one before it factorizes anew).
+SPARES = Spares()
 
 
 class Factorization:
     """The LU factorization of ``I - hγ A`` (``A`` sparse, square, nonzero): LAPACK's banded
-    dgbtrf (on one BLAS thread, :func:`parastokes.mobility.threads.blas_threads`) when ``A``'s
-    band is below an eighth of its size (a rod's or chain's points in order), else SuperLU; a
+    LU in :data:`BAND_PRECISION` (on one BLAS thread,
+    :func:`parastokes.mobility.threads.blas_threads`) when ``A``'s band is below an eighth of
+    its size (a rod's or chain's points in order), else SuperLU; a
     singular matrix is a :class:`StiffSolveError` at time ``t``. ``solve(v)`` solves with it
     (``v`` flat)."""
 
@@ -83,10 +161,12 @@ class Factorization:
         kl, ku = bandwidth(matrix)
         self._band: tuple[np.ndarray, np.ndarray, int, int] | None = None
         self._superlu: Any = None
-        if max(kl, ku) < n // 8:
-            ab = band_storage(matrix, hgamma, kl, ku)
+        if narrow(kl, ku, n):
+            ab = band_storage(matrix, hgamma, kl, ku, BAND_PRECISION,
+                              out=SPARES.take((2 * kl + ku + 1, n), BAND_PRECISION))
             with LAPACK, blas_threads(1):
-                lu, piv, info = lapack.dgbtrf(ab, kl, ku, overwrite_ab=1)
+                lu, piv, info = _GBTRF[ab.dtype.char](ab, kl, ku, overwrite_ab=1)
+            weakref.finalize(self, SPARES.give, lu)  # the factors' memory, for the next one
             singular = info > 0 or not np.isfinite(lu[kl + ku]).all()
             self._band = (lu, piv, kl, ku)
             reason = f"U[{info - 1}, {info - 1}] = 0"
@@ -111,8 +191,7 @@ class Factorization:
         if self._band is None:
             return self._superlu.solve(v)
         lu, piv, kl, ku = self._band
-        with LAPACK:
-            return lapack.dgbtrs(lu, kl, ku, v, piv)[0]
+        return band_solve(lu, kl, ku, piv, np.asarray(v, dtype=float))
 
 
 class StageSolver:

@@ -39,6 +39,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--richardson", type=int, nargs="+", help="Richardson depths m")
     p.add_argument("--grid-factors", type=int, nargs="+", help="coarse-grid factors (rods)")
     p.add_argument("--step-fractions", type=float, nargs="+", help="fractions of the safe step")
+    p.add_argument("--coarse-rtols", type=float, nargs="+",
+                   help="rtol ladder of the adaptive candidates (schemes with an error "
+                        "estimate, and auto; default 1e-2 1e-3 1e-4)")
     p.add_argument("--pilot-slices", type=int,
                    help="slices of the pilot window (default 3; 2 when the budget is tight)")
     p.add_argument("--pilot-points", type=int, help="rods: nodes per pilot rod (default 61)")
@@ -111,15 +114,15 @@ def _space(cfg: Any, args: argparse.Namespace, compare: tuple) -> Any:
     flags = {
         "schemes": args.schemes, "parameters": args.parameters, "reach": args.reach,
         "nodes": args.nodes, "richardson": args.richardson, "grid_factors": args.grid_factors,
-        "step_fractions": args.step_fractions,
+        "step_fractions": args.step_fractions, "coarse_rtols": args.coarse_rtols,
     }
     return replace(parse_space(flags, config_space(cfg)), extra=compare)
 
 
 #: The options of ``tune`` that TUNED.toml's header records, in the order they are written.
 _RECORDED = ("cores", "target", "budget", "schemes", "parameters", "reach", "nodes",
-             "richardson", "grid_factors", "step_fractions", "pilot_slices", "pilot_points",
-             "exhaustive", "compare", "set")
+             "richardson", "grid_factors", "step_fractions", "coarse_rtols", "pilot_slices",
+             "pilot_points", "exhaustive", "compare", "set")
 
 
 def command_line(args: argparse.Namespace) -> str:

@@ -34,7 +34,7 @@ import numpy as np
 from .. import integrate
 from ..core.contracts import rounds
 from ..parareal.speedup import speedup as parareal_speedup
-from .space import Settings
+from .space import COARSE_RTOLS, Settings, adaptive_only
 
 __all__ = ["caution", "compile_loops", "contraction", "estimated_ratio", "gamma_ratio",
            "predicted_errors", "predicted_iterations", "screened_errors", "speedup"]
@@ -142,11 +142,14 @@ def compile_loops(system: Any, x: np.ndarray, t0: float, fine: Any, schemes: Ite
     """One step of F (``fine``: scheme, dt and its rtol/atol) and of each of ``schemes`` from
     ``(t0, x)``: loads, or on a cold numba cache compiles, their stepping loops before a clock
     starts, so that compiling is not charged to a measurement (a fresh checkout's vesicle: 21 %
-    of a tune instead of 14). A blow-up here is left to the timed runs to report."""
+    of a tune instead of 14); a scheme that takes adaptive steps only (``"auto"``, the explicit
+    pairs) with the first rtol of :data:`~.space.COARSE_RTOLS`. A blow-up here is left to the
+    timed runs to report."""
     for scheme in dict.fromkeys((fine.scheme, *schemes)):
         own = scheme == fine.scheme
+        rtol = fine.rtol if own else (COARSE_RTOLS[0] if adaptive_only(scheme) else None)
         try:
-            integrate.run(system, x, t0, t0 + fine.dt, scheme, fine.dt,
-                          rtol=fine.rtol if own else None, atol=fine.atol if own else None)
+            integrate.run(system, x, t0, t0 + fine.dt, scheme, fine.dt, rtol=rtol,
+                          atol=fine.atol if own else None)
         except integrate.BlowUpError:
             pass

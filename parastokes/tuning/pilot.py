@@ -92,6 +92,7 @@ class PilotRun:
     coarse_seconds: float  # mean CPU time of one coarse call (all auxiliaries in this process)
     seconds: float  # wall time of the whole pilot run
     eta0: float  # |X^1 - X^0| at T_P: the coarse solution's own error, up to η¹
+    calls: int  # coarse calls made (not the screen's, which was reused)
 
 
 @dataclass
@@ -192,4 +193,4 @@ class Pilot:
         if not all(math.isfinite(e) for e in errors):
             raise integrate.BlowUpError(times[-1], 0, math.nan, self.x0, "non-finite iterate")
         return PilotRun(errors, float(np.mean(timed.seconds)), time.perf_counter() - start,
-                        float(res.increments[0]))
+                        float(res.increments[0]), len(timed.seconds) - (known is not None))

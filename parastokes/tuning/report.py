@@ -154,10 +154,23 @@ def _fmt(value: Any, spec: str) -> str:
     return "-" if value is None else format(value, spec)
 
 
+def steps_cell(candidate: Mapping[str, Any], slice_length: float) -> str:
+    """The table's steps per slice of one auxiliary solver: ``accepted/rejected`` (means over
+    the measured calls) for an adaptive candidate, the count of its smallest step otherwise."""
+    steps = candidate.get("adaptive_steps")
+    if steps is not None:
+        return f"{steps['accepted']:.0f}/{steps['rejected']:.0f}"
+    if candidate["dt"] is None:
+        return "-"
+    return str(integrate.n_steps(0.0, slice_length, candidate["dt"]))
+
+
 def table(report: Mapping[str, Any], rows: int = 8) -> str:
-    """A short text table: baseline, chosen and the best measured candidates."""
-    head = (f"{'':3}{'candidate':44} {'τ_c/τ_f':>8} {'N_G':>4} {'ρ(DG)':>7} {'η¹ pilot':>9} "
-            f"{'contr.':>8} {'N_it':>4} {'γ_G/γ_F':>8} {'speedup':>8}")
+    """A short text table: baseline, chosen and the best measured candidates (an adaptive one
+    with its rtol in the label and its accepted/rejected steps per slice)."""
+    head = (f"{'':3}{'candidate':44} {'τ_c/τ_f':>8} {'steps':>7} {'N_G':>4} {'ρ(DG)':>7} "
+            f"{'η¹ pilot':>9} {'contr.':>8} {'N_it':>4} {'γ_G/γ_F':>8} {'speedup':>8}")
+    slice_length = report["problem"]["slice_length"]
     lines = [head]
     measured = [c for c in report["candidates"] if c["pilot"]["eta1"] is not None]
     measured.sort(key=lambda c: -(c["predicted"]["speedup"] or 0))
@@ -167,8 +180,10 @@ def table(report: Mapping[str, Any], rows: int = 8) -> str:
         won = chosen is not None and (c["label"], c["dt"]) == (chosen["label"], chosen["dt"])
         base = (c["label"], c["dt"]) == (baseline["label"], baseline["dt"])
         mark = ("*" if won else " ") + ("b" if base else " ") + " "
+        ratio = None if c.get("rtol") is not None else c.get("dt_ratio")  # (adaptive: no τ_c)
         lines.append(
-            f"{mark}{c['label'][:44]:44} {_fmt(c.get('dt_ratio'), '8.3g')} "
+            f"{mark}{c['label'][:44]:44} {_fmt(ratio, '8.3g')} "
+            f"{steps_cell(c, slice_length):>7} "
             f"{c['n_auxiliary']:>4} {_fmt(c['stability']['spectral_radius'], '7.4g')} "
             f"{_fmt(c['pilot']['eta1'], '9.2e')} {_fmt(c['pilot']['contraction'], '8.2e')} "
             f"{_fmt(c['predicted']['iterations'], '>4')} "

@@ -11,6 +11,10 @@ reference and measures the plain baseline, then searches the candidates of the
 - measure: the stability verdict of its combined slice map (ρ(DG), :mod:`.slice_map`), the pilot
   run (η^k, :mod:`.pilot`) and the prediction (:mod:`.cost`).
 
+An adaptive candidate (``Settings.rtol``: its auxiliary solvers' controller chooses the steps)
+skips the step limit and margin; its screen counts the steps it took, which set its bound, and
+its pilot run measures γ_G from its real calls (an adaptive G's cost depends on the state).
+
 The next candidate is the one with the highest estimate: its optimistic speedup before the
 screen, its screened speedup after. A candidate whose optimistic speedup at its own step cannot
 beat the best measured one is pruned: without a budget the search chooses what measuring every
@@ -35,10 +39,10 @@ from ..core.contracts import System
 from ..core.values import is_integer, is_real
 from ..integrate import stability as stable_steps
 from ..parallel import TaskError
-from ..parareal.transfer import Transfer
+from ..parareal.transfer import Transfer, take_step_counts
 from . import cost, slice_map, stability
 from .pilot import Pilot, Screen
-from .space import Settings, Space, TuningError, reach_table
+from .space import Settings, Space, TuningError, adaptive_only, reach_table
 
 T = TypeVar("T")
 
@@ -135,6 +139,9 @@ class Candidate:
     seconds: float = 0.0  # on the budget's clock (wall with --budget, else CPU)
     coarse: Any = field(default=None, repr=False)  # the built propagator, between the stages
     shot: Screen | None = field(default=None, repr=False)  # its screen, between the stages
+    #: Adaptive candidates: steps per slice of one auxiliary solver {accepted, rejected,
+    #: switches}, over the coarse calls measured (the screen's, then the pilot's as well).
+    steps: dict[str, float] | None = None
 
     @property
     def stability_margin(self) -> float | None:
@@ -176,6 +183,7 @@ class Candidate:
                 "stable": stable,
             },
             "screen": self.screen,
+            "adaptive_steps": self.steps,
             "pilot": {"eta": self.pilot_errors, "eta1": self.pilot_errors[0] if
                       self.pilot_errors else None, "contraction": self.contraction},
             "predicted": self.predicted(),
@@ -287,6 +295,12 @@ class _HeldBack(logging.Filter):
         return True
 
 
+def steps_per_slice(counts: dict[str, int], calls: int, n_auxiliary: int) -> dict[str, float]:
+    """The adaptive step counts ``{accepted, rejected, switches}`` of ``calls`` coarse calls of
+    ``n_auxiliary`` auxiliary solvers each, per slice (one call) and per auxiliary solver."""
+    return {key: value / (calls * n_auxiliary) for key, value in counts.items()}
+
+
 def _accepted_speedup(cand: Candidate) -> float:
     assert cand.speedup is not None  # (set with the status "accepted")
     return cand.speedup
@@ -338,7 +352,7 @@ class _Search:
                 system = system.with_params(**corner)
             # at least MIN_STEPS steps per slice: a test over fewer steps cannot see growth
             span = self.pilot.slice_length
-            implicit = integrate.SCHEMES[settings.scheme].implicit
+            implicit = integrate.lookup(settings.scheme).implicit
             fewest = IMPLICIT_MIN_STEPS if implicit else MIN_STEPS
             lo, hi = self.pilot.fine.dt, span / fewest
             try:
@@ -354,8 +368,11 @@ class _Search:
         plain limit (no bisection for another scheme before one of its candidates is screened),
         scaled by the schemes' real stability intervals and the parameters (_LIMIT_MODEL). An
         implicit scheme has no stability interval to scale: its largest step searched (half a
-        slice), an optimistic bound measured by :meth:`step` when its turn comes."""
-        if integrate.SCHEMES[settings.scheme].implicit:
+        slice), an optimistic bound measured by :meth:`step` when its turn comes; the same for
+        ``"auto"``, which turns implicit where stiffness caps the explicit step (an adaptive
+        candidate's real steps are counted by its screen)."""
+        scheme = integrate.lookup(settings.scheme)
+        if scheme.implicit or scheme is integrate.AUTO:
             return self.pilot.slice_length / IMPLICIT_MIN_STEPS * settings.step_fraction
         plain = self.limit(Settings(self.base_scheme, grid=settings.grid))
         plain *= _INTERVAL.get(settings.scheme, 2.0) / _INTERVAL.get(self.base_scheme, 2.0)
@@ -391,8 +408,17 @@ class _Search:
             cand.seconds += self.clock() - start
 
     def step(self, cand: Candidate) -> bool:
-        """Set the candidate's step and optimistic bound; False if it is rejected."""
+        """Set the candidate's step and optimistic bound; False if it is rejected. An adaptive
+        candidate has no step limit (its controller keeps it within the tolerance, and the
+        verdict on ρ(DG) and the pilot judge it): its first step tried is the model step, its
+        bound stays at the model step until its screen counts its real steps."""
         s = cand.settings
+        if s.adaptive:
+            if s.dt is None:
+                dt = self.estimated_step(replace(s, rtol=None, atol=None))
+                dt = self.pilot.slice_length / math.ceil(self.pilot.slice_length / dt - 1e-9)
+                cand.settings = replace(s, dt=dt)
+            return True
         limit = self.limit(s)
         cand.step_limit = limit
         if not math.isfinite(limit):
@@ -426,6 +452,13 @@ class _Search:
             return
         cand.coarse, cand.shot = coarse, shot
         cand.screen = {"defect": shot.defect, "seconds": shot.seconds}
+        if s.adaptive:  # its bound at the steps it took (accepted and rejected: both cost)
+            counts = take_step_counts(coarse)
+            assert counts is not None  # (an adaptive coarse solver counts its steps)
+            cand.screen["steps"] = counts
+            cand.steps = steps_per_slice(counts, 1, s.n_auxiliary)
+            taken = max(1.0, cand.steps["accepted"] + cand.steps["rejected"])
+            cand.estimated_speedup = self.estimate(s, self.pilot.slice_length / taken)
         base = self.base_shot
         if base is not None and base.defect > 0 and self.base_errors:
             cand.screen |= {
@@ -446,8 +479,8 @@ class _Search:
         names = tuple(name for name, _ in s.lagrange)
 
         def likeness(other: Settings) -> tuple:
-            return (tuple(n for n, _ in other.lagrange) == names, other.reach == s.reach,
-                    other.m == s.m)
+            return (tuple(n for n, _ in other.lagrange) == names
+                    and other.adaptive == s.adaptive, other.reach == s.reach, other.m == s.m)
 
         like = max(self.calibrations, key=lambda item: likeness(item[0]), default=None)
         factors = like[1] if like is not None and all(likeness(like[0])[:2]) else []
@@ -507,11 +540,17 @@ class _Search:
             cand.status = "rejected"
             return
         iterations = min(2, self.pilot.n_slices - 1)
+        take_step_counts(coarse)  # (the calls of ρ(DG) are not the pilot's)
         try:
             run = self.pilot.measure(coarse, iterations, shot)
         except (integrate.BlowUpError, TaskError) as error:
             cand.status, cand.reason = "rejected", f"blew up in the pilot: {error}"
             return
+        if s.adaptive and cand.screen is not None:  # the screen's call and the pilot's
+            counts = take_step_counts(coarse)
+            assert counts is not None  # (an adaptive coarse solver counts its steps)
+            counts = {key: value + cand.screen["steps"][key] for key, value in counts.items()}
+            cand.steps = steps_per_slice(counts, run.calls + 1, s.n_auxiliary)
         cand.pilot_errors = run.errors
         cand.contraction = cost.contraction(run.errors, run.eta0)
         cand.gamma_ratio = cost.gamma_ratio(s, self.pilot.slice_length, run.coarse_seconds,
@@ -647,9 +686,12 @@ def tune(
 
     space.check(pilot_system.params, grid_ok)
     reaches = reach_table(pilot_system)
+    # the baseline: plain forward Euler, or the first fixed-step scheme of the space
+    fixed = [name for name in space.schemes if not adaptive_only(name)]
+    base_scheme = "euler" if "euler" in fixed or not fixed else fixed[0]
     for body, x in {id(system): (system, system.initial_state()),
                  id(pilot_system): (pilot_system, start_state)}.values():
-        cost.compile_loops(body, x, t0, fine, space.schemes)
+        cost.compile_loops(body, x, t0, fine, (*space.schemes, base_scheme))
     started, wall, cpu = clock(), time.perf_counter(), time.process_time()
     slice_length = (t1 - t0) / n_slices
     fine_steps = integrate.n_steps(0.0, slice_length, fine.dt)
@@ -710,7 +752,6 @@ def tune(
     search = _Search(pilot_window, space, n_slices, cores, target,
                      len(pilot_system.positions(start_state)), clock)
     search.notes = notes
-    base_scheme = "euler" if "euler" in space.schemes else space.schemes[0]
     progress.note(f"baseline: plain {base_scheme} at its largest safe step")
     held = _HeldBack()  # (removed when the search ends)
     stable_steps.log.addFilter(held)

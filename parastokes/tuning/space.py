@@ -8,6 +8,15 @@ stiffness, as in Tables 3-8), starting at a relative distance ``reach`` from θ�
 that is a fraction of the reach: by default (:data:`REACH`) the rods' reach / 4 (Table 4 G¹: ε from
 5.2σ_f in steps of 0.05σ_f for ε⁰ = 5σ_f). A system may give its own levels and spacing in an
 optional class attribute ``tuning_reach`` (the vesicle's reach the nodes of Tables 7-8).
+
+A scheme with an error estimate (``integrate.SCHEMES[name].adaptive``, and ``"auto"``) also gives
+adaptive candidates: every auxiliary solver takes adaptive steps within ``rtol`` (and ``atol``),
+one candidate per value of the ladder :attr:`Space.coarse_rtols`, as fixed-step candidates take
+one per step fraction (a Rosenbrock scheme, which also takes fixed steps, only when the ladder is
+given: ``--schemes ros2`` alone searches what it did before). Richardson extrapolation needs the
+fixed steps r^q τ of eq. 26, so adaptive candidates have m = 0 (``parareal.adaptive_tolerances``);
+the embedded explicit pairs and ``"auto"`` take adaptive steps only (``config.check`` refuses them
+on a fixed step).
 """
 
 from __future__ import annotations
@@ -25,7 +34,23 @@ from ..core.contracts import System
 from ..parareal.extrapolation import extrapolated
 from ..parareal.weights import lagrange_weights, richardson_weights, validate_richardson
 
-__all__ = ["DIRECTION", "REACH", "Settings", "Space", "TuningError", "reach_table"]
+__all__ = ["COARSE_RTOLS", "DIRECTION", "REACH", "Settings", "Space", "TuningError",
+           "adaptive_only", "reach_table", "takes_rtol"]
+
+#: The default rtol ladder of adaptive coarse candidates (``Space.coarse_rtols``).
+COARSE_RTOLS = (1e-2, 1e-3, 1e-4)
+
+
+def takes_rtol(scheme: str) -> bool:
+    """Whether ``scheme`` has an error estimate for adaptive steps (``"auto"`` included)."""
+    return integrate.lookup(scheme).adaptive
+
+
+def adaptive_only(scheme: str) -> bool:
+    """Whether ``scheme`` takes adaptive steps only: ``"auto"`` and the embedded explicit pairs
+    (on a fixed step a pair is its high-order member, which ``config.check`` refuses)."""
+    s = integrate.lookup(scheme)
+    return s.adaptive and not s.implicit
 
 #: The side of θ⁰ on which a parameter's nodes relax the step limit (+1 above, -1 below).
 DIRECTION = {"epsilon": 1, "viscosity": 1, "bending": -1, "stiffness": -1}
@@ -78,9 +103,16 @@ class Settings:
     reach: int | None = None
     step_fraction: float = 1.0
     name: str | None = field(default=None, compare=False)
+    rtol: float | None = None  # adaptive steps of every auxiliary solver (dt: the first step)
+    atol: float | None = None
 
     def __post_init__(self) -> None:
         validate_richardson(self.m, self.r)
+
+    @property
+    def adaptive(self) -> bool:
+        """True when the auxiliary solvers take adaptive steps (``rtol``)."""
+        return self.rtol is not None
 
     @property
     def n_auxiliary(self) -> int:
@@ -138,6 +170,9 @@ class Settings:
             parts.append(f"grid {self.grid}")
         if self.step_fraction != 1.0:
             parts.append(f"{self.step_fraction:g}·τ_safe")
+        if self.adaptive:
+            parts.append(f"rtol {self.rtol:g}" + ("" if self.atol is None
+                                                   else f" atol {self.atol:g}"))
         text = ", ".join(parts) if len(parts) > 1 else f"{self.scheme}, plain"
         return text if self.name is None else f"{self.name}: {text}"
 
@@ -151,6 +186,8 @@ class Settings:
             lagrange={name: list(values) for name, values in self.lagrange} or None,
             richardson={"m": self.m, "r": self.r} if self.m else None,
             grid=self.grid if self.grid > 1 else None,
+            rtol=self.rtol,
+            atol=self.atol,
         )
 
     def as_dict(self, fine_dt: float | None = None) -> dict[str, Any]:
@@ -164,6 +201,8 @@ class Settings:
             "richardson": {"m": self.m, "r": self.r},
             "grid_factor": self.grid,
             "n_auxiliary": self.n_auxiliary,
+            "rtol": self.rtol,
+            "atol": self.atol,
         }
         if fine_dt is not None and self.dt is not None:
             out["dt_ratio"] = self.coarse_dt / fine_dt
@@ -180,6 +219,10 @@ class Settings:
             table["richardson"] = {"m": self.m, "r": self.r}
         if self.grid > 1:
             table["grid_factor"] = self.grid
+        if self.adaptive:
+            table["rtol"] = self.rtol
+            if self.atol is not None:
+                table["atol"] = self.atol
         return table
 
 
@@ -204,6 +247,9 @@ class Space:
       ``nodes``: node counts of the first parameter (the others use at most 3);
     - ``richardson``: depths m to try, with ratio ``r``; ``grid_factors``: coarse grids (rods);
     - ``step_fractions``: coarse steps as fractions of the largest safe step;
+    - ``coarse_rtols``: the rtol ladder of the adaptive candidates, atol = rtol: of the schemes
+      that take adaptive steps only (:func:`adaptive_only`; None: :data:`COARSE_RTOLS`), and,
+      when given, of every scheme that takes rtol (:func:`takes_rtol`: the Rosenbrock ones);
     - ``max_weight``: candidates with ``Σ|w_j v_q|`` above it are pruned before any measurement;
     - ``extra``: solvers with their own step (e.g. the paper's, :func:`settings_from_config`),
       always measured, never pruned.
@@ -217,6 +263,7 @@ class Space:
     r: float = 0.83
     grid_factors: tuple[int, ...] = (1,)
     step_fractions: tuple[float, ...] = (1.0, 0.6)
+    coarse_rtols: tuple[float, ...] | None = None
     max_weight: float = 1e6
     extra: tuple[Settings, ...] = field(default=())
 
@@ -233,13 +280,10 @@ class Space:
         if len(set(parameters)) < len(parameters):
             raise TuningError(f"tune: parameters {list(parameters)} name one twice; give each once")
         for scheme in self.schemes:
-            if scheme == integrate.AUTO.name:
-                raise TuningError("tune: the coarse candidates take fixed steps, which 'auto' "
-                                  "cannot; choose among " + ", ".join(sorted(integrate.SCHEMES))
-                                  + " (F itself may be 'auto' with fine.rtol)")
-            if scheme not in integrate.SCHEMES:
-                known = sorted(integrate.SCHEMES)
+            if scheme not in integrate.SCHEMES and scheme != integrate.AUTO.name:
+                known = [*sorted(integrate.SCHEMES), integrate.AUTO.name]
                 raise TuningError(f"tune: unknown scheme {scheme!r}; use one of {known}")
+        self._check_rtols()
         for name in parameters:
             if name not in params or name not in DIRECTION:
                 known = sorted(set(params) & set(DIRECTION))
@@ -268,6 +312,42 @@ class Space:
                     "pilot; compare it on a run whose rods it fits, or change --pilot-points"
                 )
 
+    def rtols(self) -> tuple[float, ...]:
+        """The rtol ladder of the adaptive candidates (:data:`COARSE_RTOLS` when not given)."""
+        return COARSE_RTOLS if self.coarse_rtols is None else self.coarse_rtols
+
+    def _check_rtols(self) -> None:
+        """The adaptive candidates' rules (:class:`TuningError` naming what to change): a ladder
+        only with a scheme that takes it, every rtol one that ``integrate.tolerances`` accepts,
+        and m = 0 among the Richardson depths for a scheme that takes adaptive steps only
+        (Richardson's weights, eq. 27, need the fixed steps r^q τ)."""
+        adaptive = [s for s in self.schemes if takes_rtol(s)]
+        if not adaptive:
+            if self.coarse_rtols is not None:
+                names = sorted(s for s in (*integrate.SCHEMES, integrate.AUTO.name)
+                               if takes_rtol(s))
+                raise TuningError(f"tune: coarse rtols {list(self.coarse_rtols)} given, but none "
+                                  f"of the schemes {list(self.schemes)} takes adaptive steps; "
+                                  f"add one of {names} to the schemes, or drop the rtols")
+            return
+        if not self.rtols():
+            raise TuningError("tune: nothing to choose from in coarse_rtols; give at least one "
+                              "value (or leave the option out for its default)")
+        for rtol in self.rtols():
+            try:
+                integrate.tolerances(adaptive[0], rtol, None)
+            except ValueError as error:
+                raise TuningError(f"tune: coarse rtol {rtol!r}: {error}") from None
+            if not rtol < 1.0:
+                raise TuningError(f"tune: coarse rtol {rtol:g} must lie below 1 (a relative "
+                                  "error per step); give smaller coarse rtols")
+        only = [s for s in adaptive if adaptive_only(s)]
+        if only and 0 not in self.richardson:
+            raise TuningError(f"tune: the schemes {only} take adaptive steps only, and "
+                              "Richardson extrapolation needs the fixed steps r^q τ of eq. 26: "
+                              f"the Richardson depths {list(self.richardson)} leave them no "
+                              "candidate; add 0 to the Richardson depths, or drop those schemes")
+
     def subsets(self, params: Mapping[str, float]) -> list[tuple[str, ...]]:
         """None, then the first parameter with every combination of the others (Table 5 G³
         extrapolates in (ε, a) without μ, G¹ in all three)."""
@@ -285,7 +365,10 @@ class Space:
                    reach: Mapping[str, tuple[tuple[float, ...], float]] | None = None,
                    ) -> Iterator[Settings]:
         """Every structure of the space (without step), plain solvers first; ``reach`` is the
-        node table (:func:`reach_table`, default :data:`REACH`)."""
+        node table (:func:`reach_table`, default :data:`REACH`). A scheme gives fixed-step
+        candidates (one per step fraction) unless it takes adaptive steps only, and adaptive
+        ones (one per rtol of the ladder, m = 0) when it takes adaptive steps only, or takes
+        rtol and the ladder is given."""
         reach = REACH if reach is None else reach
         seen: set[Settings] = set()
         for scheme, subset, m, grid in itertools.product(
@@ -311,11 +394,16 @@ class Space:
                     )
                     for level, count in itertools.product(self.reach, self.nodes)
                 ]
+            fixed = not adaptive_only(scheme)
+            laddered = not fixed or (self.coarse_rtols is not None and takes_rtol(scheme))
+            rtols = self.rtols() if laddered and m == 0 else ()
             for settings in found:
                 if any(v <= 0.0 for _, values in settings.lagrange for v in values):
                     continue  # nodes below θ⁰ that reach zero: not a physical system
-                for fraction in self.step_fractions:
-                    item = replace(settings, step_fraction=fraction)
+                items = ([replace(settings, step_fraction=f) for f in self.step_fractions]
+                         if fixed else [])
+                items += [replace(settings, rtol=rtol) for rtol in rtols]
+                for item in items:
                     if item not in seen:
                         seen.add(item)
                         yield item
@@ -351,4 +439,6 @@ def settings_from_config(cfg: Any, resolved: Any, name: str | None = None) -> Se
         coarse.grid_factor,
         dt=resolved.coarse_base_dt,
         name=name,
+        rtol=coarse.rtol,
+        atol=coarse.atol,
     )

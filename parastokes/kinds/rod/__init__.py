@@ -6,6 +6,8 @@
   and its factories ``rod``/``rod_swimmer`` (public as :mod:`parastokes.models`);
 - :mod:`.compiled`: its parts for the compiled loop of steps (:mod:`parastokes.integrate.loop`),
   registered for the exact type ``RodSystem`` when :mod:`.system` is imported;
+- :mod:`.jacobian`: the Jacobian of its loads by compiled segment-wise central differences (its
+  ``load_jacobian`` hook, for the linearly implicit schemes);
 - :mod:`.transfer`: the cubic-spline grid transfer between rod grids (Remark 4, eqs. 32-33);
 - :mod:`.kind`: the registered kind ``KIND``: config section ``RodModel`` (its own units and
   defaults), output layout and drawing;

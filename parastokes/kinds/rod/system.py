@@ -18,6 +18,7 @@ from functools import lru_cache
 from typing import ClassVar, TypedDict
 
 import numpy as np
+import scipy.sparse as sp
 
 from ...bodies import frames, geometry
 from ...bodies.base import FluidBody, replace_params, require_positive
@@ -27,8 +28,10 @@ from ...integrate import loop
 from ...mrs.velocity import thread_count
 from ...registry import loops as registry
 from ...stiff.coloring import banded
+from ...stiff.jacobian import fd_step
 from . import mechanics as kirchhoff
 from .compiled import rod_data
+from .jacobian import load_blocks
 from .transfer import RodTransfer
 
 __all__ = ["TABLE2", "RodSystem", "rod", "rod_swimmer"]
@@ -141,6 +144,20 @@ class RodSystem(FluidBody):
         the segments on either side); the pattern of the coloured finite-difference Jacobian of
         :mod:`parastokes.stiff`."""
         return banded(self.n_rods, self.n_points, 1)
+
+    def load_jacobian(self, t: float, state: np.ndarray) -> sp.bsr_array:
+        """The Jacobian of :meth:`loads` (rows [f, n] per node) in the rates' coordinates
+        (columns [u, w] per node): 6 x 6 blocks on the pattern of :meth:`load_coupling`, by the
+        compiled segment-wise central differences of :mod:`.jacobian` (the hook of
+        :func:`parastokes.stiff.jacobian.load_jacobian`)."""
+        n_rods, ds, a, b, table, *wave = self.mechanics
+        state = np.ascontiguousarray(state, dtype=float)
+        pattern = banded(self.n_rods, self.n_points, 1)  # the rod's own, not a subclass's
+        blocks = load_blocks(state, n_rods, ds, a, b,
+                             kirchhoff.preferred_strain(table, float(t), *wave),
+                             fd_step(state), pattern.indptr, pattern.indices)
+        return sp.bsr_array((blocks, pattern.indices, pattern.indptr),
+                            shape=(6 * len(state), 6 * len(state)))
 
     #: Rates carry angular velocities (for :class:`parastokes.scene.Scene`).
     angular: ClassVar[bool] = True
