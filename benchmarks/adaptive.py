@@ -11,11 +11,11 @@ the rods of 301 and 601 points over T = 0.005 s and of 1201 points over T = 2.5e
 above the wall; ``stiff.SHORT_RODS``, ``stiff.SHORT_ROD1201``) and the vesicle (642 points,
 shear 0.1, κ = 0.1) over T = 10. For RK2 at the problem's explicit step and for each scheme of
 :data:`SCHEMES` at each rtol (atol = rtol/10), the error at T (largest position error over the
-largest displacement, ``stiff._relative_error``) against the RK4 reference of ``stiff.py``
-(its cached state, computed here when missing), the CPU time of one run
-(``time.process_time``, one kernel thread), its ratio to RK2's, the load average and the
-commit of the code. A run whose CPU time :func:`predicted_cpu` puts above ``--cap`` seconds is
-not run but recorded under ``skipped`` with the prediction. Results:
+largest displacement, ``stiff._relative_error``) against the RK4 reference of ``stiff.py`` (its
+cached state, computed here when missing), the CPU time of one run (``time.process_time``, one
+kernel thread; each scheme warmed up first by two untimed steps), its ratio to RK2's, the load
+average and the commit of the code. A run whose CPU time :func:`predicted_cpu` puts above
+``--cap`` seconds is not run but recorded under ``skipped`` with the prediction. Results:
 ``docs/figures/stiff/adaptive_PROBLEM.json``.
 """
 
@@ -156,7 +156,17 @@ def measure(name: str, rtols: list[float], schemes: list[str], cap: float) -> di
     def error(state: Any) -> float:
         return stiff._relative_error(state, reference, x0)
 
+    warm: set[str] = set()
+
+    def warm_up(scheme: str, **tolerances: float) -> None:
+        """Two first steps of ``scheme``, untimed: compiling its loops (numba) is not its CPU."""
+        if scheme not in warm:
+            integrate.run(system, x0, 0.0, 2 * problem.first_step, scheme, problem.first_step,
+                          **tolerances)
+            warm.add(scheme)
+
     if "rk2" not in data:
+        warm_up("rk2")
         rk2, cpu = stiff._timed(lambda: integrate.run(system, x0, 0.0, problem.t1, "rk2",
                                                       problem.explicit_step))
         data["rk2"] = {"dt": problem.explicit_step, "error": error(rk2.state), "cpu": cpu,
@@ -178,6 +188,7 @@ def measure(name: str, rtols: list[float], schemes: list[str], cap: float) -> di
                 print(name, "skipped", data["skipped"][-1], flush=True)
                 stiff._save(path, data)
                 continue
+            warm_up(scheme, rtol=rtol, atol=0.1 * rtol)
             run, cpu = stiff._timed(lambda s=scheme, r=rtol: integrate.run(
                 system, x0, 0.0, problem.t1, s, problem.first_step, rtol=r, atol=0.1 * r))
             row = {"scheme": scheme, "rtol": rtol, "error": error(run.state), "cpu": cpu,
