@@ -88,16 +88,24 @@ def tiny(ad, tmp_path, monkeypatch):
     RK2's run timed at 2 s of CPU, every other at 1 s (so that the cap's decisions are exact)."""
     monkeypatch.setattr(ad, "OUT", tmp_path)
     monkeypatch.setattr(stiff, "OUT", tmp_path)
-    schemes = []
+    schemes, untimed = [], []
     run = integrate.run
 
     def recorded(system, x0, t0, t1, scheme, *args, **kw):
         schemes.append(scheme)
+        untimed.append((scheme, t1))
         return run(system, x0, t0, t1, scheme, *args, **kw)
 
     monkeypatch.setattr(integrate, "run", recorded)
-    monkeypatch.setattr(stiff, "_timed", lambda f: (schemes.clear(), f(),
-                                                    2.0 if schemes == ["rk2"] else 1.0)[1:])
+    def timed(f):
+        schemes.clear()
+        before = len(untimed)
+        value = f()
+        del untimed[before:]  # the run just timed
+        return value, 2.0 if schemes == ["rk2"] else 1.0
+
+    monkeypatch.setattr(stiff, "_timed", timed)
+    monkeypatch.setattr(ad, "UNTIMED", untimed, raising=False)
     problem = ad.Problem(lambda: models.rod_swimmer(n_points=11, length=2.0, epsilon=1.0),
                          2e-4, 1e-5, 1e-5, "tiny", 5e-6, 1.5)
     monkeypatch.setitem(ad.PROBLEMS, "tiny", lambda: problem)
@@ -117,6 +125,8 @@ def test_measure_skips_above_the_cap_and_resumes(ad, tiny):
         ("rk23", 1e-2, 2.388), ("rk23", 1e-3, 2.388), ("rk23", 1e-5, 2.388),
         ("ros34pw2", 1e-5, 4.642)]
     assert "stability floor" in data["skipped"][0]["why"]
+    # Each scheme run was first warmed up once, untimed, over two first steps (2e-5 s).
+    assert ad.UNTIMED == [("rk2", 2e-5), ("ros34pw2", 2e-5)]
     assert json.loads(tiny.read_text()) == json.loads(json.dumps(data))
     # Resumed with a larger cap: the measured rows are kept as they were (an edited value
     # survives, RK2's too), the skipped runs are measured now and leave the skipped list.
