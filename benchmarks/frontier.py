@@ -131,6 +131,21 @@ def _grid(factor: int, eps_nodes: Sequence[float], scheme: str, dt: float,
     return table
 
 
+def _implicit(scheme: str, dt: float, every: int | None, hold: bool,
+              eps_nodes: Sequence[float] | None = None) -> dict[str, Any]:
+    """A linearly implicit G on the fine grid: ``A`` rebuilt every ``every`` steps
+    (``coarse.jacobian_every``; None: the default), f_t held with it (``hold``), optionally
+    Lagrange in ε over ``eps_nodes`` (μm)."""
+    table: dict[str, Any] = {"scheme": scheme, "dt": dt}
+    if every is not None:
+        table["jacobian_every"] = every
+    if hold:
+        table["hold_time_derivative"] = True
+    if eps_nodes:
+        table["lagrange"] = {"epsilon": {"nodes": list(eps_nodes), "unit": "absolute"}}
+    return table
+
+
 #: Candidate coarse solvers per problem, cheapest families first. Labels name the construction.
 CANDIDATES: dict[str, dict[str, Candidate]] = {
     "table4": {
@@ -154,6 +169,22 @@ CANDIDATES: dict[str, dict[str, Candidate]] = {
         "grid 3, eps 1, ros34pw2 6.25e-4": Candidate(
             "implicit on a coarse grid", {"scheme": "ros34pw2", "dt": 6.25e-4, "grid_factor": 3}),
         "ros34pw2 6.25e-4": Candidate("implicit", {"scheme": "ros34pw2", "dt": 6.25e-4}),
+        # round 5, session 2: the cheaper step (A rebuilt less often, f_t held with A)
+        "ros34pw2 6.25e-4, A every 10, f_t held": Candidate(
+            "implicit", _implicit("ros34pw2", 6.25e-4, 10, True)),
+        "ros34pw2 6.25e-4, A every 20, f_t held": Candidate(
+            "implicit", _implicit("ros34pw2", 6.25e-4, 20, True)),
+        "ros34pw2 6.25e-4, A every 10": Candidate(
+            "implicit", _implicit("ros34pw2", 6.25e-4, 10, False)),
+        "ros34pw2 6.25e-4, f_t held": Candidate(
+            "implicit", _implicit("ros34pw2", 6.25e-4, None, True)),
+        "ros2 6.25e-4": Candidate("implicit", {"scheme": "ros2", "dt": 6.25e-4}),
+        "ros34pw2 8.33e-4, A every 10, f_t held": Candidate(
+            "implicit", _implicit("ros34pw2", 0.025 / 30, 10, True)),
+        "eps [1.1, 1.2], ros34pw2 1.25e-3, A every 10, f_t held": Candidate(
+            "implicit, Lagrange in ε", _implicit("ros34pw2", 1.25e-3, 10, True, [1.1, 1.2])),
+        "eps [1.1, 1.2], ros34pw2 6.25e-4, A every 10, f_t held": Candidate(
+            "implicit, Lagrange in ε", _implicit("ros34pw2", 6.25e-4, 10, True, [1.1, 1.2])),
     },
     "rod601_long": {
         "ros34pw2 1.25e-4": Candidate("implicit", {"scheme": "ros34pw2", "dt": 1.25e-4}),
@@ -173,6 +204,22 @@ CANDIDATES: dict[str, dict[str, Candidate]] = {
             "coarse grid, ε fixed", {"scheme": "euler", "dt": 3.8e-5, "grid_factor": 3}),
         "grid 2, eps 1.4, euler 3.8e-5": Candidate(
             "coarse grid, ε fixed", {"scheme": "euler", "dt": 3.8e-5, "grid_factor": 2}),
+        "ros34pw2 2.5e-3": Candidate("implicit", {"scheme": "ros34pw2", "dt": 2.5e-3}),
+        "ros34pw2 1.25e-3": Candidate("implicit", {"scheme": "ros34pw2", "dt": 1.25e-3}),
+        "ros34pw2 1.25e-3, A every 10, f_t held": Candidate(
+            "implicit", _implicit("ros34pw2", 1.25e-3, 10, True)),
+        "ros34pw2 2.5e-3, A every 10, f_t held": Candidate(
+            "implicit", _implicit("ros34pw2", 2.5e-3, 10, True)),
+        "ros34pw2 6.25e-4": Candidate("implicit", {"scheme": "ros34pw2", "dt": 6.25e-4}),
+        "ros34pw2 6.25e-4, A every 10, f_t held": Candidate(
+            "implicit", _implicit("ros34pw2", 6.25e-4, 10, True)),
+        "ros34pw2 1.25e-3, A every 20, f_t held": Candidate(
+            "implicit", _implicit("ros34pw2", 1.25e-3, 20, True)),
+        "ros34pw2 1.25e-3, A every 10": Candidate(
+            "implicit", _implicit("ros34pw2", 1.25e-3, 10, False)),
+        "ros34pw2 1.25e-3, f_t held": Candidate(
+            "implicit", _implicit("ros34pw2", 1.25e-3, None, True)),
+        "ros34pw2 1e-3": Candidate("implicit", {"scheme": "ros34pw2", "dt": 1e-3}),
     },
     "rod601": {
         "grid 2, eps [0.8, 1], euler 5e-6": Candidate(
@@ -437,6 +484,116 @@ def measure(name: str, labels: Sequence[str] | None, redo: Sequence[str], tag: s
     return data
 
 
+# ---- where a coarse slice's CPU goes --------------------------------------------------------
+
+#: The pieces of a linearly implicit step that :func:`profile_slice` times, outermost first: a
+#: call inside another timed one counts as the outer one's (the loads and advances of the
+#: Jacobian's coloured differences count as the Jacobian, the rates of f_t as f_t).
+PIECES = ("stage rates", "f_t", "jacobian", "factorization", "stage solves", "brackets",
+          "advance")
+
+
+class _PieceTimer:
+    """CPU time (``time.process_time``) and calls per piece, of the outermost timed call only."""
+
+    def __init__(self) -> None:
+        self.seconds = dict.fromkeys(PIECES, 0.0)
+        self.calls = dict.fromkeys(PIECES, 0)
+        self._depth = 0
+
+    def wrap(self, piece: str, function: Callable[..., Any]) -> Callable[..., Any]:
+        def timed(*args: Any, **kw: Any) -> Any:
+            if self._depth:
+                return function(*args, **kw)
+            self._depth += 1
+            start = time.process_time()
+            try:
+                return function(*args, **kw)
+            finally:
+                self.seconds[piece] += time.process_time() - start
+                self.calls[piece] += 1
+                self._depth -= 1
+        return timed
+
+
+def profile_slice(name: str, label: str, repeats: int = 3, evaluations: int = 200
+                  ) -> dict[str, Any]:
+    """Where the CPU of one coarse slice of ``label`` (an implicit G) goes: the outermost CPU of
+    each of :data:`PIECES` (``stepper``'s calls patched for the measurement), the rest of the slice
+    (monitor, projection, Python), all per step and in rate evaluations at the initial state
+    (``evaluations`` of them timed in the same process); the median slice of ``repeats``, each
+    after an untimed fine slice (as a worker runs them: G's data evicted by F's)."""
+    from unittest import mock
+
+    from parastokes.stiff import solve, stepper
+
+    problem = PROBLEMS[name]
+    setup = build(problem, CANDIDATES[name][label].coarse)
+    system, x0 = setup.system, setup.system.initial_state()
+    kind = type(system)
+    setup.coarse(0.0, problem.slice_length, x0)  # warm-up (compilation, caches)
+    _, rate_cpu = _cpu(lambda: [system.rates(0.0, x0) for _ in range(evaluations)])
+    rate = rate_cpu / evaluations
+    runs = []
+    for _ in range(repeats):
+        setup.fine(0.0, problem.slice_length, x0)  # as in Parareal: G's caches cold after F's
+        timer = _PieceTimer()
+        patches = [mock.patch.object(kind, "rates", timer.wrap("stage rates", kind.rates)),
+                   mock.patch.object(kind, "advance", timer.wrap("advance", kind.advance)),
+                   mock.patch.object(stepper.Stepper, "_time_derivative",
+                                     timer.wrap("f_t", stepper.Stepper._time_derivative)),
+                   mock.patch.object(stepper, "local_jacobian",
+                                     timer.wrap("jacobian", stepper.local_jacobian)),
+                   mock.patch.object(solve.Factorization, "__init__",
+                                     timer.wrap("factorization", solve.Factorization.__init__)),
+                   mock.patch.object(solve.StageSolver, "solve",
+                                     timer.wrap("stage solves", solve.StageSolver.solve))]
+        if getattr(kind, "bracket", None) is not None:
+            patches.append(mock.patch.object(kind, "bracket",
+                                             staticmethod(timer.wrap("brackets", kind.bracket))))
+        for patch in patches:
+            patch.start()
+        try:
+            _, total = _cpu(lambda: setup.coarse(0.0, problem.slice_length, x0))
+        finally:
+            for patch in reversed(patches):
+                patch.stop()
+        runs.append((total, timer))
+    total, timer = sorted(runs, key=lambda run: run[0])[len(runs) // 2]
+    steps = round(problem.slice_length / CANDIDATES[name][label].coarse["dt"])
+    rows = {piece: {"calls": timer.calls[piece], "seconds": timer.seconds[piece]}
+            for piece in PIECES}
+    rows["rest"] = {"calls": 0, "seconds": total - sum(timer.seconds.values())}
+    for row in rows.values():
+        row["evaluations_per_step"] = row["seconds"] / rate / steps
+    return {"label": label, "steps": steps, "slice_cpu": total, "rate_evaluation": rate,
+            "evaluations_per_step": total / rate / steps, "pieces": rows,
+            "load_average": _load_average()}
+
+
+def interleaved_alphas(name: str, labels: Sequence[str], rounds: int = 5) -> dict[str, Any]:
+    """alpha of each candidate ``label`` measured in ``rounds`` interleaved rounds (each round
+    one ``measure_slice_costs`` per candidate, F timed beside each G): the median ratio per
+    candidate. Under a shared machine's changing load a candidate's alpha from its own
+    frontier run moves by tens of percent; interleaved, the candidates see the same load."""
+    from parastokes import parareal
+
+    problem = PROBLEMS[name]
+    setups = {label: build(problem, CANDIDATES[name][label].coarse) for label in labels}
+    ratios: dict[str, list[float]] = {label: [] for label in labels}
+    loads = [_load_average()]
+    for _ in range(rounds):
+        for label, setup in setups.items():
+            costs = parareal.measure_slice_costs(setup.fine, setup.coarse, 0.0,
+                                                 problem.slice_length,
+                                                 setup.system.initial_state(), repeats=1,
+                                                 clock=time.process_time)
+            ratios[label].append(costs.task_ratio())
+        loads.append(_load_average())
+    return {label: {"ratios": r, "median": float(np.median(r)), "load_average": loads}
+            for label, r in ratios.items()}
+
+
 # ---- tables -------------------------------------------------------------------------------------
 
 def load_problem(name: str) -> dict[str, Any]:
@@ -584,9 +741,9 @@ def ship(name: str, label: str, iterations: int) -> pathlib.Path:
     path = SHIPPED / f"{name}_best.toml"
     path.parent.mkdir(parents=True, exist_ok=True)
     comment = (f"docs/benchmarks.md, \"Parareal against the fastest serial run (round "
-               f"5)\": {problem.title}.\nF = {problem.fine[0]} at {problem.fine[1]:g} (at forward "
-               f"Euler's stability limit); G = {label}; K = {iterations} (measured on the "
-               f"shortened analogue,\nbenchmarks/frontier.py). Written by "
+               f"5)\": {problem.title}.\nF = {problem.fine[0]} at {problem.fine[1]:g} (the fastest "
+               f"serial run, experiments/best_serial/); G = {label}; K = {iterations} (measured on "
+               f"the shortened analogue,\nbenchmarks/frontier.py). Written by "
                f"`python benchmarks/frontier.py --ship {name} '{label}' {iterations}`.")
     path.write_text(toml_text(shipped_config(name, label, iterations), comment))
     return path
@@ -819,6 +976,11 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument("--emulate", nargs=3, metavar=("PROBLEM", "LABEL", "K"),
                         help="EMULATION at 40 threads with LABEL's measured alpha (sleeping "
                         "propagators, benchmarks/pipeline.py)")
+    parser.add_argument("--profile", nargs=2, metavar=("PROBLEM", "LABEL"),
+                        help="where one coarse slice of LABEL's CPU goes (PROBLEM_profile.json)")
+    parser.add_argument("--alphas", nargs="+", metavar="PROBLEM ROUNDS LABEL",
+                        help="alpha of these candidates in ROUNDS interleaved rounds "
+                        "(PROBLEM_alphas.json)")
     parser.add_argument("--k40", nargs=3, metavar=("PROBLEM", "LABEL", "K"),
                         help="eta^1..eta^K of G = LABEL over 40 slices of PROBLEM's slice length "
                         "against F's serial solution (resumable; OUT/k40_PROBLEM.json)")
@@ -832,6 +994,18 @@ def main(argv: Sequence[str] | None = None) -> None:
     args = parser.parse_args(argv)
     if args.limits:
         _save(OUT / "limits_measured.json", limits())
+        return
+    if args.alphas:
+        name, rounds, *labels = args.alphas
+        for label, value in interleaved_alphas(name, labels, int(rounds)).items():
+            print(label, value, flush=True)
+            _store(name, "alphas", label, value)
+        return
+    if args.profile:
+        name, label = args.profile
+        result = profile_slice(name, label)
+        print(json.dumps(result, indent=1))
+        _store(name, "profile", label, result)
         return
     if args.k40:
         name, label, k = args.k40

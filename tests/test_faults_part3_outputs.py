@@ -353,7 +353,7 @@ def test_tunes_counts_add_up(budgeted):
 
 
 def test_a_winning_baseline_carries_the_star():
-    report = {"chosen": None, "baseline": {}, "candidates": []}
+    report = {"chosen": None, "baseline": {}, "candidates": [], "problem": {"slice_length": 1e-2}}
     row = {"label": "euler", "dt": 1e-4, "dt_ratio": 100.0, "n_auxiliary": 1, "status": "accepted",
            "stability": {"spectral_radius": None}, "pilot": {"eta1": 1e-5, "contraction": 0.1},
            "predicted": {"iterations": 2, "gamma_ratio": 0.01, "speedup": 1.5}}

@@ -115,3 +115,38 @@ def test_round5_configuration_checks_and_runs_quick(path):
     result = parareal.run(setup.fine, setup.coarse, x0, 0.0, cfg.time.t1, 2, tol=0.0,
                           max_iterations=1)
     assert result.iterations == 1 and np.isfinite(result.states).all()
+
+
+def test_the_profile_counts_a_call_inside_a_timed_one_as_the_outer_piece(frontier):
+    """f_t's forward difference evaluates the rates: those count as f_t, not as stage rates;
+    a call of its own counts as its piece."""
+    timer = frontier._PieceTimer()
+    rates = timer.wrap("stage rates", lambda: sum(range(20000)))
+    time_derivative = timer.wrap("f_t", lambda: rates() - rates())
+    time_derivative()
+    rates()
+    assert timer.calls == {**dict.fromkeys(frontier.PIECES, 0), "f_t": 1, "stage rates": 1}
+    assert timer.seconds["f_t"] > 0.0 and timer.seconds["stage rates"] > 0.0
+
+
+def test_interleaved_alphas_take_each_candidates_median_over_the_rounds(frontier, monkeypatch):
+    """Round by round each candidate is measured once (F beside it); its alpha is the median of
+    its own ratios, not of the others'."""
+    from types import SimpleNamespace
+
+    from parastokes import parareal
+
+    label, candidate = next(iter(frontier.CANDIDATES["quick"].items()))
+    monkeypatch.setitem(frontier.CANDIDATES, "quick", {label: candidate, "other": candidate})
+    ratios = iter([0.5, 0.1, 0.3, 0.2, 0.9, 0.25])
+
+    def measured(*args, **kw):
+        ratio = next(ratios)
+        return SimpleNamespace(task_ratio=lambda: ratio)
+
+    monkeypatch.setattr(parareal, "measure_slice_costs", measured)
+    monkeypatch.setattr(frontier, "build", lambda problem, coarse: SimpleNamespace(
+        fine=None, coarse=None, system=SimpleNamespace(initial_state=lambda: None)))
+    out = frontier.interleaved_alphas("quick", [label, "other"], rounds=3)
+    assert out[label]["ratios"] == [0.5, 0.3, 0.9] and out[label]["median"] == 0.5
+    assert out["other"]["ratios"] == [0.1, 0.2, 0.25] and out["other"]["median"] == 0.2

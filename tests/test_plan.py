@@ -321,6 +321,9 @@ def test_plan_writes_a_route_that_check_and_run_accept(tmp_path, capsys):
     best = plan["best_serial"]
     assert {"scheme", "dt", "rtol", "error", "cpu_seconds"} <= set(best)
     assert best["error"] <= target and best["cpu_seconds"] > 0
+    assert best["complete"] == (plan["baseline"]["stopped"] is None)
+    assert (best["warning"] is None) == best["complete"]
+    assert (best["warning"] or "") in printed
     # the baseline is the cheapest measured run reaching η*
     rows = plan["baseline"]["rows"]
     reaching = [r for r in rows if r["error"] <= target]
@@ -495,3 +498,34 @@ def test_tune_gets_f_with_the_chosen_runs_tolerance(tmp_path, monkeypatch, rtol)
     result, why = command._tune(cfg, resolved, None, Run(scheme, 1e-6, rtol), 2, 1e-4, 1.0)
     assert result is None and why == "tune: stop here"
     assert seen == {"scheme": scheme, "rtol": rtol}
+
+
+def test_candidates_go_rank_by_rank_across_families():
+    """Every family's cheapest run comes before any family's second (a search cut by its
+    budget has tried each family), each family still from cheap to dear."""
+    runs = [Run("euler", 4.0, family="e"), Run("euler", 2.0, family="e"),
+            Run("euler", 1.0, family="e"), Run("rk2", 4.0, family="r"),
+            Run("rk2", 2.0, family="r"), Run("ros2", 8.0, family="i")]
+    order = [(r.family, r.dt) for r in baseline.by_rank(runs)]
+    assert order == [("e", 4.0), ("r", 4.0), ("i", 8.0), ("e", 2.0), ("r", 2.0), ("e", 1.0)]
+    built = baseline.candidates(1e-3, 1e-6, 1.0)
+    ranks = {}
+    for run in built:
+        ranks.setdefault(run.family, []).append(run)
+    firsts = [rows[0] for rows in ranks.values()]
+    assert built[:len(firsts)] == firsts
+
+
+def test_a_search_cut_by_its_budget_says_so():
+    from parastokes.planning.command import cut_short
+
+    reference = Run("rk2", 1e-6, None, "F", "reference", 0.0, 4.0, 8.0)
+    done = Baseline("k", 1e-6, 0.0, 1.0, 1.0, reference, 0.0, 1e-5, [], 10.0, 5.0)
+    assert cut_short(done) is None
+    left = [Run("rk4", 1e-5, None, "rk4 fixed", "skipped", note="search stopped (budget)"),
+            Run("rk2", 5e-6, None, "rk2 fixed", "skipped", note="search stopped (budget)"),
+            Run("rk2", 2e-6, None, "rk2 fixed", "skipped", note="a cheaper run reaches it")]
+    cut = Baseline("k", 1e-6, 0.0, 1.0, 1.0, reference, 0.0, 1e-5, left, 10.0, 12.0, "budget")
+    text = cut_short(cut)
+    assert "stopped at its budget with 2 candidate(s) not measured (rk2 fixed, rk4 fixed)" in text
+    assert "overstated" in text and "--budget" in text

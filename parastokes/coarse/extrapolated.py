@@ -31,6 +31,7 @@ from ..parareal import weights
 from ..parareal.extrapolation import adaptive_tolerances
 from ..registry.coarse import CoarseResolution, CoarseSection
 from ..registry.kinds import BodyResolution, Positive
+from ..stiff.schemes import ROSENBROCK, Rosenbrock, refreshed_every
 from .step_cost import FINE_PROBE_STEPS, evaluations_per_step
 
 __all__ = ["Extrapolated"]
@@ -69,6 +70,15 @@ class Extrapolated(CoarseSection):
                              "surface with factor times fewer points; scenes: "
                              "every body that has a coarser grid, or those of "
                              "scene.coarse_bodies.")
+    jacobian_every: int | None = Field(
+        None, ge=1, description="Linearly implicit schemes: rebuild the approximate Jacobian A "
+        "(and refactorize) every this many steps of an auxiliary solve; default 5 "
+        "(parastokes.stiff.stepper.REFRESH). Fewer rebuilds: cheaper steps, a staler A "
+        "(docs/benchmarks.md, \"Parareal against the fastest serial run\").")
+    hold_time_derivative: bool = Field(
+        False, description="Linearly implicit schemes: take the rates' time derivative f_t "
+        "with A and hold it until A is rebuilt (one rate evaluation less per step) instead of "
+        "a forward difference at every step.")
     max_weight_sum: Positive = Field(
         1e6,
         description="Refuse a coarse solver whose weights have Σ|w_j v_q| above this (nearly "
@@ -116,6 +126,11 @@ class Extrapolated(CoarseSection):
             except ValueError as error:
                 key, _, text = str(error).partition(": ")
                 issues.append((f"coarse.{key}", text))
+        if (self.jacobian_every is not None or self.hold_time_derivative) and not (
+                integrate.lookup(self.scheme).implicit):
+            key = "jacobian_every" if self.jacobian_every is not None else "hold_time_derivative"
+            issues.append((f"coarse.{key}", f"only for a linearly implicit scheme (lieuler, "
+                           f"ros2, ros34pw2, ...); {self.scheme!r} takes no Jacobian: remove it"))
         if coarse_dt < cfg.fine.dt:
             warnings.append(
                 f"coarse.dt: τ_c = {coarse_dt:.6g} is smaller than τ_f = {cfg.fine.dt:.6g}"
@@ -212,7 +227,7 @@ class Extrapolated(CoarseSection):
         richardson = self.richardson
         return parareal.extrapolated(
             system,
-            self.scheme,
+            self.auxiliary_scheme(),
             resolved.coarse_base_dt,
             lagrange=resolved.lagrange or None,
             richardson={"m": richardson.m, "r": richardson.r} if richardson.m else None,
@@ -220,6 +235,14 @@ class Extrapolated(CoarseSection):
             rtol=self.rtol,
             atol=self.atol,
         )
+
+    def auxiliary_scheme(self) -> str | Rosenbrock:
+        """The auxiliary solvers' scheme: its name, or with ``jacobian_every`` or
+        ``hold_time_derivative`` the linearly implicit scheme that carries them."""
+        if self.jacobian_every is None and not self.hold_time_derivative:
+            return self.scheme
+        return refreshed_every(ROSENBROCK[self.scheme], self.jacobian_every,
+                               self.hold_time_derivative)
 
     def gamma_ratio(self, cfg: Any, resolved: Any, cores: int) -> float:
         """γ_G/γ_F from operation counts: rate evaluations per slice times (points)² (the O(N²)
@@ -246,7 +269,7 @@ def operation_counts(cfg: Any, resolved: Any, sections: Sequence[tuple[Extrapola
     coarse = []
     for section, res in sections:
         steps = max(res.coarse_steps)
-        coarse.append(steps * evaluations_per_step(cfg, res, section.scheme, steps,
+        coarse.append(steps * evaluations_per_step(cfg, res, section.auxiliary_scheme(), steps,
                                                    section.grid_factor, section.rtol,
                                                    section.atol, system=body))
     return resolved.fine_steps * per_fine * resolved.n_points**2, coarse

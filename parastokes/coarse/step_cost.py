@@ -36,8 +36,9 @@ def _cpu(work: Callable[[], object]) -> float:
     return time.process_time() - start
 
 
-def measured_evaluations(system: System, scheme: str, t0: float, span: float, steps: int,
-                         rtol: float | None = None, atol: float | None = None) -> float:
+def measured_evaluations(system: System, scheme: str | integrate.AnyScheme, t0: float,
+                         span: float, steps: int, rtol: float | None = None,
+                         atol: float | None = None) -> float:
     """The CPU time of ``scheme`` over ``[t0, t0 + span]`` in ``steps`` steps (or adaptive steps
     with ``rtol``, ``steps`` then the nominal count) from ``system``'s initial state, per step, in
     units of one evaluation of ``system.rates`` at that state. One step and one evaluation first
@@ -51,15 +52,16 @@ def measured_evaluations(system: System, scheme: str, t0: float, span: float, st
     return run / steps / max(evaluation / PROBE_EVALUATIONS, 1e-9)
 
 
-def evaluations_per_step(cfg: Any, resolved: Any, scheme: str, steps: int, grid: int = 1,
-                         rtol: float | None = None, atol: float | None = None,
+def evaluations_per_step(cfg: Any, resolved: Any, scheme: str | integrate.AnyScheme, steps: int,
+                         grid: int = 1, rtol: float | None = None, atol: float | None = None,
                          system: System | None = None, probe: int | None = None) -> float:
     """Evaluations of the rates that one of ``steps`` steps per slice of ``scheme`` costs on the
     run's body (on its coarser grid with ``grid`` > 1): the stages of a fixed-step explicit scheme,
     else :func:`measured_evaluations` over the run's first slice, or over its first ``probe``
     steps (a fine solver, too long to run whole); ``system``: the built body, to build it once."""
-    if rtol is None and not integrate.SCHEMES[scheme].implicit:  # ("auto" has rtol)
-        return float(integrate.SCHEMES[scheme].stages)
+    s = integrate.lookup(scheme)
+    if rtol is None and not s.implicit:  # ("auto" has rtol)
+        return float(s.stages)
     body = system if system is not None else build_system(cfg, resolved)
     if grid > 1:
         body = body.coarsened(grid)[0]  # type: ignore[attr-defined]

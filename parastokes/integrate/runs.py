@@ -242,7 +242,7 @@ class Propagator:
     closest to ``dt``, or with ``rtol`` (and ``atol``) adaptive steps from a first step ``dt``."""
 
     system: System
-    scheme: str
+    scheme: str | AnyScheme
     dt: float
     blowup_factor: float = BLOWUP_FACTOR
     rtol: float | None = None

@@ -191,7 +191,7 @@ def lookup(scheme: str | AnyScheme | Auto) -> AnyScheme | Auto:
         ) from None
 
 
-def explicit_scheme(name: str) -> Scheme:
+def explicit_scheme(name: str | AnyScheme | Auto) -> Scheme:
     """The explicit tableau ``name`` (for the compiled and GPU loops, which run tableaux only);
     ValueError naming the scheme for an implicit one."""
     s = lookup(name)
@@ -202,7 +202,7 @@ def explicit_scheme(name: str) -> Scheme:
     return s
 
 
-def scheme_order(name: str) -> int:
+def scheme_order(name: str | AnyScheme | Auto) -> int:
     """Order of accuracy of the named scheme (used by Richardson extrapolation, eq. 26/27)."""
     return lookup(name).order
 

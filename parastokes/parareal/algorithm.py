@@ -410,7 +410,7 @@ def _parallel_sweep(
     )
     runs = [(n, *interval) for n, interval in zip(todo, clock.intervals(), strict=True)]
     found = {n: (v, end - begin) for v, (n, begin, end, _) in zip(values, runs, strict=True)}
-    found.update({n: entry for n, entry in kept.items() if entry is not None})
+    found.update({n: entry[:2] for n, entry in kept.items() if entry is not None})
     return [found[n][0] for n in args], [found[n][1] for n in args], runs
 
 

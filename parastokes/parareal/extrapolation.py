@@ -33,6 +33,7 @@ import numpy as np
 
 from .. import integrate
 from ..core.contracts import System, check_workers
+from ..integrate import AnyScheme
 from ..parallel import Task, run_tasks
 from .transfer import OnCoarseGrid
 from .weights import check_nodes, lagrange_weights, step_weights, validate_richardson
@@ -72,7 +73,7 @@ class Extrapolated:
     def __init__(
         self,
         system: System,
-        scheme: str,
+        scheme: str | AnyScheme,
         dt: float,
         thetas: list[dict[str, float]],
         lagrange: np.ndarray,
@@ -298,7 +299,7 @@ def _lagrange_nodes(system: System, lagrange: Mapping[str, Sequence[float]] | No
     return thetas, weights.ravel()
 
 
-def adaptive_tolerances(scheme: str, rtol: float | None, atol: float | None, m: int
+def adaptive_tolerances(scheme: str | AnyScheme, rtol: float | None, atol: float | None, m: int
                         ) -> tuple[float, float] | None:
     """``(rtol, atol)`` of adaptive auxiliary solvers, checked (None without them): finite and
     positive, a scheme with an error estimate, no Richardson extrapolation (ValueError naming the
@@ -315,7 +316,7 @@ def adaptive_tolerances(scheme: str, rtol: float | None, atol: float | None, m: 
 
 def extrapolated(
     system: System,
-    scheme: str,
+    scheme: str | AnyScheme,
     dt: float,
     lagrange: Mapping[str, Sequence[float]] | None = None,
     richardson: RichardsonSpec | None = None,

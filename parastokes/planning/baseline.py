@@ -19,14 +19,18 @@ Errors are measured against F's own run (the reference) over a shortened interva
 when the whole one is too costly: T_s is the longest span whose reference run costs at most
 :data:`REFERENCE_SHARE` of the budget. Errors are taken at T_s as they are (not scaled to T): a
 candidate can only look more accurate than it is at T, so the baseline found is at most as
-costly as the true one and a speedup against it is not overstated; CPU times are scaled linearly
-in T (T / T_s). Within a family (one scheme, fixed or adaptive), candidates go from cheap to dear
-and the family stops at its first run reaching η*/:data:`F_FACTOR` (``plan`` also chooses F from
-the same runs) or once it costs more than the cheapest run reaching it. The search stops at
-the budget (CPU seconds, exceeded by at most one candidate) or after :data:`MAX_CANDIDATES`
-runs; a candidate runs in pieces and is abandoned once its CPU time passes that of the
-cheapest run reaching η*/F_FACTOR so far. Everything is deterministic given the measurements;
-:func:`choose_runs` is the whole decision, apart from the integration (``measure``).
+costly as the true one and a speedup against it is not overstated, provided the search ran to
+its end (one stopped by its budget records ``stopped``, and ``plan`` warns that its baseline may
+be dearer than the true one). CPU times are scaled linearly in T (T / T_s). Within a family (one
+scheme, fixed or adaptive), candidates go from cheap to dear, and the families are measured
+rank by rank (:func:`by_rank`: every family's cheapest run, then every family's second, ...),
+so that a search cut short has tried every family. A family stops at its first run reaching
+η*/:data:`F_FACTOR` (``plan`` also chooses F from the same runs) or once it costs more than
+the cheapest run reaching it. The search stops at the budget (CPU seconds, exceeded by at most
+one candidate) or after :data:`MAX_CANDIDATES` runs; a candidate runs in pieces and is abandoned
+once its CPU time passes that of the cheapest run reaching η*/F_FACTOR so far. Everything is
+deterministic given the measurements; :func:`choose_runs` is the whole decision, apart from the
+integration (``measure``).
 docs/planning.md has the why.
 """
 
@@ -141,9 +145,9 @@ def _round(value: float) -> float:
 
 def candidates(euler_limit: float | None, target: float, span: float,
                schemes: dict[str, Any] | None = None, auto: bool = False) -> list[Run]:
-    """The candidate runs, family by family (explicit, implicit, adaptive), each family from
-    cheap to dear (module docstring); fixed steps keep at least :data:`MIN_STEPS` steps over
-    ``span`` (T_s)."""
+    """The candidate runs of every family (explicit, implicit, adaptive), each family from
+    cheap to dear, in the order :func:`by_rank` gives (module docstring); fixed steps keep at
+    least :data:`MIN_STEPS` steps over ``span`` (T_s)."""
     schemes = integrate.SCHEMES if schemes is None else schemes
     euler = real_stability_interval(schemes["euler"]) if "euler" in schemes else None
     runs: list[Run] = []
@@ -167,7 +171,19 @@ def candidates(euler_limit: float | None, target: float, span: float,
     unique: dict[tuple, Run] = {}
     for run in runs:  # (a step capped at span / MIN_STEPS may repeat)
         unique.setdefault((run.scheme, run.dt, run.rtol), run)
-    return list(unique.values())
+    return by_rank(list(unique.values()))
+
+
+def by_rank(runs: list[Run]) -> list[Run]:
+    """``runs`` (each family from cheap to dear) reordered rank by rank: every family's cheapest
+    run, then every family's second, and so on (stable within a rank), so that a search cut by
+    its budget has tried every family at its cheapest step before any family's dearer ones."""
+    rank: dict[str, int] = {}
+    ranked = []
+    for run in runs:
+        ranked.append((rank.get(run.family, 0), run))
+        rank[run.family] = rank.get(run.family, 0) + 1
+    return [run for _, run in sorted(ranked, key=lambda pair: pair[0])]
 
 
 def cheapest(runs: Iterable[Run], target: float, fixed_only: bool = False) -> Run | None:
@@ -308,7 +324,7 @@ def search(system: System, x0: np.ndarray, t0: float, t1: float, fine: integrate
                                reference_state)
     else:
         notes.append("F takes adaptive steps: its own error is not estimated")
-    reference = Run(fine.scheme, fine.dt, fine.rtol, "F", "reference",
+    reference = Run(integrate.lookup(fine.scheme).name, fine.dt, fine.rtol, "F", "reference",
                     0.0 if fine_error is None else fine_error, reference_cpu,
                     reference_cpu * scale, "the configuration's F (the reference)")
     euler_limit = None

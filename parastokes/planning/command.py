@@ -91,6 +91,19 @@ def resolvable(found: Baseline) -> None:
             "every run is measured: raise --target, or reduce fine.dt (a more accurate F)")
 
 
+def cut_short(found: Baseline) -> str | None:
+    """The warning for a serial search that stopped (budget or candidate cap) before measuring
+    every candidate: its best run may be dearer than the true fastest one, and every speedup
+    against it overstated; None when the search ran to its end."""
+    if found.stopped is None:
+        return None
+    left = [r for r in found.runs if r.status == "skipped" and r.note.startswith("search stopped")]
+    families = sorted({r.family for r in left})
+    return (f"warning: the serial search stopped at its {found.stopped} with {len(left)} "
+            f"candidate(s) not measured ({', '.join(families)}): the fastest serial run may be "
+            "cheaper than the one found, and the speedups against it overstated; raise --budget")
+
+
 def outputs(out: str | Path) -> tuple[Path, Path, Path]:
     """PLAN.toml, PLAN.json and PLAN.best_serial.json."""
     from ..parareal.best_serial import cache_path
@@ -244,6 +257,9 @@ def main(args: argparse.Namespace, console: Any) -> int:
                   f"{best.error:.3g}, {best.cost:.4g} s CPU over T)")
     console.print(f"F for Parareal (error <= η*/{F_FACTOR:g}): {fine.label()} (error "
                   f"{fine.error:.3g}, {fine.cost:.4g} s CPU over T)")
+    cut = cut_short(found)
+    if cut is not None:
+        console.print(cut)
     best_text = f"{best.label()} ({best.cost:.4g} s)"
     rows = [routing.serial_route(best.cost, best_text)]
     unavailable: dict[str, str] = {}
@@ -282,7 +298,7 @@ def main(args: argparse.Namespace, console: Any) -> int:
         "config": str(args.config), "cores": args.cores, "target": args.target,
         "best_serial": {**{k: getattr(best, k) for k in ("scheme", "dt", "rtol", "error",
                                                           "cpu_seconds")},
-                        "source": which},
+                        "source": which, "complete": cut is None, "warning": cut},
         "fine": {k: getattr(fine, k) for k in ("scheme", "dt", "rtol", "error", "cpu_seconds")},
         "routes": [r.as_dict() for r in rows],
         "unavailable": unavailable,

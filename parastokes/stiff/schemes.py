@@ -34,10 +34,11 @@ the commutator terms of Runge-Kutta-Munthe-Kaas enter at order 3 only, as for RK
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
-__all__ = ["ROS34PW2_STANDARD", "ROSENBROCK", "Rosenbrock", "from_standard"]
+__all__ = ["ROS34PW2_STANDARD", "ROSENBROCK", "Rosenbrock", "from_standard", "refreshed_every"]
 
 
 import numpy as np
@@ -65,6 +66,12 @@ class Rosenbrock:
     #: the range keeps one step on y' = λy with ``A' = (h_f / h) λ`` from amplifying any λ < 0
     #: (tested; ROS34PW2 amplifies from ``h = 1.67 h_f`` on, ROS2 not up to ``3 h_f``).
     reuse: tuple[float, float] = (0.5, 2.0)
+    #: Steps between rebuilds of ``A`` in a run of this scheme (None: the stepper's default,
+    #: :data:`.stepper.REFRESH`); :func:`refreshed_every` sets it (``coarse.jacobian_every``).
+    refresh: int | None = None
+    #: Take f_t with ``A`` and hold it until ``A`` is rebuilt (one rate evaluation less per
+    #: step; the time column of the W-matrix, :mod:`.stepper`), instead of at every step.
+    hold_time_derivative: bool = False
 
     #: Every scheme of this module solves linear systems (``integrate.SCHEMES`` says so).
     implicit = True
@@ -139,3 +146,12 @@ ROSENBROCK: dict[str, Rosenbrock] = {
     "ros34pw2-krylov": from_standard("ros34pw2-krylov", 3, krylov=True, reuse=(0.5, 1.25),
                                      **ROS34PW2_STANDARD),  # type: ignore[arg-type]
 }
+
+
+def refreshed_every(scheme: Rosenbrock, steps: int | None, hold_time_derivative: bool = False
+                    ) -> Rosenbrock:
+    """``scheme`` whose runs rebuild ``A`` every ``steps`` steps (None: the stepper's default;
+    ValueError below 1), with f_t held with ``A`` if ``hold_time_derivative``."""
+    if steps is not None and (isinstance(steps, bool) or not isinstance(steps, int) or steps < 1):
+        raise ValueError(f"jacobian_every: must be an integer >= 1, got {steps!r}")
+    return dataclasses.replace(scheme, refresh=steps, hold_time_derivative=hold_time_derivative)

@@ -5,9 +5,12 @@ controller of :mod:`parastokes.integrate.controller` calls for adaptive steps.
 A :class:`Stepper` belongs to one run: it keeps the approximate Jacobian ``A`` of
 :mod:`.jacobian` and the factorization of ``I - hγA``, rebuilding ``A`` every ``refresh`` steps
 (1: every step, so ``A`` follows the body as it moves and turns) and the factorization whenever
-``A`` changes or the step over the factorized one leaves the scheme's ``reuse`` range. A step
-depends only on its inputs and on those counts, so a run is a deterministic function of its
-input (Parareal stays bit-reproducible).
+``A`` changes or the step over the factorized one leaves the scheme's ``reuse`` range. The time
+column f_t of the stages is a forward difference at every step, or, for a scheme that says
+``hold_time_derivative``, taken with ``A`` and held with it (the W-matrix of the autonomous form
+``(x, t)' = (rates, 1)`` is then ``[[A, f_t], [0, 0]]`` taken at one point; a W-method keeps its
+order for any such matrix). A step depends only on its inputs and on those counts, so a run is a
+deterministic function of its input (Parareal stays bit-reproducible).
 """
 
 from __future__ import annotations
@@ -29,11 +32,13 @@ Advance = Callable[[np.ndarray, np.ndarray, float], np.ndarray]
 
 #: Steps between rebuilds of the approximate Jacobian (docs/benchmarks.md, "Stiff bodies").
 REFRESH = 5
+
+
 class Stepper:
     """Steps of ``scheme`` for ``system`` through ``rates(t, x)`` and ``advance(x, r, dt)``
-    (the integrator's checked calls); ``A`` rebuilt every ``refresh`` steps (default
-    :data:`REFRESH`), its factorization kept while the step over the factorized one stays
-    within the scheme's ``reuse`` range.
+    (the integrator's checked calls); ``A`` rebuilt every ``refresh`` steps (default: the
+    scheme's own ``refresh``, else :data:`REFRESH`), its factorization kept while the step over
+    the factorized one stays within the scheme's ``reuse`` range.
 
     ``jacobians`` and ``factorizations`` count the builds of ``A`` and of its LU so far."""
 
@@ -41,10 +46,13 @@ class Stepper:
                  refresh: int | None = None) -> None:
         self.system, self.scheme = system, scheme
         self.rates, self.advance = rates, advance
-        self.refresh = REFRESH if refresh is None else max(1, int(refresh))
+        every = refresh if refresh is not None else scheme.refresh
+        self.refresh = REFRESH if every is None else max(1, int(every))
         self.steps = 0
         self._jacobian: Any = None
         self._lu: Factorization | None = None
+        #: f_t of the last step that took one (held with ``A`` by ``hold_time_derivative``).
+        self._ft: np.ndarray | None = None
         #: GMRES iterations so far (``ros2-krylov``).
         self.iterations = 0
         self.jacobians = 0
@@ -52,9 +60,10 @@ class Stepper:
         #: The Lie bracket of two rates of a body on rotating frames (order 3: :meth:`stages`).
         self._bracket = getattr(system, "bracket", None) if scheme.order >= 3 else None
 
-    def _stage_solver(self, t: float, x: np.ndarray, h: float, f0: np.ndarray) -> StageSolver:
+    def _stage_solver(self, t: float, x: np.ndarray, h: float, f0: np.ndarray, fresh: bool
+                      ) -> StageSolver:
         hgamma = h * self.scheme.gamma
-        if self.steps % self.refresh == 0 or self._jacobian is None:
+        if fresh:
             self._jacobian = (local_jacobian(self.system, t, x, f0.size),)
             self.jacobians += 1
             self._lu = None
@@ -75,8 +84,11 @@ class Stepper:
         """The stage rates ``k_i`` of the step of size ``h`` from ``(t, x)``."""
         s = self.scheme
         f0 = self.rates(t, x)
-        solver = self._stage_solver(t, x, h, f0)
-        ft = self._time_derivative(t, x, h, f0) if any(s.g) else None
+        fresh = self.steps % self.refresh == 0 or self._jacobian is None
+        solver = self._stage_solver(t, x, h, f0, fresh)
+        if any(s.g) and (fresh or not s.hold_time_derivative):
+            self._ft = self._time_derivative(t, x, h, f0)
+        ft = self._ft if any(s.g) else None
         k: list[np.ndarray] = []
         for i in range(s.stages):
             if i == 0:

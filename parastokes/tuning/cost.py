@@ -72,7 +72,7 @@ def gamma_ratio(
 def estimated_ratio(
     settings: Settings,
     slice_length: float,
-    fine_scheme: str,
+    fine_scheme: str | integrate.AnyScheme,
     fine_steps: int,
     points: int,
     coarse_points: int,

@@ -31,7 +31,8 @@ from .space import TuningError
 __all__ = ["Pilot", "PilotRun", "Screen", "own_error"]
 
 
-def own_error(system: System, x0: np.ndarray, t0: float, t1: float, scheme: str, dt: float,
+def own_error(system: System, x0: np.ndarray, t0: float, t1: float,
+              scheme: str | integrate.AnyScheme, dt: float,
               state: np.ndarray, rtol: float | None = None, atol: float | None = None) -> float:
     """Richardson's estimate of the error at ``t1`` of ``state``, the run of ``scheme`` at step
     ``dt`` from ``x0`` (eq. 34's measure): ``|F_τ - F_2τ| / (2^p - 1)`` from a run at 2τ, or,

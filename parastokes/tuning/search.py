@@ -415,9 +415,9 @@ class _Search:
         s = cand.settings
         if s.adaptive:
             if s.dt is None:
-                dt = self.estimated_step(replace(s, rtol=None, atol=None))
-                dt = self.pilot.slice_length / math.ceil(self.pilot.slice_length / dt - 1e-9)
-                cand.settings = replace(s, dt=dt)
+                model = self.estimated_step(replace(s, rtol=None, atol=None))
+                first = self.pilot.slice_length / math.ceil(self.pilot.slice_length / model - 1e-9)
+                cand.settings = replace(s, dt=first)
             return True
         limit = self.limit(s)
         cand.step_limit = limit
