@@ -7,12 +7,13 @@ import dataclasses
 import logging
 import math
 import pickle
+import re
 
 import numpy as np
 import pytest
 from ivp import Counted
 
-from parastokes import integrate
+from parastokes import integrate, models
 from parastokes.integrate import auto
 from parastokes.integrate.schemes import real_stability_boundary
 
@@ -29,21 +30,36 @@ class Calming(Counted):
         return lam * (x - math.sin(t)) + math.cos(t)
 
 
+#: The cost of an implicit step in auto, in evaluations.
+_C_I = auto.IMPLICIT_EVALS + auto.PROBE_EVALS
+
+
 def _run(system, rtol, scheme="auto", t1=1.0):
     return integrate.run(system, system.initial_state(), 0.0, t1, scheme, 1e-4, rtol=rtol)
+
+
+@dataclasses.dataclass(frozen=True)
+class Fast(Counted):
+    """y' = λ (y - sin ωt) + ω cos ωt: a smooth solution whose accuracy needs small steps."""
+
+    omega: float = 30.0
+
+    def g(self, t):
+        return math.sin(self.omega * t), self.omega * math.cos(self.omega * t)
 
 
 def test_a_stiff_problem_switches_to_implicit_and_takes_far_fewer_steps(caplog):
     with caplog.at_level(logging.INFO, logger="parastokes.integrate.auto"):
         run = _run(Counted(lam=(-1.0, -1e4)), 1e-3, t1=0.3)
-    explicit = _run(Counted(lam=(-1.0, -1e4)), 1e-3, "rk45", t1=0.3)
+    explicit = _run(Counted(lam=(-1.0, -1e4)), 1e-3, "rk23", t1=0.3)
     assert [name for _, name, _ in run.switches] == [auto.IMPLICIT]
     t, _, reason = run.switches[0]
-    assert 0 < t < 0.05 and "stiff: h ρ > 0.9 x rk45's stability boundary 3.31" in reason
+    assert 0 < t < 0.05 and "> 0.8 x rk23's stability boundary 2.51" in reason
+    assert f"= 2 x {_C_I:g}/3.125 x rk23's" in reason
     assert f"auto: {auto.IMPLICIT} from t={t:.10g}, stiff" in caplog.text
     assert run.n_steps + run.n_rejected < (explicit.n_steps + explicit.n_rejected) / 20
     by = {name: (accepted, rejected) for name, accepted, rejected in run.by_scheme}
-    assert by["rk45"][0] >= auto.STIFF_STEPS  # explicit until the test has seen enough steps
+    assert by["rk23"][0] >= auto.RHO_EVERY  # explicit until seen stiff
     assert sum(a for a, _ in by.values()) == run.n_steps
     error = np.abs(run.state - Counted(lam=(-1.0, -1e4)).exact(0.3)).max()
     assert error < 3e-3
@@ -57,9 +73,41 @@ def test_a_nonstiff_problem_stays_explicit_within_its_tolerance():
         assert np.abs(run.state - system.exact(1.0)).max() < 3 * rtol
 
 
+def _trials(caplog):
+    """The times and errors of the rejected trials logged."""
+    found = re.findall(r"auto: stays rk23 at t=(\S+): a step .* has err (\S+) > 1", caplog.text)
+    return np.array([(float(t), float(err)) for t, err in found]).reshape(-1, 2)
+
+
+def test_stiff_but_cheaper_explicit_stays_explicit_after_failed_trial_steps(caplog):
+    """Stability sets rk23's step (h ρ ≈ 2.1) where the smooth part varies least (twice a period
+    of sin ωt, ω = 30), but the accuracy then allows ros34pw2 less than TRIAL x the break-even
+    C_I/3.125 times it: each trial step (one there) is rejected and the run stays explicit."""
+    with caplog.at_level(logging.INFO, logger="parastokes.integrate.auto"):
+        run = _run(Fast(lam=(-1.0, -2e4)), 1e-7, t1=0.3)
+    assert run.switches == ()
+    trials = _trials(caplog)[:, 0]
+    assert dict((n, (a, r)) for n, a, r in run.by_scheme)[auto.IMPLICIT] == (0, len(trials))
+    assert len(trials) == 3 and np.diff(trials) == pytest.approx([0.1, 0.1], abs=0.01)
+    assert re.search(rf"2 x the break-even {_C_I:g}/3.125 x the explicit .* has err [\d.]+ > 1",
+                     caplog.text)
+    assert np.abs(run.state - Fast(lam=(-1.0, -2e4)).exact(0.3)).max() < 3e-7
+
+
+def test_failed_trials_back_off_geometrically():
+    """After the n-th failed trial in a row of error err: RETRY C_I 2^(n-1) err^(1/(q+1))
+    evaluations before the next (err capped at ERR_MAX)."""
+    costs = auto.Costs(explicit=3.0, implicit=20.0)
+    assert costs.retry(1, 8.0, 2) == pytest.approx(auto.RETRY * 20.0 * 2.0, rel=1e-15)
+    assert costs.retry(3, 8.0, 2) == pytest.approx(auto.RETRY * 20.0 * 4.0 * 2.0, rel=1e-15)
+    assert costs.retry(1, 16.0, 3) == pytest.approx(auto.RETRY * 20.0 * 2.0, rel=1e-15)
+    assert costs.retry(2, 1e9, 2) == costs.retry(2, auto.ERR_MAX, 2)
+    assert costs.retry(2, math.inf, 2) == pytest.approx(auto.RETRY * 20.0 * 2.0 * 10.0)
+
+
 def test_auto_switches_back_once_the_stiffness_is_gone():
     run = _run(Calming(lam=(-1.0, -1e4)), 1e-4, t1=2.0)
-    assert [name for _, name, _ in run.switches] == [auto.IMPLICIT, "rk45"]
+    assert [name for _, name, _ in run.switches] == [auto.IMPLICIT, "rk23"]
     (t_stiff, _, _), (t_calm, _, reason) = run.switches
     # BACK_STEPS implicit steps after the stiffness ends (t = 0.3), the large ones of ros34pw2
     assert t_stiff < 0.05 and 0.3 < t_calm < 1.5 and reason.startswith("not stiff")
@@ -89,15 +137,57 @@ def test_auto_needs_rtol():
         integrate.step(system, "auto", 0.0, system.initial_state(), 0.1)
 
 
-def test_the_eigenvalue_estimate_of_a_step_on_a_linear_problem():
-    """On y' = λ y the two last stages of Dormand-Prince differ by λ times their arguments'
-    difference: ρ = |λ| exactly (to round-off)."""
-    system = Counted(lam=(-300.0,), forced=False)
-    stepper = integrate.explicit.PairStepper(system, integrate.SCHEMES["rk45"])
-    stepper.step_with_estimate(0.0, np.array([[1.0]]), 1e-3)
-    rho, _ = auto.pair_rho(stepper.scheme, stepper.k, 1e-3)
-    assert rho == pytest.approx(300.0, rel=1e-9)
-    assert real_stability_boundary(stepper.scheme) == pytest.approx(3.3066, abs=2e-4)
+def test_the_power_step_on_a_linear_problem():
+    """On y' = diag(-1, -300) y: along an eigenvector one step gives its |λ| (to the forward
+    difference's round-off), from another direction the steps converge to the largest."""
+    system = Counted(lam=(-1.0, -300.0), forced=False)
+    x = np.array([[1.0], [2.0]])
+    rho, v = auto.power_step(system, 0.0, x, np.array([[0.0], [5.0]]))
+    assert rho == pytest.approx(300.0, rel=1e-6) and np.allclose(v, [[0.0], [-1.0]])
+    rho, v = auto.power_step(system, 0.0, x, np.array([[1.0], [1.0]]), system.rates(0.0, x))
+    assert rho == pytest.approx(math.hypot(1.0, 300.0) / math.sqrt(2.0), rel=1e-6)
+    for _ in range(3):
+        rho, v = auto.power_step(system, 0.0, x, v)
+    assert rho == pytest.approx(300.0, rel=1e-6)
+
+
+def test_the_costs_compare_evaluations_per_unit_time():
+    """C_E / h_E against C_I / h_I: the comparison flips at the break-even step h_E C_I / C_E
+    (a wrong factor, or either ratio upside down, moves or reverses the flip)."""
+    costs = auto.Costs(explicit=3.0, implicit=20.0)
+    assert costs.break_even(1e-5) == pytest.approx(20.0 / 3.0 * 1e-5, rel=1e-15)
+    assert costs.explicit_cheaper(1e-5, 6.6e-5) and not costs.explicit_cheaper(1e-5, 6.7e-5)
+    assert costs.explicit_cheaper(2e-5, 1.3e-4) and not costs.explicit_cheaper(2e-5, 1.4e-4)
+    assert costs.explicit_cheaper(1.0, math.inf) is False
+    pair = integrate.SCHEMES[auto.EXPLICIT]
+    assert auto.Costs.of(pair) == auto.Costs(3.0 + 1.0 / auto.RHO_EVERY,
+                                             auto.IMPLICIT_EVALS + auto.PROBE_EVALS)
+    assert auto.Costs.of(integrate.SCHEMES["rk4"]).explicit == 4.0 + 1.0 / auto.RHO_EVERY
+
+
+def test_the_implicit_phase_caps_the_explicit_step_by_stability():
+    """The explicit step the implicit phase compares with: the accuracy's h, at most 0.9 x
+    the boundary / ρ."""
+    boundary = real_stability_boundary(integrate.SCHEMES["rk23"])
+    assert boundary == pytest.approx(2.5127, abs=2e-4)
+    watch = auto._Implicit(Counted(), np.ones((2, 1)), auto.Costs(3.0, 20.0), boundary)
+    watch.rho = 1e4
+    assert watch.explicit_step(1e-3) == pytest.approx(0.9 * boundary / 1e4, rel=1e-15)
+    assert watch.explicit_step(1e-5) == 1e-5
+
+
+@pytest.mark.parametrize(("rtol", "t1"), [(1e-2, 4e-3), (1e-5, 2e-3)])
+def test_auto_takes_the_same_steps_compiled_and_in_python(rtol, t1):
+    """On a rod, the explicit phases in the compiled loop and in Python: the same switches,
+    counts and state, with a switch (rtol 1e-2) and with a failed trial after which the
+    explicit steps go on (1e-5)."""
+    rod = models.rod_swimmer(n_points=41, length=8.0)
+    a, b = (integrate.run(rod, rod.initial_state(), 0.0, t1, "auto", 1e-5, rtol=rtol,
+                          atol=rtol / 10, compiled=compiled) for compiled in (True, False))
+    assert a.switches == b.switches and a.by_scheme == b.by_scheme
+    assert np.array_equal(a.state, b.state)
+    by = {name: (accepted, rejected) for name, accepted, rejected in a.by_scheme}
+    assert a.switches if rtol == 1e-2 else (by[auto.IMPLICIT] == (0, 1) and not a.switches)
 
 
 def test_auto_takes_no_fixed_steps_anywhere():

@@ -121,6 +121,23 @@ def test_the_last_step_lands_on_the_end_and_counts_are_kept():
     assert (counts.accepted, counts.rejected) == (2, 0)
 
 
+def test_until_sees_every_every_th_accepted_step_before_the_end():
+    """``until`` after the 3rd, 6th, 9th, ... accepted step (``every`` = 3; a rejected one does
+    not count); its True stops the steps there."""
+    seen = []
+    stepper = Scripted([0.5, 2.0] + [0.5] * 12)
+    with pytest.raises(IndexError):
+        controller.adaptive_steps(stepper, 2, np.zeros(1), 0.0, 1e9, 1.0, 1.0, 1.0,
+                                  lambda t, x, i: True,
+                                  lambda t, x, step, h: seen.append(len(stepper.steps)),
+                                  every=3)
+    assert seen == [4, 7, 10, 13]  # steps tried at the 3rd, 6th, ... accepted (one rejected)
+    stepper = Scripted([0.5] * 10)
+    _, counts = controller.adaptive_steps(stepper, 2, np.zeros(1), 0.0, 1e9, 1.0, 1.0, 1.0,
+                                          lambda t, x, i: True, lambda *a: True, every=2)
+    assert (counts.accepted, counts.end) == (2, stepper.steps[1][0] + stepper.steps[1][1])
+
+
 def test_tolerances_are_checked_in_the_python_api():
     system = Counted()
     x0 = system.initial_state()

@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 from fractions import Fraction
+from typing import NamedTuple
 
 import numpy as np
 import pytest
@@ -15,8 +16,8 @@ from rods import helix_rod
 from scipy.integrate import solve_ivp
 from scipy.integrate._ivp.rk import RK23, RK45
 
-from parastokes import integrate
-from parastokes.integrate import SCHEMES
+from parastokes import integrate, models
+from parastokes.integrate import SCHEMES, adaptive, controller, loop
 from parastokes.integrate.schemes import real_stability_boundary
 from parastokes.testing import fitted_order
 
@@ -196,3 +197,120 @@ def test_frames_of_an_adaptive_run_land_on_their_times():
     for a, b in itertools.pairwise(np.linspace(0.0, 1.0, 8)):
         x = fine(a, b, x)
         np.testing.assert_allclose(x, system.exact(b), rtol=0, atol=2e-8)
+
+
+@pytest.fixture(scope="module")
+def swimmer():
+    """A small rod whose explicit steps stability limits (rejections at rtol 1e-5)."""
+    rod = models.rod_swimmer(n_points=41, length=8.0)
+    return rod, rod.initial_state()
+
+
+def _both(rod, x0, name, rtol, **kw):
+    return [integrate.run(rod, x0, 0.0, 2e-3, name, 1e-5, rtol=rtol, atol=rtol / 10,
+                          compiled=compiled, **kw) for compiled in (True, False)]
+
+
+@pytest.mark.parametrize("name", PAIRS)
+def test_compiled_adaptive_steps_are_the_python_steps(swimmer, name):
+    """The compiled adaptive loop (integrate.loop.CompiledPair) takes the Python steps'
+    (controller.adaptive_steps of a PairStepper) exactly: the counts, the last step, the
+    worst monitor and the state to the bit, with and without rejected steps."""
+    rod, x0 = swimmer
+    assert isinstance(adaptive.stepper_for(rod, SCHEMES[name]), loop.CompiledPair)
+    assert isinstance(adaptive.stepper_for(rod, SCHEMES[name], compiled=False),
+                      integrate.explicit.PairStepper)
+    rejected = []
+    new = SCHEMES[name].stages - 1  # first same as last
+    for rtol in (1e-3, 1e-5):
+        pair = adaptive.stepper_for(rod, SCHEMES[name])
+        _, counts = adaptive.segment(pair, rod.project(x0), 0.0, 2e-3, 1e-5, (rtol, rtol / 10),
+                                     adaptive.Watch(rod, x0, 100.0))
+        assert pair.evaluations == 1 + new * (counts.accepted + counts.rejected)
+        a, b = _both(rod, x0, name, rtol)
+        assert (a.n_steps, a.n_rejected, a.dt, a.max_monitor) == (
+            b.n_steps, b.n_rejected, b.dt, b.max_monitor)
+        assert np.array_equal(a.state, b.state)
+        rejected.append(a.n_rejected)
+    assert rejected[0] == 0 and rejected[1] > 0
+
+
+def test_compiled_adaptive_loop_reads_the_controllers_constants(swimmer, monkeypatch):
+    """The compiled loop takes the PI exponents of controller.py at each call (no copy of its
+    own): without the PI term (PI_BETA = 0) its steps change, and equal the Python steps'."""
+    rod, x0 = swimmer
+    before, _ = _both(rod, x0, "rk23", 1e-5)
+    monkeypatch.setattr(controller, "PI_BETA", 0.0)
+    a, b = _both(rod, x0, "rk23", 1e-5)
+    assert (a.n_steps, a.n_rejected) != (before.n_steps, before.n_rejected)
+    assert (a.n_steps, a.n_rejected) == (b.n_steps, b.n_rejected)
+    assert np.array_equal(a.state, b.state)
+
+
+def test_compiled_adaptive_steps_do_not_depend_on_how_the_calls_are_split(swimmer):
+    """Paused after every accepted step (a watch: ``until``) or in calls of CALL_SECONDS: the
+    same steps (the carry keeps the time, step, PI error and first-same-as-last stage)."""
+    rod, x0 = swimmer
+    x0 = rod.project(x0)
+    seen = []
+    ends = []
+    for until in (None, lambda t, x, step, h: seen.append((t, step, h)) and False):
+        watch = adaptive.Watch(rod, x0, 100.0)
+        ends.append(adaptive.segment(adaptive.stepper_for(rod, SCHEMES["rk23"]), x0, 0.0,
+                                     2e-3, 1e-5, (1e-5, 1e-6), watch, until))
+    (xa, a), (xb, b) = ends
+    assert a == b and np.array_equal(xa, xb) and len(seen) == a.accepted - 1
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_steps_stopped_and_resumed_are_the_steps_run_through(swimmer, compiled):
+    """A segment stopped by ``until`` and resumed with the same stepper, from the state it
+    returned and with its last accepted error (PI control), takes the steps of one segment
+    run through: the first stage is known (first same as last) and the controller goes on."""
+    rod, x0 = swimmer
+    x0 = rod.project(x0)
+    tol = (1e-5, 1e-6)
+    through = adaptive.stepper_for(rod, SCHEMES["rk23"], compiled)
+    x_all, all_ = adaptive.segment(through, x0, 0.0, 2e-3, 1e-5, tol, adaptive.Watch(rod, x0, 100))
+    pair = adaptive.stepper_for(rod, SCHEMES["rk23"], compiled)
+    watch = adaptive.Watch(rod, x0, 100.0)
+    x, first = adaptive.segment(pair, x0, 0.0, 2e-3, 1e-5, tol, watch, lambda *a: True, 40)
+    x, second = adaptive.segment(pair, x, first.end, 2e-3, first.last_step, tol, watch,
+                                 previous=first.previous)
+    assert first.accepted == 40 and first.previous is not None
+    assert np.array_equal(x, x_all) and second.end == all_.end
+    assert first.accepted + second.accepted == all_.accepted
+    assert first.rejected + second.rejected == all_.rejected
+    if compiled:
+        assert pair.evaluations == through.evaluations
+
+
+def test_compiled_adaptive_steps_reject_a_state_beyond_the_monitors_limit(swimmer):
+    """A limit below the starting monitor: every step is rejected until the steps are too
+    small, in the compiled loop as in Python (the same blow-up)."""
+    rod, x0 = swimmer
+    factor = 0.5 * rod.monitor(x0) / rod.monitor_limit
+    errors = []
+    for compiled in (True, False):
+        with pytest.raises(integrate.BlowUpError, match="step size") as caught:
+            integrate.run(rod, x0, 0.0, 2e-3, "rk23", 1e-5, rtol=1e-3, blowup_factor=factor,
+                          compiled=compiled)
+        errors.append((caught.value.t, caught.value.step))
+    assert errors[0] == errors[1] and errors[0][1] > 30
+
+
+class _UserData(NamedTuple):
+    """A compiled system's data of a type from outside the package (a user's body)."""
+
+    values: np.ndarray
+
+
+def test_a_users_data_gets_its_own_copy_of_each_compiled_loop():
+    """integrate.loop._loop_for: the fixed-step and the adaptive loop each get a copy of their
+    own for a user's data type (one per loop and set of modules: not the same copy twice)."""
+    data = _UserData(np.zeros(1))
+    fixed, pairs = loop._loop_for(data), loop._loop_for(data, loop._adaptive)
+    assert fixed is not pairs and fixed is loop._loop_for(data)
+    assert fixed.py_func.__qualname__ == "_run_for_test_integrate_pairs"
+    assert pairs.py_func.__qualname__ == "_adaptive_for_test_integrate_pairs"
+    assert loop._loop_for((1.0, np.zeros(1)), loop._adaptive) is loop._adaptive

@@ -41,10 +41,11 @@ Python (:class:`parastokes.stiff.Stepper`), since the stage solves are scipy's. 
 error estimate of a scheme that has one (``SCHEMES[name].adaptive``: the explicit pairs ``rk23``
 of Bogacki & Shampine and ``rk45`` of Dormand & Prince, ``ros2``, ``ros2-krylov``), all sized
 by the one controller of :mod:`.controller`; the step sequence is a deterministic function of
-the input. A pair on a fixed step (no ``rtol``) runs its high-order tableau (the compiled loop
-too); a config refuses that (``parastokes check``), since ``rk4`` is cheaper there. The states
-at given times (a run's frames) come from runs that end there, the last step cut to land on
-the time: no interpolation between steps.
+the input; a pair's adaptive steps run in the system's compiled loop where it has one (the same
+steps, :class:`.loop.CompiledPair`). A pair on a fixed step (no ``rtol``) runs its high-order
+tableau (the compiled loop too); a config refuses that (``parastokes check``), since ``rk4`` is
+cheaper there. The states at given times (a run's frames) come from runs that end there, the
+last step cut to land on the time: no interpolation between steps.
 
 Blow-up is an error: after every step the state must be finite and ``system.monitor`` must stay
 below ``blowup_factor * system.monitor_limit``; otherwise :class:`BlowUpError` names the time, the
@@ -61,7 +62,7 @@ The package reads as scipy's ``integrate/_ivp`` does, one module per part:
 - :mod:`.auto`: ``scheme="auto"``, switching between an explicit pair and an implicit scheme;
 - :mod:`.runs`: fixed-step runs, :func:`run`, :func:`propagate`, :class:`Propagator`;
 - :mod:`.stability`: :func:`is_stable`, :func:`largest_stable_step`;
-- :mod:`.loop`: the compiled loop of steps.
+- :mod:`.loop`: the compiled loops of steps (fixed steps, and an explicit pair's adaptive ones).
 """
 
 from .base import (

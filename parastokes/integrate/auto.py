@@ -1,154 +1,264 @@
 """``scheme = "auto"``: adaptive steps that switch between an explicit embedded pair and a
-linearly implicit scheme as stiffness comes and goes (Shampine 1977; Hairer & Wanner, *Solving
-ODEs II*, IV.2; LSODA's idea, Petzold 1983).
+linearly implicit scheme by their cost per unit of time, as stiffness comes and goes (LSODA's
+rule, Petzold 1983: switch where the other method's step, at its cost, covers more time per
+evaluation; Shampine 1977; Hairer & Wanner, *Solving ODEs II*, IV.2).
 
-A run starts with the explicit pair ``rk45`` (:data:`EXPLICIT`). After every accepted step it
-estimates the dominant eigenvalue of the rates' Jacobian from the last two stages of the step,
-both evaluated at its end: ``ρ ≈ |k_7 - k_6| / (h |Σ_l (b_l - a_(6,l)) k_l|)``, the difference
-of two rates over the difference of their arguments, in the rates' own coordinates (Hairer &
-Wanner's test in DOPRI5). Bogacki-Shampine has no two stages at one time: the difference of
-its last two (at 3/4 and 1 of the step) is the smooth motion over h/4, which hides the stiff
-part once it is damped (measured: the test missed a stiff run at rtol 1e-6), so ``auto`` does
-not run it. Where ``h ρ`` exceeds :data:`STIFF_FRACTION` of the pair's stability boundary on the
-negative real axis (:func:`.schemes.real_stability_boundary`: 3.31) for :data:`STIFF_STEPS`
-accepted steps (a run of :data:`NONSTIFF_STEPS` below it starts
-the count again, as DOPRI5 does), stability, not accuracy, sets the step: the run goes on
-with the linearly implicit scheme :data:`IMPLICIT` (``ros34pw2``, with an error estimate).
+The costs, in rate evaluations per step (:class:`Costs`): the explicit pair ``rk23``
+(:data:`EXPLICIT`, first same as last) 3 new stages a step plus ``1/RHO_EVERY`` for the
+estimate of ρ below; the implicit ``ros34pw2`` (:data:`IMPLICIT`) :data:`IMPLICIT_EVALS`, its
+stages, time derivative, banded solves and its Jacobian and factorization amortized over the
+steps that share them (measured on the paper's rod, docs/stiff.md), plus the two evaluations of
+ρ's power iteration. Both pairs estimate their error at order 2, so the step the accuracy
+allows is about the same for both; the explicit one is capped by stability at ``h ρ`` below
+its boundary on the negative real axis (:func:`.schemes.real_stability_boundary`: 2.51).
 
-In the implicit scheme, every accepted step advances a power iteration on the Jacobian by
-finite differences of the rates (two evaluations, in the rates' coordinates through
-``advance``), started from the explicit phase's last ``k_s - k_(s-1)``. Where the step the
-accuracy wants, ``h``, stays below :data:`BACK_FRACTION` of the explicit limit (``h ρ`` below
-that fraction of the boundary) for :data:`BACK_STEPS` steps, the explicit pair is cheaper
-again and the run switches back.
+- **Explicit phase.** After every :data:`RHO_EVERY` accepted steps, one step of a power
+  iteration on the rates' Jacobian by a finite difference of the rates at the step's end (one
+  evaluation: the rates there are the pair's last stage), started from the direction of the
+  step's error estimate ``Σ (b_l - b̂_l) k_l`` (where stability limits the step, the stiff
+  modes dominate it). Where ``h ρ`` exceeds :data:`STIFF_FRACTION` of the boundary,
+  stability sets the step, and the implicit scheme is tried with one step of :data:`TRIAL`
+  times the break-even size ``h_E C_I / C_E``
+  (:meth:`Costs.break_even`): if its error estimate accepts it, implicit steps cover time at
+  least TRIAL times more cheaply and the run goes on implicit from there (the step is kept);
+  else the run stays explicit and tries again once the explicit phase has spent
+  ``RETRY 2^(n-1) err^(1/(q+1))`` times the cost of an implicit step after the ``n``-th failed
+  trial in a row, of error ``err`` (a geometric back-off, longer the farther the trial
+  missed: the trials cost a bounded and falling share of the run; ρ is estimated only where a
+  trial could follow). One implicit stepper serves the whole run, so that a trial
+  reuses the approximate Jacobian and its factorization of the last one while they are fresh
+  (``stiff.REFRESH`` steps; a W-method keeps its order with an older ``A``).
+- **Implicit phase.** After every accepted step, a power-iteration step (two evaluations);
+  where the explicit pair at ``min(h, EXPLICIT_FRACTION boundary / ρ)`` (``h`` the step the
+  accuracy allows now; rk23's step where stability limits it) would cost less per unit time
+  than the implicit step ``h`` (:meth:`Costs.explicit_cheaper`) for :data:`BACK_STEPS` steps
+  in a row, the run switches back, from that step.
 
-Every switch is logged (INFO: the time, the schemes, ``ρ`` and ``h``) and kept in the result
-(:attr:`RunResult.switches`, with the steps of each scheme in :attr:`RunResult.by_scheme`).
-The switches depend on the states only: the same input gives the same steps.
+Every switch is logged (INFO: the time, the scheme, the costs compared) and kept in the result
+(:attr:`RunResult.switches`, with the steps of each scheme in :attr:`RunResult.by_scheme`; a
+rejected trial step counts as a rejected step of the implicit scheme). Every decision depends
+on the states and counts only, never on a clock: the same input gives the same steps.
 """
 
 from __future__ import annotations
 
 import logging
+import math
+from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.contracts import System
-from .adaptive import Stepper, Watch, segment, stepper_for
+from .. import stiff
+from ..core.contracts import StepFailure, System
+from .adaptive import Watch, segment, stepper_for
 from .base import RunResult, advance, projected, rates
+from .controller import error_norm, estimate_order, factor
 from .explicit import PairStepper
+from .loop import CompiledPair
 from .schemes import SCHEMES, Scheme, real_stability_boundary
 
-__all__ = ["auto_run", "pair_rho"]
+__all__ = ["Costs", "auto_run", "power_step"]
 
 log = logging.getLogger(__name__)
 
-#: The explicit pair of the nonstiff phases (two stages at the step's end: the test of ρ).
-EXPLICIT = "rk45"
-#: The linearly implicit scheme of the stiff phases: third order with an embedded second
-#: (measured against ros2 on the stiff test problem and a rod: docs/stiff.md).
+#: The explicit pair of the nonstiff phases: of the pairs, the fewest evaluations per unit
+#: time at the stability limit (3 per step at h ρ < 2.51, against 6 at 3.31 for rk45).
+EXPLICIT = "rk23"
+#: The linearly implicit scheme of the stiff phases: third order with an embedded second, as
+#: rk23 (measured against ros2 on the stiff test problem and a rod: docs/stiff.md).
 IMPLICIT = "ros34pw2"
-#: Stiff where h ρ > STIFF_FRACTION x the boundary for STIFF_STEPS accepted steps; a run of
-#: NONSTIFF_STEPS steps below it resets the count (DOPRI5: 15 and 6).
-STIFF_FRACTION, STIFF_STEPS, NONSTIFF_STEPS = 0.9, 15, 6
-#: Back to explicit where h ρ < BACK_FRACTION x the boundary for BACK_STEPS implicit steps.
-BACK_FRACTION, BACK_STEPS = 0.5, 5
+#: Rate evaluations' worth of CPU per step of IMPLICIT on the paper's rod (301 points; its
+#: stages, f_t, banded solves, and every stiff.REFRESH steps its Jacobian and factorization),
+#: measured against one evaluation of the rates in one process (docs/stiff.md).
+IMPLICIT_EVALS = 12.0
+#: Evaluations of ρ's power iteration per implicit step (the rates at the state and at a
+#: shifted one).
+PROBE_EVALS = 2.0
+#: One power-iteration step (one evaluation) every RHO_EVERY accepted explicit steps.
+RHO_EVERY = 8
+#: Stability sets the explicit step where h ρ > STIFF_FRACTION x the boundary.
+STIFF_FRACTION = 0.8
+#: Where stability limits it, rk23's step under the PI controller is h ρ ≈ EXPLICIT_FRACTION x
+#: its boundary (measured on the paper's rod: 2.27 / 2.51).
+EXPLICIT_FRACTION = 0.9
+#: The trial step of the implicit scheme: TRIAL x the break-even step (a switch must win by
+#: that much at least, so that a run near the break-even does not switch back and forth).
+TRIAL = 2.0
+#: Back to explicit where it is the cheaper for BACK_STEPS implicit steps in a row.
+BACK_STEPS = 5
+#: After a switch back, no trial before the explicit phase has spent RETRY implicit steps'
+#: worth of evaluations; after the n-th failed trial in a row, with error err, 2^(n-1)
+#: min(err, ERR_MAX)^(1/(q+1)) times that (the last factor: how far the implicit step the
+#: accuracy allows was below the trial's, by the controller's law).
+RETRY, ERR_MAX = 10.0, 1e3
+
+
+@dataclass(frozen=True)
+class Costs:
+    """Rate evaluations per step of the explicit pair and of the implicit scheme."""
+
+    explicit: float
+    implicit: float
+
+    @classmethod
+    def of(cls, pair: Scheme) -> Costs:
+        """The costs of ``pair`` (its new stages a step, plus its share of the ρ estimate) and
+        of :data:`IMPLICIT` (:data:`IMPLICIT_EVALS` plus :data:`PROBE_EVALS`)."""
+        new_stages = pair.stages - 1 if pair.fsal else pair.stages
+        return cls(new_stages + 1.0 / RHO_EVERY, IMPLICIT_EVALS + PROBE_EVALS)
+
+    def explicit_cheaper(self, explicit_step: float, implicit_step: float) -> bool:
+        """Whether explicit steps of ``explicit_step`` cost fewer evaluations per unit time
+        than implicit steps of ``implicit_step``: ``C_E / h_E < C_I / h_I``."""
+        return self.explicit * implicit_step < self.implicit * explicit_step
+
+    def retry(self, failed: int, err: float, q: int) -> float:
+        """The evaluations the explicit phase spends before the next trial after the
+        ``failed``-th failed trial in a row, of error ``err`` (estimate of order ``q``):
+        ``RETRY C_I 2^(failed-1) min(err, ERR_MAX)^(1/(q+1))``."""
+        return RETRY * self.implicit * 2.0 ** (failed - 1) * min(err, ERR_MAX) ** (1 / (q + 1))
+
+    def break_even(self, explicit_step: float) -> float:
+        """The implicit step that costs as much per unit time as ``explicit_step``:
+        ``h_E C_I / C_E``."""
+        return explicit_step * self.implicit / self.explicit
 
 
 def _norm(v: np.ndarray) -> float:
     return float(np.sqrt(np.sum(v * v)))
 
 
-def pair_rho(s: Scheme, k: list[np.ndarray], h: float) -> tuple[float, np.ndarray]:
-    """The dominant eigenvalue's size from the last two stages of a step of ``s`` (see the
-    module docstring), and ``k_s - k_(s-1)``, the direction it acts along."""
-    last, before = len(k) - 1, len(k) - 2
-    dk = k[last] - k[before]
-    a_last, a_before = s.a[last], s.a[before] + (0.0,)
-    dy = sum(((p - q) * kl for p, q, kl in zip(a_last, a_before, k, strict=False)),
-             np.zeros_like(dk))
-    size = _norm(dy) * h
-    return (_norm(dk) / size if size > 0 else 0.0), dk
+def power_step(system: System, t: float, x: np.ndarray, v: np.ndarray,
+               f: np.ndarray | None = None) -> tuple[float, np.ndarray]:
+    """One step of a power iteration on the Jacobian of the rates at ``(t, x)``: ``|J v|``
+    for the unit vector along ``v`` (in the rates' coordinates, through ``advance``; a forward
+    difference, ``f`` the rates at ``x`` when known) and the new direction ``J v / |J v|``."""
+    v = v / max(_norm(v), 1e-300)
+    f0 = rates(system, t, x) if f is None else f
+    delta = 1e-7 * max(1.0, _norm(x) / np.sqrt(x.size))
+    jv = (rates(system, t, advance(system, x, v, delta)) - f0) / delta
+    rho = _norm(jv)
+    return rho, (jv / rho if rho > 0 else v)
 
 
-class _Stiffness:
-    """The explicit phase's detector: True after STIFF_STEPS steps with h ρ beyond the limit."""
-
-    def __init__(self, stepper: PairStepper) -> None:
-        self.stepper = stepper
-        self.boundary = real_stability_boundary(stepper.scheme)
-        self.stiff = self.calm = 0
-        self.rho, self.direction = 0.0, np.zeros(0)
-
-    def __call__(self, t: float, x: np.ndarray, step: float, h: float) -> bool:
-        self.rho, self.direction = pair_rho(self.stepper.scheme, self.stepper.k, step)
-        if step * self.rho > STIFF_FRACTION * self.boundary:
-            self.stiff, self.calm = self.stiff + 1, 0
-        else:
-            self.calm += 1
-            if self.calm >= NONSTIFF_STEPS:
-                self.stiff = 0
-        return self.stiff >= STIFF_STEPS
+def _error_direction(pair: Scheme, k: np.ndarray | list[np.ndarray]) -> np.ndarray:
+    """``Σ_l (b_l - b̂_l) k_l``: the difference of the pair's two solutions over ``h``."""
+    assert pair.b_low is not None
+    return sum(((p - q) * k[j] for j, (p, q) in enumerate(zip(pair.b, pair.b_low, strict=True))
+                if p != q), np.zeros_like(k[0]))
 
 
-class _Calm:
-    """The implicit phase's detector: a power iteration on the Jacobian, one step of it per
-    accepted step; True after BACK_STEPS steps whose next step is below BACK_FRACTION of the
-    explicit limit."""
+class _Explicit:
+    """The explicit phase's watch (``until`` of :func:`.adaptive.segment`): True where a trial
+    of the implicit scheme is due (the module docstring)."""
 
-    def __init__(self, system: System, direction: np.ndarray, boundary: float) -> None:
-        self.system, self.boundary = system, boundary
-        self.v = direction / max(_norm(direction), 1e-300)
-        self.rho, self.below = 0.0, 0
+    def __init__(self, system: System, stepper: PairStepper | CompiledPair, costs: Costs,
+                 boundary: float, budget: float) -> None:
+        self.system, self.stepper, self.costs, self.boundary = system, stepper, costs, boundary
+        self.budget = budget
+        self.rho, self.direction, self.step = 0.0, np.zeros(0), math.nan
 
     def __call__(self, t: float, x: np.ndarray, step: float, h: float) -> bool:
-        f0 = rates(self.system, t, x)
-        delta = 1e-7 * max(1.0, _norm(x) / np.sqrt(x.size))
-        jv = (rates(self.system, t, advance(self.system, x, self.v, delta)) - f0) / delta
-        self.rho = _norm(jv)
-        if self.rho > 0:
-            self.v = jv / self.rho
-        self.below = self.below + 1 if h * self.rho < BACK_FRACTION * self.boundary else 0
-        return self.below >= BACK_STEPS
+        """After every RHO_EVERY-th accepted step (``step`` the last)."""
+        self.budget -= RHO_EVERY * self.costs.explicit
+        self.step = step
+        if self.budget > 0:
+            return False  # no trial due, whatever ρ: not estimated
+        scheme = self.stepper.scheme
+        assert isinstance(scheme, Scheme) and scheme.fsal  # its last stage: the rates at x
+        if not self.direction.size:
+            self.direction = _error_direction(scheme, self.stepper.k)
+        self.rho, self.direction = power_step(self.system, t, x, self.direction,
+                                              np.array(self.stepper.k[-1]))
+        return step * self.rho > STIFF_FRACTION * self.boundary
+
+
+class _Implicit:
+    """The implicit phase's watch: a power-iteration step per accepted step; True after
+    BACK_STEPS steps in a row where the explicit pair would be the cheaper."""
+
+    def __init__(self, system: System, direction: np.ndarray, costs: Costs, boundary: float
+                 ) -> None:
+        self.system, self.costs, self.boundary = system, costs, boundary
+        self.direction, self.rho, self.cheaper = direction, 0.0, 0
+
+    def explicit_step(self, h: float) -> float:
+        """The explicit pair's step where the accuracy allows ``h``: capped by stability."""
+        return min(h, EXPLICIT_FRACTION * self.boundary / self.rho) if self.rho > 0 else h
+
+    def __call__(self, t: float, x: np.ndarray, step: float, h: float) -> bool:
+        self.rho, self.direction = power_step(self.system, t, x, self.direction)
+        cheaper = self.costs.explicit_cheaper(self.explicit_step(h), h)
+        self.cheaper = self.cheaper + 1 if cheaper else 0
+        return self.cheaper >= BACK_STEPS
 
 
 def auto_run(system: System, x: np.ndarray, t0: float, t1: float, dt: float,
-             tol: tuple[float, float], blowup_factor: float) -> RunResult:
-    """:func:`parastokes.integrate.run` with ``scheme="auto"`` (the module docstring): ``dt`` the
-    first step, ``tol`` its ``(rtol, atol)``."""
-    pair = SCHEMES[EXPLICIT]
+             tol: tuple[float, float], blowup_factor: float, compiled: bool = True
+             ) -> RunResult:
+    """:func:`parastokes.integrate.run` with ``scheme="auto"`` (the module docstring): ``dt``
+    the first step, ``tol`` its ``(rtol, atol)``; the explicit pair in the system's compiled
+    loop where it has one and ``compiled``."""
+    pair, implicit = SCHEMES[EXPLICIT], SCHEMES[IMPLICIT]
     assert isinstance(pair, Scheme)
-    implicit = SCHEMES[IMPLICIT]
-    boundary = real_stability_boundary(pair)
+    costs, boundary, q = Costs.of(pair), real_stability_boundary(pair), estimate_order(implicit)
     x = projected(system, x, t0)
     watch = Watch(system, x, blowup_factor)
     t, h = t0, dt
     switches: list[tuple[float, str, str]] = []
     counts = {pair.name: [0, 0], implicit.name: [0, 0]}
-    explicit, direction = True, np.zeros(0)
+    budget, failed, previous = 0.0, 0, None
+    solver = stepper_for(system, implicit)  # one for the run: its Jacobian serves every trial
+    stepper = stepper_for(system, pair, compiled)  # goes on after a failed trial
+    assert isinstance(solver, stiff.Stepper) and not isinstance(stepper, stiff.Stepper)
     while t < t1:
-        stepper: Stepper = stepper_for(system, pair if explicit else implicit)
-        detector = (_Stiffness(stepper) if explicit  # type: ignore[arg-type]
-                    else _Calm(system, direction, boundary))
-        x, done = segment(stepper, x, t, t1, h, tol, watch, detector)
+        explicit = _Explicit(system, stepper, costs, boundary, budget)
+        x, done = segment(stepper, x, t, t1, h, tol, watch, explicit, RHO_EVERY, previous)
         t, h = done.end, done.last_step
-        counts[stepper.scheme.name][0] += done.accepted
-        counts[stepper.scheme.name][1] += done.rejected
+        counts[pair.name][0] += done.accepted
+        counts[pair.name][1] += done.rejected
+        trial = TRIAL * costs.break_even(explicit.step)
         if t >= t1:
             break
-        rho = detector.rho
-        if explicit:
-            direction = detector.direction  # type: ignore[union-attr]
-            reason = (f"stiff: h ρ > {STIFF_FRACTION:g} x {pair.name}'s stability boundary "
-                      f"{boundary:.3g} for {STIFF_STEPS} steps (ρ = {rho:.4g}, h = {h:.4g})")
-        else:
-            h = min(h, STIFF_FRACTION * boundary / rho) if rho > 0 else h
-            reason = (f"not stiff: the step wanted is below {BACK_FRACTION:g} x {pair.name}'s "
-                      f"limit for {BACK_STEPS} steps (ρ = {rho:.4g}, h = {h:.4g})")
-        explicit = not explicit
-        name = pair.name if explicit else implicit.name
-        switches.append((t, name, reason))
-        log.info("auto: %s from t=%.10g, %s", name, t, reason)
+        previous = done.previous  # the explicit steps go on where a trial fails
+        if t + trial >= t1:  # too little time left to pay for a switch: explicit to the end
+            budget = math.inf
+            continue
+        try:
+            x_new, x_low = solver.step_with_estimate(t, x, trial)
+            err = error_norm(x, x_new, x_low, *tol)
+        except (stiff.StiffSolveError, StepFailure):  # a failed trial, as a step too large
+            err = math.inf
+        if not (err <= 1.0 and watch(t + trial, x_new, 0)):
+            counts[implicit.name][1] += 1
+            failed += 1
+            budget = costs.retry(failed, err, q)
+            log.info("auto: stays %s at t=%.10g: a step of %s of %.4g (%g x the break-even %g/%g "
+                     "x the explicit %.4g) has err %.3g > 1", pair.name, t, implicit.name, trial,
+                     TRIAL, costs.implicit, costs.explicit, explicit.step, err)
+            continue
+        switches.append((t, implicit.name, (
+            f"stiff: h ρ = {explicit.step * explicit.rho:.3g} > {STIFF_FRACTION:g} x "
+            f"{pair.name}'s stability boundary {boundary:.3g}, and {implicit.name} took a step "
+            f"of {trial:.4g} = {TRIAL:g} x {costs.implicit:g}/{costs.explicit:g} x "
+            f"{pair.name}'s {explicit.step:.4g} (err {err:.3g}): {TRIAL:g} x cheaper per unit "
+            "time or more")))
+        log.info("auto: %s from t=%.10g, %s", implicit.name, t, switches[-1][2])
+        t, x, failed, previous = t + trial, x_new, 0, None
+        counts[implicit.name][0] += 1
+        calm = _Implicit(system, explicit.direction, costs, boundary)
+        x, done = segment(solver, x, t, t1, trial * factor(err, q, True), tol, watch, calm)
+        t, h = done.end, done.last_step
+        counts[implicit.name][0] += done.accepted
+        counts[implicit.name][1] += done.rejected
+        if t >= t1:
+            break
+        switches.append((t, pair.name, (
+            f"not stiff enough: {pair.name} at {calm.explicit_step(h):.4g} (ρ = "
+            f"{calm.rho:.4g}) costs {costs.explicit:g} evaluations a step, {implicit.name} at "
+            f"{h:.4g} {costs.implicit:g}: explicit the cheaper for {BACK_STEPS} steps")))
+        h, budget = calm.explicit_step(h), RETRY * costs.implicit
+        log.info("auto: %s from t=%.10g, %s", pair.name, t, switches[-1][2])
     accepted = sum(c[0] for c in counts.values())
     return RunResult(projected(system, x, t1), watch.worst, accepted, h,
                      n_rejected=sum(c[1] for c in counts.values()), switches=tuple(switches),

@@ -18,9 +18,11 @@ from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
+from numba import njit
 
 __all__ = ["GROW", "SAFETY", "SHRINK", "AdaptiveResult", "StepSizeError", "adaptive_steps",
-           "error_norm", "estimate_order", "factor"]
+           "constants", "error_norm", "estimate_order", "factor", "lands", "smallest_step",
+           "step_factor"]
 
 #: Step-size controller: safety factor, smallest and largest change of a step.
 SAFETY, SHRINK, GROW = 0.9, 0.2, 5.0
@@ -62,12 +64,42 @@ def estimate_order(scheme: object) -> int:
     return min(order, order - 1 if low is None else int(low))
 
 
+@njit(cache=True, error_model="numpy")
 def error_norm(x: np.ndarray, x_new: np.ndarray, x_low: np.ndarray, rtol: float,
                atol: float) -> float:
     """The RMS over the state's entries of ``(x_new - x_low) / (atol + rtol max(|x|, |x_new|))``
-    (the norm of Hairer, Nørsett & Wanner, *Solving ODEs I*, II.4; scipy's solve_ivp)."""
+    (the norm of Hairer, Nørsett & Wanner, *Solving ODEs I*, II.4; scipy's solve_ivp).
+    Compiled (numba), so that the Python steps and the compiled adaptive loop of :mod:`.loop`
+    get the same bits: where stability limits the steps, a difference of round-off in ``err``
+    grows some 5-fold a step (measured on a rod)."""
     scale = atol + rtol * np.maximum(np.abs(x), np.abs(x_new))
     return float(np.sqrt(np.mean(((x_new - x_low) / scale) ** 2)))
+
+
+def constants() -> np.ndarray:
+    """``(SAFETY, SHRINK, GROW, REJECT_MAX, PI_ALPHA, PI_BETA, PREVIOUS_MIN)`` as they are now:
+    what :func:`step_factor` takes, read at each call (by :func:`factor` and by the compiled
+    adaptive loop of :mod:`.loop`, so the constants live here only)."""
+    return np.array([SAFETY, SHRINK, GROW, REJECT_MAX, PI_ALPHA, PI_BETA, PREVIOUS_MIN])
+
+
+@njit(cache=True, error_model="numpy")
+def step_factor(err: float, q: int, accepted: bool, previous: float, control: np.ndarray
+                ) -> float:
+    """:func:`factor` with ``previous <= 0`` for none and the constants ``control``
+    (:func:`constants`): the one implementation of the arithmetic, compiled (numba) and called by
+    :func:`factor` and by the compiled adaptive loop of :mod:`.loop` alike."""
+    safety, shrink, grow, reject_max, alpha, beta = (control[0], control[1], control[2],
+                                                     control[3], control[4], control[5])
+    if not np.isfinite(err):
+        return shrink
+    if err == 0.0:
+        wanted = grow
+    elif accepted and previous > 0.0:
+        wanted = safety * err ** (-alpha / (q + 1)) * previous ** (beta / (q + 1))
+    else:
+        wanted = safety * err ** (-1.0 / (q + 1))
+    return min(grow, max(shrink, wanted)) if accepted else max(shrink, min(reject_max, wanted))
 
 
 def factor(err: float, q: int, accepted: bool, previous: float | None = None) -> float:
@@ -76,15 +108,21 @@ def factor(err: float, q: int, accepted: bool, previous: float | None = None) ->
     previous^(PI_BETA/(q+1))``; within ``[SHRINK, GROW]`` after an accepted step and ``[SHRINK,
     REJECT_MAX]`` after a rejected one (a step can be rejected for its state,
     :func:`adaptive_steps`, at any ``err``; ``err`` infinite: ``SHRINK``)."""
-    if not np.isfinite(err):
-        return SHRINK
-    if err == 0.0:
-        wanted = GROW
-    elif accepted and previous is not None:
-        wanted = SAFETY * err ** (-PI_ALPHA / (q + 1)) * previous ** (PI_BETA / (q + 1))
-    else:
-        wanted = SAFETY * err ** (-1.0 / (q + 1))
-    return min(GROW, max(SHRINK, wanted)) if accepted else max(SHRINK, min(REJECT_MAX, wanted))
+    return float(step_factor(float(err), q, accepted, 0.0 if previous is None else previous,
+                             constants()))
+
+
+@njit(cache=True)
+def lands(t: float, h: float, t1: float) -> bool:
+    """Whether a step ``h`` from ``t`` reaches ``t1`` (to a relative 1e-14): it is then cut to
+    end there."""
+    return t + h >= t1 * (1 - 1e-14) if t1 else t + h >= t1
+
+
+def smallest_step(t0: float, t1: float) -> float:
+    """Steps below this (1e-12 of the interval ``[t0, t1]``, or of ``|t1|``) are a
+    :class:`StepSizeError`."""
+    return 1e-12 * max(abs(t1 - t0), abs(t1))
 
 
 @dataclass(frozen=True)
@@ -96,29 +134,35 @@ class AdaptiveResult:
     last_step: float
     #: Where the steps ended: ``t1``, or earlier where ``until`` stopped them.
     end: float = math.nan
+    #: The last accepted error of PI control (None without), to go on from ``end``.
+    previous: float | None = None
 
 
 def adaptive_steps(stepper: EstimatingStepper, q: int, x: np.ndarray, t0: float, t1: float,
                    h0: float, rtol: float, atol: float,
                    accept: Callable[[float, np.ndarray, int], bool],
                    until: Callable[[float, np.ndarray, float, float], bool] | None = None,
-                   pi: bool = False) -> tuple[np.ndarray, AdaptiveResult]:
+                   pi: bool = False, every: int = 1, previous: float | None = None
+                   ) -> tuple[np.ndarray, AdaptiveResult]:
     """Steps from ``(t0, x)`` to ``t1`` whose estimated local error stays within ``rtol`` and
     ``atol`` (:func:`error_norm` <= 1), the first of size ``h0``, the next ones by
     :func:`factor` with the estimate's order ``q`` (with ``pi``, PI control from the second
-    accepted step on), the last one cut to end at ``t1``.
+    accepted step on, or from the first with ``previous``, the last accepted error of steps
+    that ended at ``(t0, x)``: :attr:`AdaptiveResult.previous`), the last one cut to end at
+    ``t1``.
 
     ``accept(t, x_new, step)`` sees every step whose error is small enough; it returns False for
     a state the run cannot keep (its monitor beyond the limit: the step is rejected) and may
-    raise to end the run. ``until(t, x, step, h)``, after each accepted step (``step`` taken,
-    ``h`` the next one) before ``t1``, may stop the steps there. Returns the state where the steps
-    ended and the counts.
+    raise to end the run. ``until(t, x, step, h)``, after every ``every``-th accepted step
+    (``step`` taken, ``h`` the next one) before ``t1``, may stop the steps there. Returns the
+    state where the steps ended and the counts.
     """
     t, h = t0, min(h0, t1 - t0)
+    smallest = smallest_step(t0, t1)
     accepted = rejected = 0
-    previous = None  # the error of the last accepted step (PI control)
+    previous = previous if pi else None  # the error of the last accepted step (PI control)
     while t < t1:
-        last = t + h >= t1 * (1 - 1e-14) if t1 else t + h >= t1
+        last = lands(t, h, t1)
         step = t1 - t if last else h
         x_new, x_low = stepper.step_with_estimate(t, x, step)
         err = error_norm(x, x_new, x_low, rtol, atol)
@@ -133,8 +177,8 @@ def adaptive_steps(stepper: EstimatingStepper, q: int, x: np.ndarray, t0: float,
             previous = max(err, PREVIOUS_MIN) if pi else None
         else:
             rejected += 1
-        if h < 1e-12 * max(abs(t1 - t0), abs(t1)):
+        if h < smallest:
             raise StepSizeError(t, h)
-        if ok and t < t1 and until is not None and until(t, x, step, h):
+        if ok and t < t1 and until is not None and accepted % every == 0 and until(t, x, step, h):
             break
-    return x, AdaptiveResult(accepted, rejected, h, t)
+    return x, AdaptiveResult(accepted, rejected, h, t, previous)

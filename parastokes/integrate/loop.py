@@ -27,9 +27,15 @@ also supplies :func:`loads_into` and :func:`body_rates_into` (its Python ``loads
 ``body_rates``) can be stepped in a scene's compiled loop (:mod:`parastokes.scene.compiled`);
 :func:`register_parts` registers its type for both loops.
 
+:class:`CompiledPair` runs the adaptive steps of an embedded explicit pair on the same parts
+(:func:`_adaptive`), as :func:`parastokes.integrate.controller.adaptive_steps` takes them in
+Python: the same steps, bit for bit, since both call the controller's compiled error norm and
+step factor (docs/stiff.md, "Adaptive explicit pairs").
+
 numba caches each compiled function keyed on its own source file only: after editing a system's
-parts (or anything they call) in another file, delete the ``__pycache__`` folders before timing
-or testing, or the cached loop still runs the old parts. A fresh checkout or install has no cache.
+parts (or anything they call, the arithmetic of :mod:`.controller` included; its constants are
+read at each call) in another file, delete the ``__pycache__`` folders before timing or
+testing, or the cached loop still runs the old parts. A fresh checkout or install has no cache.
 """
 
 from __future__ import annotations
@@ -49,13 +55,17 @@ from ..fluid.compiled import pack_points
 from ..mrs import compiled
 from ..mrs.velocity import EIGHT_PI, kernel_threads
 from ..registry import loops as registry
+from . import controller
 from .base import ABOVE, BEYOND, DONE, NON_FINITE
+from .controller import AdaptiveResult, StepSizeError
 from .schemes import Scheme
 
 __all__ = [
+    "CompiledPair",
     "advance",
     "body_rates_into",
     "bracket_into",
+    "compiled_pair",
     "kernel_arguments",
     "loads_into",
     "monitor",
@@ -240,6 +250,87 @@ def _run(x, t0, dt, first, n_steps, tableau, data, limit, stop_above):
     return worst, taken, outcome, m
 
 
+#: Slots of the ``carry`` array of :func:`_adaptive` (what a call hands to the next).
+T, H, PREVIOUS, KNOWN, ACCEPTED, REJECTED, WORST, LAST, EVALUATIONS = range(9)
+#: ``carry[KNOWN]``: nothing known at (t, x); ``k[0]`` (the first stage of a rejected step);
+#: ``k[-1]`` (the last stage of an accepted step of a first-same-as-last pair).
+UNKNOWN, FIRST, FSAL = 0.0, 1.0, 2.0
+#: Outcomes of :func:`_adaptive`: ``t1`` reached, paused after ``pause`` accepted steps, the
+#: step shrank below the smallest one.
+REACHED, PAUSED, TOO_SMALL = 0, 1, 2
+
+
+@njit(**_OPTS)
+def _adaptive(x, k, carry, t1, pause, tableau, low, data, control, constants, limit):
+    """Adaptive steps of an embedded pair from ``(carry[T], x)`` toward ``t1``, as
+    :func:`parastokes.integrate.controller.adaptive_steps` takes them through
+    :class:`parastokes.integrate.explicit.PairStepper` and :class:`.adaptive.Watch`: the same
+    stages, solutions, error norm, controller (``control`` = ``(q, rtol, atol, pi, smallest
+    step, fsal)``, ``constants`` those of :func:`.controller.constants`), first-same-as-last
+    and retried first stages, the last step cut to land on ``t1``, a state non-finite or whose
+    monitor exceeds ``limit`` rejected.
+
+    ``k`` (s, n, columns) holds the stages of the last step tried; ``carry`` (in and out) the
+    time, next step, last accepted error (PI), which stage is known at ``(t, x)``, the counts,
+    the worst monitor, the last accepted step and the rate evaluations. Returns
+    :data:`REACHED`, :data:`PAUSED` (after ``pause`` accepted steps before ``t1``) or
+    :data:`TOO_SMALL`; the state reached is written into ``x``.
+    """
+    c, a, b, stage_brackets, final_brackets = tableau
+    b_low, low_brackets = low
+    q, rtol, atol, pi, smallest, fsal = (int(control[0]), control[1], control[2],
+                                         control[3] != 0.0, control[4], control[5] != 0.0)
+    s = b.size
+    comb = np.empty((x.shape[0], data.rate_columns))
+    work = workspace(data, x)
+    state = x
+    t, h, previous, known = carry[T], carry[H], carry[PREVIOUS], carry[KNOWN]
+    taken, outcome = 0, REACHED
+    while t < t1:
+        last = controller.lands(t, h, t1)
+        step = t1 - t if last else h
+        if known == FSAL:
+            k[0, :, :] = k[s - 1]
+        elif known == UNKNOWN:
+            rates_into(data, t, state, work, k[0])
+            carry[EVALUATIONS] += 1
+        carry[EVALUATIONS] += s - 1
+        for st in range(1, s):
+            _combine(data, a[st, :st], k, stage_brackets, st, step, comb)
+            rates_into(data, t + c[st] * step, advance(data, state, comb, step), work, k[st])
+        _combine(data, b, k, final_brackets, -1, step, comb)
+        x_new = advance(data, state, comb, step)
+        _combine(data, b_low, k, low_brackets, -1, step, comb)
+        err = controller.error_norm(state, x_new, advance(data, state, comb, step), rtol, atol)
+        if not np.isfinite(err):
+            err = np.inf
+        ok = err <= 1.0 and _finite(x_new)
+        m = monitor(data, x_new) if ok else math.nan
+        ok = ok and m <= limit
+        h = step * controller.step_factor(err, q, ok, previous, constants)
+        if ok:
+            t = t1 if last else t + step
+            state = x_new
+            carry[ACCEPTED] += 1
+            carry[WORST] = max(carry[WORST], m)
+            carry[LAST] = step
+            previous = max(err, constants[6]) if pi else 0.0
+            known = FSAL if fsal else UNKNOWN
+            taken += 1
+        else:
+            carry[REJECTED] += 1
+            known = FIRST
+        if h < smallest:
+            outcome = TOO_SMALL
+            break
+        if ok and t < t1 and taken >= pause:
+            outcome = PAUSED
+            break
+    carry[T], carry[H], carry[PREVIOUS], carry[KNOWN] = t, h, previous, known
+    x[:] = state
+    return outcome
+
+
 _FOREIGN_LOOPS: dict[tuple[str, ...], Any] = {}
 
 
@@ -256,24 +347,28 @@ def _foreign_modules(value: Any) -> set[str]:
     return found
 
 
-def _loop_for(data: tuple) -> Any:
-    """The compiled :func:`_run` for ``data``: itself for the package's types, and for data with
-    types from other modules (a user's body, docs/extending.md) a copy of it per set of such
-    modules, cached in its own index file named after them.
+def _loop_for(data: tuple, loop: Any = None) -> Any:
+    """The compiled ``loop`` (default :func:`_run`; :func:`_adaptive`) for ``data``: itself for
+    the package's types, and for data with types from other modules (a user's body,
+    docs/extending.md) a copy of it per set of such modules, cached in its own index file named
+    after them.
 
     numba keeps one cache index per function, keyed by the argument types, and unpickles every
     key when it reads the index: a user's type in ``_run``'s index would make every later process
     that cannot import the user's module fail to load any compiled loop. In an index of their own
     the user's types are read only where the user's data is stepped, so their module is loaded.
     """
-    key = tuple(sorted(_foreign_modules(data)))
-    if not key:
-        return _run
+    loop = _run if loop is None else loop
+    modules = tuple(sorted(_foreign_modules(data)))
+    if not modules:
+        return loop
+    key = (loop.py_func.__name__, *modules)
     if key not in _FOREIGN_LOOPS:
-        code = _run.py_func
+        code = loop.py_func
         copy = types.FunctionType(code.__code__, code.__globals__, code.__name__,
                                   code.__defaults__, code.__closure__)
-        copy.__qualname__ = "_run_for_" + "__".join(m.replace(".", "_") for m in key)
+        copy.__qualname__ = f"{code.__name__}_for_" + "__".join(m.replace(".", "_")
+                                                                for m in modules)
         copy.__doc__ = code.__doc__
         _FOREIGN_LOOPS[key] = njit(**_OPTS)(copy)
     return _FOREIGN_LOOPS[key]
@@ -282,6 +377,13 @@ def _loop_for(data: tuple) -> Any:
 #: Wall time aimed at per compiled call: the loop returns to Python this often, so that Ctrl-C
 #: (and any other signal) is handled within about a second during a long propagation.
 CALL_SECONDS = 0.25
+
+
+def _next_chunk(chunk: int, start: float, taken: int) -> int:
+    """The steps of the next compiled call: about :data:`CALL_SECONDS` at the time per step of
+    the call begun at ``start`` (``taken`` steps), at most 4 times the last call's ``chunk``."""
+    per_step = (time.perf_counter() - start) / max(taken, 1)
+    return max(1, min(4 * chunk, int(CALL_SECONDS / max(per_step, 1e-9))))
 
 
 def run_steps(
@@ -323,8 +425,84 @@ def run_steps(
                 return x, worst, done, outcome, m
             if done == n:
                 return x, worst, done, DONE, worst
-            per_step = (time.perf_counter() - start) / max(taken, 1)
-            chunk = max(1, min(4 * chunk, int(CALL_SECONDS / max(per_step, 1e-9))))
+            chunk = _next_chunk(chunk, start, taken)
+
+
+class CompiledPair:
+    """Adaptive steps of an explicit embedded pair on a system's compiled parts
+    (:func:`_adaptive`): what :func:`parastokes.integrate.controller.adaptive_steps` does with a
+    :class:`parastokes.integrate.explicit.PairStepper`, the same steps (tested: counts equal,
+    states equal to round-off), in compiled calls of about :data:`CALL_SECONDS`, or of
+    ``every`` accepted steps each where ``until`` watches the steps.
+
+    ``steps`` counts the steps tried and ``evaluations`` the rate evaluations; ``k`` (s, n,
+    columns) holds the stages of the last step (as ``PairStepper.k``)."""
+
+    def __init__(self, system: ThreadedSystem, make_data: Callable[[Any, int], tuple],
+                 scheme: Scheme) -> None:
+        assert scheme.b_low is not None
+        self.system, self.make_data, self.scheme = system, make_data, scheme
+        self.steps = self.evaluations = 0
+        self.k = np.empty((scheme.stages, 0, 0))
+        #: Where the last call ended, ``(t, the state returned)``, and what was known there.
+        self._end: tuple[float, np.ndarray | None] = (math.nan, None)
+        self._known = UNKNOWN
+
+    def steps_from(self, x: np.ndarray, t0: float, t1: float, h0: float, q: int,
+                   tol: tuple[float, float], limit: float, worst: float,
+                   until: Callable[[float, np.ndarray, float, float], bool] | None = None,
+                   pi: bool = True, every: int = 1, previous: float | None = None
+                   ) -> tuple[np.ndarray, AdaptiveResult, float]:
+        """The steps of :func:`.controller.adaptive_steps` (the same arguments; ``limit`` the
+        monitor's, ``worst`` the worst monitor so far): the state reached, the counts, and the
+        worst monitor seen. Raises :class:`.controller.StepSizeError` as it does. From the
+        state the last call returned (the same array, at its end), the stage known there is
+        used, as a :class:`parastokes.integrate.explicit.PairStepper` does."""
+        s = self.scheme
+        known = self._known if x is self._end[1] and t0 == self._end[0] else UNKNOWN
+        x = np.array(x, dtype=float, order="C")  # the compiled calls write the state into it
+        tableau = tableau_arrays(s)
+        low = (np.array(s.b_low, dtype=float),
+               np.array(s.low_brackets, dtype=float).reshape(-1, 3))
+        control = np.array([q, tol[0], tol[1], pi, controller.smallest_step(t0, t1), s.fsal],
+                           dtype=float)
+        carry = np.array([t0, min(h0, t1 - t0), previous if pi and previous else 0.0, known,
+                          0, 0, worst, math.nan, 0])
+        chunk = every if until is not None else 8
+        steps, evaluations = self.steps, self.evaluations
+        with kernel_threads(self.system.n_threads) as threads:
+            data: Any = self.make_data(self.system, threads)
+            loop = _loop_for(data, _adaptive)
+            if known == UNKNOWN:
+                self.k = np.empty((s.stages, x.shape[0], data.rate_columns))
+            while True:
+                start, before = time.perf_counter(), carry[ACCEPTED]
+                outcome = loop(x, self.k, carry, float(t1), chunk, tableau, low, data, control,
+                               controller.constants(), float(limit))
+                self.steps = steps + int(carry[ACCEPTED] + carry[REJECTED])
+                self.evaluations = evaluations + int(carry[EVALUATIONS])
+                if outcome == TOO_SMALL:
+                    raise StepSizeError(carry[T], carry[H])
+                if outcome == REACHED:
+                    break
+                if until is None:
+                    chunk = _next_chunk(chunk, start, int(carry[ACCEPTED] - before))
+                elif until(carry[T], x, carry[LAST], carry[H]):
+                    break
+        self._end, self._known = (carry[T], x), carry[KNOWN]
+        result = AdaptiveResult(int(carry[ACCEPTED]), int(carry[REJECTED]), carry[H], carry[T],
+                                carry[PREVIOUS] if pi and carry[PREVIOUS] > 0 else None)
+        return x, result, carry[WORST]
+
+
+def compiled_pair(system: System, scheme: Scheme) -> CompiledPair | None:
+    """The compiled adaptive steps of the pair ``scheme`` for ``system``, where its exact type
+    has a compiled loop of this module (:func:`register_parts`, a scene's), else None."""
+    loop = registry.compiled_loop(system)
+    if not (isinstance(loop, functools.partial) and loop.func is run_steps):
+        return None
+    owner, make_data = loop.args
+    return CompiledPair(owner, make_data, scheme)
 
 
 def register_parts(cls: type, make_data: Callable[[Any, int], tuple], fluid: type | None = None,

@@ -173,8 +173,10 @@ def run(
     The step actually used is ``(t1 - t0) / n_steps(t0, t1, dt)``; a change is logged (DEBUG).
     The initial and the final state are projected (``system.project``). Raises
     :class:`BlowUpError` on blow-up. ``compiled=False`` takes the steps through the system's
-    ``rates`` and ``advance`` in Python even when it has a compiled loop (``run_steps``), e.g. to
-    check one against the other: both give the same result.
+    ``rates`` and ``advance`` in Python even when it has a compiled loop (``run_steps``, and for
+    the adaptive steps of an explicit pair :func:`.loop.compiled_pair`), e.g. to check one
+    against the other: both give the same result (adaptive steps: the same steps, states equal
+    to round-off).
     """
     s = lookup(scheme)
     n = n_steps(t0, t1, dt)
@@ -182,8 +184,9 @@ def run(
     if tol is not None and n:
         start = np.asarray(x, dtype=float)
         if isinstance(s, Auto):
-            return auto_run(system, start, t0, t1, dt, tol, blowup_factor)
-        return adaptive_run(system, start, t0, t1, dt, tol, blowup_factor, scheme=s)
+            return auto_run(system, start, t0, t1, dt, tol, blowup_factor, compiled=compiled)
+        return adaptive_run(system, start, t0, t1, dt, tol, blowup_factor, scheme=s,
+                            compiled=compiled)
     if n == 0:
         return RunResult(system.project(np.array(x, dtype=float)), system.monitor(x), 0, dt)
     h = (t1 - t0) / n
