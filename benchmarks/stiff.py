@@ -96,6 +96,21 @@ def _relative_error(x: np.ndarray, reference: np.ndarray, x0: np.ndarray) -> flo
     return float(np.abs(x[:, :3] - reference[:, :3]).max()) / scale
 
 
+def reference_state(name: str, system: Any, t1: float, step: float
+                    ) -> tuple[np.ndarray, dict[str, Any] | None]:
+    """RK4's state at ``t1`` from the initial state at steps of ``step``, cached in
+    ``OUT/.NAME_reference.npy`` (read from there when it exists); with ``{scheme, dt, cpu}``
+    when computed now, None when read from the cache."""
+    cache = OUT / f".{name}_reference.npy"
+    if cache.exists():
+        return np.load(cache), None
+    x0 = system.initial_state()
+    reference, cpu = _timed(lambda: integrate.propagate(system, x0, 0.0, t1, "rk4", step))
+    OUT.mkdir(parents=True, exist_ok=True)
+    np.save(cache, reference)
+    return reference, {"scheme": "rk4", "dt": step, "cpu": cpu}
+
+
 def work_precision(name: str, system: Any, t1: float, reference_step: float,
                    steps: dict[str, list[float]], refresh: dict[str, list[int]]
                    ) -> dict[str, Any]:
@@ -105,14 +120,9 @@ def work_precision(name: str, system: Any, t1: float, reference_step: float,
     data = _load(path)
     default = stepper.REFRESH
     x0 = system.initial_state()
-    cache = OUT / f".{name}_reference.npy"
-    if cache.exists():
-        reference = np.load(cache)
-    else:
-        reference, cpu = _timed(lambda: integrate.propagate(system, x0, 0.0, t1, "rk4",
-                                                            reference_step))
-        np.save(cache, reference)
-        data["reference"] = {"scheme": "rk4", "dt": reference_step, "cpu": cpu}
+    reference, computed = reference_state(name, system, t1, reference_step)
+    if computed:
+        data["reference"] = computed
     rows = data.setdefault("rows", [])
     done = {(r["scheme"], r["dt"], r.get("refresh")) for r in rows}
     for scheme, dts in steps.items():
@@ -505,6 +515,12 @@ def figure() -> None:
 #: docs/benchmarks.md, "Stiff bodies"; at the limit itself both blow up over T).
 SHORT_RODS = {"rod301": (301, 1.0, 1.2e-5), "rod601": (601, 0.5, 7.58e-7)}
 SHORT_T = 0.005
+#: The rod of 1201 points (``--parts short1201``, ε = 5Δs) over its own, shorter T: RK4 at
+#: half its limit over 0.005 s would take about 1.5 hours of CPU here. Its explicit step: 0.95
+#: of forward Euler's limit 5.11e-8 s, bisected over that T (``integrate.largest_stable_step(
+#: rod, "euler", 2.5e-4, 2e-8, 1.2e-7, rtol=0.02)``, 160 s of CPU).
+SHORT_ROD1201 = {"rod1201": (1201, 0.25, 4.85e-8)}
+SHORT_T1201 = 2.5e-4
 
 
 #: Rounds of :func:`_interleaved` (each piece timed once per round, the least kept).
@@ -657,24 +673,34 @@ def linalg_part(rods: list[str]) -> dict[str, Any]:
     return data
 
 
+def short_steps(limit: float, t1: float) -> dict[str, list[float]]:
+    """The fixed steps of ``--parts short`` over T = ``t1``: forward Euler and RK2 at ``limit``,
+    the implicit schemes at steps of T = :data:`SHORT_T` scaled by ``t1 / SHORT_T`` (the same
+    number of steps), to 3 significant digits."""
+    steps = {"ros2": [2.5e-4, 1.25e-4, 6.25e-5],
+             "ros34pw2": [1e-3, 5e-4, 2.5e-4, 1.25e-4, 6.25e-5],
+             "ros2-krylov": [2.5e-4, 1.25e-4],
+             "ros34pw2-krylov": [5e-4, 2.5e-4, 1.25e-4]}
+    return {"euler": [limit], "rk2": [limit],
+            **{k: [float(f"{v * t1 / SHORT_T:.3g}") for v in vs] for k, vs in steps.items()}}
+
+
 def short_part(rods: list[str]) -> dict[str, Any]:
-    """Work-precision over T = :data:`SHORT_T` on the rods of :data:`SHORT_RODS`: forward Euler
-    and RK2 just below forward Euler's limit, ROS2, ROS34PW2 (Jacobian every 5 and 10 steps),
-    ROS2-Krylov and ROS34PW2-Krylov at fixed steps, and ROS2, ROS34PW2 and ROS34PW2-Krylov
-    adaptive across tolerances (atol = rtol/10 μm), against RK4 at half the limit; rows as
-    ``work_precision``'s plus ``rtol``."""
+    """Work-precision over T = :data:`SHORT_T` on the rods ``rods`` of :data:`SHORT_RODS`
+    (:data:`SHORT_T1201` on the rod of :data:`SHORT_ROD1201`): forward Euler and RK2 just below
+    forward Euler's limit, ROS2, ROS34PW2 (Jacobian every 5 and 10 steps), ROS2-Krylov and
+    ROS34PW2-Krylov at fixed steps, and ROS2, ROS34PW2 and ROS34PW2-Krylov adaptive across
+    tolerances (atol = rtol/10 μm), against RK4 at half the limit; rows as
+    ``work_precision``'s plus ``rtol``. The implicit steps and the adaptive runs' first step
+    are those of T = :data:`SHORT_T` scaled by ``T / SHORT_T``."""
     out = {}
     for name in rods:
-        m, eps, limit = SHORT_RODS[name]
+        m, eps, limit = {**SHORT_RODS, **SHORT_ROD1201}[name]
+        t1 = SHORT_T1201 if name in SHORT_ROD1201 else SHORT_T
+        scale = t1 / SHORT_T
         rod = models.rod_swimmer(n_points=m, epsilon=eps, n_threads=1)
-        steps = {"euler": [limit], "rk2": [limit],
-                 "ros2": [2.5e-4, 1.25e-4, 6.25e-5],
-                 "ros34pw2": [1e-3, 5e-4, 2.5e-4, 1.25e-4, 6.25e-5],
-                 "ros2-krylov": [2.5e-4, 1.25e-4],
-                 "ros34pw2-krylov": [5e-4, 2.5e-4, 1.25e-4]}
-        steps = {k: [float(f"{v:.3g}") for v in vs] for k, vs in steps.items()}
         key = f"short_{name}"
-        data = work_precision(key, rod, SHORT_T, float(f"{0.5 * limit:.2g}"), steps,
+        data = work_precision(key, rod, t1, float(f"{0.5 * limit:.2g}"), short_steps(limit, t1),
                               {"ros34pw2": [5, 10]})
         reference = np.load(OUT / f".{key}_reference.npy")
         x0 = rod.initial_state()
@@ -683,8 +709,8 @@ def short_part(rods: list[str]) -> dict[str, Any]:
             for rtol in (1e-2, 1e-3, 1e-4, 1e-5):
                 if (scheme, rtol) in done:
                     continue
-                result, cpu = _timed(lambda s=scheme, r=rtol, body=rod, y=x0: integrate.run(
-                    body, y, 0.0, SHORT_T, s, 1e-4, rtol=r, atol=0.1 * r))
+                result, cpu = _timed(lambda s=scheme, r=rtol, body=rod, y=x0, t=t1, h=scale * 1e-4:
+                                     integrate.run(body, y, 0.0, t, s, h, rtol=r, atol=0.1 * r))
                 row = {"scheme": scheme, "rtol": rtol, "dt": None, "refresh": stepper.REFRESH,
                        "error": _relative_error(result.state, reference, x0), "cpu": cpu,
                        "steps": result.n_steps, "rejected": result.n_rejected}
@@ -701,7 +727,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--parts", nargs="+", default=["rod", "vesicle", "parareal"],
                         choices=["rod", "rod601", "vesicle", "parareal", "parareal601",
-                                 "best_serial", "linalg", "short"])
+                                 "best_serial", "linalg", "short", "short1201"])
     parser.add_argument("--rods", nargs="+", default=list(SHORT_RODS), choices=list(SHORT_RODS),
                         help="the rods of the parts linalg and short (default: both)")
     args = parser.parse_args(argv)
@@ -711,7 +737,8 @@ def main(argv: list[str] | None = None) -> int:
             continue
         {"rod": rod_part, "rod601": fine_rod_part, "vesicle": vesicle_part,
          "parareal": parareal_part, "parareal601": fine_parareal_part,
-         "best_serial": best_serial_part}[part]()
+         "best_serial": best_serial_part,
+         "short1201": lambda: short_part(list(SHORT_ROD1201))}[part]()
         figure()
     return 0
 

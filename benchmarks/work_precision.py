@@ -6,9 +6,12 @@ Run from the repository root::
 
     PYTHONPATH=. python benchmarks/work_precision.py
 
-Writes ``docs/figures/stiff/work_precision_{rod301,rod601,vesicle}.png``. The CPU axis is each
-run's CPU time over that of RK2 just below forward Euler's limit measured in the same process
-(the row ``rk2`` of ``adaptive_rod301.json``; the RK2 row of largest step in the files of
+It also prints, per ``auto`` run, the cheapest fixed-step run of the same problem reaching its
+error and auto's CPU over that run's (:func:`auto_against_fixed`).
+
+Writes ``docs/figures/stiff/work_precision_{rod301,rod601,rod1201,vesicle}.png``. The CPU axis
+is each run's CPU time over that of RK2 just below forward Euler's limit measured in the same
+process (the entry ``rk2`` of ``adaptive.py``'s files; the RK2 row of largest step in the files of
 ``stiff.py``), so that files measured in different processes share one axis.
 """
 
@@ -17,6 +20,7 @@ from __future__ import annotations
 import json
 import math
 import pathlib
+import textwrap
 from typing import Any
 
 from parastokes import integrate
@@ -31,10 +35,18 @@ PROBLEMS: dict[str, tuple[tuple[str, ...], str, str]] = {
     "rod301": (("short_rod301.json", "adaptive_rod301.json"),
                "rod M = 301, ε = 1 μm, above the wall, T = 0.005 s",
                "file 1: benchmarks/stiff.py --parts short; file 2: benchmarks/adaptive.py"),
-    "rod601": (("short_rod601.json",), "rod M = 601, ε = 0.5 μm, above the wall, T = 0.005 s",
-               "benchmarks/stiff.py --parts short"),
-    "vesicle": (("vesicle.json",), "vesicle, 642 points, shear 0.1, κ = 0.1, T = 10",
-                "benchmarks/stiff.py --parts vesicle"),
+    "rod601": (("short_rod601.json", "adaptive_rod601.json"),
+               "rod M = 601, ε = 0.5 μm, above the wall, T = 0.005 s",
+               "file 1: benchmarks/stiff.py --parts short; "
+               "file 2: benchmarks/adaptive.py --problem rod601"),
+    "rod1201": (("short_rod1201.json", "adaptive_rod1201.json"),
+                "rod M = 1201, ε = 0.25 μm, above the wall, T = 2.5e-4 s",
+                "file 1: benchmarks/stiff.py --parts short1201; "
+                "file 2: benchmarks/adaptive.py --problem rod1201"),
+    "vesicle": (("vesicle.json", "adaptive_vesicle.json"),
+                "vesicle, 642 points, shear 0.1, κ = 0.1, T = 10",
+                "file 1: benchmarks/stiff.py --parts vesicle; "
+                "file 2: benchmarks/adaptive.py --problem vesicle"),
 }
 
 
@@ -86,6 +98,46 @@ def series(files: list[dict[str, Any]]) -> dict[str, dict[str, list[tuple[float,
     return out
 
 
+def _fixed_runs(files: list[dict[str, Any]]) -> list[tuple[float, float, str]]:
+    """``(cpu ratio, error, "SCHEME at DT s")`` of every fixed-step run of ``files`` with a
+    finite, positive error (``adaptive.py``'s ``rk2`` entry included)."""
+    out = []
+    for data in files:
+        base = explicit_cpu(data)
+        rows = data["rows"] + ([dict(data["rk2"], scheme="rk2")] if "rk2" in data else [])
+        out += [(r["cpu"] / base, r["error"], f"{r['scheme']} at {r['dt']:g} s") for r in rows
+                if family(r).startswith("fixed") and math.isfinite(r["error"]) and r["error"] > 0]
+    return out
+
+
+def auto_against_fixed(files: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Per ``auto`` run of ``files``: its rtol, error, CPU ratio, the cheapest fixed-step run
+    (by CPU ratio) whose error is at most auto's (None where none is), auto's CPU over that
+    run's and its error over its rtol: the target's "within 1.3x of the best fixed choice,
+    error within 3x of the tolerance"."""
+    fixed = _fixed_runs(files)
+    out = []
+    for data in files:
+        base = explicit_cpu(data)
+        for r in data["rows"]:
+            if r["scheme"] != "auto":
+                continue
+            cpu = r["cpu"] / base
+            best = min((f for f in fixed if f[1] <= r["error"]), default=None)
+            out.append({"rtol": r["rtol"], "error": r["error"], "cpu": cpu,
+                        "best": best and best[2], "best_cpu": best and best[0],
+                        "over_best": best and cpu / best[0],
+                        "error_over_rtol": r["error"] / r["rtol"]})
+    return out
+
+
+def skipped(files: list[dict[str, Any]]) -> list[str]:
+    """``"SCHEME at rtol R"`` for each run the files record as not run (``adaptive.py``'s
+    ``skipped``: its predicted CPU time was above the cap)."""
+    return [f"{s['scheme']} at rtol {s['rtol']:g}" for data in files
+            for s in data.get("skipped", [])]
+
+
 def draw(name: str) -> pathlib.Path:
     """The diagram of problem ``name`` of :data:`PROBLEMS`, saved as a PNG; returns its path."""
     import matplotlib
@@ -102,7 +154,11 @@ def draw(name: str) -> pathlib.Path:
             ax.loglog(*zip(*points, strict=True), style, label=f"{fam}: {label}",
                       color="black" if fam == "auto" else next(colors),
                       markersize=10 if fam == "auto" else 6)
-    ax.set_xlabel("CPU time / RK2 at the explicit limit (same process)")
+    label = "CPU time / RK2 at the explicit limit (same process)"
+    if skipped(data):
+        label += "\n" + textwrap.fill("not run (predicted CPU above the cap): "
+                                      + ", ".join(skipped(data)), 110)
+    ax.set_xlabel(label, fontsize=9)
     ax.set_ylabel("error at T (relative)")
     ax.set_title(f"{title}\n{command}", fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
@@ -115,8 +171,13 @@ def draw(name: str) -> pathlib.Path:
 
 
 def main() -> int:
-    for name in PROBLEMS:
+    for name, (files, _, _) in PROBLEMS.items():
         print(draw(name))
+        for a in auto_against_fixed([json.loads((OUT / f).read_text()) for f in files]):
+            best = (f"{a['best']} ({a['best_cpu']:.3g}): {a['over_best']:.2f}x" if a["best"]
+                    else "no fixed run reaches it")
+            print(f"  auto rtol {a['rtol']:g}: error {a['error']:.2g} "
+                  f"({a['error_over_rtol']:.2g} x rtol), CPU {a['cpu']:.3g}; best fixed {best}")
     return 0
 
 

@@ -72,3 +72,23 @@ def test_every_problem_file_is_readable(wp):
             data = json.loads((wp.OUT / name).read_text())
             assert wp.explicit_cpu(data) > 0
             assert any(wp.series([data]).values())
+
+
+def test_skipped_runs_are_named(wp):
+    files = [STIFF, {**ADAPTIVE, "skipped": [{"scheme": "rk45", "rtol": 1e-8, "cap": 300.0},
+                                              {"scheme": "auto", "rtol": 1e-7, "cap": 300.0}]}]
+    assert wp.skipped(files) == ["rk45 at rtol 1e-08", "auto at rtol 1e-07"]
+    assert wp.skipped([STIFF]) == []
+
+
+def test_auto_against_the_cheapest_fixed_run_reaching_its_error(wp):
+    got = wp.auto_against_fixed([STIFF, ADAPTIVE])
+    # auto at rtol 1e-3: 3e-3 at 1.0/4.0 of its file's RK2; the fixed runs with error <= 3e-3:
+    # euler (0.5), ros34pw2 (1.5), the rk2 rows (1.0, 4.0) and adaptive.py's rk2 entry (1.0).
+    assert got[0] == {"rtol": 1e-3, "error": 3e-3, "cpu": 0.25, "best": "euler at 1e-05 s",
+                      "best_cpu": 0.5, "over_best": 0.5, "error_over_rtol": 3.0}
+    # An error of 0: no fixed run reaches it.
+    assert got[1]["best"] is None and got[1]["over_best"] is None
+    # adaptive.py's own RK2 at the limit counts as a fixed run.
+    alone = wp.auto_against_fixed([ADAPTIVE])[0]
+    assert (alone["best"], alone["best_cpu"], alone["over_best"]) == ("rk2 at 1e-05 s", 1.0, 0.25)
