@@ -421,7 +421,7 @@ def test_a_target_the_reference_cannot_judge_is_refused():
     found = Baseline("k", 1e-6, 0.0, 1.0, 1.0, reference, 0.9e-8, 1e-5, [], 1.0, 1.0)
     resolvable(found)  # η*/10 = 1e-7 is 11 times F's 0.9e-8
     found.fine_error = 1.1e-8  # 9 times: refused
-    with pytest.raises(PlanError, match="F's own error"):
+    with pytest.raises(PlanError, match="reference's own error"):
         resolvable(found)
     found.fine_error = None  # F with adaptive steps: not estimated, not checked
     resolvable(found)
@@ -529,3 +529,39 @@ def test_a_search_cut_by_its_budget_says_so():
     text = cut_short(cut)
     assert "stopped at its budget with 2 candidate(s) not measured (rk2 fixed, rk4 fixed)" in text
     assert "overstated" in text and "--budget" in text
+
+
+def test_refinements_halve_f_until_it_can_judge_the_target():
+    """F's step is halved until its own error, falling like the step to the order, lies
+    RESOLUTION times below η*/F_FACTOR: goal 1e-10 for η* = 1e-8."""
+    assert baseline.refinements(1e-10, 1e-8, 2) == 0  # there already
+    assert baseline.refinements(1.01e-10, 1e-8, 2) == 1
+    assert baseline.refinements(4e-10, 1e-8, 2) == 1  # one halving: / 4 at order 2
+    assert baseline.refinements(4.1e-10, 1e-8, 2) == 2
+    assert baseline.refinements(6.28e-9, 1e-8, 2) == 3  # / 64 needed, / 8 in the step
+    assert baseline.refinements(1e-3, 1e-8, 1) == baseline.MOST_HALVINGS
+    assert baseline.refinements(math.nan, 1e-8, 2) == 0  # (no estimate: nothing to refine)
+
+
+def test_an_f_too_coarse_for_the_target_is_refined_into_the_reference(tmp_path):
+    """A configuration whose F is itself near the target (as experiments/best_serial/'s are)
+    is planned against F's scheme at a finer step, F becoming an ordinary measured row whose
+    CPU time stays F's in the cache."""
+    source = tmp_path / "rod.toml"
+    source.write_text(CONFIG.replace("dt = 1e-6", "dt = 4e-6"))
+    cfg, _ = config.load(source)
+    system = cfg.model.build(1)
+    fine = integrate.Propagator(system, "rk2", 4e-6)
+    found = baseline.search(system, system.initial_state(), 0.0, cfg.time.t1, fine, 1e-8, "k",
+                            budget=3.0)
+    halvings = round(math.log2(4e-6 / found.reference.dt))
+    assert found.reference.dt == 4e-6 / 2**halvings and halvings >= 1
+    assert found.fine_error <= 1e-8 / (baseline.F_FACTOR * baseline.RESOLUTION)
+    resolvable(found)  # the refined reference can judge it
+    own = found.own
+    assert own in found.runs and (own.scheme, own.dt, own.status) == ("rk2", 4e-6, "measured")
+    assert 0.0 < own.error < 1e-6 and own.cpu_seconds > 0.0
+    entry = found.as_dict()
+    assert entry["fine"] == own.as_dict()  # best_known's F CPU is F's, not the reference's
+    again = Baseline.from_dict(json.loads(json.dumps(entry)))
+    assert again.own == own and again.reference == found.reference

@@ -63,6 +63,11 @@ __all__ = ["F_FACTOR", "Baseline", "Run", "cached", "candidates", "cheapest", "c
 F_FACTOR = 10.0
 #: The reference run takes at most this share of the search's budget (sets T_s).
 REFERENCE_SHARE = 0.25
+#: The reference's own error must lie this many times below η*/F_FACTOR (``plan`` refuses a
+#: target it cannot judge: ``planning.command.resolvable``).
+RESOLUTION = 10.0
+#: Most halvings of F's step for a reference that can judge η* (:func:`refinements`).
+MOST_HALVINGS = 4
 #: Default budget of the search, CPU seconds.
 DEFAULT_BUDGET = 120.0
 #: Most candidate runs measured.
@@ -247,6 +252,9 @@ class Baseline:
     spent: float
     stopped: str | None = None
     notes: list[str] = field(default_factory=list)
+    #: The configuration's F as a measured row, where the reference is F's scheme at a finer
+    #: step (:func:`refinements`); None where the reference is F itself.
+    own: Run | None = None
 
     def best(self, target: float | None = None) -> Run:
         """The fastest run reaching ``target`` (default η*); F itself when none does."""
@@ -267,7 +275,7 @@ class Baseline:
         best = self.best()
         return {
             "problem": self.key, "target": self.target,
-            "fine": self.reference.as_dict(), "fine_error": self.fine_error,
+            "fine": (self.own or self.reference).as_dict(), "fine_error": self.fine_error,
             "interval": {"t0": self.t0, "t1": self.t1, "measured_t1": self.measured_t1,
                          "cpu_scale": (self.t1 - self.t0) / (self.measured_t1 - self.t0)},
             "euler_limit": self.euler_limit,
@@ -286,9 +294,22 @@ class Baseline:
         reference = next(r for r in rows if r.status == "reference")
         runs = [r for r in rows if r is not reference] + [Run(**r) for r in data["skipped"]]
         interval = data["interval"]
+        fine = Run(**data["fine"])
+        own = next((r for r in runs if (r.scheme, r.dt, r.rtol, r.status) ==
+                    (fine.scheme, fine.dt, fine.rtol, "measured")), None)
         return cls(data["problem"], float(data["target"]), interval["t0"], interval["t1"],
                    interval["measured_t1"], reference, data["fine_error"], data["euler_limit"],
-                   runs, data["budget"], data["spent"], data["stopped"], data["notes"])
+                   runs, data["budget"], data["spent"], data["stopped"], data["notes"], own)
+
+
+def refinements(error: float, target: float, order: int) -> int:
+    """How many halvings of F's step bring its own ``error`` (Richardson's estimate, falling
+    like the step to the scheme's ``order``) to at most η*/(:data:`F_FACTOR` :data:`RESOLUTION`)
+    for ``target`` = η*: 0 when it is there already, at most :data:`MOST_HALVINGS`."""
+    goal = target / (F_FACTOR * RESOLUTION)
+    if not error > goal:
+        return 0
+    return min(MOST_HALVINGS, math.ceil(math.log2(error / goal) / order))
 
 
 def search(system: System, x0: np.ndarray, t0: float, t1: float, fine: integrate.Propagator,
@@ -306,27 +327,52 @@ def search(system: System, x0: np.ndarray, t0: float, t1: float, fine: integrate
     integrate.run(system, x0, t0, t0 + probe_steps * fine.dt, fine.scheme, fine.dt,
                   rtol=fine.rtol, atol=fine.atol)
     per_time = max(clock() - start, 1e-9) / (probe_steps * fine.dt)
-    span = min(t1 - t0, REFERENCE_SHARE * budget / per_time)
-    span = max(span, min(t1 - t0, probe_steps * fine.dt))
+
+    def reference_run(step: float) -> tuple[float, np.ndarray, float]:
+        """(T_s - t0, the state at T_s, CPU) of F's scheme at ``step`` over the longest span
+        whose run costs at most :data:`REFERENCE_SHARE` of the budget."""
+        cost = per_time * fine.dt / step
+        length = max(min(t1 - t0, REFERENCE_SHARE * budget / cost),
+                     min(t1 - t0, probe_steps * fine.dt))
+        begin = clock()
+        state = integrate.run(system, x0, t0, t0 + length, fine.scheme, step, rtol=fine.rtol,
+                              atol=fine.atol).state
+        return length, state, clock() - begin
+
+    span, reference_state, reference_cpu = reference_run(fine.dt)
+    fine_error, step, own = None, fine.dt, None
+    name = integrate.lookup(fine.scheme).name
+    if fine.rtol is None:  # Richardson's estimate (as tune's pilot)
+        fine_error = own_error(system, x0, t0, t0 + span, fine.scheme, fine.dt, reference_state)
+        halvings = refinements(fine_error, target, integrate.scheme_order(fine.scheme))
+        if halvings:  # F cannot judge η*/F_FACTOR: its scheme at a finer step is the reference
+            step = fine.dt / 2**halvings
+            notes.append(f"the configuration's F ({name} at {fine.dt:g}) has its own error "
+                         f"{fine_error:.3g}, not {RESOLUTION:g} times below η*/{F_FACTOR:g}: "
+                         f"the reference is {name} at {step:g} (F's step / {2**halvings}), F "
+                         "a measured row")
+            span, reference_state, reference_cpu = reference_run(step)
+            fine_error = own_error(system, x0, t0, t0 + span, fine.scheme, step,
+                                   reference_state)
+            begin = clock()
+            state = integrate.run(system, x0, t0, t0 + span, fine.scheme, fine.dt).state
+            own = Run(name, fine.dt, None, "F", "measured", relative_change(
+                state, reference_state, system.positions), clock() - begin,
+                note="the configuration's F")
+    else:
+        notes.append("F takes adaptive steps: its own error is not estimated")
     measured_t1 = t0 + span
     scale = (t1 - t0) / span
+    if own is not None:
+        own.cpu_seconds = (own.cpu_measured or 0.0) * scale
     if measured_t1 < t1:
         notes.append(f"errors measured at T_s = {measured_t1:.4g} (the reference run over the "
                      f"whole T = {t1:g} would exceed {REFERENCE_SHARE:.0%} of the budget); CPU "
                      f"times scaled by T/T_s = {scale:.3g}")
-    start = clock()
-    reference_state = integrate.run(system, x0, t0, measured_t1, fine.scheme, fine.dt,
-                                    rtol=fine.rtol, atol=fine.atol).state
-    reference_cpu = clock() - start
-    fine_error = None
-    if fine.rtol is None:  # Richardson's estimate (as tune's pilot)
-        fine_error = own_error(system, x0, t0, measured_t1, fine.scheme, fine.dt,
-                               reference_state)
-    else:
-        notes.append("F takes adaptive steps: its own error is not estimated")
-    reference = Run(integrate.lookup(fine.scheme).name, fine.dt, fine.rtol, "F", "reference",
+    reference = Run(name, step, fine.rtol, "F", "reference",
                     0.0 if fine_error is None else fine_error, reference_cpu,
-                    reference_cpu * scale, "the configuration's F (the reference)")
+                    reference_cpu * scale, "the configuration's F (the reference)" if own is None
+                    else f"{name} at F's step / {round(fine.dt / step)} (the reference)")
     euler_limit = None
     for lowest in (fine.dt, fine.dt / 10, fine.dt / 100):  # F's step may lie above Euler's limit
         try:
@@ -379,8 +425,10 @@ def search(system: System, x0: np.ndarray, t0: float, t1: float, fine: integrate
     runs = [r for r in runs if (r.scheme, r.dt, r.rtol) != (fine.scheme, fine.dt, fine.rtol)]
     stopped = choose_runs(runs, measure, target / F_FACTOR,
                           lambda: clock() - started > budget)
+    if own is not None:
+        runs.append(own)
     return Baseline(key, target, t0, t1, measured_t1, reference, fine_error, euler_limit, runs,
-                    budget, clock() - started, stopped, notes)
+                    budget, clock() - started, stopped, notes, own)
 
 
 def cached(path: str | os.PathLike, key: str, target: float) -> Baseline | None:

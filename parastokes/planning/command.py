@@ -21,14 +21,12 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from .baseline import DEFAULT_BUDGET, F_FACTOR, Baseline, Run
+from .baseline import DEFAULT_BUDGET, F_FACTOR, RESOLUTION, Baseline, Run
 
 __all__ = ["PlanError", "add_arguments", "main", "plan_config", "prepare", "resolvable"]
 
 #: Share of the budget given to the serial search when the Parareal route is searched too.
 SERIAL_SHARE = 0.5
-#: F's own error must lie this many times below η*/F_FACTOR (:func:`resolvable`).
-RESOLUTION = 10.0
 
 
 class PlanError(ValueError):
@@ -80,15 +78,17 @@ def replaceable(cfg: Any) -> None:
 
 
 def resolvable(found: Baseline) -> None:
-    """Refuse (PlanError) a target the reference cannot judge: F's own error (Richardson's
-    estimate at T_s) must lie at least :data:`RESOLUTION` times below η*/F_FACTOR, the accuracy
-    F for Parareal is chosen at."""
+    """Refuse (PlanError) a target the reference cannot judge: the reference's own error
+    (Richardson's estimate at T_s; the reference is F, or F's scheme at F's step halved up to
+    ``baseline.MOST_HALVINGS`` times where F is not accurate enough) must lie at least
+    :data:`RESOLUTION` times below η*/F_FACTOR, the accuracy F for Parareal is chosen at."""
     goal = found.target / F_FACTOR
     if found.fine_error is not None and found.fine_error * RESOLUTION > goal:
         raise PlanError(
             f"--target: η*/{F_FACTOR:g} = {goal:.3g} is not {RESOLUTION:g} times above the "
-            f"configuration's F's own error (about {found.fine_error:.2g}), against which "
-            "every run is measured: raise --target, or reduce fine.dt (a more accurate F)")
+            f"reference's own error (about {found.fine_error:.2g}; {found.reference.label()}, "
+            "against which every run is measured): raise --target, or reduce fine.dt (a more "
+            "accurate F)")
 
 
 def cut_short(found: Baseline) -> str | None:
