@@ -355,6 +355,9 @@ def resolve(cfg: Config, source: str = "") -> Resolved:
     if plane:
         issues.append(("output.flow_plane", plane))
 
+    if cfg.parareal.correction == "secant" and getattr(cfg.coarse, "kind", None) == "hodmd":
+        issues.append(("parareal.correction", "'secant' adds to G(new) - G(old), which the hodmd "
+                       "coarse solver replaces by its own correction: use \"classical\""))
     workers = _workers(cfg, coarse.n_auxiliary, issues, warnings)
     if issues:
         raise ConfigError(issues, source)

@@ -119,6 +119,12 @@ class Parareal(_Section):
         "every fine solve, coarse step and auxiliary solve starts as soon as its inputs exist "
         "(same iterates bit for bit; docs/parareal.md).",
     )
+    correction: Literal["classical", "secant"] = Field(
+        "classical",
+        description="classical: eq. 11; secant: eq. 11 plus a secant estimate of (F - G)' "
+        "learned from each slice's previous iterates (fewer iterations where G misses a slow "
+        "mode; not with the hodmd coarse solver; docs/parareal.md, \"Learned corrections\").",
+    )
 
 
 class Execution(_Section):

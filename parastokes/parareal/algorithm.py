@@ -33,6 +33,7 @@ from ..integrate import BlowUpError
 from ..parallel import SerialExecutor, TaskError, run_labelled
 from . import checkpoint as ckpt
 from . import options
+from .learned import CORRECTIONS, SecantHistory
 from .metrics import Positions, relative_change
 from .options import Checkpoint, Reporting, Stopping
 from .result import PararealResult
@@ -208,21 +209,30 @@ def correct(
     project: Callable[[np.ndarray], np.ndarray] | None,
     where: tuple[int, int, float] | None = None,
     difference: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
+    secant: tuple[SecantHistory, np.ndarray, np.ndarray] | None = None,
 ) -> np.ndarray:
     """Eq. 11: X_n^k = F(X_{n-1}^{k-1}) + (G(X_{n-1}^k) - G(X_{n-1}^{k-1})), then ``project``.
 
     ``difference(new, old)`` replaces G(new) - G(old) for a tracing coarse solver
-    (:class:`~parastokes.core.contracts.TracingCoarse`, :func:`correction_of`). Both schedules
-    correct through this one function, so their iterates agree bit for bit. With ``where = (n, k,
-    T_n)``, a corrected state that ``project`` rejects (a ValueError: e.g. a rod's frame made
-    singular by a correction far larger than the state) is a numerical blow-up: a :class:`TaskError`
-    labelled by :func:`correction_label` around a :class:`~parastokes.integrate.BlowUpError`
-    whose last good state is F(X_{n-1}^{k-1}).
+    (:class:`~parastokes.core.contracts.TracingCoarse`, :func:`correction_of`). ``secant`` =
+    (history, X_{n-1}^k, X_{n-1}^{k-1}) adds the secant term of the learned correction
+    (:mod:`.learned`; ``where`` = (n, k, T_n) required). Both schedules correct through this one
+    function, so their iterates agree bit for bit. With ``where``, a corrected state that
+    ``project`` rejects (a ValueError: e.g. a rod's frame made singular by a correction far larger
+    than the state) is a numerical blow-up: a :class:`TaskError` labelled by
+    :func:`correction_label` around a :class:`~parastokes.integrate.BlowUpError` whose last good
+    state is F(X_{n-1}^{k-1}).
     """
     if difference is None:
         change = coarse_value - previous_coarse
     else:
         change = difference(coarse_value, previous_coarse)
+    if secant is not None:
+        assert where is not None  # (the secant term is slice n's of iteration k)
+        history, new_input, old_input = secant
+        change = change + history.correction(
+            where[0], where[1], new_input, old_input, fine_value, previous_coarse
+        )
     corrected = fine_value + change
     if project is None:
         return corrected
@@ -423,8 +433,10 @@ def _iterate(
     project: Callable[[np.ndarray], np.ndarray] | None,
     origin: float,
     memo: SolveMemo | None = None,
+    secant: SecantHistory | None = None,
 ) -> None:
-    """Iteration k = progress.iteration + 1 of Algorithm 1 (steps 9-18).
+    """Iteration k = progress.iteration + 1 of Algorithm 1 (steps 9-18); with ``secant``, the
+    learned correction (:mod:`.learned`).
 
     ``progress`` is updated only once the iteration has completed, so an error or an interrupt
     part-way leaves it (and the checkpoint written from it) at iteration k - 1; the solves that
@@ -455,6 +467,7 @@ def _iterate(
         states[n] = correct(
             fine_values[n - k], value, coarse_values[n - 1], project, (n, k, float(times[n])),
             correction_of(coarse, times[n - 1], times[n], k),
+            None if secant is None else (secant, states[n - 1], progress.states[n - 1]),
         )
         coarse_values[n - 1] = value
     serial_time = time.perf_counter() - start
@@ -518,6 +531,17 @@ class Bookkeeping:
         self.memo = None if checkpoint is None else SolveMemo(
             memo_directory(checkpoint.path), key
         )
+        #: the learned correction's data, saved with every checkpoint (None: eq. 11)
+        self.secant: SecantHistory | None = None
+
+    def save(self, progress: ckpt.Progress) -> None:
+        """Write the checkpoint of ``progress`` (with the learned correction's data)."""
+        assert self.checkpoint is not None and self.memo is not None  # (made together)
+        if self.secant is not None:
+            progress.extra = self.secant.to_arrays()
+        ckpt.save(self.checkpoint, progress, self.key)
+        self.saved = progress.iteration
+        self.memo.forget(progress.iteration)
 
     @property
     def origin(self) -> float:
@@ -535,10 +559,7 @@ class Bookkeeping:
         if progress.timings.coarse_steps:
             logger.info("parareal k=0 adaptive coarse steps %s", progress.timings.coarse_steps[0])
         if self.checkpoint is not None:
-            assert self.memo is not None  # (made with the checkpoint)
-            ckpt.save(self.checkpoint, progress, self.key)
-            self.saved = 0
-            self.memo.forget(0)
+            self.save(progress)
 
     def iteration_done(self, progress: ckpt.Progress, previous_final: np.ndarray) -> str | None:
         """Iteration ``progress.iteration`` has completed (X^{k-1}_N was ``previous_final``):
@@ -564,10 +585,7 @@ class Bookkeeping:
             logger.info("parareal k=%d adaptive coarse steps %s", progress.iteration,
                         progress.timings.coarse_steps[progress.iteration])
         if self.checkpoint is not None:
-            assert self.memo is not None  # (made with the checkpoint)
-            ckpt.save(self.checkpoint, progress, self.key)
-            self.saved = progress.iteration
-            self.memo.forget(progress.iteration)
+            self.save(progress)
         if self.reporting.on_iteration is not None:
             self.reporting.on_iteration(
                 IterationReport(
@@ -596,6 +614,8 @@ class Problem:
     times: np.ndarray
     executor: Executor
     project: Callable[[np.ndarray], np.ndarray] | None
+    #: the learned correction's data (``correction="secant"``), or None: eq. 11
+    secant: SecantHistory | None = None
 
 
 def _run_standard(
@@ -612,10 +632,21 @@ def _run_standard(
     while reason is None:
         previous_final = progress.states[-1]
         _iterate(
-            progress, p.fine, p.coarse, p.times, p.executor, p.project, book.origin, book.memo
+            progress, p.fine, p.coarse, p.times, p.executor, p.project, book.origin, book.memo,
+            p.secant,
         )
         reason = book.iteration_done(progress, previous_final)
     return progress, reason
+
+
+def _check_correction(correction: str, coarse: PropagatorLike) -> None:
+    """Refuse an unknown correction, and the secant correction with a tracing coarse solver
+    (whose correction is not G(new) - G(old))."""
+    if correction not in CORRECTIONS:
+        raise ValueError(f"correction must be one of {CORRECTIONS}, got {correction!r}")
+    if correction == "secant" and is_tracing(coarse):
+        raise ValueError("correction 'secant' needs a coarse solver whose correction is "
+                         "G(new) - G(old), not a tracing one: use correction 'classical'")
 
 
 #: The schedules of :func:`run`.
@@ -644,6 +675,7 @@ def run(
     *,
     stopping: Stopping | None = None,
     reporting: Reporting | None = None,
+    correction: str = "classical",
 ) -> PararealResult:
     """Parareal (Algorithm 1): the initial serial sweep eq. 9, then iterations of eqs. 10-11.
 
@@ -680,6 +712,10 @@ def run(
     schedule
         ``"standard"`` (Algorithm 1) or ``"pipelined"`` (:mod:`~.pipelined`): the same iterates,
         bit for bit.
+    correction
+        ``"classical"`` (eq. 11) or ``"secant"``: eq. 11 plus a secant estimate of (F - G)' from
+        the slice's previous iterates (:mod:`~.learned`; its data are saved with the checkpoint;
+        not with a tracing coarse solver).
 
     Returns
     -------
@@ -731,6 +767,7 @@ def run(
     _validate(fine, coarse, x0, t0, t1, n_slices, reference)
     if schedule not in SCHEDULES:
         raise ValueError(f"schedule must be one of {SCHEDULES}, got {schedule!r}")
+    _check_correction(correction, coarse)
     times = time_points(t0, t1, n_slices)
     if schedule == "standard":  # (pipelined: the auxiliary solves are tasks of its own)
         coarse = _with_executor(coarse, executor, allow_oversubscribe)
@@ -739,6 +776,8 @@ def run(
     key = ckpt.fingerprint(
         x0, t0, t1, n_slices, reference, None if saving is None else saving.identity
     )
+    if correction != "classical":  # (a checkpoint of another correction is refused)
+        key["correction"] = correction
     book = Bookkeeping(stopping, saving, reporting, reference, positions, key, session_start)
 
     resume = saving is not None and saving.resume
@@ -760,7 +799,9 @@ def run(
 
         strategy = run_pipelined
     try:
-        problem = Problem(fine, coarse, x0, times, pool, project)
+        if correction == "secant":  # (resumed: the training data saved with the checkpoint)
+            book.secant = SecantHistory.from_arrays({} if progress is None else progress.extra)
+        problem = Problem(fine, coarse, x0, times, pool, project, book.secant)
         progress, reason = strategy(progress, problem, book)
     except (TaskError, KeyboardInterrupt) as exc:
         memo, saved_to = book.memo, book.checkpoint

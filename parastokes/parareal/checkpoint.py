@@ -46,6 +46,8 @@ class Progress:
     increments: list[float] = field(default_factory=list)
     errors: list[float] | None = None
     timings: Timings = field(default_factory=Timings)
+    #: further arrays saved with it (the learned correction's training data, :mod:`.learned`)
+    extra: dict[str, np.ndarray] = field(default_factory=dict)
 
 
 class CheckpointMismatch(ValueError):
@@ -91,7 +93,8 @@ def differences(saved: Mapping[str, Any], now: Mapping[str, Any]) -> list[tuple[
 
 
 def save(path: str | os.PathLike, progress: Progress, key: Mapping[str, Any]) -> None:
-    """Write ``progress`` atomically to ``path`` (an ``.npz`` file), tagged with ``key``."""
+    """Write ``progress`` atomically to ``path`` (an ``.npz`` file), tagged with ``key``, with
+    its ``extra`` arrays."""
     meta = {
         "format": _FORMAT,
         "key": dict(key),
@@ -100,7 +103,8 @@ def save(path: str | os.PathLike, progress: Progress, key: Mapping[str, Any]) ->
         "errors": progress.errors,
         "timings": progress.timings.to_dict(),
     }
-    write_npz(path, meta, states=progress.states, coarse_values=progress.coarse_values)
+    write_npz(path, meta, states=progress.states, coarse_values=progress.coarse_values,
+              **progress.extra)
 
 
 def load(path: str | os.PathLike, key: Mapping[str, Any]) -> Progress | None:
@@ -131,6 +135,8 @@ def load(path: str | os.PathLike, key: Mapping[str, Any]) -> Progress | None:
             increments=list(meta["increments"]),
             errors=meta["errors"],
             timings=Timings(**meta["timings"]),
+            extra={name: value for name, value in arrays.items()
+                   if name not in ("states", "coarse_values")},
         )
     except (KeyError, TypeError, ValueError) as error:
         raise CorruptFileError(path, f"an incomplete checkpoint ({error!r})") from None

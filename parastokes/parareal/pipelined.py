@@ -58,6 +58,7 @@ from .algorithm import (
     step_of,
     stop_reason,
 )
+from .learned import SecantHistory
 from .timings import Timings
 from .transfer import take_step_counts
 
@@ -190,6 +191,9 @@ class _Pipeline:
     # hundreds of kept steps (each applied value enables the next slice's tasks).
     replay: deque = field(default_factory=deque)
     guessed: bool = False  # X^0 came from the coarse solver's initial_guess
+    # the learned correction's data (None: eq. 11); X_n^k then waits for X_n^{k-1}, whose
+    # correction kept slice n's pair of iteration k - 2
+    secant: SecantHistory | None = None
 
     @property
     def n_slices(self) -> int:
@@ -271,7 +275,9 @@ class _Pipeline:
 
     def try_correct(self, n: int, k: int) -> None:
         keys = ((n, k) in self.fine_values, (n, k) in self.coarse_values)
-        if all(keys) and (n, k - 1) in self.coarse_values and (n, k) not in self.x:
+        learned = self.secant is None or self.secant.has(n, k - 2)
+        if (all(keys) and (n, k - 1) in self.coarse_values and (n, k) not in self.x
+                and learned):
             value = correct(
                 self.fine_values[n, k],
                 self.coarse_values[n, k],
@@ -279,8 +285,12 @@ class _Pipeline:
                 self.project,
                 (n, k, float(self.times[n])),
                 correction_of(self.coarse, self.times[n - 1], self.times[n], k),
+                None if self.secant is None else (
+                    self.secant, self.x[n - 1, k], self.x[n - 1, k - 1]),
             )
             self.set_state(n, k, value)
+            if self.secant is not None and n > k + 1:
+                self.try_correct(n, k + 1)  # (it may have waited for this one's pair)
 
     def coarse_done(
         self, n: int, k: int, value: np.ndarray, begin: float, end: float, duration: float,
@@ -510,7 +520,7 @@ def run_pipelined(
             return progress, reason
     workers = _Workers(problem.executor)
     p = problem
-    pipeline = _Pipeline(p.fine, p.coarse, p.times, p.project, book, workers)
+    pipeline = _Pipeline(p.fine, p.coarse, p.times, p.project, book, workers, secant=p.secant)
     try:
         pipeline.start(progress, p.x0)
         reason = pipeline.run()

@@ -86,6 +86,7 @@ def parareal_run(
             allow_oversubscribe=cfg.execution.allow_oversubscribe
             or cfg.execution.executor == "serial",
             schedule=p.schedule,
+            correction=p.correction,
         )
     except Exception as error:
         found = find_blow_up(error)
