@@ -190,3 +190,22 @@ def test_check_refuses_a_bad_correction_in_one_line(text, override, words, tmp_p
     assert len(lines) == 2 and lines[1].strip().startswith("parareal.correction: ")
     assert words in lines[1]
     assert cli.main(["check", str(path)]) == 0  # (the same problem with eq. 11 is valid)
+
+
+def test_a_run_from_a_config_uses_the_correction(tmp_path):
+    import json
+
+    text = small_rod(parareal="max_iterations = 3\ntol = 0.0",
+                     rest='[execution]\nexecutor = "serial"\n[output]\nfigures = false\n'
+                     ).replace("t1 = 0.002", "t1 = 0.0004")
+    path = tmp_path / "rod.toml"
+    path.write_text(text)
+    errors = {}
+    for correction in ("classical", "secant"):
+        out = tmp_path / correction
+        assert cli.main(["run", str(path), "--out", str(out), "-q", "--set",
+                         f'parareal.correction="{correction}"']) == 0
+        errors[correction] = json.loads((out / "summary.json").read_text())["errors"]
+    # iteration 1 has no steps to learn from (eq. 11 both); from iteration 2 the secant's
+    assert errors["secant"][0] == errors["classical"][0]
+    assert errors["secant"][1:] != errors["classical"][1:]
