@@ -5,6 +5,8 @@ same iterates bit for bit, a resumed run the uninterrupted one's, and bad settin
 
 from __future__ import annotations
 
+import threading
+import time
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -147,6 +149,33 @@ def test_both_schedules_give_the_same_iterates_bit_for_bit(problem):
     assert pipelined.errors == standard.errors and pipelined.increments == standard.increments
     classical, _ = _errors("classical", problem, 8, 5)
     assert classical.errors[1:] != standard.errors[1:]  # (the secant term changed something)
+
+
+class SlowFirstSolve:
+    """F, whose first solve of slice ``n`` (iteration 1) takes ``seconds`` longer: the pipelined
+    schedule then has X_n^2's inputs before X_n^1's."""
+
+    def __init__(self, fine, times, n: int, seconds: float) -> None:
+        self.fine, self.start, self.seconds = fine, times[n - 1], seconds
+        self.slept = threading.Lock()
+
+    def __call__(self, t_start: float, t_end: float, x: np.ndarray) -> np.ndarray:
+        if t_start == self.start and self.slept.acquire(blocking=False):
+            time.sleep(self.seconds)
+        return self.fine(t_start, t_end, x)
+
+
+def test_the_pipelined_schedule_forms_a_slice_s_iterates_in_order():
+    problem, x0 = Logistic(3.0), np.array([0.1, 0.4])
+    fine, coarse = Stepper(problem, 1e-2, order=4), Stepper(problem, 0.1, order=1)
+    times = parareal.time_points(T0, T1, 6)
+    args = dict(tol=0.0, max_iterations=4, correction="secant")
+    standard = parareal.run(fine, coarse, x0, T0, T1, 6, **args)
+    slow = SlowFirstSolve(fine, times, 4, 0.5)
+    pipelined = parareal.run(slow, coarse, x0, T0, T1, 6, executor=Pool(6),
+                             schedule="pipelined", **args)
+    assert slow.slept.locked()  # (the slow solve ran)
+    np.testing.assert_array_equal(pipelined.states, standard.states)
 
 
 @pytest.mark.parametrize("schedule", ["standard", "pipelined"])
