@@ -12,7 +12,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import pytest
 from configs import small_rod
-from odes import LinearODE, Logistic, Stepper, oscillator
+from odes import LinearODE, Logistic, Recording, Stepper, oscillator
 from test_coarse_hodmd import body_config
 
 from parastokes import cli, parareal
@@ -198,11 +198,37 @@ def test_a_resumed_run_gives_the_uninterrupted_iterates(schedule, tmp_path):
                      **(args | {"correction": "classical"}))
 
 
+class Tracing:
+    """A coarse solver with the tracing members (its correction is its own, not eq. 11's)."""
+
+    def __init__(self, coarse) -> None:
+        self.coarse = coarse
+
+    def __call__(self, t_start: float, t_end: float, x: np.ndarray) -> np.ndarray:
+        return self.coarse(t_start, t_end, x)
+
+    def trace(self, t_start: float, t_end: float, x: np.ndarray, k: int) -> np.ndarray:
+        return self.coarse(t_start, t_end, x)
+
+    def end_state(self, t_start: float, t_end: float, trace: np.ndarray) -> np.ndarray:
+        return trace
+
+    def correction(self, t_start, t_end, new, old, k) -> np.ndarray:
+        return new - old
+
+
 def test_bad_corrections_are_refused_before_any_solve():
     problem = Logistic(3.0)
-    fine = Stepper(problem, 1e-2, order=4)
+    fine = Recording(Stepper(problem, 1e-2, order=4))
     with pytest.raises(ValueError, match="correction must be one of"):
         parareal.run(fine, fine, np.array([0.1]), T0, T1, 4, tol=0.0, correction="newton")
+    with pytest.raises(ValueError, match="'secant' needs a coarse solver whose correction is"):
+        parareal.run(fine, Tracing(fine), np.array([0.1]), T0, T1, 4, tol=0.0,
+                     correction="secant")
+    assert not fine.calls
+    run = parareal.run(fine, Tracing(fine), np.array([0.1]), T0, T1, 4, tol=0.0,
+                       max_iterations=1)  # (the tracing solver itself runs, with eq. 11's rule)
+    assert run.iterations == 1
 
 
 @pytest.mark.parametrize("text, override, words", [
