@@ -304,14 +304,39 @@ def measure(name: str, label: str, corrections: Sequence[str], iterations: int,
     return data
 
 
+def table(name: str) -> str:
+    """The markdown table of docs/benchmarks.md ("Learned corrections") from the results."""
+    lines = ["| G | α | correction | η¹ .. η^k at 40 slices | K | pipelined / standard | "
+             "model CPU per correction (s) | G CPU per solve (s) |", "|---" * 8 + "|"]
+    for label, entry in fr._load(fr.OUT / f"learned_{name}.json").items():
+        for correction, row in entry["corrections"].items():
+            errors = ", ".join(f"{e:.1e}" for e in row.get("errors", []))
+            if "blowup" in row:
+                errors += f" (blew up in {row['blowup'].split(':')[0]})"
+            speedups = row.get("speedups")
+            shown = "-" if not speedups else (f"{speedups['pipelined']:.2f} / "
+                                              f"{speedups['standard']:.2f}")
+            lines.append(f"| {label} | {entry['alpha']:.3g} | {correction} | {errors} | "
+                         f"{row.get('K') or '-'} | {shown} | "
+                         f"{fr._g(row.get('model_cpu_per_correction'))} | "
+                         f"{fr._g(row.get('coarse_cpu_per_solve'))} |")
+    return "\n".join(lines)
+
+
 def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("problem", choices=sorted(fr.CANDIDATES))
-    parser.add_argument("label", help="a coarse solver of frontier.py's CANDIDATES[problem]")
+    parser.add_argument("label", nargs="?",
+                        help="a coarse solver of frontier.py's CANDIDATES[problem]")
+    parser.add_argument("--table", action="store_true",
+                        help="print the table of the results so far and stop")
     parser.add_argument("--corrections", nargs="+", choices=CORRECTIONS, default=CORRECTIONS)
     parser.add_argument("--iterations", type=int, default=6)
     parser.add_argument("--workers", type=int, default=2)
     args = parser.parse_args(argv)
+    if args.table:
+        print(table(args.problem))
+        return
     if args.label not in fr.CANDIDATES[args.problem]:
         parser.error(f"no coarse solver {args.label!r} for {args.problem}; choose one of "
                      f"{sorted(fr.CANDIDATES[args.problem])}")
