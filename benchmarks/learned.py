@@ -67,8 +67,13 @@ def _key(kind: str, t0: float, t1: float, x: np.ndarray) -> str:
     return digest.hexdigest()
 
 
-def _init(name: str, label: str) -> None:
-    """Build the problem's F and G once per process."""
+def _init(name: str, label: str, double_lu: bool = False) -> None:
+    """Build the problem's F and G once per process (``double_lu``: the linearly implicit
+    schemes' banded LU in float64 instead of float32, parastokes.stiff.solve.BAND_PRECISION)."""
+    if double_lu:
+        from parastokes.stiff import solve as stiff_solve
+
+        stiff_solve.BAND_PRECISION = np.float64
     _SETUP["setup"] = fr.build(fr.k40_problem(name), fr.CANDIDATES[name][label].coarse)
 
 
@@ -127,13 +132,14 @@ class Run:
     """Parareal (Algorithm 1, standard schedule) on ``name``'s 40 slices with G = ``label`` and
     the given ``correction``; iterates and solves as arrays X[k][n], F[i][n], G[i][n]."""
 
-    def __init__(self, name: str, label: str, correction: str, pool: ProcessPoolExecutor) -> None:
+    def __init__(self, name: str, label: str, correction: str, pool: ProcessPoolExecutor,
+                 double_lu: bool = False) -> None:
         self.problem = fr.k40_problem(name)
         self.correction = correction
         self.pool = pool
         self.times = np.linspace(0.0, self.problem.t1, self.problem.slices + 1)
         self.fine_folder = WORK / name / "F"
-        self.coarse_folder = WORK / name / fr_slug(label)
+        self.coarse_folder = WORK / name / (fr_slug(label) + ("_f64" if double_lu else ""))
         for folder in (self.fine_folder, self.coarse_folder):
             folder.mkdir(parents=True, exist_ok=True)
         self.x0 = _SETUP["setup"].system.initial_state()
@@ -253,26 +259,28 @@ def fr_slug(label: str) -> str:
 
 
 def measure(name: str, label: str, corrections: Sequence[str], iterations: int,
-            workers: int) -> dict[str, Any]:
+            workers: int, double_lu: bool = False) -> dict[str, Any]:
     """eta^1..eta^``iterations`` of each correction against F's serial solution, with K and the
-    pipelined speedups at the analogue's alpha; saved after every iteration."""
+    pipelined speedups at the analogue's alpha (none with ``double_lu``: not measured); saved
+    after every iteration."""
     problem = fr.k40_problem(name)
     out = fr.OUT / f"learned_{name}.json"
     data = fr._load(out)
-    _init(name, label)
+    _init(name, label, double_lu)
     work = WORK / name
     work.mkdir(parents=True, exist_ok=True)
     reference = fr.k40_reference(_SETUP["setup"], problem, work)
     analogue = fr.load_problem(name)
     entry = analogue["candidates"][label]
     own = fr.summary(analogue)["fine"]["error"]
-    rows = data.setdefault(label, {"alpha": entry["alpha"], "fine_own_error": own,
-                                   "slices": problem.slices, "t1": problem.t1,
-                                   "corrections": {}})
+    alpha = None if double_lu else entry["alpha"]
+    rows = data.setdefault(label + (", float64 LU" if double_lu else ""), {
+        "alpha": alpha, "fine_own_error": own, "slices": problem.slices, "t1": problem.t1,
+        "corrections": {}})
     with ProcessPoolExecutor(workers, multiprocessing.get_context("spawn"), initializer=_init,
-                             initargs=(name, label)) as pool:
+                             initargs=(name, label, double_lu)) as pool:
         for correction in corrections:
-            run = Run(name, label, correction, pool)
+            run = Run(name, label, correction, pool, double_lu)
             run.initial_sweep()
             errors: list[float] = []
             for k in range(1, iterations + 1):
@@ -289,7 +297,8 @@ def measure(name: str, label: str, corrections: Sequence[str], iterations: int,
                 rows["corrections"][correction] = {
                     "errors": errors,
                     "K": K,
-                    "speedups": None if K is None else fr.predicted_speedups(entry["alpha"], K),
+                    "speedups": (None if K is None or alpha is None
+                                 else fr.predicted_speedups(alpha, K)),
                     "model_cpu_per_correction": (float(np.mean(run.model_cpu))
                                                  if run.model_cpu else 0.0),
                     "model_cpu_max": max(run.model_cpu, default=0.0),
@@ -316,7 +325,8 @@ def table(name: str) -> str:
             speedups = row.get("speedups")
             shown = "-" if not speedups else (f"{speedups['pipelined']:.2f} / "
                                               f"{speedups['standard']:.2f}")
-            lines.append(f"| {label} | {entry['alpha']:.3g} | {correction} | {errors} | "
+            alpha = "-" if entry["alpha"] is None else f"{entry['alpha']:.3g}"
+            lines.append(f"| {label} | {alpha} | {correction} | {errors} | "
                          f"{row.get('K') or '-'} | {shown} | "
                          f"{fr._g(row.get('model_cpu_per_correction'))} | "
                          f"{fr._g(row.get('coarse_cpu_per_solve'))} |")
@@ -333,6 +343,9 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument("--corrections", nargs="+", choices=CORRECTIONS, default=CORRECTIONS)
     parser.add_argument("--iterations", type=int, default=6)
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--double-lu", action="store_true",
+                        help="the implicit G's banded LU in float64 (a smooth G; alpha not "
+                        "measured)")
     args = parser.parse_args(argv)
     if args.table:
         print(table(args.problem))
@@ -340,7 +353,8 @@ def main(argv: Sequence[str] | None = None) -> None:
     if args.label not in fr.CANDIDATES[args.problem]:
         parser.error(f"no coarse solver {args.label!r} for {args.problem}; choose one of "
                      f"{sorted(fr.CANDIDATES[args.problem])}")
-    measure(args.problem, args.label, args.corrections, args.iterations, args.workers)
+    measure(args.problem, args.label, args.corrections, args.iterations, args.workers,
+            args.double_lu)
 
 
 if __name__ == "__main__":
