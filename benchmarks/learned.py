@@ -313,6 +313,32 @@ def measure(name: str, label: str, corrections: Sequence[str], iterations: int,
     return data
 
 
+def smoothness(name: str, label: str, slice_index: int = 10, scale: float = 1e-15
+               ) -> dict[str, Any]:
+    """How much G (banded LU in float32, then float64) and F move when their input, F's serial
+    solution at T_``slice_index``, moves by ``scale`` (relative, random): eq. 34 of the changes.
+    A smooth solver moves by about its Lipschitz constant times the input's change; the learned
+    corrections fit differences of F - G, so a non-smooth G sets their floor. Saved in
+    ``OUT/learned_NAME_smoothness.json``."""
+    from parastokes.parareal import relative_change
+    from parastokes.stiff import solve as stiff_solve
+
+    _init(name, label)
+    setup, problem = _SETUP["setup"], fr.k40_problem(name)
+    x = fr.k40_reference(setup, problem, WORK / name)[slice_index]
+    moved = x * (1.0 + scale * np.random.default_rng(0).standard_normal(x.shape))
+    t0, t1 = slice_index * problem.slice_length, (slice_index + 1) * problem.slice_length
+    result: dict[str, Any] = {"label": label, "slice": slice_index + 1,
+                              "input_change": relative_change(moved, x)}
+    for precision in (np.float32, np.float64):
+        stiff_solve.BAND_PRECISION = precision
+        result[f"coarse_change_{precision.__name__}_lu"] = relative_change(
+            setup.coarse(t0, t1, moved), setup.coarse(t0, t1, x))
+    result["fine_change"] = relative_change(setup.fine(t0, t1, moved), setup.fine(t0, t1, x))
+    fr._save(fr.OUT / f"learned_{name}_smoothness.json", result)
+    return result
+
+
 def table(name: str) -> str:
     """The markdown table of docs/benchmarks.md ("Learned corrections") from the results."""
     lines = ["| G | α | correction | η¹ .. η^k at 40 slices | K | pipelined / standard | "
@@ -340,6 +366,8 @@ def main(argv: Sequence[str] | None = None) -> None:
                         help="a coarse solver of frontier.py's CANDIDATES[problem]")
     parser.add_argument("--table", action="store_true",
                         help="print the table of the results so far and stop")
+    parser.add_argument("--smoothness", action="store_true",
+                        help="measure how G and F move under a change of 1e-15 of their input")
     parser.add_argument("--corrections", nargs="+", choices=CORRECTIONS, default=CORRECTIONS)
     parser.add_argument("--iterations", type=int, default=6)
     parser.add_argument("--workers", type=int, default=2)
@@ -349,6 +377,9 @@ def main(argv: Sequence[str] | None = None) -> None:
     args = parser.parse_args(argv)
     if args.table:
         print(table(args.problem))
+        return
+    if args.smoothness:
+        print(smoothness(args.problem, args.label))
         return
     if args.label not in fr.CANDIDATES[args.problem]:
         parser.error(f"no coarse solver {args.label!r} for {args.problem}; choose one of "
