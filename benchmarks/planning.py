@@ -11,7 +11,7 @@ resumes where it stopped (the plan's own serial search is cached beside its conf
 
 Run from the repository root::
 
-    # the target table's problems, each at its η*
+    # the target table's problems, each at its η* (or --only table5_full rod601_full)
     PYTHONPATH=. NUMBA_NUM_THREADS=1 nice -n 10 python benchmarks/planning.py --budget 600
     # any shipped configurations
     PYTHONPATH=. python benchmarks/planning.py experiments/table8_g1.toml --target 1e-6
@@ -40,10 +40,10 @@ WORK = pathlib.Path("out/plans")
 #: The target table's problems (docs/benchmarks.md, "The target table"): the record's name, the
 #: configuration whose F is the fastest serial run, and η*.
 TARGETS: dict[str, tuple[str, float]] = {
-    "table4": ("experiments/best_serial/table4_rod301.toml", 1e-6),
-    "table5": ("experiments/best_serial/table5_rod301_eps7.toml", 1e-6),
-    "rod601": ("experiments/best_serial/rod601.toml", 1e-5),
-    "table7_best_serial_refined": ("experiments/best_serial/table7_vesicle.toml", 1e-6),
+    "table4_full": ("experiments/best_serial/table4_rod301.toml", 1e-6),
+    "table5_full": ("experiments/best_serial/table5_rod301_eps7.toml", 1e-6),
+    "rod601_full": ("experiments/best_serial/rod601.toml", 1e-5),
+    "table7_full": ("experiments/best_serial/table7_vesicle.toml", 1e-6),
 }
 
 #: PLAN.json's keys a record keeps.
@@ -150,11 +150,13 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="η* for configurations named on the command line")
     parser.add_argument("--cores", type=int, default=40)
     parser.add_argument("--budget", type=float, default=600.0)
+    parser.add_argument("--only", nargs="*", choices=sorted(TARGETS), default=None,
+                        help="of the target table's problems, these only")
     parser.add_argument("--redo", nargs="*", default=[], help="record names to measure again")
     parser.add_argument("--table", action="store_true", help="print the records' table only")
     args = parser.parse_args(argv)
     jobs = ({pathlib.Path(c).stem: (c, args.target) for c in args.configs} if args.configs
-            else dict(TARGETS))
+            else {name: TARGETS[name] for name in args.only or TARGETS})
     if not args.table:
         RECORDS.mkdir(parents=True, exist_ok=True)
         for name, (config, target) in jobs.items():

@@ -87,3 +87,6 @@ def test_existing_records_are_skipped_and_tabled(planning, tmp_path, monkeypatch
     monkeypatch.setattr(planning, "run_one", lambda *a: pytest.fail("a record was measured again"))
     assert planning.main(["a.toml"]) == 0
     assert "| a | 1e-06 | 0 | rk4" in capsys.readouterr().out
+    (tmp_path / "table5_full.json").write_text((tmp_path / "a.json").read_text())
+    assert planning.main(["--only", "table5_full"]) == 0
+    assert "| table5_full |" in capsys.readouterr().out
