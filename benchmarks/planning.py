@@ -71,13 +71,21 @@ def last_error_line(stderr: str) -> str:
     return lines[-1] if lines else ""
 
 
+def commit() -> str:
+    """The repository's HEAD commit (the code the child ran), or "" outside a git checkout."""
+    done = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
+                          text=True, check=False)
+    return done.stdout.strip()
+
+
 def record_of(argv: Sequence[str], config: str, target: float, cores: int, status: int,
               stderr: str, plan: dict[str, Any] | None, cpu: float, wall: float,
               loads: tuple[float, float]) -> dict[str, Any]:
     """One configuration's record: the run's facts and, when PLAN.json was written, its
     :data:`PLAN_KEYS`; otherwise the error line."""
     record: dict[str, Any] = {
-        "command": " ".join(["parastokes", *argv[3:]]), "config": config, "target": target,
+        "command": " ".join(["parastokes", *argv[3:]]), "commit": commit(), "config": config,
+        "target": target,
         "cores": cores, "exit_status": status, "cpu_seconds_children": cpu,
         "wall_seconds": wall, "load_average": list(loads),
     }

@@ -45,6 +45,7 @@ def test_a_record_keeps_plans_keys_and_the_runs_facts(planning):
     assert record["command"].startswith("parastokes plan a.toml --cores 40")
     assert (record["cpu_seconds_children"], record["wall_seconds"]) == (12.5, 30.0)
     assert record["load_average"] == [1.0, 2.0] and "error" not in record
+    assert len(record["commit"]) >= 7 and int(record["commit"], 16) >= 0
 
 
 def test_child_cpu_is_user_plus_system_time_between_two_readings(planning):
