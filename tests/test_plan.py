@@ -583,7 +583,14 @@ def test_explicit_alpha_is_eulers_cpu_at_its_largest_measured_step_over_fs():
     found = _found(runs)
     assert explicit_alpha(found, found.reference) == pytest.approx(10.0 / 28.0)
     assert explicit_alpha(found, runs[3]) == pytest.approx(0.5)  # over the F given
-    assert explicit_alpha(_found(runs[2:]), found.reference) is None
+    # no Euler run measured: F's step over Euler's limit (4e-5) over F's evaluations per step
+    assert explicit_alpha(_found(runs[2:]), found.reference) == pytest.approx(5e-5 / 4e-5 / 4)
+    assert explicit_alpha(_found(runs[2:]), runs[3]) == pytest.approx(3.6e-5 / 4e-5 / 2)
+    unknown = _found(runs[2:])
+    unknown.euler_limit = None
+    assert explicit_alpha(unknown, found.reference) is None
+    assert explicit_alpha(_found([]), Run("ros2", 1e-4, None, "F", "reference")) is None
+    assert explicit_alpha(_found([]), Run("rk23", 1e-6, 1e-6, "F", "reference")) is None
 
 
 @pytest.mark.parametrize(("euler_cpu", "added"), [(2.8, False), (2.81, True), (10.0, True)])

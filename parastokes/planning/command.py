@@ -160,11 +160,18 @@ def _fine_config(run: Run) -> dict[str, Any]:
 def explicit_alpha(found: Baseline, fine: Run) -> float | None:
     """The least γ_G/γ_F an explicit coarse solver can reach here: the measured CPU of forward
     Euler at its largest measured step (the search runs it just below its stability limit) over
-    F's, both over T; None where the search measured no such run."""
+    F's, both over T; where the search measured no such run (a full-scale search can spend its
+    budget on the reference), F's step over Euler's measured limit over F's evaluations per step
+    (F explicit on fixed steps); None where neither is known."""
+    from .. import integrate
+
     euler = [r for r in found.runs if r.scheme == "euler" and r.fixed and r.status == "measured"]
-    if not euler:
+    if euler:
+        return max(euler, key=lambda r: r.dt).cost / fine.cost
+    scheme = integrate.lookup(fine.scheme)
+    if found.euler_limit is None or not fine.fixed or scheme.implicit:
         return None
-    return max(euler, key=lambda r: r.dt).cost / fine.cost
+    return fine.dt / found.euler_limit / scheme.stages
 
 
 def coarse_schemes(cfg: Any, found: Baseline, fine: Run) -> tuple[tuple[str, ...] | None, str]:
