@@ -31,7 +31,8 @@ Run from the repository root (each part resumes from its JSON: a row already mea
   product, factorization, stage solve) over one evaluation of the rates, on the rods of 301
   and 601 points, beside the same pieces as they were at the start of this session (coloured
   differences, stored M, BSR product, double-precision LU) and before round 5 (SuperLU), the
-  stage solve beside its second session's loops and LAPACK's dgbtrs, with the load average;
+  stage solve beside its second session's loops and LAPACK's dgbtrs and sgbtrs, with the load
+  average;
   the counts of Jacobians and factorizations of a fixed and an adaptive
   ROS34PW2 run;
 - ``short``: work-precision over T = 0.005 s on those rods: forward Euler and RK2 at their
@@ -635,6 +636,7 @@ def _linalg_rod(m: int, eps: float) -> dict[str, Any]:
         "stage_solve": lambda: lu.solve(v),
         "stage_solve_signed": lambda: _band_solve_signed(lu_band, kl, ku, piv, v),
         "stage_solve_dgbtrs": lambda: lapack.dgbtrs(lu_double, kl, ku, v, piv),
+        "stage_solve_sgbtrs": lambda: lapack.sgbtrs(lu_band, kl, ku, v.astype(np.float32), piv),
         "fresh": lambda: solve.Factorization(jacobian.local_jacobian(rod, 0.0, x, n), hgamma,
                                              0.0),
         "session_start_fresh": session_start,
@@ -696,11 +698,11 @@ def linalg_part(rods: list[str]) -> dict[str, Any]:
     piece's CPU time over one evaluation of the rates, in one run: the loads' Jacobian K (the
     rod's hook; the coloured differences), the near mobility M and the product A = M K (the
     fused pass; stored M and the BSR product), the factorization of I - hγA (single and double
-    precision), one stage solve (beside the second session's loops and LAPACK's dgbtrs on the
-    factors in double), a fresh Jacobian and factorization now, at this session's
-    start and before this round (scipy's BSR product, CSC and SuperLU); and the counts of
-    Jacobians and factorizations of a fixed and an adaptive ROS34PW2 run on the rod of 301
-    points."""
+    precision), one stage solve (beside the second session's loops, LAPACK's dgbtrs on the
+    factors in double and its sgbtrs, a solve in single precision), a fresh Jacobian and
+    factorization now, at this session's start and before this round (scipy's BSR product,
+    CSC and SuperLU); and the counts of Jacobians and factorizations of a fixed and an
+    adaptive ROS34PW2 run on the rod of 301 points."""
     data = _load(OUT / "linalg.json")
     for name in rods:
         m, eps, _ = SHORT_RODS[name]
