@@ -80,11 +80,11 @@ def commit() -> str:
 
 def record_of(argv: Sequence[str], config: str, target: float, cores: int, status: int,
               stderr: str, plan: dict[str, Any] | None, cpu: float, wall: float,
-              loads: tuple[float, float]) -> dict[str, Any]:
-    """One configuration's record: the run's facts and, when PLAN.json was written, its
-    :data:`PLAN_KEYS`; otherwise the error line."""
+              loads: tuple[float, float], code: str) -> dict[str, Any]:
+    """One configuration's record: the run's facts (``code``: the commit it started from) and,
+    when PLAN.json was written, its :data:`PLAN_KEYS`; otherwise the error line."""
     record: dict[str, Any] = {
-        "command": " ".join(["parastokes", *argv[3:]]), "commit": commit(), "config": config,
+        "command": " ".join(["parastokes", *argv[3:]]), "commit": code, "config": config,
         "target": target,
         "cores": cores, "exit_status": status, "cpu_seconds_children": cpu,
         "wall_seconds": wall, "load_average": list(loads),
@@ -108,6 +108,7 @@ def run_one(name: str, config: str, target: float, cores: int, budget: float
     out.parent.mkdir(parents=True, exist_ok=True)
     out.with_suffix(".json").unlink(missing_ok=True)
     argv = command(config, cores, target, budget, out)
+    code = commit()  # (the child imports the working tree as it is now)
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start_load, start = load_average(), time.perf_counter()
     done = subprocess.run([*argv, "--overwrite"], capture_output=True, text=True,
@@ -117,7 +118,7 @@ def run_one(name: str, config: str, target: float, cores: int, budget: float
     plan_path = out.with_suffix(".json")
     plan = json.loads(plan_path.read_text()) if plan_path.exists() else None
     return record_of(argv, config, target, cores, done.returncode, done.stderr, plan, cpu, wall,
-                     (start_load, load_average()))
+                     (start_load, load_average()), code)
 
 
 def chosen_route(record: dict[str, Any]) -> dict[str, Any] | None:

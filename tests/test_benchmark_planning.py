@@ -39,7 +39,8 @@ def test_the_command_is_plans_with_every_setting(planning, tmp_path):
 
 def test_a_record_keeps_plans_keys_and_the_runs_facts(planning):
     argv = planning.command("a.toml", 40, 1e-6, 60.0, planning.WORK / "a" / "PLAN.toml")
-    record = planning.record_of(argv, "a.toml", 1e-6, 40, 0, "", PLAN, 12.5, 30.0, (1.0, 2.0))
+    record = planning.record_of(argv, "a.toml", 1e-6, 40, 0, "", PLAN, 12.5, 30.0, (1.0, 2.0),
+                                planning.commit())
     assert set(planning.PLAN_KEYS) <= set(record)
     assert "config" not in planning.PLAN_KEYS and record["config"] == "a.toml"
     assert record["command"].startswith("parastokes plan a.toml --cores 40")
@@ -58,7 +59,7 @@ def test_child_cpu_is_user_plus_system_time_between_two_readings(planning):
 def test_a_refused_plan_keeps_its_last_error_line(planning):
     stderr = "searching ...\nparastokes: --target: η*/10 is not 10 times above F's error\n\n"
     record = planning.record_of(["py", "-m", "parastokes", "plan"], "a.toml", 1e-6, 40, 2,
-                                stderr, None, 1.0, 1.0, (0.5, 0.5))
+                                stderr, None, 1.0, 1.0, (0.5, 0.5), "abc1234")
     assert record["error"] == "parastokes: --target: η*/10 is not 10 times above F's error"
     assert record["exit_status"] == 2 and "routes" not in record
     assert planning.last_error_line("") == ""
