@@ -247,14 +247,15 @@ def test_the_tally_counts_accepted_work_and_leaves_out_rejected_trials():
     assert auto.Tally(_Solver(krylov=False)).cost() == auto.STEP_EVALS[True] + 2.0
     solver.banded = False
     assert tally.cost() == pytest.approx(90.0 + 5.7 * auto.PRIOR_PRODUCTS + 2.0, rel=1e-15)
-    mark = tally.mark()
-    solver.steps, solver.iterations = 1, 50  # a trial rejected by its error: left out
-    tally.exclude(mark)
     solver.banded = True
-    solver.steps, solver.iterations = 4, 80  # 3 sets, 30 products: 2 accepted, 1 rejected
-    tally.accepted = 2
+    solver.steps, solver.iterations, tally.accepted = 1, 20, 1  # an accepted trial
+    mark = tally.mark()
+    solver.steps, solver.iterations = 2, 70  # a trial rejected by its error: left out
+    tally.exclude(mark)
     assert tally.excluded == (1, 50)
-    assert tally.cost() == pytest.approx(auto.step_cost(3, 30, 2, True), rel=1e-15)
+    solver.steps, solver.iterations = 5, 100  # 3 sets, 30 products: 2 accepted, 1 rejected
+    tally.accepted = 3
+    assert tally.cost() == pytest.approx(auto.step_cost(4, 50, 3, True), rel=1e-15)
 
 
 def test_the_implicit_phase_switches_back_on_its_counted_cost():
