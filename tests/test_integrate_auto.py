@@ -85,18 +85,27 @@ def _trials(caplog):
 def test_stiff_but_cheaper_explicit_stays_explicit_after_failed_trial_steps(caplog):
     """Stability sets rk23's step (h ρ ≈ 2.1) where the smooth part varies least (twice a period
     of sin ωt, ω = 30), but the accuracy then allows the implicit scheme less than TRIAL x the
-    break-even C_I/3.125 times it: each trial step is rejected and the run stays explicit, the
-    second trial after the back-off of the first's error (Costs.retry) in rk23's evaluations."""
+    break-even C_I/3.125 times it: each trial step is rejected and the run stays explicit, each
+    next trial after the back-off of the last one's error and counted work (Costs.retry), in
+    rk23's evaluations."""
     with caplog.at_level(logging.INFO, logger="parastokes.integrate.auto"):
         run = _run(Fast(lam=(-1.0, -2e4)), 1e-7, t1=1.0)
     assert run.switches == ()
-    (t_1, err_1), (t_2, _) = _trials(caplog)
-    assert dict((n, (a, r)) for n, a, r in run.by_scheme)[auto.IMPLICIT_EXACT] == (0, 2)
+    trials = re.findall(r"stays rk23 at t=(\S+): a step .* the explicit (\S+)\) has err (\S+) > 1 "
+                        r"\(counted: (\S+) evaluations\)", caplog.text)
+    assert dict((n, (a, r)) for n, a, r in run.by_scheme)[auto.IMPLICIT_EXACT] == (0, 3)
     assert re.search(rf"2 x the break-even {_C_I:.4g}/3.125 x the explicit .* has err [\d.]+ > 1",
                      caplog.text)
-    h_e = float(re.search(r"x the explicit (\S+)\) has", caplog.text).group(1))
-    spent = (t_2 - t_1) / h_e * 3.125  # rk23's evaluations between the trials
-    assert spent == pytest.approx(auto.Costs(3.125, _C_I).retry(1, err_1, 2), rel=0.1)
+    (t_1, h_e, err_1, spent_1), (t_2, _, err_2, spent_2), (t_3, _, _, _) = (
+        [float(v) for v in trial] for trial in trials)
+    assert spent_1 == pytest.approx(auto.step_cost(1, 0, 1, False), abs=0.1)  # a set, SuperLU
+    for n, (start, end, err, spent) in enumerate([(t_1, t_2, err_1, spent_1),
+                                                  (t_2, t_3, err_2, spent_2)], start=1):
+        # rk23's evaluations between the trials at steps h_E (where the accuracy sets them,
+        # near the peaks of sin ωt, they are shorter: fewer steps of h_E fill the interval)
+        evaluations = (end - start) / h_e * 3.125
+        budget = auto.Costs(3.125, spent).retry(n, err, 2)
+        assert 0.6 * budget < evaluations < 1.05 * budget
     assert np.abs(run.state - Fast(lam=(-1.0, -2e4)).exact(1.0)).max() < 3e-7
 
 
@@ -251,6 +260,7 @@ def test_the_tally_counts_accepted_work_and_leaves_out_rejected_trials():
     solver.steps, solver.iterations, tally.accepted = 1, 20, 1  # an accepted trial
     mark = tally.mark()
     solver.steps, solver.iterations = 2, 70  # a trial rejected by its error: left out
+    assert tally.spent(mark) == pytest.approx(12.0 + 2.5 * 50 + 2.0, rel=1e-15)
     tally.exclude(mark)
     assert tally.excluded == (1, 50)
     solver.steps, solver.iterations = 5, 100  # 3 sets, 30 products: 2 accepted, 1 rejected

@@ -5,12 +5,15 @@ evaluation; Shampine 1977; Hairer & Wanner, *Solving ODEs II*, IV.2).
 
 The costs, in rate evaluations per step (:class:`Costs`): the explicit pair ``rk23``
 (:data:`EXPLICIT`, first same as last) 3 new stages a step plus ``1/RHO_EVERY`` for the
-estimate of ρ below; the implicit ``ros34pw2`` (:data:`IMPLICIT`) :data:`IMPLICIT_EVALS`, its
-stages, time derivative, banded solves and its Jacobian and factorization amortized over the
-steps that share them (measured on the paper's rod, docs/stiff.md), plus the two evaluations of
-ρ's power iteration. Both pairs estimate their error at order 2, so the step the accuracy
-allows is about the same for both; the explicit one is capped by stability at ``h ρ`` below
-its boundary on the negative real axis (:func:`.schemes.real_stability_boundary`: 2.51).
+estimate of ρ below; the implicit scheme (:func:`implicit_scheme`: ``ros34pw2``, the W-method
+on the local ``A``, where ``rtol >= W_RTOL``, else ``ros34pw2-krylov`` on the exact Jacobian,
+whose error follows the tolerance where the W-method's does not) its counted work per accepted
+step (:class:`Tally`: stage sets, rejected ones included, at :data:`STEP_EVALS` and GMRES
+products at :data:`PRODUCT_EVALS`, measured prices by the kind of factorization; docs/stiff.md),
+plus the two evaluations of ρ's power iteration. Both estimate their error at order 2, so the
+step the accuracy allows is about the same for both; the explicit one is capped by stability
+at ``h ρ`` below its boundary on the negative real axis
+(:func:`.schemes.real_stability_boundary`: 2.51).
 
 - **Explicit phase.** After every :data:`RHO_EVERY` accepted steps, one step of a power
   iteration on the rates' Jacobian by a finite difference of the rates at the step's end (one
@@ -22,17 +25,19 @@ its boundary on the negative real axis (:func:`.schemes.real_stability_boundary`
   (:meth:`Costs.break_even`): if its error estimate accepts it, implicit steps cover time at
   least TRIAL times more cheaply and the run goes on implicit from there (the step is kept);
   else the run stays explicit and tries again once the explicit phase has spent
-  ``RETRY 2^(n-1) err^(1/(q+1))`` times the cost of an implicit step after the ``n``-th failed
-  trial in a row, of error ``err`` (a geometric back-off, longer the farther the trial
-  missed: the trials cost a bounded and falling share of the run; ρ is estimated only where a
-  trial could follow). One implicit stepper serves the whole run, so that a trial
-  reuses the approximate Jacobian and its factorization of the last one while they are fresh
-  (``stiff.REFRESH`` steps; a W-method keeps its order with an older ``A``).
+  ``RETRY 2^(n-1) err^(1/(q+1))`` times the counted work of the ``n``-th failed trial in a row,
+  of error ``err`` (a geometric back-off, longer the farther the trial missed: the trials cost
+  a bounded and falling share of the run; ρ is estimated only where a trial could follow). A
+  trial accepted by its error estimate whose counted cost (:class:`Tally`) makes the implicit
+  steps no cheaper per unit time than the explicit ones is a failed trial too, of error 1.
+  One implicit stepper serves the whole run, so that a trial reuses the approximate Jacobian
+  and its factorization of the last one while they are fresh (``stiff.REFRESH`` steps; a
+  W-method keeps its order with an older ``A``).
 - **Implicit phase.** After every accepted step, a power-iteration step (two evaluations);
   where the explicit pair at ``min(h, EXPLICIT_FRACTION boundary / ρ)`` (``h`` the step the
   accuracy allows now; rk23's step where stability limits it) would cost less per unit time
-  than the implicit step ``h`` (:meth:`Costs.explicit_cheaper`) for :data:`BACK_STEPS` steps
-  in a row, the run switches back, from that step.
+  than the implicit step ``h`` at its counted cost (:meth:`Costs.explicit_cheaper`) for
+  :data:`BACK_STEPS` steps in a row, the run switches back, from that step.
 
 Every switch is logged (INFO: the time, the scheme, the costs compared) and kept in the result
 (:attr:`RunResult.switches`, with the steps of each scheme in :attr:`RunResult.by_scheme`; a
@@ -104,9 +109,9 @@ TRIAL = 2.0
 #: Back to explicit where it is the cheaper for BACK_STEPS implicit steps in a row.
 BACK_STEPS = 5
 #: After a switch back, no trial before the explicit phase has spent RETRY implicit steps'
-#: worth of evaluations; after the n-th failed trial in a row, with error err, 2^(n-1)
-#: min(err, ERR_MAX)^(1/(q+1)) times that (the last factor: how far the implicit step the
-#: accuracy allows was below the trial's, by the controller's law).
+#: worth of evaluations; after the n-th failed trial in a row, with error err, RETRY 2^(n-1)
+#: min(err, ERR_MAX)^(1/(q+1)) times the trial's counted work (the last factor: how far the
+#: implicit step the accuracy allows was below the trial's, by the controller's law).
 RETRY, ERR_MAX = 10.0, 1e3
 
 
@@ -167,6 +172,12 @@ class Tally:
     def mark(self) -> tuple[int, int]:
         """The stepper's counts now (stage sets, GMRES products)."""
         return self.solver.steps, self.solver.iterations
+
+    def spent(self, since: tuple[int, int]) -> float:
+        """The work done since the :meth:`mark` ``since``, in evaluations (:func:`step_cost`
+        of it as one step)."""
+        now = self.mark()
+        return step_cost(now[0] - since[0], now[1] - since[1], 1, self.solver.banded is not False)
 
     def exclude(self, since: tuple[int, int]) -> None:
         """Leave out the work done since the :meth:`mark` ``since``."""
@@ -299,21 +310,23 @@ def auto_run(system: System, x: np.ndarray, t0: float, t1: float, dt: float,
             err = error_norm(x, x_new, x_low, *tol)
         except (stiff.StiffSolveError, StepFailure):  # a failed trial, as a step too large
             err = math.inf
+        spent = tally.spent(mark)  # the trial's work, by which the next one waits
         if not (err <= 1.0 and watch(t + trial, x_new, 0)):
             tally.exclude(mark)
             counts[implicit.name][1] += 1
             failed += 1
-            budget = costs.retry(failed, err, q)
-            log.info("auto: stays %s at t=%.10g: a step of %s of %.4g (%g x the break-even %g/%g "
-                     "x the explicit %.4g) has err %.3g > 1", pair.name, t, implicit.name, trial,
-                     TRIAL, costs.implicit, costs.explicit, explicit.step, err)
+            budget = Costs(costs.explicit, spent).retry(failed, err, q)
+            log.info("auto: stays %s at t=%.10g: a step of %s of %.4g (%g x the break-even "
+                     "%.4g/%g x the explicit %.4g) has err %.3g > 1 (counted: %.4g evaluations)",
+                     pair.name, t, implicit.name, trial, TRIAL, costs.implicit, costs.explicit,
+                     explicit.step, err, spent)
             continue
         tally.accepted += 1  # the trial's work: a measure of the implicit step's
         measured = Costs.of(pair, tally.cost())
         if measured.explicit_cheaper(explicit.step, trial):
             counts[implicit.name][1] += 1
             failed += 1
-            budget = measured.retry(failed, 1.0, q)
+            budget = Costs(costs.explicit, spent).retry(failed, 1.0, q)
             log.info("auto: stays %s at t=%.10g: a step of %s of %.4g has err %.3g but costs "
                      "%.4g evaluations (counted), more per unit time than %s's %g at %.4g",
                      pair.name, t, implicit.name, trial, err, measured.implicit, pair.name,
