@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from ivp import Counted
 
-from parastokes import integrate, models
+from parastokes import integrate, models, stiff
 from parastokes.integrate import auto
 from parastokes.integrate.schemes import real_stability_boundary
 
@@ -329,3 +329,23 @@ def test_auto_error_follows_rtol_where_the_w_defect_misleads_the_estimate(monkey
     w_error, w_calls, w_result = run()
     assert w_error > 10.0 and w_result.switches[0][1] == auto.IMPLICIT
     assert calls < w_calls / 5
+
+
+def test_a_trial_whose_solve_fails_backs_off_by_an_implicit_step(caplog, monkeypatch):
+    """A trial whose stage solve fails (a StiffSolveError: err = inf; the stepper counts no
+    work for it) waits RETRY C_I 2^(n-1) ERR_MAX^(1/3) evaluations before the next, C_I the
+    implicit step's cost, not the 2 evaluations of ρ that were counted."""
+    def failing(self, t, x, h):
+        raise stiff.StiffSolveError(t, math.nan, 0, "GMRES did not converge")
+
+    monkeypatch.setattr(stiff.Stepper, "step_with_estimate", failing)
+    with caplog.at_level(logging.INFO, logger="parastokes.integrate.auto"):
+        run = _run(Counted(lam=(-1.0, -1e4)), 1e-3, t1=2.0)
+    trials = re.findall(r"stays rk23 at t=(\S+): a step .* the explicit (\S+)\) has err inf > 1 "
+                        r"\(counted: (\S+) evaluations\)", caplog.text)
+    assert run.switches == () and len(trials) == 2
+    (t_1, h_e, spent), (t_2, _, _) = ([float(v) for v in trial] for trial in trials)
+    assert spent == pytest.approx(_C_I, rel=1e-3)
+    budget = auto.Costs(3.125, _C_I).retry(1, math.inf, 2)
+    # rk23's evaluations between the trials at steps of h_E (they vary by some 10 %)
+    assert 0.85 * budget < (t_2 - t_1) / h_e * 3.125 < 1.15 * budget

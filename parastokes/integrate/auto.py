@@ -310,7 +310,9 @@ def auto_run(system: System, x: np.ndarray, t0: float, t1: float, dt: float,
             err = error_norm(x, x_new, x_low, *tol)
         except (stiff.StiffSolveError, StepFailure):  # a failed trial, as a step too large
             err = math.inf
-        spent = tally.spent(mark)  # the trial's work, by which the next one waits
+        # the trial's work, by which the next one waits; a solve that failed is not counted
+        # (the stepper counts a step's work as it ends): priced as an implicit step
+        spent = max(tally.spent(mark), costs.implicit if math.isinf(err) else 0.0)
         if not (err <= 1.0 and watch(t + trial, x_new, 0)):
             tally.exclude(mark)
             counts[implicit.name][1] += 1
