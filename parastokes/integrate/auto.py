@@ -75,8 +75,9 @@ EXPLICIT = "rk23"
 IMPLICIT = "ros34pw2"
 #: The implicit scheme where ``rtol < W_RTOL``: ROS34PW2 whose stages solve with the exact
 #: Jacobian by GMRES (no W-defect ``A - J``). On the rods of 301-1201 points the W-method's
-#: final error is 2-200 times rtol below 1e-2 (its local errors propagate undamped), this
-#: one's 0.1-1.8 times (docs/stiff.md, "`scheme = "auto"`").
+#: final error is 2-200 times rtol below 1e-2 (its third order lost to the W-defect, each step
+#: spends most of the tolerance and the errors add up), this one's 0.1-1.8 times
+#: (docs/stiff.md, "Why the exact Jacobian below rtol 1e-2").
 IMPLICIT_EXACT = "ros34pw2-krylov"
 #: The loosest rtol at which the W-method's error is trusted (measured: docs/stiff.md).
 W_RTOL = 1e-2
