@@ -32,6 +32,7 @@ from typing import Any
 
 from benchmarks import stiff
 from parastokes import integrate, models
+from parastokes.integrate import auto
 from parastokes.integrate.controller import estimate_order
 from parastokes.integrate.schemes import lookup, real_stability_boundary
 
@@ -159,11 +160,15 @@ def measure(name: str, rtols: list[float], schemes: list[str], cap: float) -> di
     warm: set[str] = set()
 
     def warm_up(scheme: str, **tolerances: float) -> None:
-        """Two first steps of ``scheme``, untimed: compiling its loops (numba) is not its CPU."""
+        """Two first steps of ``scheme``, untimed: compiling its loops (numba) is not its CPU;
+        for ``auto``, of its implicit schemes too (its first steps are explicit ones)."""
         if scheme not in warm:
             integrate.run(system, x0, 0.0, 2 * problem.first_step, scheme, problem.first_step,
                           **tolerances)
             warm.add(scheme)
+            if scheme == "auto":
+                for implicit in (auto.IMPLICIT, auto.IMPLICIT_EXACT):
+                    warm_up(implicit, **tolerances)
 
     if "rk2" not in data:
         warm_up("rk2")

@@ -30,8 +30,10 @@ Run from the repository root (each part resumes from its JSON: a row already mea
 - ``linalg``: the pieces of a linearly implicit step (loads' Jacobian, near mobility, their
   product, factorization, stage solve) over one evaluation of the rates, on the rods of 301
   and 601 points, beside the same pieces as they were at the start of this session (coloured
-  differences, stored M, BSR product, double-precision LU) and before round 5 (SuperLU), with
-  the load average; the counts of Jacobians and factorizations of a fixed and an adaptive
+  differences, stored M, BSR product, double-precision LU) and before round 5 (SuperLU), the
+  stage solve beside its second session's loops and LAPACK's dgbtrs and sgbtrs, with the load
+  average;
+  the counts of Jacobians and factorizations of a fixed and an adaptive
   ROS34PW2 run;
 - ``short``: work-precision over T = 0.005 s on those rods: forward Euler and RK2 at their
   limit, ROS2, ROS34PW2 and ROS2-Krylov at fixed steps, ROS2 and ROS34PW2 adaptive.
@@ -54,6 +56,7 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
+from numba import njit
 
 from parastokes import integrate, models, parareal
 from parastokes.parallel import TaskError
@@ -547,10 +550,40 @@ def _interleaved(pieces: dict[str, Callable[[], Any]], repeat: dict[str, int]
     return best
 
 
+@njit(cache=True, error_model="numpy")
+def _band_solve_signed(lu, kl, ku, piv, b):  # pragma: no cover - compiled
+    """``stiff.solve.band_solve`` as round 5's second session left it (the session-start row of
+    the stage solve): the same operations in the same order, over numpy slices and signed
+    indices (a slice's set-up per column, numba's check for negative indices in the loops)."""
+    n = lu.shape[1]
+    kv = kl + ku
+    x = b.copy()
+    for j in range(n - 1):
+        pivot = piv[j]
+        if pivot != j:
+            x[pivot], x[j] = x[j], x[pivot]
+        xj = x[j]
+        if xj != 0.0:
+            lm = min(kl, n - j - 1)
+            column, below = lu[kv + 1:kv + 1 + lm, j], x[j + 1:j + 1 + lm]
+            for i in range(lm):
+                below[i] -= np.float64(column[i]) * xj
+    for j in range(n - 1, -1, -1):
+        if x[j] != 0.0:
+            x[j] /= np.float64(lu[kv, j])
+            xj = x[j]
+            first = max(0, j - kv)
+            column, above = lu[kv + first - j:kv, j], x[first:j]
+            for i in range(j - first):
+                above[i] -= np.float64(column[i]) * xj
+    return x
+
+
 def _linalg_rod(m: int, eps: float) -> dict[str, Any]:
     """:func:`linalg_part` on the rod of ``m`` points and regularization ``eps``."""
     import scipy.sparse as sp
     import scipy.sparse.linalg as spla
+    from scipy.linalg import lapack
 
     from parastokes.stiff import banded, coloring, jacobian, local, solve
 
@@ -570,6 +603,8 @@ def _linalg_rod(m: int, eps: float) -> dict[str, Any]:
     a_bsr = banded.block_product(mob, k)
     lu = solve.Factorization(a, hgamma, 0.0)
     v = np.ones(n)
+    lu_band, piv, kl, ku = lu._band  # type: ignore[misc]
+    lu_double = lu_band.astype(float, order="F")  # dgbtrs's: the factors in double
 
     def double(matrix: Any) -> solve.Factorization:  # the banded LU in double precision
         solve.BAND_PRECISION = np.float64
@@ -599,6 +634,9 @@ def _linalg_rod(m: int, eps: float) -> dict[str, Any]:
         "factorization": lambda: solve.Factorization(a, hgamma, 0.0),
         "factorization_double": lambda: double(a),
         "stage_solve": lambda: lu.solve(v),
+        "stage_solve_signed": lambda: _band_solve_signed(lu_band, kl, ku, piv, v),
+        "stage_solve_dgbtrs": lambda: lapack.dgbtrs(lu_double, kl, ku, v, piv),
+        "stage_solve_sgbtrs": lambda: lapack.sgbtrs(lu_band, kl, ku, v.astype(np.float32), piv),
         "fresh": lambda: solve.Factorization(jacobian.local_jacobian(rod, 0.0, x, n), hgamma,
                                              0.0),
         "session_start_fresh": session_start,
@@ -616,6 +654,8 @@ def _linalg_rod(m: int, eps: float) -> dict[str, Any]:
                                                            .max() / np.abs(a_bsr.data).max()),
                              "single_vs_double_solve": float(np.abs(lu.solve(v) - exact).max()
                                                              / np.abs(exact).max()),
+                             "stage_solve_same_bits": bool(np.array_equal(
+                                 lu.solve(v), _band_solve_signed(lu_band, kl, ku, piv, v))),
                              "before_fresh": ratio["K_coloured"] + ratio["M"]
                              + ratio["before_product_csc_splu"]}
     for scheme, stages in (("ros2", 2), ("ros34pw2", 4)):
@@ -658,10 +698,11 @@ def linalg_part(rods: list[str]) -> dict[str, Any]:
     piece's CPU time over one evaluation of the rates, in one run: the loads' Jacobian K (the
     rod's hook; the coloured differences), the near mobility M and the product A = M K (the
     fused pass; stored M and the BSR product), the factorization of I - hγA (single and double
-    precision), one stage solve, a fresh Jacobian and factorization now, at this session's
-    start and before this round (scipy's BSR product, CSC and SuperLU); and the counts of
-    Jacobians and factorizations of a fixed and an adaptive ROS34PW2 run on the rod of 301
-    points."""
+    precision), one stage solve (beside the second session's loops, LAPACK's dgbtrs on the
+    factors in double and its sgbtrs, a solve in single precision), a fresh Jacobian and
+    factorization now, at this session's start and before this round (scipy's BSR product,
+    CSC and SuperLU); and the counts of Jacobians and factorizations of a fixed and an
+    adaptive ROS34PW2 run on the rod of 301 points."""
     data = _load(OUT / "linalg.json")
     for name in rods:
         m, eps, _ = SHORT_RODS[name]

@@ -297,11 +297,12 @@ def test_a_missing_target_and_an_out_of_another_kind_exit_2(tmp_path, capsys):
     assert "give a name ending in .toml" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("path", sorted((EXPERIMENTS / "quick").glob("*.toml")),
-                         ids=lambda p: p.stem)
-def test_every_quick_experiment_passes_plans_input_checks(path, tmp_path):
-    """Every check plan makes before its work (the searches take seconds to minutes per
-    config, so only the representative ones below run it whole)."""
+@pytest.mark.parametrize("path", sorted(EXPERIMENTS.rglob("*.toml")),
+                         ids=lambda p: str(p.relative_to(EXPERIMENTS)))
+def test_every_shipped_experiment_passes_plans_input_checks(path, tmp_path):
+    """Every check plan makes before its work, on every shipped config, quick and full (the
+    searches take seconds to minutes per config, so only the representative ones below run it
+    whole; the full-scale plans are docs/planning.md's)."""
     args = Namespace(config=str(path), set=[], cores=4, target=1e-6, budget=None,
                      out=str(tmp_path / "PLAN.toml"), overwrite=False)
     cfg, _ = prepare(args)
@@ -565,3 +566,68 @@ def test_an_f_too_coarse_for_the_target_is_refined_into_the_reference(tmp_path):
     assert entry["fine"] == own.as_dict()  # best_known's F CPU is F's, not the reference's
     again = Baseline.from_dict(json.loads(json.dumps(entry)))
     assert again.own == own and again.reference == found.reference
+
+
+def _found(runs):
+    reference = Run("rk4", 5e-5, None, "F", "reference", 1e-9, 28.0, 28.0)
+    return Baseline("k", 1e-6, 0.0, 1.0, 1.0, reference, 1e-9, 4e-5, runs, 10.0, 5.0)
+
+
+def test_explicit_alpha_is_eulers_cpu_at_its_largest_measured_step_over_fs():
+    from parastokes.planning.command import explicit_alpha
+
+    runs = [Run("euler", 3.6e-5, None, "euler fixed", "measured", 7e-4, 10.0, 10.0),
+            Run("euler", 1.8e-5, None, "euler fixed", "measured", 3e-4, 20.0, 20.0),
+            Run("euler", 7.2e-5, None, "euler fixed", "blew up"),
+            Run("rk2", 3.6e-5, None, "rk2 fixed", "measured", 9e-7, 20.0, 20.0)]
+    found = _found(runs)
+    assert explicit_alpha(found, found.reference) == pytest.approx(10.0 / 28.0)
+    assert explicit_alpha(found, runs[3]) == pytest.approx(0.5)  # over the F given
+    # no Euler run measured: F's step over Euler's limit (4e-5) over F's evaluations per step
+    assert explicit_alpha(_found(runs[2:]), found.reference) == pytest.approx(5e-5 / 4e-5 / 4)
+    assert explicit_alpha(_found(runs[2:]), runs[3]) == pytest.approx(3.6e-5 / 4e-5 / 2)
+    unknown = _found(runs[2:])
+    unknown.euler_limit = None
+    assert explicit_alpha(unknown, found.reference) is None
+    assert explicit_alpha(_found([]), Run("ros2", 1e-4, None, "F", "reference")) is None
+    assert explicit_alpha(_found([]), Run("rk23", 1e-6, 1e-6, "F", "reference")) is None
+
+
+@pytest.mark.parametrize(("euler_cpu", "added"), [(2.8, False), (2.81, True), (10.0, True)])
+def test_plan_adds_the_implicit_coarse_scheme_where_euler_costs_more_than_a_tenth_of_f(
+        tmp_path, euler_cpu, added):
+    from parastokes.planning import command
+
+    source = tmp_path / "rod.toml"
+    source.write_text(CONFIG.replace('schemes = ["euler"]\n', ""))  # tune's default schemes
+    cfg, _ = config.load(source)
+    found = _found([Run("euler", 3.6e-5, None, "euler fixed", "measured", 7e-4, euler_cpu,
+                        euler_cpu)])
+    schemes, why = command.coarse_schemes(cfg, found, found.reference)
+    if added:
+        assert schemes == ("euler", "rk2", "ros34pw2") and "ros34pw2: forward Euler" in why
+    else:
+        assert schemes is None and why == "tune's default schemes"
+    given = cfg.model_copy(update={"tune": cfg.tune.model_copy(update={"schemes": ["rk2"]})})
+    assert command.coarse_schemes(given, found, found.reference) == (
+        None, "the configuration's [tune] schemes")
+
+
+def test_tune_searches_the_schemes_plan_gives_it(tmp_path, monkeypatch):
+    import parastokes.tuning as tuning
+    from parastokes.planning import command
+
+    source = tmp_path / "rod.toml"
+    source.write_text(CONFIG)
+    cfg, resolved = config.load(source)
+    seen = []
+
+    def fake_tune(fine, *, space, **_):
+        seen.append(space.schemes)
+        raise tuning.TuningError("stop here")
+
+    monkeypatch.setattr(tuning, "tune", fake_tune)
+    fine = Run("rk2", 1e-6)
+    command._tune(cfg, resolved, None, fine, 2, 1e-4, 1.0, ("euler", "ros34pw2"))
+    command._tune(cfg, resolved, None, fine, 2, 1e-4, 1.0)
+    assert seen == [("euler", "ros34pw2"), ("euler",)]  # then the config's [tune] schemes

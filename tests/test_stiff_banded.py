@@ -459,6 +459,93 @@ def test_band_solve_is_lapacks_dgbtrs_on_the_same_factors(precision):
         assert np.allclose(got, np.linalg.solve(dense, rhs), rtol=1e-10, atol=1e-12)
 
 
+def _column_sweeps(lu, kl, ku, piv, b):
+    """LAPACK dgbtrs's sweeps, column by column over the whole stored band, in numpy (each
+    update ``x_i -= u x_c`` rounded as the compiled solve rounds it): the reference bits."""
+    n, kv = lu.shape[1], kl + ku
+    x = b.copy()
+    for j in range(n - 1):
+        x[[j, piv[j]]] = x[[piv[j], j]]
+        if x[j] != 0.0:
+            lm = min(kl, n - j - 1)
+            x[j + 1:j + 1 + lm] -= lu[kv + 1:kv + 1 + lm, j].astype(float) * x[j]
+    for j in range(n - 1, -1, -1):
+        if x[j] != 0.0:
+            x[j] /= float(lu[kv, j])
+            first = max(0, j - kv)
+            x[first:j] -= lu[kv + first - j:kv, j].astype(float) * x[j]
+    return x
+
+
+def _ragged_band(n, kl, ku, seed):
+    """A banded matrix whose columns reach 0 to kl below and 0 to ku above the diagonal (a
+    ragged band, as a rod's near mobility gives), its diagonal small enough that the
+    elimination pivots."""
+    rng = np.random.default_rng(seed)
+    dense = np.zeros((n, n))
+    for j in range(n):
+        below, above = rng.integers(0, kl + 1), rng.integers(0, ku + 1)
+        rows = np.arange(max(0, j - above), min(n, j + below + 1))
+        dense[rows, j] = rng.standard_normal(rows.size)
+        dense[j, j] = 0.3 * rng.standard_normal()
+    return dense
+
+
+@pytest.mark.parametrize(("n", "kl", "ku", "precision"), [
+    (37, 5, 3, np.float64), (53, 2, 9, np.float32), (200, 7, 4, np.float32),
+    (201, 12, 12, np.float64), (6, 4, 1, np.float64), (1, 0, 0, np.float64)])
+def test_band_solve_is_the_column_sweeps_bit_for_bit_and_solves(n, kl, ku, precision):
+    """The compiled solve (its loops over unsigned indices) gives the very bits of dgbtrs's
+    column-by-column sweeps, on ragged banded matrices whose elimination pivots, odd sizes,
+    kl != ku, right-hand sides with zeros (the skipped columns), in single and double
+    precision; and it solves: against scipy's solve_banded, and with a residual of round-off
+    against the matrix the factors are of (P L U; for double factors the matrix itself)."""
+    from scipy.linalg import lapack, solve_banded
+
+    dense = _ragged_band(n, kl, ku, seed=n + kl)
+    ab = banded.band_storage(sp.csr_array(-dense), 1.0, kl, ku, precision) - (
+        banded.band_storage(sp.csr_array(np.eye(n)), 0.0, kl, ku, precision))
+    lu, piv, info = (lapack.sgbtrf if precision == np.float32 else lapack.dgbtrf)(ab, kl, ku)
+    assert info == 0
+    if n > 30:
+        assert np.any(piv != np.arange(n))
+    rng = np.random.default_rng(n)
+    for zeros in (0, n // 3):
+        rhs = rng.standard_normal(n)
+        rhs[rng.choice(n, zeros, replace=False)] = 0.0
+        got = solve.band_solve(lu, kl, ku, piv, rhs)
+        assert np.array_equal(got, _column_sweeps(lu, kl, ku, piv, rhs))
+        band = np.zeros((kl + ku + 1, n))
+        for off in range(-kl, ku + 1):
+            band[ku - off, max(off, 0):n + min(off, 0)] = np.diag(dense, off)
+        exact = solve_banded((kl, ku), band, rhs)
+        residual = np.abs(dense @ got - rhs).max() / np.abs(rhs).max()
+        if precision == np.float64:
+            assert np.allclose(got, exact, rtol=1e-9, atol=1e-11 * np.abs(exact).max())
+            assert residual < 1e-12
+        else:  # exact for the factors' own matrix P L U (rounded to single by sgbtrf)
+            p_l_u = _factors_product(lu, kl, ku, piv)
+            assert np.abs(p_l_u @ got - rhs).max() < 1e-12 * np.abs(rhs).max() * max(
+                1.0, np.abs(got).max())
+            assert 1e-9 < np.abs(got - exact).max() / np.abs(exact).max() < 1e-3
+
+
+def _factors_product(lu, kl, ku, piv):
+    """P L U in double from gbtrf's factors (each multiplier and row interchange in turn)."""
+    n, kv = lu.shape[1], kl + ku
+    u = np.zeros((n, n))
+    for j in range(n):
+        first = max(0, j - kv)
+        u[first:j + 1, j] = lu[kv + first - j:kv + 1, j]
+    product = u
+    for j in range(n - 2, -1, -1):  # undo the eliminations in reverse: L_j then P_j
+        lm = min(kl, n - j - 1)
+        product[j + 1:j + 1 + lm] += np.outer(lu[kv + 1:kv + 1 + lm, j].astype(float),
+                                              product[j])
+        product[[j, piv[j]]] = product[[piv[j], j]]
+    return product
+
+
 def test_spares_keep_freed_arrays_by_shape_and_dtype():
     """take() hands back a given array only for its shape and dtype, each once; give() keeps the
     latest ``keep``."""

@@ -22,6 +22,7 @@ import pytest
 
 from parastokes import cli, integrate, models, parareal, tuning
 from parastokes.tuning import Settings, Space, TuningError, slice_map, stability
+from parastokes.tuning import search as search_module
 from parastokes.tuning.report import _helps, toml_dumps
 from parastokes.tuning.search import Candidate
 from parastokes.tuning.space import REACH, reach_table
@@ -682,3 +683,38 @@ def test_implicit_schemes_are_searched_beyond_the_explicit_step_limit():
     assert implicit["step_limit"] >= 5 * explicit["step_limit"]
     assert rows["ros2"]["status"] in {"accepted", "not reached", "unstable"}
     assert rows["ros2"]["predicted"]["gamma_ratio"] > 0 or rows["ros2"]["reason"]
+
+
+def test_the_baseline_schemes_are_euler_first_then_the_spaces_fixed_step_ones():
+    assert search_module.baseline_schemes(("rk2", "euler", "ros2")) == ["euler", "rk2", "ros2"]
+    assert search_module.baseline_schemes(("ros2", "rk2")) == ["ros2", "rk2"]
+    assert search_module.baseline_schemes(("rk23",)) == ["euler"]  # adaptive only: Euler
+
+
+#: F = RK4 above forward Euler's limit on the 21-node rod (tune's Euler limit there 1.71e-5 s):
+#: no explicit coarse solver is stable at τ_f, as for the best-serial configs of docs/planning.md.
+RK4_ABOVE_EULER = 1.8e-5
+
+
+def test_a_baseline_unstable_at_the_fine_step_passes_to_the_next_scheme():
+    fine = integrate.Propagator(small_rod(), "rk4", RK4_ABOVE_EULER)
+    space = Space(schemes=("euler", "ros2"), parameters=(), richardson=(0,),
+                  step_fractions=(1.0,))
+    res = tuning.tune(fine, t0=0.0, t1=2e-3, n_slices=8, cores=8, target=1e-3, space=space,
+                      pilot_slices=2, budget=300.0)
+    assert ("the plain euler coarse solver is unstable even at τ_f: the baseline is the next "
+            "fixed-step scheme") in res.report["search"]["notes"]
+    rows = {row["scheme"]: row for row in res.report["candidates"]}
+    assert rows["ros2"]["status"] == "accepted" and rows["euler"]["status"] == "rejected"
+    # an explicit candidate's model step is Euler's limit (none here), not the implicit base's
+    assert rows["euler"]["estimated_speedup"] == -math.inf
+    assert res.chosen is not None and res.chosen.settings.scheme == "ros2"
+
+
+def test_no_stable_baseline_names_every_scheme_tried_and_the_implicit_ones():
+    fine = integrate.Propagator(small_rod(), "rk4", RK4_ABOVE_EULER)
+    with pytest.raises(TuningError, match=r"the plain coarse solvers of euler, rk2 are unstable "
+                       r"even at τ_f; add an implicit scheme to the schemes \(one of .*ros34pw2"):
+        tuning.tune(fine, t0=0.0, t1=2e-3, n_slices=8, cores=8, target=1e-3,
+                    space=Space(schemes=("euler", "rk2"), parameters=(), richardson=(0,)),
+                    pilot_slices=2, budget=300.0)

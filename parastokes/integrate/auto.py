@@ -5,12 +5,15 @@ evaluation; Shampine 1977; Hairer & Wanner, *Solving ODEs II*, IV.2).
 
 The costs, in rate evaluations per step (:class:`Costs`): the explicit pair ``rk23``
 (:data:`EXPLICIT`, first same as last) 3 new stages a step plus ``1/RHO_EVERY`` for the
-estimate of ρ below; the implicit ``ros34pw2`` (:data:`IMPLICIT`) :data:`IMPLICIT_EVALS`, its
-stages, time derivative, banded solves and its Jacobian and factorization amortized over the
-steps that share them (measured on the paper's rod, docs/stiff.md), plus the two evaluations of
-ρ's power iteration. Both pairs estimate their error at order 2, so the step the accuracy
-allows is about the same for both; the explicit one is capped by stability at ``h ρ`` below
-its boundary on the negative real axis (:func:`.schemes.real_stability_boundary`: 2.51).
+estimate of ρ below; the implicit scheme (:func:`implicit_scheme`: ``ros34pw2``, the W-method
+on the local ``A``, where ``rtol >= W_RTOL``, else ``ros34pw2-krylov`` on the exact Jacobian,
+whose error follows the tolerance where the W-method's does not) its counted work per accepted
+step (:class:`Tally`: stage sets, rejected ones included, at :data:`STEP_EVALS` and GMRES
+products at :data:`PRODUCT_EVALS`, measured prices by the kind of factorization; docs/stiff.md),
+plus the two evaluations of ρ's power iteration. Both estimate their error at order 2, so the
+step the accuracy allows is about the same for both; the explicit one is capped by stability
+at ``h ρ`` below its boundary on the negative real axis
+(:func:`.schemes.real_stability_boundary`: 2.51).
 
 - **Explicit phase.** After every :data:`RHO_EVERY` accepted steps, one step of a power
   iteration on the rates' Jacobian by a finite difference of the rates at the step's end (one
@@ -22,17 +25,19 @@ its boundary on the negative real axis (:func:`.schemes.real_stability_boundary`
   (:meth:`Costs.break_even`): if its error estimate accepts it, implicit steps cover time at
   least TRIAL times more cheaply and the run goes on implicit from there (the step is kept);
   else the run stays explicit and tries again once the explicit phase has spent
-  ``RETRY 2^(n-1) err^(1/(q+1))`` times the cost of an implicit step after the ``n``-th failed
-  trial in a row, of error ``err`` (a geometric back-off, longer the farther the trial
-  missed: the trials cost a bounded and falling share of the run; ρ is estimated only where a
-  trial could follow). One implicit stepper serves the whole run, so that a trial
-  reuses the approximate Jacobian and its factorization of the last one while they are fresh
-  (``stiff.REFRESH`` steps; a W-method keeps its order with an older ``A``).
+  ``RETRY 2^(n-1) err^(1/(q+1))`` times the counted work of the ``n``-th failed trial in a row,
+  of error ``err`` (a geometric back-off, longer the farther the trial missed: the trials cost
+  a bounded and falling share of the run; ρ is estimated only where a trial could follow). A
+  trial accepted by its error estimate whose counted cost (:class:`Tally`) makes the implicit
+  steps no cheaper per unit time than the explicit ones is a failed trial too, of error 1.
+  One implicit stepper serves the whole run, so that a trial reuses the approximate Jacobian
+  and its factorization of the last one while they are fresh (``stiff.REFRESH`` steps; a
+  W-method keeps its order with an older ``A``).
 - **Implicit phase.** After every accepted step, a power-iteration step (two evaluations);
   where the explicit pair at ``min(h, EXPLICIT_FRACTION boundary / ρ)`` (``h`` the step the
   accuracy allows now; rk23's step where stability limits it) would cost less per unit time
-  than the implicit step ``h`` (:meth:`Costs.explicit_cheaper`) for :data:`BACK_STEPS` steps
-  in a row, the run switches back, from that step.
+  than the implicit step ``h`` at its counted cost (:meth:`Costs.explicit_cheaper`) for
+  :data:`BACK_STEPS` steps in a row, the run switches back, from that step.
 
 Every switch is logged (INFO: the time, the scheme, the costs compared) and kept in the result
 (:attr:`RunResult.switches`, with the steps of each scheme in :attr:`RunResult.by_scheme`; a
@@ -57,20 +62,38 @@ from .explicit import PairStepper
 from .loop import CompiledPair
 from .schemes import SCHEMES, Scheme, real_stability_boundary
 
-__all__ = ["Costs", "auto_run", "power_step"]
+__all__ = ["Costs", "Tally", "auto_run", "implicit_scheme", "power_step", "step_cost"]
 
 log = logging.getLogger(__name__)
 
 #: The explicit pair of the nonstiff phases: of the pairs, the fewest evaluations per unit
 #: time at the stability limit (3 per step at h ρ < 2.51, against 6 at 3.31 for rk45).
 EXPLICIT = "rk23"
-#: The linearly implicit scheme of the stiff phases: third order with an embedded second, as
-#: rk23 (measured against ros2 on the stiff test problem and a rod: docs/stiff.md).
+#: The linearly implicit scheme of the stiff phases where ``rtol >= W_RTOL``: third order with an
+#: embedded second, as rk23 (measured against ros2 on the stiff test problem and a rod:
+#: docs/stiff.md), a W-method on the local ``A``.
 IMPLICIT = "ros34pw2"
-#: Rate evaluations' worth of CPU per step of IMPLICIT on the paper's rod (301 points; its
-#: stages, f_t, banded solves, and every stiff.REFRESH steps its Jacobian and factorization),
-#: measured against one evaluation of the rates in one process (docs/stiff.md).
-IMPLICIT_EVALS = 12.0
+#: The implicit scheme where ``rtol < W_RTOL``: ROS34PW2 whose stages solve with the exact
+#: Jacobian by GMRES (no W-defect ``A - J``). On the rods of 301-1201 points the W-method's
+#: final error is 2-200 times rtol below 1e-2 (its third order lost to the W-defect, each step
+#: spends most of the tolerance and the errors add up), this one's 0.1-1.8 times
+#: (docs/stiff.md, "Why the exact Jacobian below rtol 1e-2").
+IMPLICIT_EXACT = "ros34pw2-krylov"
+#: The loosest rtol at which the W-method's error is trusted (measured: docs/stiff.md).
+W_RTOL = 1e-2
+#: Rate evaluations' worth of CPU per stage set (accepted or rejected step) of the implicit
+#: scheme, beyond its GMRES products, by the kind of its factorization (True: LAPACK's banded
+#: LU), measured against one evaluation of the rates in one process: on the paper's rod (its
+#: stages, f_t, banded solves, and every stiff.REFRESH steps its Jacobian and factorization;
+#: 11.8-13.8) and on the vesicle of 642 points (SuperLU: 90; docs/stiff.md).
+STEP_EVALS = {True: 12.0, False: 90.0}
+#: Evaluations' worth per GMRES product of ``IMPLICIT_EXACT`` (a rate evaluation, a solve with
+#: the preconditioner, the orthogonalization), measured as STEP_EVALS: 2.0 and 2.8 on the rods
+#: of 601 and 301 points, 5.7 on the vesicle.
+PRODUCT_EVALS = {True: 2.5, False: 5.7}
+#: GMRES products per step of ``IMPLICIT_EXACT`` before the run has counted any (measured on
+#: the rods of 301 and 601 points at rtol 1e-4: 37 and 35).
+PRIOR_PRODUCTS = 36.0
 #: Evaluations of ρ's power iteration per implicit step (the rates at the state and at a
 #: shifted one).
 PROBE_EVALS = 2.0
@@ -87,9 +110,9 @@ TRIAL = 2.0
 #: Back to explicit where it is the cheaper for BACK_STEPS implicit steps in a row.
 BACK_STEPS = 5
 #: After a switch back, no trial before the explicit phase has spent RETRY implicit steps'
-#: worth of evaluations; after the n-th failed trial in a row, with error err, 2^(n-1)
-#: min(err, ERR_MAX)^(1/(q+1)) times that (the last factor: how far the implicit step the
-#: accuracy allows was below the trial's, by the controller's law).
+#: worth of evaluations; after the n-th failed trial in a row, with error err, RETRY 2^(n-1)
+#: min(err, ERR_MAX)^(1/(q+1)) times the trial's counted work (the last factor: how far the
+#: implicit step the accuracy allows was below the trial's, by the controller's law).
 RETRY, ERR_MAX = 10.0, 1e3
 
 
@@ -101,11 +124,11 @@ class Costs:
     implicit: float
 
     @classmethod
-    def of(cls, pair: Scheme) -> Costs:
+    def of(cls, pair: Scheme, implicit: float) -> Costs:
         """The costs of ``pair`` (its new stages a step, plus its share of the ρ estimate) and
-        of :data:`IMPLICIT` (:data:`IMPLICIT_EVALS` plus :data:`PROBE_EVALS`)."""
+        of an implicit step of ``implicit`` evaluations (:meth:`Tally.cost`)."""
         new_stages = pair.stages - 1 if pair.fsal else pair.stages
-        return cls(new_stages + 1.0 / RHO_EVERY, IMPLICIT_EVALS + PROBE_EVALS)
+        return cls(new_stages + 1.0 / RHO_EVERY, implicit)
 
     def explicit_cheaper(self, explicit_step: float, implicit_step: float) -> bool:
         """Whether explicit steps of ``explicit_step`` cost fewer evaluations per unit time
@@ -122,6 +145,58 @@ class Costs:
         """The implicit step that costs as much per unit time as ``explicit_step``:
         ``h_E C_I / C_E``."""
         return explicit_step * self.implicit / self.explicit
+
+
+def implicit_scheme(rtol: float) -> str:
+    """The implicit scheme of ``auto`` at ``rtol``: :data:`IMPLICIT` (the W-method on the local
+    ``A``) where ``rtol >= W_RTOL``, else :data:`IMPLICIT_EXACT` (the exact Jacobian)."""
+    return IMPLICIT if rtol >= W_RTOL else IMPLICIT_EXACT
+
+
+def step_cost(sets: int, products: int, accepted: int, banded: bool) -> float:
+    """Evaluations per accepted implicit step, the rejected ones' work included:
+    ``(STEP_EVALS sets + PRODUCT_EVALS products) / accepted + PROBE_EVALS`` (``sets`` stage
+    sets, accepted or rejected, ``products`` GMRES products, the constants of the kind of
+    factorization, ``banded`` or not)."""
+    return (STEP_EVALS[banded] * sets + PRODUCT_EVALS[banded] * products) / accepted + PROBE_EVALS
+
+
+class Tally:
+    """The counted work of a run's implicit stepper ``solver`` (its ``steps``: stage sets,
+    ``iterations``: GMRES products) over its :attr:`accepted` steps, less the work of the trials
+    rejected by their error estimate (:meth:`exclude`: a step sized by the trial, not by the
+    accuracy)."""
+
+    def __init__(self, solver: stiff.Stepper) -> None:
+        self.solver, self.accepted, self.excluded = solver, 0, (0, 0)
+
+    def mark(self) -> tuple[int, int]:
+        """The stepper's counts now (stage sets, GMRES products)."""
+        return self.solver.steps, self.solver.iterations
+
+    def spent(self, since: tuple[int, int]) -> float:
+        """The work done since the :meth:`mark` ``since``, in evaluations (:func:`step_cost`
+        of it as one step)."""
+        now = self.mark()
+        return step_cost(now[0] - since[0], now[1] - since[1], 1, self.solver.banded is not False)
+
+    def exclude(self, since: tuple[int, int]) -> None:
+        """Leave out the work done since the :meth:`mark` ``since``."""
+        now = self.mark()
+        self.excluded = (self.excluded[0] + now[0] - since[0],
+                         self.excluded[1] + now[1] - since[1])
+
+    def cost(self) -> float:
+        """Evaluations per implicit step: :func:`step_cost` of the counts, or before any
+        accepted step its prior (one stage set, :data:`PRIOR_PRODUCTS` GMRES products for a
+        scheme that takes them, banded until a factorization says otherwise)."""
+        banded = self.solver.banded is not False
+        if not self.accepted:
+            prior = PRIOR_PRODUCTS if self.solver.scheme.krylov else 0.0
+            return STEP_EVALS[banded] + PRODUCT_EVALS[banded] * prior + PROBE_EVALS
+        sets, products = self.mark()
+        return step_cost(sets - self.excluded[0], products - self.excluded[1], self.accepted,
+                         banded)
 
 
 def _norm(v: np.ndarray) -> float:
@@ -175,11 +250,12 @@ class _Explicit:
 
 class _Implicit:
     """The implicit phase's watch: a power-iteration step per accepted step; True after
-    BACK_STEPS steps in a row where the explicit pair would be the cheaper."""
+    BACK_STEPS steps in a row where the explicit pair would be the cheaper, the implicit step
+    costed by the run's counted work (:class:`Tally`, the rejected steps' included)."""
 
-    def __init__(self, system: System, direction: np.ndarray, costs: Costs, boundary: float
-                 ) -> None:
-        self.system, self.costs, self.boundary = system, costs, boundary
+    def __init__(self, system: System, direction: np.ndarray, costs: Costs, boundary: float,
+                 tally: Tally | None = None) -> None:
+        self.system, self.costs, self.boundary, self.tally = system, costs, boundary, tally
         self.direction, self.rho, self.cheaper = direction, 0.0, 0
 
     def explicit_step(self, h: float) -> float:
@@ -188,6 +264,9 @@ class _Implicit:
 
     def __call__(self, t: float, x: np.ndarray, step: float, h: float) -> bool:
         self.rho, self.direction = power_step(self.system, t, x, self.direction)
+        if self.tally is not None:
+            self.tally.accepted += 1
+            self.costs = Costs(self.costs.explicit, self.tally.cost())
         cheaper = self.costs.explicit_cheaper(self.explicit_step(h), h)
         self.cheaper = self.cheaper + 1 if cheaper else 0
         return self.cheaper >= BACK_STEPS
@@ -199,9 +278,9 @@ def auto_run(system: System, x: np.ndarray, t0: float, t1: float, dt: float,
     """:func:`parastokes.integrate.run` with ``scheme="auto"`` (the module docstring): ``dt``
     the first step, ``tol`` its ``(rtol, atol)``; the explicit pair in the system's compiled
     loop where it has one and ``compiled``."""
-    pair, implicit = SCHEMES[EXPLICIT], SCHEMES[IMPLICIT]
+    pair, implicit = SCHEMES[EXPLICIT], SCHEMES[implicit_scheme(tol[0])]
     assert isinstance(pair, Scheme)
-    costs, boundary, q = Costs.of(pair), real_stability_boundary(pair), estimate_order(implicit)
+    boundary, q = real_stability_boundary(pair), estimate_order(implicit)
     x = projected(system, x, t0)
     watch = Watch(system, x, blowup_factor)
     t, h = t0, dt
@@ -211,7 +290,9 @@ def auto_run(system: System, x: np.ndarray, t0: float, t1: float, dt: float,
     solver = stepper_for(system, implicit)  # one for the run: its Jacobian serves every trial
     stepper = stepper_for(system, pair, compiled)  # goes on after a failed trial
     assert isinstance(solver, stiff.Stepper) and not isinstance(stepper, stiff.Stepper)
+    tally = Tally(solver)
     while t < t1:
+        costs = Costs.of(pair, tally.cost())
         explicit = _Explicit(system, stepper, costs, boundary, budget)
         x, done = segment(stepper, x, t, t1, h, tol, watch, explicit, RHO_EVERY, previous)
         t, h = done.end, done.last_step
@@ -224,29 +305,46 @@ def auto_run(system: System, x: np.ndarray, t0: float, t1: float, dt: float,
         if t + trial >= t1:  # too little time left to pay for a switch: explicit to the end
             budget = math.inf
             continue
+        mark = tally.mark()
         try:
             x_new, x_low = solver.step_with_estimate(t, x, trial)
             err = error_norm(x, x_new, x_low, *tol)
         except (stiff.StiffSolveError, StepFailure):  # a failed trial, as a step too large
             err = math.inf
+        # the trial's work, by which the next one waits; a solve that failed is not counted
+        # (the stepper counts a step's work as it ends): priced as an implicit step
+        spent = max(tally.spent(mark), costs.implicit if math.isinf(err) else 0.0)
         if not (err <= 1.0 and watch(t + trial, x_new, 0)):
+            tally.exclude(mark)
             counts[implicit.name][1] += 1
             failed += 1
-            budget = costs.retry(failed, err, q)
-            log.info("auto: stays %s at t=%.10g: a step of %s of %.4g (%g x the break-even %g/%g "
-                     "x the explicit %.4g) has err %.3g > 1", pair.name, t, implicit.name, trial,
-                     TRIAL, costs.implicit, costs.explicit, explicit.step, err)
+            budget = Costs(costs.explicit, spent).retry(failed, err, q)
+            log.info("auto: stays %s at t=%.10g: a step of %s of %.4g (%g x the break-even "
+                     "%.4g/%g x the explicit %.4g) has err %.3g > 1 (counted: %.4g evaluations)",
+                     pair.name, t, implicit.name, trial, TRIAL, costs.implicit, costs.explicit,
+                     explicit.step, err, spent)
+            continue
+        tally.accepted += 1  # the trial's work: a measure of the implicit step's
+        measured = Costs.of(pair, tally.cost())
+        if measured.explicit_cheaper(explicit.step, trial):
+            counts[implicit.name][1] += 1
+            failed += 1
+            budget = Costs(costs.explicit, spent).retry(failed, 1.0, q)
+            log.info("auto: stays %s at t=%.10g: a step of %s of %.4g has err %.3g but costs "
+                     "%.4g evaluations (counted), more per unit time than %s's %g at %.4g",
+                     pair.name, t, implicit.name, trial, err, measured.implicit, pair.name,
+                     measured.explicit, explicit.step)
             continue
         switches.append((t, implicit.name, (
             f"stiff: h ρ = {explicit.step * explicit.rho:.3g} > {STIFF_FRACTION:g} x "
             f"{pair.name}'s stability boundary {boundary:.3g}, and {implicit.name} took a step "
-            f"of {trial:.4g} = {TRIAL:g} x {costs.implicit:g}/{costs.explicit:g} x "
-            f"{pair.name}'s {explicit.step:.4g} (err {err:.3g}): {TRIAL:g} x cheaper per unit "
-            "time or more")))
+            f"of {trial:.4g} = {TRIAL:g} x {costs.implicit:.4g}/{costs.explicit:g} x "
+            f"{pair.name}'s {explicit.step:.4g} (err {err:.3g}; counted: {measured.implicit:.4g} "
+            "evaluations a step): cheaper per unit time")))
         log.info("auto: %s from t=%.10g, %s", implicit.name, t, switches[-1][2])
         t, x, failed, previous = t + trial, x_new, 0, None
         counts[implicit.name][0] += 1
-        calm = _Implicit(system, explicit.direction, costs, boundary)
+        calm = _Implicit(system, explicit.direction, measured, boundary, tally)
         x, done = segment(solver, x, t, t1, trial * factor(err, q, True), tol, watch, calm)
         t, h = done.end, done.last_step
         counts[implicit.name][0] += done.accepted
@@ -255,9 +353,10 @@ def auto_run(system: System, x: np.ndarray, t0: float, t1: float, dt: float,
             break
         switches.append((t, pair.name, (
             f"not stiff enough: {pair.name} at {calm.explicit_step(h):.4g} (ρ = "
-            f"{calm.rho:.4g}) costs {costs.explicit:g} evaluations a step, {implicit.name} at "
-            f"{h:.4g} {costs.implicit:g}: explicit the cheaper for {BACK_STEPS} steps")))
-        h, budget = calm.explicit_step(h), RETRY * costs.implicit
+            f"{calm.rho:.4g}) costs {calm.costs.explicit:g} evaluations a step, {implicit.name} "
+            f"at {h:.4g} {calm.costs.implicit:.4g} (counted): explicit the cheaper for "
+            f"{BACK_STEPS} steps")))
+        h, budget = calm.explicit_step(h), RETRY * calm.costs.implicit
         log.info("auto: %s from t=%.10g, %s", pair.name, t, switches[-1][2])
     accepted = sum(c[0] for c in counts.values())
     return RunResult(projected(system, x, t1), watch.worst, accepted, h,

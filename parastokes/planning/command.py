@@ -28,6 +28,16 @@ __all__ = ["PlanError", "add_arguments", "main", "plan_config", "prepare", "reso
 #: Share of the budget given to the serial search when the Parareal route is searched too.
 SERIAL_SHARE = 0.5
 
+#: Where forward Euler at its stability limit costs more than this fraction of F, no explicit
+#: coarse solver can be cheap enough (pipelined at P = 40, K = 2, α = 0.1 gives 6.5; F at its own
+#: limit leaves Euler α = 0.3-0.5: docs/benchmarks.md, "The target table"), and ``plan`` adds
+#: :data:`IMPLICIT_COARSE` to tune's default schemes.
+EXPLICIT_ALPHA = 0.1
+
+#: The implicit coarse scheme that met the rods' targets on the fine grid (docs/benchmarks.md,
+#: "What the frontier shows").
+IMPLICIT_COARSE = "ros34pw2"
+
 
 class PlanError(ValueError):
     """Bad input to ``plan``, found before any work (exit 2): the message names what to change."""
@@ -147,18 +157,59 @@ def _fine_config(run: Run) -> dict[str, Any]:
     return table
 
 
+def explicit_alpha(found: Baseline, fine: Run) -> float | None:
+    """The least γ_G/γ_F an explicit coarse solver can reach here: the measured CPU of forward
+    Euler at its largest measured step (the search runs it just below its stability limit) over
+    F's, both over T; where the search measured no such run (a full-scale search can spend its
+    budget on the reference), F's step over Euler's measured limit over F's evaluations per step
+    (F explicit on fixed steps); None where neither is known."""
+    from .. import integrate
+
+    euler = [r for r in found.runs if r.scheme == "euler" and r.fixed and r.status == "measured"]
+    if euler:
+        return max(euler, key=lambda r: r.dt).cost / fine.cost
+    scheme = integrate.lookup(fine.scheme)
+    if found.euler_limit is None or not fine.fixed or scheme.implicit:
+        return None
+    return fine.dt / found.euler_limit / scheme.stages
+
+
+def coarse_schemes(cfg: Any, found: Baseline, fine: Run) -> tuple[tuple[str, ...] | None, str]:
+    """The schemes ``tune`` searches and why: the config's ``[tune] schemes`` where given;
+    otherwise tune's defaults, with :data:`IMPLICIT_COARSE` added where explicit coarse solvers
+    cannot be cheap (:func:`explicit_alpha` above :data:`EXPLICIT_ALPHA`); None: tune's
+    defaults."""
+    from ..tuning import Space
+
+    if cfg.tune.schemes is not None:
+        return None, "the configuration's [tune] schemes"
+    alpha = explicit_alpha(found, fine)
+    if alpha is None or alpha <= EXPLICIT_ALPHA:
+        return None, "tune's default schemes"
+    return ((*Space().schemes, IMPLICIT_COARSE),
+            f"tune's default schemes and {IMPLICIT_COARSE}: forward Euler at its limit costs "
+            f"{alpha:.2g} of F (explicit coarse solvers cannot reach α <= {EXPLICIT_ALPHA:g})")
+
+
 def _tune(cfg: Any, resolved: Any, system: Any, fine: Run, cores: int, target: float,
-          budget: float | None) -> tuple[Any, str | None]:
-    """tune's search with F = ``fine`` on ``cores`` slices; (result, None) or (None, why)."""
+          budget: float | None, schemes: tuple[str, ...] | None = None
+          ) -> tuple[Any, str | None]:
+    """tune's search with F = ``fine`` on ``cores`` slices, over ``schemes`` where given (else
+    the config's [tune] table or tune's defaults); (result, None) or (None, why)."""
+    from dataclasses import replace
+
     from .. import integrate
     from ..tuning import TuningError, tune
     from ..tuning.command import PILOT_POINTS, config_space, pilot_system
 
     points = cfg.tune.pilot_points or PILOT_POINTS
+    space = config_space(cfg)
+    if schemes is not None:
+        space = replace(space, schemes=schemes)
     try:
         result = tune(integrate.Propagator(system, fine.scheme, fine.dt, rtol=fine.rtol),
                       t0=cfg.time.t0, t1=cfg.time.t1, n_slices=cores, cores=cores, target=target,
-                      space=config_space(cfg), budget=budget,
+                      space=space, budget=budget,
                       pilot=pilot_system(cfg, resolved, points),
                       pilot_slices=cfg.tune.pilot_slices)
     except TuningError as error:
@@ -267,9 +318,10 @@ def main(args: argparse.Namespace, console: Any) -> int:
         rows.append(routing.spatial_route(best.cost, best_text, args.cores, points))
         goal = (1.0 - 1.0 / F_FACTOR) * args.target
         tune_budget = None if args.budget is None else args.budget * (1.0 - SERIAL_SHARE)
+        schemes, searched = coarse_schemes(cfg, found, fine)
         console.print(f"tuning the coarse solver for F = {fine.label()} on {args.cores} slices "
-                      f"to η^K <= {goal:.3g} ...")
-        tuned, why = _tune(cfg, resolved, system, fine, args.cores, goal, tune_budget)
+                      f"to η^K <= {goal:.3g} ({searched}) ...")
+        tuned, why = _tune(cfg, resolved, system, fine, args.cores, goal, tune_budget, schemes)
         if tuned is None:
             unavailable["parareal"] = why or "tune found no coarse solver"
         else:

@@ -57,28 +57,31 @@ def band_solve(lu, kl, ku, piv, b):  # pragma: no cover - compiled
     returns them: 0-based), in double whatever the factors' precision: LAPACK's dgbtrs
     (L with its row interchanges, then U of bandwidth kl + ku), reading single-precision
     factors as they are (half dgbtrs's memory, no conversion) and exact for them to double's
-    round-off, so the solves are linear in ``b``."""
+    round-off, so the solves are linear in ``b``. The inner loops run over unsigned indices:
+    numba then drops its check for negative (wrapped-around) indices, and they vectorize
+    without a slice's set-up per column (the same operations in the same order as before,
+    the same bits, in half the time: docs/benchmarks.md, "Round 5, third session")."""
     n = lu.shape[1]
     kv = kl + ku  # the diagonal's row
+    diagonal = np.uint64(kv)
     x = b.copy()
     for j in range(n - 1):
         pivot = piv[j]
         if pivot != j:
             x[pivot], x[j] = x[j], x[pivot]
         xj = x[j]
-        if xj != 0.0:  # the multipliers: rows kv + 1.. of column j (slices: they vectorize)
-            lm = min(kl, n - j - 1)
-            column, below = lu[kv + 1:kv + 1 + lm, j], x[j + 1:j + 1 + lm]
-            for i in range(lm):
-                below[i] -= np.float64(column[i]) * xj
+        if xj != 0.0:  # the multipliers: rows kv + 1.. of column j
+            column = np.uint64(j)
+            for i in range(np.uint64(1), np.uint64(min(kl, n - j - 1) + 1)):
+                x[column + i] -= np.float64(lu[diagonal + i, column]) * xj
     for j in range(n - 1, -1, -1):
         if x[j] != 0.0:
             x[j] /= np.float64(lu[kv, j])
             xj = x[j]
-            first = max(0, j - kv)
-            column, above = lu[kv + first - j:kv, j], x[first:j]
-            for i in range(j - first):
-                above[i] -= np.float64(column[i]) * xj
+            column, first = np.uint64(j), np.uint64(max(0, j - kv))
+            row = diagonal + first - column  # U's entry (first, j)
+            for i in range(np.uint64(0), column - first):
+                x[first + i] -= np.float64(lu[row + i, column]) * xj
     return x
 
 

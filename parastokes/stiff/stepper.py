@@ -60,6 +60,11 @@ class Stepper:
         #: The Lie bracket of two rates of a body on rotating frames (order 3: :meth:`stages`).
         self._bracket = getattr(system, "bracket", None) if scheme.order >= 3 else None
 
+    @property
+    def banded(self) -> bool | None:
+        """Whether the last factorization is LAPACK's banded LU (None before any)."""
+        return None if self._lu is None else self._lu.banded
+
     def _stage_solver(self, t: float, x: np.ndarray, h: float, f0: np.ndarray, fresh: bool
                       ) -> StageSolver:
         hgamma = h * self.scheme.gamma

@@ -28,7 +28,7 @@ import logging
 import math
 import signal
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any, Protocol, TypeVar
 
@@ -83,6 +83,11 @@ _LIMIT_MODEL = {"epsilon": 4.0, "viscosity": 1.0, "bending": -1.0, "stiffness": 
 
 #: Stability intervals of the schemes on the negative real axis (for that model only).
 _INTERVAL = {"euler": 2.0, "rk2": 2.0, "rk4": 2.785}
+
+
+class UnstableBaseline(TuningError):
+    """The plain baseline scheme is unstable even at τ_f: :func:`tune` tries the next fixed-step
+    scheme of the space as its baseline."""
 
 
 class ProgressLike(Protocol):
@@ -374,8 +379,10 @@ class _Search:
         scheme = integrate.lookup(settings.scheme)
         if scheme.implicit or scheme is integrate.AUTO:
             return self.pilot.slice_length / IMPLICIT_MIN_STEPS * settings.step_fraction
-        plain = self.limit(Settings(self.base_scheme, grid=settings.grid))
-        plain *= _INTERVAL.get(settings.scheme, 2.0) / _INTERVAL.get(self.base_scheme, 2.0)
+        # an implicit baseline (every explicit one unstable at τ_f) scales nothing: Euler's limit
+        base = "euler" if integrate.lookup(self.base_scheme).implicit else self.base_scheme
+        plain = self.limit(Settings(base, grid=settings.grid))
+        plain *= _INTERVAL.get(settings.scheme, 2.0) / _INTERVAL.get(base, 2.0)
         factor = math.prod((value / self.theta0[name]) ** _LIMIT_MODEL[name]
                            for name, value in settings.corner().items())
         return plain * factor * settings.step_fraction
@@ -575,8 +582,7 @@ class _Search:
         cand = Candidate(Settings(scheme))
         self.timed(cand, self.step)
         if cand.status == "rejected":
-            raise TuningError(f"the plain {scheme} coarse solver is unstable even at τ_f; "
-                              "choose another coarse scheme")
+            raise UnstableBaseline(f"the plain {scheme} coarse solver is unstable even at τ_f")
         self.timed(cand, self.screen)
         if cand.status == "rejected":
             raise TuningError(f"the plain {scheme} coarse solver blows up over the first slice "
@@ -628,6 +634,29 @@ def _key(search: _Search, cand: Candidate) -> float:
     search.rescreen(cand)
     estimate = cand.screen["speedup"]
     return 0.0 if estimate is None else estimate  # None: screened not to reach η*
+
+
+def baseline_schemes(schemes: Sequence[str]) -> list[str]:
+    """The schemes :func:`tune` tries in turn as its baseline: forward Euler first (also when the
+    space has no fixed-step scheme), then the space's other fixed-step schemes in its order."""
+    fixed = [name for name in schemes if not adaptive_only(name)]
+    first = ["euler"] if "euler" in fixed or not fixed else []
+    return first + [name for name in fixed if name != "euler"]
+
+
+def _first_stable_baseline(search: _Search, bases: Sequence[str], frugal: bool,
+                           progress: ProgressLike) -> Candidate:
+    """The baseline of the first scheme of ``bases`` stable at τ_f (noted in the report for each
+    one passed over); :class:`TuningError` naming them all when none is."""
+    for scheme in bases:
+        progress.note(f"baseline: plain {scheme} at its largest safe step")
+        try:
+            return search.baseline(scheme, frugal)
+        except UnstableBaseline as error:
+            search.notes.append(f"{error}: the baseline is the next fixed-step scheme")
+    implicit = [name for name, scheme in integrate.SCHEMES.items() if scheme.implicit]
+    raise TuningError(f"the plain coarse solvers of {', '.join(bases)} are unstable even at τ_f; "
+                      f"add an implicit scheme to the schemes (one of {implicit})")
 
 
 def tune(
@@ -686,12 +715,11 @@ def tune(
 
     space.check(pilot_system.params, grid_ok)
     reaches = reach_table(pilot_system)
-    # the baseline: plain forward Euler, or the first fixed-step scheme of the space
-    fixed = [name for name in space.schemes if not adaptive_only(name)]
-    base_scheme = "euler" if "euler" in fixed or not fixed else fixed[0]
+    # the baseline: plain forward Euler, else the space's fixed-step schemes in turn
+    bases = baseline_schemes(space.schemes)
     for body, x in {id(system): (system, system.initial_state()),
                  id(pilot_system): (pilot_system, start_state)}.values():
-        cost.compile_loops(body, x, t0, fine, (*space.schemes, base_scheme))
+        cost.compile_loops(body, x, t0, fine, (*space.schemes, *bases))
     started, wall, cpu = clock(), time.perf_counter(), time.process_time()
     slice_length = (t1 - t0) / n_slices
     fine_steps = integrate.n_steps(0.0, slice_length, fine.dt)
@@ -752,14 +780,14 @@ def tune(
     search = _Search(pilot_window, space, n_slices, cores, target,
                      len(pilot_system.positions(start_state)), clock)
     search.notes = notes
-    progress.note(f"baseline: plain {base_scheme} at its largest safe step")
     held = _HeldBack()  # (removed when the search ends)
     stable_steps.log.addFilter(held)
     try:
-        baseline = search.baseline(base_scheme, frugal)
+        baseline = _first_stable_baseline(search, bases, frugal, progress)
     except BaseException:
         stable_steps.log.removeFilter(held)
         raise
+    base_scheme = search.base_scheme
 
     candidates = [Candidate(s) for s in space.candidates(pilot_system.params, reaches)
                   if s != Settings(base_scheme)]
