@@ -264,3 +264,39 @@ def test_a_run_from_a_config_uses_the_correction(tmp_path):
     # iteration 1 has no steps to learn from (eq. 11 both); from iteration 2 the secant's
     assert errors["secant"][0] == errors["classical"][0]
     assert errors["secant"][1:] != errors["classical"][1:]
+
+
+def test_the_benchmark_s_gaussian_process_interpolates_and_reverts_to_its_zero_mean():
+    from benchmarks.learned import LENGTHSCALES, gp_fit, gp_mean
+
+    rng = np.random.default_rng(13)
+    inputs = rng.standard_normal((12, 4))
+    outputs = np.column_stack([np.sin(inputs @ [1.0, 0.5, -0.3, 0.2]), inputs[:, 0] ** 2])
+    d2 = ((inputs[:, None, :] - inputs[None, :, :]) ** 2).sum(-1)
+    scale, weights = gp_fit(d2, outputs)
+    for x, y in zip(inputs, outputs, strict=True):  # (nugget 1e-10: interpolation)
+        np.testing.assert_allclose(gp_mean(scale, weights, inputs, x), y, atol=1e-5)
+    assert np.allclose(gp_mean(scale, weights, inputs, np.full(4, 1e3)), 0.0)
+    # the lengthscale is the grid's likeliest (the profiled log marginal likelihood, eq. of
+    # GParareal's fit with the signal variance at its optimum)
+
+    def likelihood(length):
+        kernel = np.exp(-d2 / (2 * length**2)) + 1e-10 * np.eye(12)
+        fit = np.sum(outputs * np.linalg.solve(kernel, outputs)) / outputs.size
+        return (-0.5 * outputs.size * np.log(fit)
+                - 0.5 * outputs.shape[1] * np.linalg.slogdet(kernel)[1])
+
+    grid = LENGTHSCALES * np.sqrt(np.median(d2[d2 > 0]))
+    assert scale == grid[int(np.argmax([likelihood(length) for length in grid]))]
+
+
+def test_the_benchmark_s_solve_cache_is_keyed_by_the_input_s_bytes():
+    from benchmarks.learned import _key
+
+    x = np.linspace(0.0, 1.0, 6)
+    assert _key("fine", 0.0, 0.025, x) == _key("fine", 0.0, 0.025, x.copy())
+    nudged = x.copy()
+    nudged[3] = np.nextafter(nudged[3], 2.0)  # one ulp
+    assert _key("fine", 0.0, 0.025, nudged) != _key("fine", 0.0, 0.025, x)
+    assert _key("coarse", 0.0, 0.025, x) != _key("fine", 0.0, 0.025, x)
+    assert _key("fine", 0.025, 0.05, x) != _key("fine", 0.0, 0.025, x)
