@@ -6,6 +6,14 @@
   one ``xdist_group`` to one worker, one after the other: the tests marked ``mpi`` are the group
   ``processes`` (each launches ``mpiexec -n 2``, whose ranks poll while they wait; two at once on
   two cores ran each past its time limit).
+- Each worker's thread pools wait without spinning and BLAS starts one thread
+  (``OMP_WAIT_POLICY=PASSIVE``, ``OPENBLAS_NUM_THREADS=1`` unless the environment sets them; set
+  here, before numpy and numba are loaded, so the workers and the tests' subprocesses inherit
+  them): the workers already occupy the cores, and a spinning OpenMP pool (numba's ``omp`` layer)
+  or a BLAS thread preempted by the other worker made each small parallel region wait for a time
+  slice (tests/test_rigid.py's contract of the bacterium: 113 s instead of 59 s on the loaded
+  2-core machine, under ``-n 0``). The package limits BLAS to the fluid's threads in its solves
+  anyway (``mobility.threads``); a test that asks for more (``threadpool_limits``) still gets them.
 - The checkout's package under test, without the note that ``parastokes`` prints when it runs
   from a checkout in the current directory while another copy is installed
   (``cli.launch.check_shadowing``): ``.ci/run`` installs the package (``pip install ".[test]"``)
@@ -16,9 +24,14 @@
 
 from __future__ import annotations
 
-import pytest
+import os
 
-from parastokes.cli import launch
+for _variable, _value in (("OMP_WAIT_POLICY", "PASSIVE"), ("OPENBLAS_NUM_THREADS", "1")):
+    os.environ.setdefault(_variable, _value)
+
+import pytest  # noqa: E402 (after the thread settings)
+
+from parastokes.cli import launch  # noqa: E402
 
 #: The xdist group of the tests that start several busy processes of their own.
 PROCESSES = "processes"
