@@ -44,19 +44,27 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
             item.add_marker(pytest.mark.xdist_group(PROCESSES))
 
 
+def scope_of(nodeid: str) -> str:
+    """The unit a worker gets whole: the test's ``xdist_group`` (the suffix ``@NAME`` that
+    ``--dist loadgroup`` appends to the test's id; an ``@`` inside the brackets of a parameter
+    is not one), else its file."""
+    if nodeid.rfind("@") > nodeid.rfind("]"):
+        return nodeid.rpartition("@")[2]
+    return nodeid.split("::", 1)[0]
+
+
 @pytest.hookimpl(optionalhook=True)
 def pytest_xdist_make_scheduler(config: pytest.Config, log):
-    """``--dist loadgroup``, with a test outside every group scheduled with its file (xdist's own
-    loadgroup schedules such a test alone, which computes a module's fixtures on each worker that
-    gets one of its tests)."""
+    """``--dist loadgroup`` by :func:`scope_of` (xdist's own loadgroup schedules a test outside
+    every group alone, which computes a module's fixtures on each worker that gets one of its
+    tests)."""
     if config.getvalue("dist") != "loadgroup":
         return None
     from xdist.scheduler import LoadGroupScheduling
 
     class FileOrGroup(LoadGroupScheduling):
         def _split_scope(self, nodeid: str) -> str:
-            scope = super()._split_scope(nodeid)
-            return scope.split("::", 1)[0] if scope == nodeid else scope
+            return scope_of(nodeid)
 
     return FileOrGroup(config, log)
 
