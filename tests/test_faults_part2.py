@@ -263,8 +263,10 @@ def test_an_empty_hodmd_window_is_a_configuration_error(capsys):
 
 def test_a_closed_standard_output_ends_the_command_quietly(tmp_path):
     paths = [str(_config(tmp_path, TINY, f"c{i}.toml")) for i in range(4)]
+    # (from tmp_path: in the checkout's root, an installed copy adds a note on stderr, cli.launch)
     process = subprocess.Popen([sys.executable, "-m", "parastokes", "check", *paths], env=ENV,
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                               cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               text=True)
     process.stdout.close()  # (`parastokes check ... | head -0`)
     _, err = process.communicate(timeout=120)
     assert process.returncode == 141 and err == ""  # (was exit 1 or 2, "Errno 32")

@@ -204,9 +204,11 @@ def test_without_cuda_check_and_run_say_so_in_one_line(tmp_path):
     path = _write(tmp_path, small_rod(rest='[execution]\nexecutor = "gpu"\n'))
     env = {k: v for k, v in os.environ.items() if k != "NUMBA_ENABLE_CUDASIM"}
     env["PYTHONPATH"] = str(ROOT)
+    # (a run checks its configuration as `check` does; from tmp_path: in the checkout's root, an
+    # installed copy adds a note on stderr, cli.launch)
     done = subprocess.run([sys.executable, "-m", "parastokes", "run", str(path), "--out",
-                           str(tmp_path / "o")], env=env, capture_output=True, text=True,
-                          timeout=300)  # (a run checks its configuration as `check` does)
+                           str(tmp_path / "o")], cwd=tmp_path, env=env, capture_output=True,
+                          text=True, timeout=300)
     lines = done.stderr.strip().splitlines()
     assert done.returncode == 2 and "Traceback" not in done.stderr, done.stderr
     assert lines[-1].startswith('  execution.executor: "gpu": no CUDA GPU is available')

@@ -35,7 +35,8 @@ from parastokes.output import trajectory as io
 ROOT = Path(__file__).resolve().parents[1]
 ENV = {**os.environ, "PYTHONPATH": str(ROOT), "OMP_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1"}
 SERIAL_RUNS = ROOT / "docs" / "figures" / "stiff" / "best_serial.json"
-TABLE4 = ["experiments/table4_g1.toml", "--cores", "40", "--ratio", "0.0267", "--iterations", "1"]
+TABLE4 = [str(ROOT / "experiments" / "table4_g1.toml"), "--cores", "40", "--ratio", "0.0267",
+          "--iterations", "1"]
 
 
 def _bounded_memory() -> None:
@@ -44,9 +45,11 @@ def _bounded_memory() -> None:
     resource.setrlimit(resource.RLIMIT_AS, (2 << 30, resource.RLIM_INFINITY))
 
 
-def _parastokes(*args: str, cwd: Path = ROOT) -> subprocess.CompletedProcess:
-    """``parastokes ARGS`` in a subprocess of bounded memory; a hang fails the test (timeout)."""
-    return subprocess.run([sys.executable, "-m", "parastokes", *args], cwd=cwd, env=ENV,
+def _parastokes(*args: str) -> subprocess.CompletedProcess:
+    """``parastokes ARGS`` in a subprocess of bounded memory; a hang fails the test (timeout).
+    It runs in tests/, not in the checkout's root: there, with another copy installed (as
+    ``.ci/run`` installs it), ``python -m parastokes`` adds a note on stderr (cli.launch)."""
+    return subprocess.run([sys.executable, "-m", "parastokes", *args], cwd=ROOT / "tests", env=ENV,
                           capture_output=True, text=True, timeout=90, preexec_fn=_bounded_memory)
 
 
@@ -186,10 +189,10 @@ _LIMITED_PREDICT = """
 import resource, sys
 from parastokes import cli, config
 import parastokes.cli.predict, parastokes.parareal.best_serial
-config.load("experiments/table4_g1.toml")
+config.load(sys.argv[2])
 size = int(next(l for l in open("/proc/self/status") if l.startswith("VmSize")).split()[1])
 resource.setrlimit(resource.RLIMIT_AS, (size * 1024 + (150 << 20), resource.RLIM_INFINITY))
-sys.exit(cli.main(["predict", "experiments/table4_g1.toml", "--cores", "40", "--ratio", "0.0267",
+sys.exit(cli.main(["predict", sys.argv[2], "--cores", "40", "--ratio", "0.0267",
                    "--serial", sys.argv[1], "--target", "1e-6"]))
 """
 
@@ -199,7 +202,8 @@ def test_out_of_memory_under_a_memory_limit_is_one_line(tmp_path):
     the limit leaves: a real MemoryError, exit 2, one line (was: an empty `error: `)."""
     path = tmp_path / "runs.json"
     path.write_text(json.dumps({"cases": {"x": {"rows": [{"a": i} for i in range(10**6)]}}}))
-    done = subprocess.run([sys.executable, "-c", _LIMITED_PREDICT, str(path)], cwd=ROOT, env=ENV,
+    done = subprocess.run([sys.executable, "-c", _LIMITED_PREDICT, str(path), TABLE4[0]],
+                          cwd=ROOT / "tests", env=ENV,
                           capture_output=True, text=True, timeout=120)
     assert done.returncode == cli.ExitCode.CONFIG, done.stderr
     assert done.stderr.splitlines() == ["error: out of memory (MemoryError): give smaller files "

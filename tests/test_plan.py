@@ -386,7 +386,8 @@ def test_shipped_best_serial_configs_pass_check(path):
     assert not math.isnan(cfg.fine.dt)
 
 
-def test_best_serial_folder_holds_one_config_per_problem_of_the_target_table(monkeypatch):
+def test_best_serial_folder_holds_one_config_per_problem_of_the_target_table(monkeypatch,
+                                                                              tmp_path):
     from parastokes.gpu import device
 
     monkeypatch.setattr(device, "missing", lambda: None)  # plan's refusal, not check's
@@ -395,7 +396,7 @@ def test_best_serial_folder_holds_one_config_per_problem_of_the_target_table(mon
     with pytest.raises(PlanError, match="gpu"):
         prepare(Namespace(config=str(EXPERIMENTS / "quick/table4_g1.toml"),
                           set=['execution.executor="gpu"'], cores=2, target=1e-6, budget=None,
-                          out="/tmp/x.toml", overwrite=True))
+                          out=str(tmp_path / "x.toml"), overwrite=True))
 
 
 @pytest.mark.slow
