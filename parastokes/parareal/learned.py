@@ -4,7 +4,7 @@ Eq. 11 forms X_n^k = F(X_{n-1}^{k-1}) + G(X_{n-1}^k) - G(X_{n-1}^{k-1}): it take
 fine-coarse difference D_n(x) = F(x) - G(x) at the previous iterate as if it did not depend on
 the state, so Parareal is Newton's method on the shooting equations with F's Jacobian replaced by
 G's (Gander & Vandewalle, SIAM J. Sci. Comput. 29, 2007). The ``secant`` correction adds the part
-of D_n' that the previous iterates of slice n have already measured:
+of D_n' that the previous iterates of slice n have already measured::
 
     X_n^k = eq. 11 + J_n^k (X_{n-1}^k - X_{n-1}^{k-1}),
     J_n^k s = dD c,   c = argmin_c |dX c - s|  (minimum norm),
