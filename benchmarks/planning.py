@@ -93,7 +93,25 @@ def record_of(argv: Sequence[str], config: str, target: float, cores: int, statu
         record["error"] = last_error_line(stderr)
     else:
         record.update({key: plan.get(key) for key in PLAN_KEYS})
+        record["tune"] = measured_only(record["tune"])
     return record
+
+
+#: Statuses of tune's candidates that were never measured (kept as counts only).
+UNMEASURED = ("not reached", "pruned")
+
+
+def measured_only(report: dict[str, Any] | None) -> dict[str, Any] | None:
+    """``tune``'s report with only its measured candidates listed (hundreds are never reached
+    within a budget) and ``candidate_counts``: how many of each (scheme, status)."""
+    if not report or "candidates" not in report:
+        return report
+    counts: dict[str, int] = {}
+    for cand in report["candidates"]:
+        key = f"{cand['scheme']} {cand['status']}"
+        counts[key] = counts.get(key, 0) + 1
+    kept = [c for c in report["candidates"] if c["status"] not in UNMEASURED]
+    return {**report, "candidates": kept, "candidate_counts": counts}
 
 
 def child_cpu(before: Any, after: Any) -> float:

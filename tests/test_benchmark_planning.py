@@ -92,3 +92,19 @@ def test_existing_records_are_skipped_and_tabled(planning, tmp_path, monkeypatch
     (tmp_path / "table5_full.json").write_text((tmp_path / "a.json").read_text())
     assert planning.main(["--only", "table5_full"]) == 0
     assert "| table5_full |" in capsys.readouterr().out
+
+
+def test_a_records_tune_report_lists_measured_candidates_and_counts_the_rest(planning):
+    report = {"chosen": "x", "candidates": [
+        {"scheme": "euler", "status": "accepted"}, {"scheme": "euler", "status": "pruned"},
+        {"scheme": "ros34pw2", "status": "not reached"}, {"scheme": "ros34pw2",
+                                                          "status": "rejected"},
+        {"scheme": "euler", "status": "pruned"}]}
+    kept = planning.measured_only(report)
+    assert [c["status"] for c in kept["candidates"]] == ["accepted", "rejected"]
+    assert kept["candidate_counts"] == {"euler accepted": 1, "euler pruned": 2,
+                                        "ros34pw2 not reached": 1, "ros34pw2 rejected": 1}
+    assert kept["chosen"] == "x" and planning.measured_only(None) is None
+    record = planning.record_of(["py", "-m", "parastokes", "plan"], "a.toml", 1e-6, 40, 0, "",
+                                {**PLAN, "tune": report}, 1.0, 1.0, (0.5, 0.5), "abc1234")
+    assert len(record["tune"]["candidates"]) == 2
