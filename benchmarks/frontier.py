@@ -565,7 +565,7 @@ def profile_slice(name: str, label: str, repeats: int = 3, evaluations: int = 20
         row["evaluations_per_step"] = row["seconds"] / rate / steps
     return {"label": label, "steps": steps, "slice_cpu": total, "rate_evaluation": rate,
             "evaluations_per_step": total / rate / steps, "pieces": rows,
-            "load_average": _load_average()}
+            "load_average": load_average()}
 
 
 def interleaved_alphas(name: str, labels: Sequence[str], rounds: int = 5) -> dict[str, Any]:
@@ -578,7 +578,7 @@ def interleaved_alphas(name: str, labels: Sequence[str], rounds: int = 5) -> dic
     problem = PROBLEMS[name]
     setups = {label: build(problem, CANDIDATES[name][label].coarse) for label in labels}
     ratios: dict[str, list[float]] = {label: [] for label in labels}
-    loads = [_load_average()]
+    loads = [load_average()]
     for _ in range(rounds):
         for label, setup in setups.items():
             costs = parareal.measure_slice_costs(setup.fine, setup.coarse, 0.0,
@@ -586,7 +586,7 @@ def interleaved_alphas(name: str, labels: Sequence[str], rounds: int = 5) -> dic
                                                  setup.system.initial_state(), repeats=1,
                                                  clock=time.process_time)
             ratios[label].append(costs.task_ratio())
-        loads.append(_load_average())
+        loads.append(load_average())
     return {label: {"ratios": r, "median": float(np.median(r)), "load_average": loads}
             for label, r in ratios.items()}
 
@@ -777,7 +777,7 @@ def real_runs(name: str, label: str, iterations: int, slices: int = 4, workers: 
                 path = pathlib.Path(tmp) / f"{schedule}.toml"
                 path.write_text(toml_text(data))
                 out = pathlib.Path(tmp) / f"{schedule}_{repeat}"
-                load = _load_average()
+                load = load_average()
                 done = subprocess.run([sys.executable, "-m", "parastokes", "run", str(path),
                                        "--out", str(out), "--overwrite"], capture_output=True,
                                       text=True)
@@ -797,7 +797,7 @@ def real_runs(name: str, label: str, iterations: int, slices: int = 4, workers: 
                              "gamma_F": gamma_f, "gamma_aux": aux, "n_auxiliary": n_aux,
                              "simulated_wall": sim.wall * gamma_f,
                              "wall_vs_simulation": timings.total / (sim.wall * gamma_f),
-                             "load_average": [load, _load_average()],
+                             "load_average": [load, load_average()],
                              "errors": summary["errors"]})
                 print(name, label, rows[-1], flush=True)
     return rows
@@ -917,7 +917,7 @@ def k40_summary(name: str, label: str, work: pathlib.Path) -> dict[str, Any]:
             done["best"]["cpu_per_time"]),
         "cpu": {"reference": reference.get("cpu"), "reference_slices": reference.get(
             "slices_done", 0), "parareal_main_process": record.get("cpu")},
-        "load_average": _load_average(),
+        "load_average": load_average(),
     }
 
 
@@ -952,7 +952,8 @@ def _store(name: str, key: str, label: str, value: Any) -> None:
     _save(path, data)
 
 
-def _load_average() -> float:
+def load_average() -> float:
+    """The one-minute load average, NaN where /proc is not there."""
     try:
         return float(pathlib.Path("/proc/loadavg").read_text().split()[0])
     except OSError:

@@ -304,7 +304,7 @@ def measure(name: str, label: str, corrections: Sequence[str], iterations: int,
                     "model_cpu_max": max(run.model_cpu, default=0.0),
                     "coarse_cpu_per_solve": (float(np.median(run.coarse_cpu))
                                              if run.coarse_cpu else None),
-                    "load_average": fr._load_average(),
+                    "load_average": fr.load_average(),
                 }
                 fr._save(out, data)
                 print(f"{label} | {correction} | k = {k}: eta = {errors[-1]:.3e}, model "

@@ -33,6 +33,8 @@ import time
 from collections.abc import Sequence
 from typing import Any
 
+from benchmarks.frontier import load_average
+
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 RECORDS = ROOT / "docs" / "figures" / "planning"
 WORK = pathlib.Path("out/plans")
@@ -48,14 +50,6 @@ TARGETS: dict[str, tuple[str, float]] = {
 
 #: PLAN.json's keys a record keeps.
 PLAN_KEYS = ("best_serial", "fine", "routes", "unavailable", "chosen", "baseline", "tune")
-
-
-def load_average() -> float:
-    """The one-minute load average, NaN where /proc is not there."""
-    try:
-        return float(pathlib.Path("/proc/loadavg").read_text().split()[0])
-    except OSError:
-        return math.nan
 
 
 def command(config: str, cores: int, target: float, budget: float, out: pathlib.Path
