@@ -979,6 +979,9 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument("--alphas", nargs="+", metavar="PROBLEM ROUNDS LABEL",
                         help="alpha of these candidates in ROUNDS interleaved rounds "
                         "(PROBLEM_alphas.json)")
+    parser.add_argument("--alphas-key", default="", metavar="PREFIX",
+                        help="with --alphas: store each median under 'PREFIXLABEL' (keeps the "
+                        "earlier measurements of LABEL)")
     parser.add_argument("--k40", nargs=3, metavar=("PROBLEM", "LABEL", "K"),
                         help="eta^1..eta^K of G = LABEL over 40 slices of PROBLEM's slice length "
                         "against F's serial solution (resumable; OUT/k40_PROBLEM.json)")
@@ -997,7 +1000,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         name, rounds, *labels = args.alphas
         for label, value in interleaved_alphas(name, labels, int(rounds)).items():
             print(label, value, flush=True)
-            _store(name, "alphas", label, value)
+            _store(name, "alphas", args.alphas_key + label, value)
         return
     if args.profile:
         name, label = args.profile

@@ -150,3 +150,18 @@ def test_interleaved_alphas_take_each_candidates_median_over_the_rounds(frontier
     out = frontier.interleaved_alphas("quick", [label, "other"], rounds=3)
     assert out[label]["ratios"] == [0.5, 0.3, 0.9] and out[label]["median"] == 0.5
     assert out["other"]["ratios"] == [0.1, 0.2, 0.25] and out["other"]["median"] == 0.2
+
+
+def test_alphas_are_stored_under_the_given_key_prefix(monkeypatch):
+    with benchmark_module("frontier") as frontier:
+        stored = []
+        monkeypatch.setattr(frontier, "interleaved_alphas",
+                            lambda name, labels, rounds: {label: {"median": 0.1}
+                                                          for label in labels})
+        monkeypatch.setattr(frontier, "_store", lambda *args: stored.append(args))
+        frontier.main(["--alphas", "table5", "7", "ros34pw2 1.25e-3", "--alphas-key",
+                       "third session, quiet, "])
+        frontier.main(["--alphas", "table4", "3", "ros34pw2 6.25e-4"])
+    assert stored == [("table5", "alphas", "third session, quiet, ros34pw2 1.25e-3",
+                       {"median": 0.1}),
+                      ("table4", "alphas", "ros34pw2 6.25e-4", {"median": 0.1})]
