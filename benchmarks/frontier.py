@@ -30,12 +30,13 @@ up in ``docs/figures/frontier/k40_PROBLEM.json`` (docs/planning.md, "K at 40 sli
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import pathlib
 import sys
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -568,27 +569,129 @@ def profile_slice(name: str, label: str, repeats: int = 3, evaluations: int = 20
             "load_average": load_average()}
 
 
+#: A label ending with this names its candidate with the linearly implicit schemes' banded LU
+#: in float64 (``parastokes.stiff.solve.BAND_PRECISION``; float32 by default): a smooth G, not a
+#: ``[coarse]`` option (docs/benchmarks.md, "Learned corrections").
+DOUBLE_LU = ", float64 LU"
+
+
+def split_variant(label: str) -> tuple[str, type | None]:
+    """(the candidate's label in ``CANDIDATES``, the band LU's dtype to patch in or None) of a
+    label that may end with :data:`DOUBLE_LU`."""
+    if label.endswith(DOUBLE_LU):
+        return label[: -len(DOUBLE_LU)], np.float64
+    return label, None
+
+
+@contextlib.contextmanager
+def band_precision(dtype: type | None) -> Iterator[None]:
+    """``parastokes.stiff.solve.BAND_PRECISION`` set to ``dtype`` inside, restored after (None:
+    left as it is)."""
+    from parastokes.stiff import solve
+
+    saved = solve.BAND_PRECISION
+    if dtype is not None:
+        solve.BAND_PRECISION = dtype
+    try:
+        yield
+    finally:
+        solve.BAND_PRECISION = saved
+
+
 def interleaved_alphas(name: str, labels: Sequence[str], rounds: int = 5) -> dict[str, Any]:
     """alpha of each candidate ``label`` measured in ``rounds`` interleaved rounds (each round
     one ``measure_slice_costs`` per candidate, F timed beside each G): the median ratio per
     candidate. Under a shared machine's changing load a candidate's alpha from its own
-    frontier run moves by tens of percent; interleaved, the candidates see the same load."""
+    frontier run moves by tens of percent; interleaved, the candidates see the same load. A
+    label ending with :data:`DOUBLE_LU` is its candidate measured with the band LU in double."""
     from parastokes import parareal
 
     problem = PROBLEMS[name]
-    setups = {label: build(problem, CANDIDATES[name][label].coarse) for label in labels}
+    variants = {label: split_variant(label) for label in labels}
+    setups = {label: build(problem, CANDIDATES[name][base].coarse)
+              for label, (base, _) in variants.items()}
     ratios: dict[str, list[float]] = {label: [] for label in labels}
     loads = [load_average()]
     for _ in range(rounds):
         for label, setup in setups.items():
-            costs = parareal.measure_slice_costs(setup.fine, setup.coarse, 0.0,
-                                                 problem.slice_length,
-                                                 setup.system.initial_state(), repeats=1,
-                                                 clock=time.process_time)
+            with band_precision(variants[label][1]):
+                costs = parareal.measure_slice_costs(setup.fine, setup.coarse, 0.0,
+                                                     problem.slice_length,
+                                                     setup.system.initial_state(), repeats=1,
+                                                     clock=time.process_time)
             ratios[label].append(costs.task_ratio())
         loads.append(load_average())
     return {label: {"ratios": r, "median": float(np.median(r)), "load_average": loads}
             for label, r in ratios.items()}
+
+
+def interleaved_serial(name: str, runs: Sequence[tuple[str, float]], rounds: int = 5
+                       ) -> dict[str, Any]:
+    """CPU time of one slice (``slice_length`` from the initial state) of each serial run
+    (scheme, dt) in ``rounds`` interleaved rounds after one untimed warm-up each, and each one's
+    median ratio of CPU per slice to the first run's (the ratio of their CPU per unit time: both
+    take fixed steps), with the load average after each round."""
+    from parastokes import integrate
+
+    problem = PROBLEMS[name]
+    setup = build(problem, {"scheme": "euler", "dt": problem.fine[1]})
+    system, x0 = setup.system, setup.system.initial_state()
+
+    def one(scheme: str, dt: float) -> float:
+        return _cpu(lambda: integrate.propagate(system, x0, 0.0, problem.slice_length, scheme,
+                                                dt))[1]
+
+    for scheme, dt in runs:
+        one(scheme, dt)
+    seconds: dict[str, list[float]] = {f"{s} {dt:g}": [] for s, dt in runs}
+    loads = [load_average()]
+    for _ in range(rounds):
+        for (scheme, dt), key in zip(runs, seconds, strict=True):
+            seconds[key].append(one(scheme, dt))
+        loads.append(load_average())
+    first = seconds[next(iter(seconds))]
+    return {key: {"cpu_per_slice": values,
+                  "median_ratio": float(np.median(np.divide(values, first))),
+                  "load_average": loads} for key, values in seconds.items()}
+
+
+def full_serial(name: str, runs: Sequence[tuple[str, float, float | None]],
+                t1: float | None = None) -> dict[str, Any]:
+    """Serial runs (scheme, dt, rtol: None for fixed steps, else adaptive from a first step dt
+    with atol = rtol / 10) over [0, ``t1``] (default the FULL problem's T): eq. 34 at t1 against
+    ``problem.reference`` run over the same interval (cached in ``OUT/.NAME_reference_tT.npy``),
+    over the positions (as the analogue's serial rows and ``plan``) and over the whole state (as
+    eta^k), with each run's CPU time; written to ``OUT/NAME_full_serial.json`` under "T = t1"
+    after each run."""
+    from parastokes import integrate
+    from parastokes.parareal import relative_change
+
+    problem = PROBLEMS[name]
+    setup = build(problem, {"scheme": "euler", "dt": problem.fine[1]})
+    system, x0 = setup.system, setup.system.initial_state()
+    t1 = problem.full_t1 if t1 is None else t1
+    path, cache = OUT / f"{name}_full_serial.json", OUT / f".{name}_reference_t{t1:g}.npy"
+    data = _load(path)
+    entry = data.setdefault(f"T = {t1:g}", {})
+    if not cache.exists():
+        scheme, dt = problem.reference
+        state, cpu = _cpu(lambda: integrate.propagate(system, x0, 0.0, t1, scheme, dt))
+        np.save(cache, state)
+        entry["reference"] = {"scheme": scheme, "dt": dt, "cpu": cpu}
+        _save(path, data)
+    reference = np.load(cache)
+    rows = entry.setdefault("runs", {})
+    for scheme, dt, rtol in runs:
+        state, cpu = _cpu(lambda s=scheme, h=dt, r=rtol: integrate.propagate(
+            system, x0, 0.0, t1, s, h, rtol=r, atol=None if r is None else r / 10))
+        key = f"{scheme} {dt:g}" if rtol is None else f"{scheme} rtol {rtol:g}"
+        rows[key] = {"scheme": scheme, "dt": dt, "rtol": rtol, "cpu": cpu,
+                     "error_positions": relative_change(state, reference, system.positions),
+                     "error_state": relative_change(state, reference),
+                     "load_average": load_average()}
+        print(name, key, rows[key], flush=True)
+        _save(path, data)
+    return data
 
 
 # ---- tables -------------------------------------------------------------------------------------
@@ -960,6 +1063,25 @@ def load_average() -> float:
         return math.nan
 
 
+def _runs(words: Sequence[str]) -> list[tuple[str, float | None, float | None]]:
+    """(scheme, dt, rtol) from the words SCHEME DT SCHEME DT ... of the command line, where DT
+    is a step (rtol None) or "rtol=R" (dt None: adaptive)."""
+    if not words or len(words) % 2:
+        raise SystemExit(f"expected SCHEME DT pairs, got {' '.join(words)!r}")
+    out: list[tuple[str, float | None, float | None]] = []
+    for scheme, step in zip(words[::2], words[1::2], strict=True):
+        if step.startswith("rtol="):
+            out.append((scheme, None, float(step.removeprefix("rtol="))))
+        else:
+            out.append((scheme, float(step), None))
+    return out
+
+
+def problem_step(name: str, dt: float | None) -> float:
+    """``dt``, or where None (an adaptive run's first step) the problem's F step."""
+    return PROBLEMS[name].fine[1] if dt is None else dt
+
+
 def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--problems", nargs="+", default=list(PROBLEMS), choices=list(PROBLEMS))
@@ -982,6 +1104,15 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument("--alphas-key", default="", metavar="PREFIX",
                         help="with --alphas: store each median under 'PREFIXLABEL' (keeps the "
                         "earlier measurements of LABEL)")
+    parser.add_argument("--serial-ratios", nargs="+", metavar="PROBLEM ROUNDS SCHEME DT",
+                        help="CPU per slice of these serial runs (SCHEME DT pairs) in ROUNDS "
+                        "interleaved rounds, each over the first's (PROBLEM_serial_ratios.json)")
+    parser.add_argument("--full-serial", nargs="+", metavar="PROBLEM SCHEME DT",
+                        help="errors at the full T of these serial runs (SCHEME DT pairs; DT "
+                        "rtol=R: adaptive) against the problem's reference over the same T "
+                        "(PROBLEM_full_serial.json)")
+    parser.add_argument("--serial-t1", type=float, default=None,
+                        help="with --full-serial: over [0, T] instead of the full problem's T")
     parser.add_argument("--k40", nargs=3, metavar=("PROBLEM", "LABEL", "K"),
                         help="eta^1..eta^K of G = LABEL over 40 slices of PROBLEM's slice length "
                         "against F's serial solution (resumable; OUT/k40_PROBLEM.json)")
@@ -1001,6 +1132,20 @@ def main(argv: Sequence[str] | None = None) -> None:
         for label, value in interleaved_alphas(name, labels, int(rounds)).items():
             print(label, value, flush=True)
             _store(name, "alphas", args.alphas_key + label, value)
+        return
+    if args.full_serial:
+        name, *pairs = args.full_serial
+        full_serial(name, [(s, problem_step(name, h), rtol) for s, h, rtol in _runs(pairs)],
+                    args.serial_t1)
+        return
+    if args.serial_ratios:
+        name, rounds, *pairs = args.serial_ratios
+        runs = _runs(pairs)
+        if any(dt is None for _, dt, _ in runs):
+            raise SystemExit("--serial-ratios takes fixed steps only")
+        result = interleaved_serial(name, [(s, float(h)) for s, h, _ in runs if h], int(rounds))
+        print(json.dumps(result, indent=1), flush=True)
+        _store(name, "serial_ratios", args.alphas_key + " / ".join(result), result)
         return
     if args.profile:
         name, label = args.profile

@@ -271,10 +271,10 @@ def measure(name: str, label: str, corrections: Sequence[str], iterations: int,
     work.mkdir(parents=True, exist_ok=True)
     reference = fr.k40_reference(_SETUP["setup"], problem, work)
     analogue = fr.load_problem(name)
-    entry = analogue["candidates"][label]
     own = fr.summary(analogue)["fine"]["error"]
-    alpha = None if double_lu else entry["alpha"]
-    rows = data.setdefault(label + (", float64 LU" if double_lu else ""), {
+    # (the analogue's alpha where it was measured there; none for a variant it never ran)
+    alpha = None if double_lu else analogue["candidates"].get(label, {}).get("alpha")
+    rows = data.setdefault(label + (fr.DOUBLE_LU if double_lu else ""), {
         "alpha": alpha, "fine_own_error": own, "slices": problem.slices, "t1": problem.t1,
         "corrections": {}})
     with ProcessPoolExecutor(workers, multiprocessing.get_context("spawn"), initializer=_init,

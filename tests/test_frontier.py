@@ -165,3 +165,90 @@ def test_alphas_are_stored_under_the_given_key_prefix(monkeypatch):
     assert stored == [("table5", "alphas", "third session, quiet, ros34pw2 1.25e-3",
                        {"median": 0.1}),
                       ("table4", "alphas", "ros34pw2 6.25e-4", {"median": 0.1})]
+
+
+def test_a_double_lu_label_names_its_candidate_and_the_patch(frontier):
+    base = "ros34pw2 1.25e-3"
+    assert frontier.split_variant(base + frontier.DOUBLE_LU) == (base, np.float64)
+    assert frontier.split_variant(base) == (base, None)
+    from parastokes.stiff import solve
+
+    saved = solve.BAND_PRECISION
+    with frontier.band_precision(np.float64):
+        assert solve.BAND_PRECISION is np.float64
+    assert solve.BAND_PRECISION is saved
+    with frontier.band_precision(None):
+        assert solve.BAND_PRECISION is saved
+
+
+def test_interleaved_alphas_measure_the_double_lu_variant_under_its_patch(frontier, monkeypatch):
+    """The variant is built from its base candidate's [coarse] table and each of its slices is
+    measured with the band LU in double; the plain candidate's with the default."""
+    from types import SimpleNamespace
+
+    from parastokes import parareal
+    from parastokes.stiff import solve
+
+    label = "ros34pw2 1.25e-3"
+    built, seen = [], []
+
+    def measured(fine, coarse, *args, **kw):
+        seen.append((coarse, solve.BAND_PRECISION))
+        return SimpleNamespace(task_ratio=lambda: 0.1)
+
+    def build(problem, coarse):
+        built.append(coarse)
+        return SimpleNamespace(fine=None, coarse=len(built),
+                               system=SimpleNamespace(initial_state=lambda: None))
+
+    monkeypatch.setattr(parareal, "measure_slice_costs", measured)
+    monkeypatch.setattr(frontier, "build", build)
+    frontier.interleaved_alphas("table5", [label, label + frontier.DOUBLE_LU], rounds=2)
+    coarse = frontier.CANDIDATES["table5"][label].coarse
+    assert built == [coarse, coarse]
+    default = solve.BAND_PRECISION
+    assert default is not np.float64
+    assert seen == [(1, default), (2, np.float64)] * 2
+
+
+def test_interleaved_serial_ratios_are_medians_of_each_rounds_ratio_to_the_first(frontier,
+                                                                                monkeypatch):
+    from types import SimpleNamespace
+
+    times = iter([9.0, 9.0,                  # (the warm-ups)
+                  2.0, 1.0, 4.0, 1.0, 3.0, 2.4])   # rounds: (F, run) x 3
+    monkeypatch.setattr(frontier, "_cpu", lambda function: (None, next(times)))
+    monkeypatch.setattr(frontier, "build", lambda problem, coarse: SimpleNamespace(
+        system=SimpleNamespace(initial_state=lambda: None)))
+    out = frontier.interleaved_serial("table5", [("rk4", 5.45e-5), ("rk2", 3.74e-5)], rounds=3)
+    assert out["rk4 5.45e-05"]["median_ratio"] == 1.0
+    assert out["rk2 3.74e-05"]["cpu_per_slice"] == [1.0, 1.0, 2.4]
+    assert out["rk2 3.74e-05"]["median_ratio"] == pytest.approx(0.5)   # of 0.5, 0.25, 0.8
+    assert len(out["rk2 3.74e-05"]["load_average"]) == 4
+
+
+def test_serial_runs_are_read_as_steps_or_tolerances(frontier):
+    assert frontier._runs(["rk2", "3.74e-5", "ros34pw2-krylov", "rtol=1e-5"]) == [
+        ("rk2", 3.74e-5, None), ("ros34pw2-krylov", None, 1e-5)]
+    with pytest.raises(SystemExit, match="SCHEME DT pairs"):
+        frontier._runs(["rk2", "3.74e-5", "rk4"])
+    assert frontier.problem_step("table5", None) == 5.45e-5
+    assert frontier.problem_step("table5", 1e-3) == 1e-3
+
+
+def test_full_serial_errors_are_against_the_reference_over_the_same_interval(frontier,
+                                                                              monkeypatch,
+                                                                              tmp_path):
+    """The reference's own scheme and step read 0 (the same run); a coarser run does not, and
+    a second call adds its rows to the file (the reference cached per interval)."""
+    monkeypatch.setattr(frontier, "OUT", tmp_path)
+    scheme, dt = frontier.PROBLEMS["quick"].reference
+    data = frontier.full_serial("quick", [(scheme, dt, None)], t1=0.0005)
+    rows = data["T = 0.0005"]["runs"]
+    assert rows[f"{scheme} {dt:g}"]["error_positions"] == 0.0
+    assert rows[f"{scheme} {dt:g}"]["error_state"] == 0.0
+    assert (tmp_path / ".quick_reference_t0.0005.npy").exists()
+    again = frontier.full_serial("quick", [("rk2", 1.16e-5, None)], t1=0.0005)
+    rows = again["T = 0.0005"]["runs"]
+    assert set(rows) == {f"{scheme} {dt:g}", "rk2 1.16e-05"}
+    assert rows["rk2 1.16e-05"]["error_positions"] > 1e-12
