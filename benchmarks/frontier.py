@@ -712,16 +712,36 @@ def _fine_row(data: dict[str, Any]) -> dict[str, Any]:
     return next(r for r in data["serial"] if r["scheme"] == scheme and r["dt"] == dt)
 
 
+def interleaved_cost_ratio(name: str, fine: dict[str, Any], best: dict[str, Any]
+                           ) -> float | None:
+    """The CPU of ``best`` over F's measured interleaved in one process
+    (``OUT/NAME_serial_ratios.json``, :func:`interleaved_serial`: the last record whose first
+    run is F and which has ``best``), None where none was."""
+    def key(row: dict[str, Any]) -> str:
+        return f"{row['scheme']} {row['dt']:g}"
+
+    found = None
+    for record in _load(OUT / f"{name}_serial_ratios.json").values():
+        if next(iter(record), None) == key(fine) and key(best) in record:
+            found = float(record[key(best)]["median_ratio"])
+    return found
+
+
 def summary(data: dict[str, Any]) -> dict[str, Any]:
-    """F, the fastest serial run reaching the target and the per-family frontier of a problem."""
+    """F, the fastest serial run reaching the target, its CPU over F's (``cost_ratio``:
+    measured interleaved where it was, :func:`interleaved_cost_ratio`, else the ratio of the
+    analogue's rows) and the per-family frontier of a problem."""
     target = data["problem"]["target"]
     fine = _fine_row(data)
-    named = next((p.best for p in PROBLEMS.values() if p.title == data["problem"]["title"]), None)
+    name = next((n for n, p in PROBLEMS.items() if p.title == data["problem"]["title"]), None)
+    named = None if name is None else PROBLEMS[name].best
     best = (next(r for r in data["serial"] if [r["scheme"], r["dt"]] == list(named)) if named
             else best_serial(data["serial"], target) or fine)
-    return {"fine": fine, "best": best,
-            "frontier": frontier(data.get("candidates", {}), target, fine["error"],
-                                 fine["cpu_per_time"], best["cpu_per_time"])}
+    ratio = (1.0 if best is fine else
+             (name and interleaved_cost_ratio(name, fine, best))
+             or best["cpu_per_time"] / fine["cpu_per_time"])
+    return {"fine": fine, "best": best, "cost_ratio": ratio,
+            "frontier": frontier(data.get("candidates", {}), target, fine["error"], 1.0, ratio)}
 
 
 def _g(value: float | None, digits: int = 2) -> str:
@@ -745,8 +765,7 @@ def table(data: dict[str, Any]) -> str:
         if "alpha" not in e:
             lines.append(f"| {label} | {e['family']} | | | blew up | | | |")
             continue
-        v = assess(e, p["target"], s["fine"]["error"], s["fine"]["cpu_per_time"],
-                   s["best"]["cpu_per_time"])
+        v = assess(e, p["target"], s["fine"]["error"], 1.0, s["cost_ratio"])
         etas = " ".join(f"{x:.1e}" for x in e["errors"])
         if v is None:
             lines.append(f"| {label} | {e['family']} | {e['n_auxiliary']} | {e['alpha']:.3g} | "
@@ -1019,8 +1038,7 @@ def k40_summary(name: str, label: str, work: pathlib.Path) -> dict[str, Any]:
         "increments": [record["increments"][str(k)] for k in ks], "errors": errors,
         "K": iterations_to_reach(errors, problem.target, own),
         "speedups": None if errors is None else assess(
-            measured, problem.target, own, done["fine"]["cpu_per_time"],
-            done["best"]["cpu_per_time"]),
+            measured, problem.target, own, 1.0, done["cost_ratio"]),
         "cpu": {"reference": reference.get("cpu"), "reference_slices": reference.get(
             "slices_done", 0), "parareal_main_process": record.get("cpu")},
         "load_average": load_average(),

@@ -341,7 +341,9 @@ def smoothness(name: str, label: str, slice_index: int = 10, scale: float = 1e-1
 
 def table(name: str) -> str:
     """The markdown table of docs/benchmarks.md ("Learned corrections") from the results."""
-    lines = ["| G | α | correction | η¹ .. η^k at 40 slices | K | pipelined / standard | "
+    ratio = fr.summary(fr.load_problem(name))["cost_ratio"]
+    lines = ["| G | α | correction | η¹ .. η^k at 40 slices | K | pipelined / standard against "
+             f"F (against the fastest serial run, {ratio:.3g} of F's CPU) | "
              "model CPU per correction (s) | G CPU per solve (s) |", "|---" * 8 + "|"]
     for label, entry in fr._load(fr.OUT / f"learned_{name}.json").items():
         for correction, row in entry["corrections"].items():
@@ -349,8 +351,9 @@ def table(name: str) -> str:
             if "blowup" in row:
                 errors += f" (blew up in {row['blowup'].split(':')[0]})"
             speedups = row.get("speedups")
-            shown = "-" if not speedups else (f"{speedups['pipelined']:.2f} / "
-                                              f"{speedups['standard']:.2f}")
+            shown = "-" if not speedups else (
+                f"{speedups['pipelined']:.2f} / {speedups['standard']:.2f} "
+                f"({ratio * speedups['pipelined']:.2f} / {ratio * speedups['standard']:.2f})")
             alpha = "-" if entry["alpha"] is None else f"{entry['alpha']:.3g}"
             lines.append(f"| {label} | {alpha} | {correction} | {errors} | "
                          f"{row.get('K') or '-'} | {shown} | "

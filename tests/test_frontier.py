@@ -252,3 +252,30 @@ def test_full_serial_errors_are_against_the_reference_over_the_same_interval(fro
     rows = again["T = 0.0005"]["runs"]
     assert set(rows) == {f"{scheme} {dt:g}", "rk2 1.16e-05"}
     assert rows["rk2 1.16e-05"]["error_positions"] > 1e-12
+
+
+def test_summary_takes_the_best_runs_cost_from_the_interleaved_ratio_where_measured(
+        frontier, monkeypatch, tmp_path):
+    """Table 5's fastest serial run is not F: its CPU over F's is the interleaved median of
+    PROBLEM_serial_ratios.json (a record starting with F), else the ratio of the analogue's
+    rows; the frontier's speedups against it scale by that ratio."""
+    import json
+
+    monkeypatch.setattr(frontier, "OUT", tmp_path)
+    problem = frontier.PROBLEMS["table5"]
+    (scheme, dt), (best_scheme, best_dt) = problem.fine, problem.best
+    data = {"problem": {"title": problem.title, "target": 1e-6, "fine": [scheme, dt]},
+            "serial": [{"scheme": scheme, "dt": dt, "error": 1e-9, "cpu_per_time": 4.0},
+                       {"scheme": best_scheme, "dt": best_dt, "error": 9e-7,
+                        "cpu_per_time": 2.0}],
+            "candidates": {"g": {"family": "implicit", "alpha": 0.1, "errors": [5e-7]}}}
+    s = frontier.summary(data)
+    assert s["cost_ratio"] == 0.5 and s["best"]["dt"] == best_dt      # the rows: 2 / 4
+    f_key, b_key = f"{scheme} {dt:g}", f"{best_scheme} {best_dt:g}"
+    (tmp_path / "table5_serial_ratios.json").write_text(json.dumps({
+        "other first": {b_key: {"median_ratio": 1.0}, f_key: {"median_ratio": 0.1}},
+        "F first": {f_key: {"median_ratio": 1.0}, b_key: {"median_ratio": 0.75}}}))
+    s = frontier.summary(data)
+    assert s["cost_ratio"] == 0.75
+    verdict = s["frontier"]["implicit"]["assessment"]
+    assert verdict["vs_best"]["pipelined"] == pytest.approx(0.75 * verdict["vs_F"]["pipelined"])
