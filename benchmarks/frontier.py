@@ -628,29 +628,36 @@ def interleaved_alphas(name: str, labels: Sequence[str], rounds: int = 5) -> dic
             for label, r in ratios.items()}
 
 
-def interleaved_serial(name: str, runs: Sequence[tuple[str, float]], rounds: int = 5
-                       ) -> dict[str, Any]:
+def run_key(scheme: str, dt: float, rtol: float | None) -> str:
+    """A serial run's name in the JSON records: "SCHEME DT", or "SCHEME rtol R" if adaptive."""
+    return f"{scheme} {dt:g}" if rtol is None else f"{scheme} rtol {rtol:g}"
+
+
+def interleaved_serial(name: str, runs: Sequence[tuple[str, float, float | None]],
+                       rounds: int = 5) -> dict[str, Any]:
     """CPU time of one slice (``slice_length`` from the initial state) of each serial run
-    (scheme, dt) in ``rounds`` interleaved rounds after one untimed warm-up each, and each one's
-    median ratio of CPU per slice to the first run's (the ratio of their CPU per unit time: both
-    take fixed steps), with the load average after each round."""
+    (scheme, dt, rtol: fixed steps where rtol is None, else adaptive from a first step dt with
+    atol = rtol / 10) in ``rounds`` interleaved rounds after one untimed warm-up each, and each
+    one's median ratio of CPU per slice to the first run's (the ratio of their CPU per unit
+    time, for fixed steps), with the load average after each round."""
     from parastokes import integrate
 
     problem = PROBLEMS[name]
     setup = build(problem, {"scheme": "euler", "dt": problem.fine[1]})
     system, x0 = setup.system, setup.system.initial_state()
 
-    def one(scheme: str, dt: float) -> float:
-        return _cpu(lambda: integrate.propagate(system, x0, 0.0, problem.slice_length, scheme,
-                                                dt))[1]
+    def one(scheme: str, dt: float, rtol: float | None) -> float:
+        return _cpu(lambda: integrate.propagate(
+            system, x0, 0.0, problem.slice_length, scheme, dt, rtol=rtol,
+            atol=None if rtol is None else rtol / 10))[1]
 
-    for scheme, dt in runs:
-        one(scheme, dt)
-    seconds: dict[str, list[float]] = {f"{s} {dt:g}": [] for s, dt in runs}
+    for run in runs:
+        one(*run)
+    seconds: dict[str, list[float]] = {run_key(*run): [] for run in runs}
     loads = [load_average()]
     for _ in range(rounds):
-        for (scheme, dt), key in zip(runs, seconds, strict=True):
-            seconds[key].append(one(scheme, dt))
+        for run, key in zip(runs, seconds, strict=True):
+            seconds[key].append(one(*run))
         loads.append(load_average())
     first = seconds[next(iter(seconds))]
     return {key: {"cpu_per_slice": values,
@@ -687,7 +694,7 @@ def full_serial(name: str, runs: Sequence[tuple[str, float, float | None]],
     for scheme, dt, rtol in runs:
         state, cpu = _cpu(lambda s=scheme, h=dt, r=rtol: integrate.propagate(
             system, x0, 0.0, t1, s, h, rtol=r, atol=None if r is None else r / 10))
-        key = f"{scheme} {dt:g}" if rtol is None else f"{scheme} rtol {rtol:g}"
+        key = run_key(scheme, dt, rtol)
         rows[key] = {"scheme": scheme, "dt": dt, "rtol": rtol, "cpu": cpu,
                      "error_positions": relative_change(state, reference, system.positions),
                      "error_state": relative_change(state, reference),
@@ -1161,10 +1168,8 @@ def main(argv: Sequence[str] | None = None) -> None:
         return
     if args.serial_ratios:
         name, rounds, *pairs = args.serial_ratios
-        runs = _runs(pairs)
-        if any(dt is None for _, dt, _ in runs):
-            raise SystemExit("--serial-ratios takes fixed steps only")
-        result = interleaved_serial(name, [(s, float(h)) for s, h, _ in runs if h], int(rounds))
+        result = interleaved_serial(
+            name, [(s, problem_step(name, h), rtol) for s, h, rtol in _runs(pairs)], int(rounds))
         print(json.dumps(result, indent=1), flush=True)
         _store(name, "serial_ratios", args.alphas_key + " / ".join(result), result)
         return

@@ -220,11 +220,12 @@ def test_interleaved_serial_ratios_are_medians_of_each_rounds_ratio_to_the_first
     monkeypatch.setattr(frontier, "_cpu", lambda function: (None, next(times)))
     monkeypatch.setattr(frontier, "build", lambda problem, coarse: SimpleNamespace(
         system=SimpleNamespace(initial_state=lambda: None)))
-    out = frontier.interleaved_serial("table5", [("rk4", 5.45e-5), ("rk2", 3.74e-5)], rounds=3)
+    out = frontier.interleaved_serial("table5", [("rk4", 5.45e-5, None),
+                                                 ("ros34pw2-krylov", 5.45e-5, 1e-6)], rounds=3)
     assert out["rk4 5.45e-05"]["median_ratio"] == 1.0
-    assert out["rk2 3.74e-05"]["cpu_per_slice"] == [1.0, 1.0, 2.4]
-    assert out["rk2 3.74e-05"]["median_ratio"] == pytest.approx(0.5)   # of 0.5, 0.25, 0.8
-    assert len(out["rk2 3.74e-05"]["load_average"]) == 4
+    assert out["ros34pw2-krylov rtol 1e-06"]["cpu_per_slice"] == [1.0, 1.0, 2.4]
+    assert out["ros34pw2-krylov rtol 1e-06"]["median_ratio"] == pytest.approx(0.5)  # 0.5 .25 .8
+    assert len(out["rk4 5.45e-05"]["load_average"]) == 4
 
 
 def test_serial_runs_are_read_as_steps_or_tolerances(frontier):
