@@ -633,6 +633,17 @@ def run_key(scheme: str, dt: float, rtol: float | None) -> str:
     return f"{scheme} {dt:g}" if rtol is None else f"{scheme} rtol {rtol:g}"
 
 
+def serial_run(system: Any, x0: np.ndarray, t1: float, scheme: str, dt: float,
+               rtol: float | None) -> np.ndarray:
+    """The state at ``t1`` of a serial run from ``x0`` at 0: fixed steps ``dt`` where ``rtol`` is
+    None, else adaptive from a first step ``dt`` with atol = rtol / 10 (as the work-precision
+    diagrams' runs, benchmarks/adaptive.py)."""
+    from parastokes import integrate
+
+    return integrate.propagate(system, x0, 0.0, t1, scheme, dt, rtol=rtol,
+                               atol=None if rtol is None else rtol / 10)
+
+
 def interleaved_serial(name: str, runs: Sequence[tuple[str, float, float | None]],
                        rounds: int = 5) -> dict[str, Any]:
     """CPU time of one slice (``slice_length`` from the initial state) of each serial run
@@ -640,16 +651,13 @@ def interleaved_serial(name: str, runs: Sequence[tuple[str, float, float | None]
     atol = rtol / 10) in ``rounds`` interleaved rounds after one untimed warm-up each, and each
     one's median ratio of CPU per slice to the first run's (the ratio of their CPU per unit
     time, for fixed steps), with the load average after each round."""
-    from parastokes import integrate
 
     problem = PROBLEMS[name]
     setup = build(problem, {"scheme": "euler", "dt": problem.fine[1]})
     system, x0 = setup.system, setup.system.initial_state()
 
     def one(scheme: str, dt: float, rtol: float | None) -> float:
-        return _cpu(lambda: integrate.propagate(
-            system, x0, 0.0, problem.slice_length, scheme, dt, rtol=rtol,
-            atol=None if rtol is None else rtol / 10))[1]
+        return _cpu(lambda: serial_run(system, x0, problem.slice_length, scheme, dt, rtol))[1]
 
     for run in runs:
         one(*run)
@@ -692,8 +700,7 @@ def full_serial(name: str, runs: Sequence[tuple[str, float, float | None]],
     reference = np.load(cache)
     rows = entry.setdefault("runs", {})
     for scheme, dt, rtol in runs:
-        state, cpu = _cpu(lambda s=scheme, h=dt, r=rtol: integrate.propagate(
-            system, x0, 0.0, t1, s, h, rtol=r, atol=None if r is None else r / 10))
+        state, cpu = _cpu(lambda s=scheme, h=dt, r=rtol: serial_run(system, x0, t1, s, h, r))
         key = run_key(scheme, dt, rtol)
         rows[key] = {"scheme": scheme, "dt": dt, "rtol": rtol, "cpu": cpu,
                      "error_positions": relative_change(state, reference, system.positions),

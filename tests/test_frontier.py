@@ -273,10 +273,22 @@ def test_summary_takes_the_best_runs_cost_from_the_interleaved_ratio_where_measu
     s = frontier.summary(data)
     assert s["cost_ratio"] == 0.5 and s["best"]["dt"] == best_dt      # the rows: 2 / 4
     f_key, b_key = f"{scheme} {dt:g}", f"{best_scheme} {best_dt:g}"
-    (tmp_path / "table5_serial_ratios.json").write_text(json.dumps({
-        "other first": {b_key: {"median_ratio": 1.0}, f_key: {"median_ratio": 0.1}},
-        "F first": {f_key: {"median_ratio": 1.0}, b_key: {"median_ratio": 0.75}}}))
+    (tmp_path / "table5_serial_ratios.json").write_text(json.dumps({   # (ratios to the first)
+        "F first": {f_key: {"median_ratio": 1.0}, b_key: {"median_ratio": 0.75}},
+        "other first": {b_key: {"median_ratio": 1.0}, f_key: {"median_ratio": 1.25}}}))
     s = frontier.summary(data)
     assert s["cost_ratio"] == 0.75
     verdict = s["frontier"]["implicit"]["assessment"]
     assert verdict["vs_best"]["pipelined"] == pytest.approx(0.75 * verdict["vs_F"]["pipelined"])
+
+
+def test_a_serial_run_is_fixed_or_adaptive_with_atol_a_tenth_of_rtol(frontier, monkeypatch):
+    from parastokes import integrate
+
+    calls = []
+    monkeypatch.setattr(integrate, "propagate", lambda *args, **kw: calls.append((args, kw)))
+    frontier.serial_run("system", "x0", 0.5, "rk2", 1e-3, None)
+    frontier.serial_run("system", "x0", 0.5, "ros34pw2-krylov", 1e-3, 2.5)
+    assert calls == [(("system", "x0", 0.0, 0.5, "rk2", 1e-3), {"rtol": None, "atol": None}),
+                     (("system", "x0", 0.0, 0.5, "ros34pw2-krylov", 1e-3),
+                      {"rtol": 2.5, "atol": 0.25})]
