@@ -368,6 +368,22 @@ def build(problem: Problem, coarse: dict[str, Any]) -> Any:
     return config.build(cfg, config.resolve(cfg, "frontier"))
 
 
+def _reference(problem: Problem, system: Any, x0: np.ndarray, t1: float, cache: pathlib.Path,
+               record: dict[str, Any], save: Callable[[], None]) -> np.ndarray:
+    """``problem.reference``'s state at ``t1`` from ``x0`` at 0, from the ``cache`` file, or run
+    and kept there (its scheme, step and CPU time put in ``record["reference"]``, then
+    ``save()``)."""
+    from parastokes import integrate
+
+    if not cache.exists():
+        scheme, dt = problem.reference
+        state, cpu = _cpu(lambda: integrate.propagate(system, x0, 0.0, t1, scheme, dt))
+        np.save(cache, state)
+        record["reference"] = {"scheme": scheme, "dt": dt, "cpu": cpu}
+        save()
+    return np.load(cache)
+
+
 def measure_serial(name: str, problem: Problem, data: dict[str, Any], path: pathlib.Path
                    ) -> None:
     """The reference and each serial candidate over the analogue's interval (resumable)."""
@@ -376,14 +392,8 @@ def measure_serial(name: str, problem: Problem, data: dict[str, Any], path: path
 
     setup = build(problem, {"scheme": "euler", "dt": problem.fine[1]})
     system, x0, t1 = setup.system, setup.system.initial_state(), problem.t1
-    cache = OUT / f".{name}_reference.npy"
-    if not cache.exists():
-        scheme, dt = problem.reference
-        state, cpu = _cpu(lambda: integrate.propagate(system, x0, 0.0, t1, scheme, dt))
-        np.save(cache, state)
-        data["reference"] = {"scheme": scheme, "dt": dt, "cpu": cpu}
-        _save(path, data)
-    reference = np.load(cache)
+    reference = _reference(problem, system, x0, t1, OUT / f".{name}_reference.npy", data,
+                           lambda: _save(path, data))
     rows = data.setdefault("serial", [])
     done = {(r["scheme"], r["dt"]) for r in rows}
     for scheme, dt in problem.serial:
@@ -681,7 +691,6 @@ def full_serial(name: str, runs: Sequence[tuple[str, float, float | None]],
     over the positions (as the analogue's serial rows and ``plan``) and over the whole state (as
     eta^k), with each run's CPU time; written to ``OUT/NAME_full_serial.json`` under "T = t1"
     after each run."""
-    from parastokes import integrate
     from parastokes.parareal import relative_change
 
     problem = PROBLEMS[name]
@@ -691,13 +700,7 @@ def full_serial(name: str, runs: Sequence[tuple[str, float, float | None]],
     path, cache = OUT / f"{name}_full_serial.json", OUT / f".{name}_reference_t{t1:g}.npy"
     data = _load(path)
     entry = data.setdefault(f"T = {t1:g}", {})
-    if not cache.exists():
-        scheme, dt = problem.reference
-        state, cpu = _cpu(lambda: integrate.propagate(system, x0, 0.0, t1, scheme, dt))
-        np.save(cache, state)
-        entry["reference"] = {"scheme": scheme, "dt": dt, "cpu": cpu}
-        _save(path, data)
-    reference = np.load(cache)
+    reference = _reference(problem, system, x0, t1, cache, entry, lambda: _save(path, data))
     rows = entry.setdefault("runs", {})
     for scheme, dt, rtol in runs:
         state, cpu = _cpu(lambda s=scheme, h=dt, r=rtol: serial_run(system, x0, t1, s, h, r))
