@@ -57,7 +57,7 @@ def test_a_stiff_problem_switches_to_implicit_and_takes_far_fewer_steps(caplog):
     assert [name for _, name, _ in run.switches] == [auto.IMPLICIT_EXACT]
     t, _, reason = run.switches[0]
     assert 0 < t < 0.05 and "> 0.8 x rk23's stability boundary 2.51" in reason
-    assert f"= 2 x {_C_I:.4g}/3.125 x rk23's" in reason
+    assert f"against 2 x {_C_I:.4g}/3.125 x rk23's" in reason
     assert f"auto: {auto.IMPLICIT_EXACT} from t={t:.10g}, stiff" in caplog.text
     assert run.n_steps + run.n_rejected < (explicit.n_steps + explicit.n_rejected) / 20
     by = {name: (accepted, rejected) for name, accepted, rejected in run.by_scheme}
@@ -82,12 +82,13 @@ def _trials(caplog):
     return np.array([(float(t), float(err)) for t, err in found]).reshape(-1, 2)
 
 
-def test_stiff_but_cheaper_explicit_stays_explicit_after_failed_trial_steps(caplog):
+def test_stiff_but_cheaper_explicit_stays_explicit_after_failed_trial_steps(caplog, monkeypatch):
     """Stability sets rk23's step (h ρ ≈ 2.1) where the smooth part varies least (twice a period
     of sin ωt, ω = 30), but the accuracy then allows the implicit scheme less than TRIAL x the
     break-even C_I/3.125 times it: each trial step is rejected and the run stays explicit, each
     next trial after the back-off of the last one's error and counted work (Costs.retry), in
-    rk23's evaluations."""
+    rk23's evaluations (no Euler phase: chunks longer than the run)."""
+    monkeypatch.setattr(auto, "EULER_EVERY", 10**9)
     with caplog.at_level(logging.INFO, logger="parastokes.integrate.auto"):
         run = _run(Fast(lam=(-1.0, -2e4)), 1e-7, t1=1.0)
     assert run.switches == ()
@@ -193,8 +194,9 @@ def test_the_implicit_phase_caps_the_explicit_step_by_stability():
 @pytest.mark.parametrize(("rtol", "t1"), [(1e-2, 1e-2), (1e-5, 4e-3)])
 def test_auto_takes_the_same_steps_compiled_and_in_python(rtol, t1):
     """On a rod, the explicit phases in the compiled loop and in Python: the same switches,
-    counts and state, with a switch (rtol 1e-2) and with a failed trial after which the
-    explicit steps go on (1e-5)."""
+    counts and state, with an Euler phase whose chunks are kept (rtol 1e-2) and with a failed
+    trial after which the explicit steps go on, and an Euler phase whose chunks are dropped
+    (1e-5)."""
     rod = models.rod_swimmer(n_points=41, length=8.0)
     a, b = (integrate.run(rod, rod.initial_state(), 0.0, t1, "auto", 1e-5, rtol=rtol,
                           atol=rtol / 10, compiled=compiled) for compiled in (True, False))
@@ -202,7 +204,12 @@ def test_auto_takes_the_same_steps_compiled_and_in_python(rtol, t1):
     assert np.array_equal(a.state, b.state)
     by = {name: (accepted, rejected) for name, accepted, rejected in a.by_scheme}
     implicit = auto.implicit_scheme(rtol)
-    assert a.switches if rtol == 1e-2 else (by[implicit] == (0, 1) and not a.switches)
+    if rtol == 1e-2:
+        assert [s for _, s, _ in a.switches] == ["euler", "rk23"]  # Euler's chunks kept
+        assert by["euler"][0] > 0
+    else:  # a failed trial, an Euler phase whose two chunks are dropped (its error)
+        assert by[implicit] == (0, 1) and by["euler"] == (0, 2 * auto.EULER_EVERY)
+        assert [s for _, s, _ in a.switches] == ["euler", "rk23"]
 
 
 def test_auto_takes_no_fixed_steps_anywhere():
@@ -297,8 +304,9 @@ def test_a_trial_that_costs_more_than_the_explicit_steps_is_a_failed_trial(caplo
     time than rk23's steps (here a stage set of SuperLU's kind, which a 2 x 2 system gets,
     priced at 1e4 evaluations; the prior, before any factorization, is the banded one's): the
     run stays explicit; the next trial, at the counted cost, would be 2 x 1e4/3.125 x rk23's
-    step long, past the end: none follows."""
+    step long, past the end: none follows (no Euler phase: chunks longer than the run)."""
     monkeypatch.setattr(auto, "STEP_EVALS", {True: 12.0, False: 1e4})
+    monkeypatch.setattr(auto, "EULER_EVERY", 10**9)
     system = Counted(lam=(-1.0, -1e4))
     with caplog.at_level(logging.INFO, logger="parastokes.integrate.auto"):
         run = _run(system, 1e-3, t1=0.3)
@@ -323,6 +331,7 @@ def test_auto_error_follows_rtol_where_the_w_defect_misleads_the_estimate(monkey
         result = _run(system, 1e-3)
         return np.abs(result.state - system.exact(1.0)).max() / 1e-3, system.calls[0], result
 
+    monkeypatch.setattr(auto, "EULER_EVERY", 10**9)  # no Euler phase: the implicit side
     error, calls, result = run()
     assert error < 3.0 and result.switches[0][1] == auto.IMPLICIT_EXACT
     monkeypatch.setattr(auto, "W_RTOL", 0.0)  # the W-method at every rtol
@@ -334,7 +343,9 @@ def test_auto_error_follows_rtol_where_the_w_defect_misleads_the_estimate(monkey
 def test_a_trial_whose_solve_fails_backs_off_by_an_implicit_step(caplog, monkeypatch):
     """A trial whose stage solve fails (a StiffSolveError: err = inf; the stepper counts no
     work for it) waits RETRY C_I 2^(n-1) ERR_MAX^(1/3) evaluations before the next, C_I the
-    implicit step's cost, not the 2 evaluations of ρ that were counted."""
+    implicit step's cost, not the 2 evaluations of ρ that were counted (no Euler phase)."""
+    monkeypatch.setattr(auto, "EULER_EVERY", 10**9)
+
     def failing(self, t, x, h):
         raise stiff.StiffSolveError(t, math.nan, 0, "GMRES did not converge")
 
