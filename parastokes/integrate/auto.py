@@ -63,7 +63,7 @@ from .loop import CompiledPair
 from .schemes import SCHEMES, Scheme, real_stability_boundary
 
 __all__ = ["Costs", "Tally", "auto_run", "euler_drift", "euler_share", "euler_step",
-           "implicit_scheme", "power_step", "probe_step", "step_cost"]
+           "implicit_scheme", "power_step", "probe_step", "sized_trial", "step_cost"]
 
 log = logging.getLogger(__name__)
 
@@ -84,17 +84,19 @@ IMPLICIT_EXACT = "ros34pw2-krylov"
 W_RTOL = 1e-2
 #: Rate evaluations' worth of CPU per stage set (accepted or rejected step) of the implicit
 #: scheme, beyond its GMRES products, by the kind of its factorization (True: LAPACK's banded
-#: LU), measured against one evaluation of the rates in one process: on the paper's rod (its
-#: stages, f_t, banded solves, and every stiff.REFRESH steps its Jacobian and factorization;
-#: 11.8-13.8) and on the vesicle of 642 points (SuperLU: 90; docs/stiff.md).
-STEP_EVALS = {True: 12.0, False: 90.0}
-#: Evaluations' worth per GMRES product of ``IMPLICIT_EXACT`` (a rate evaluation, a solve with
-#: the preconditioner, the orthogonalization), measured as STEP_EVALS: 2.0 and 2.8 on the rods
-#: of 601 and 301 points, 5.7 on the vesicle.
-PRODUCT_EVALS = {True: 2.5, False: 5.7}
-#: GMRES products per step of ``IMPLICIT_EXACT`` before the run has counted any (measured on
-#: the rods of 301 and 601 points at rtol 1e-4: 37 and 35).
-PRIOR_PRODUCTS = 36.0
+#: LU), and per GMRES product of ``IMPLICIT_EXACT`` (a rate evaluation, a solve with the
+#: preconditioner, the orthogonalization): fitted over adaptive runs of both implicit schemes
+#: against one evaluation in the same process (``benchmarks/adaptive.py --prices``,
+#: docs/figures/stiff/auto_prices.json; round 5, fourth session): 12.7 and 2.0 on the rod of
+#: 301 points, 8.3 and 1.66 on 601, 7.6 and 1.72 on 1201 (banded: their means), 72 and 3.9 on
+#: the vesicle of 642 points (SuperLU). Before: 12 and 2.5, 90 and 5.7 (the stage solves then
+#: twice as slow).
+STEP_EVALS = {True: 9.5, False: 72.0}
+PRODUCT_EVALS = {True: 1.8, False: 3.9}
+#: GMRES products per stage set of ``IMPLICIT_EXACT`` before the run has counted any (the same
+#: runs at rtol 1e-3 and 1e-4: 43 and 37, 55 and 44, 41 and 35 on the rods of 301, 601, 1201
+#: points).
+PRIOR_PRODUCTS = 40.0
 #: Evaluations of ρ's power iteration per implicit step (the rates at the state and at a
 #: shifted one).
 PROBE_EVALS = 2.0
@@ -197,6 +199,14 @@ def probe_step(trial: float, err: float, q: int) -> float:
     (estimate of order ``q``): ``trial min(1, SAFETY err^(-1/(q+1)))``, the controller's law
     without its clipping."""
     return trial * min(1.0, SAFETY * err ** (-1.0 / (q + 1))) if err > 0 else trial
+
+
+def sized_trial(trial: float, err: float, q: int, break_even: float) -> float | None:
+    """The trial of the exact Jacobian's scheme after a probe of ``trial`` of error ``err``:
+    :func:`probe_step`, or None (no trial: the probe's is the failed one) where that is below
+    ``PROBE_GAIN x break_even``."""
+    step = probe_step(trial, err, q)
+    return step if step >= PROBE_GAIN * break_even else None
 
 
 def implicit_scheme(rtol: float) -> str:
@@ -495,10 +505,10 @@ def auto_run(system: System, x: np.ndarray, t0: float, t1: float, dt: float,
         spent, err, x_new, probed, take = 0.0, math.inf, x, "", True
         if probe is not None:  # the W-method's step sizes the trial, at a few evaluations
             p_err, spent = _probe(probe, t, x, trial, tol, costs.implicit)
-            sized = probe_step(trial, p_err, q)
+            sized = sized_trial(trial, p_err, q, costs.break_even(explicit.step))
             probed = f" (a probe of {IMPLICIT} at {trial:.4g} had err {p_err:.3g})"
-            take = sized >= PROBE_GAIN * costs.break_even(explicit.step)
-            err, trial = (err, sized) if take else (p_err, trial)
+            take = sized is not None
+            err, trial = (err, sized) if sized is not None else (p_err, trial)
         if take:
             try:
                 x_new, x_low = solver.step_with_estimate(t, x, trial)
