@@ -55,9 +55,12 @@ def test_the_drift_of_an_euler_chunk_is_half_its_step_times_the_change_of_the_ra
 
 
 def test_the_euler_phase_backs_off_by_its_dropped_work():
-    """RETRY x the dropped chunks' evaluations x 2^(n-1) after the n-th failed phase."""
-    assert auto.euler_retry(1, 68.0) == pytest.approx(auto.RETRY * 68.0, rel=1e-15)
-    assert auto.euler_retry(3, 68.0) == pytest.approx(auto.RETRY * 68.0 * 4.0, rel=1e-15)
+    """RETRY x the dropped chunks' evaluations x 2^(n-1) x min(over, ERR_MAX)^(1/2) after the
+    n-th failed phase whose last chunk's drift was ``over`` times its share."""
+    assert auto.euler_retry(1, 68.0, 1.0) == pytest.approx(auto.RETRY * 68.0, rel=1e-15)
+    assert auto.euler_retry(3, 68.0, 1.0) == pytest.approx(auto.RETRY * 68.0 * 4.0, rel=1e-15)
+    assert auto.euler_retry(2, 68.0, 25.0) == pytest.approx(auto.RETRY * 68.0 * 2 * 5, rel=1e-15)
+    assert auto.euler_retry(1, 68.0, 1e9) == auto.euler_retry(1, 68.0, auto.ERR_MAX)
 
 
 def test_the_probe_sizes_the_trial_by_the_controllers_law():

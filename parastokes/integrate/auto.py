@@ -186,12 +186,13 @@ def euler_share(duration: float, span: float) -> float:
     return min(1.0, duration / span)
 
 
-def euler_retry(failed: int, wasted: float) -> float:
+def euler_retry(failed: int, wasted: float, over: float) -> float:
     """The evaluations of the explicit pair before the next Euler phase after the ``failed``-th
-    one that ended for its accuracy, whose dropped chunks cost ``wasted`` evaluations: ``RETRY
-    wasted 2^(failed-1)`` (as :meth:`Costs.retry`: the failed phases cost a bounded, falling
-    share of the run)."""
-    return RETRY * wasted * 2.0 ** (failed - 1)
+    one that ended for its accuracy, its last chunk's drift ``over`` times its share, its
+    dropped chunks ``wasted`` evaluations: ``RETRY wasted 2^(failed-1) min(over,
+    ERR_MAX)^(1/2)`` (as :meth:`Costs.retry`, for an estimate of order 1: the failed phases
+    cost a bounded, falling share of the run, the farther they missed the less)."""
+    return RETRY * wasted * 2.0 ** (failed - 1) * min(over, ERR_MAX) ** 0.5
 
 
 def probe_step(trial: float, err: float, q: int) -> float:
@@ -349,7 +350,7 @@ class _Euler:
         self.span, self.tol, self.blowup_factor, self.compiled = span, tol, blowup_factor, compiled
         self.step, self.wants, self.worst = euler_step(rho), "", -math.inf
         self.steps = self.rejected = self.dropped = 0  # steps kept, dropped, dropped last
-        self.drift = 0.0
+        self.drift, self.share = 0.0, 1.0  # the last chunk's and its share
 
     def run(self, t: float, x: np.ndarray, t1: float) -> tuple[float, np.ndarray]:
         """Chunks from ``(t, x)`` until the phase ends: where it ended. The first chunk is
@@ -378,7 +379,8 @@ class _Euler:
             f_end = rates(self.system, t, x)
             self.drift = 0.0 if f is None else euler_drift(self.system, x, f, f_end, step,
                                                            self.tol)
-            if self.drift > euler_share(n * step, self.span):
+            self.share = euler_share(n * step, self.span)
+            if self.drift > self.share:
                 self.wants = "pair"
                 break
             if t >= t1 or f is not None:  # checked (the first chunk with the second)
@@ -485,7 +487,8 @@ def auto_run(system: System, x: np.ndarray, t0: float, t1: float, dt: float,
             continue
         if isinstance(explicit, _Euler) and explicit.wants != "trial":
             euler_failed += explicit.wants == "pair"
-            euler_budget = (euler_retry(euler_failed, explicit.dropped * EULER_COST)
+            euler_budget = (euler_retry(euler_failed, explicit.dropped * EULER_COST,
+                                        explicit.drift / explicit.share)
                             if explicit.wants == "pair" else math.inf)
             h, previous = pair_step(explicit.rho), None
             _switch(switches, t, pair.name, {
