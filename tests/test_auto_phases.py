@@ -73,9 +73,11 @@ def test_the_probe_sizes_the_trial_by_the_controllers_law():
     assert auto.probe_step(1.0, math.inf, 2) == 0.0
     gain = auto.PROBE_GAIN
     assert auto.PROBE_GAIN == 1.2
+    trial = gain * 0.375  # an accepted probe: the trial itself, exactly PROBE_GAIN x 0.375
+    assert auto.sized_trial(trial, 0.5, 2, 0.375) == trial  # at the boundary: taken
+    assert auto.sized_trial(trial, 0.5, 2, 0.375 * (1 + 1e-12)) is None
     step = auto.probe_step(1.0, 8.0, 2)
-    assert auto.sized_trial(1.0, 8.0, 2, step / gain) == step  # at the boundary: taken
-    assert auto.sized_trial(1.0, 8.0, 2, step / gain * (1 + 1e-9)) is None
+    assert auto.sized_trial(1.0, 8.0, 2, 0.99 * step / gain) == step
 
 
 def _phase(monkeypatch, drift, share, t1=1.0, rho=1e3):
