@@ -356,9 +356,10 @@ class _Euler:
     :func:`euler_step` (ρ from the last power-iteration step, one after each chunk) in the
     system's loop of fixed steps (compiled where it has one), while each chunk's
     :func:`euler_drift` stays within its :func:`euler_share` of the tolerance; it ends
-    (:attr:`wants`) where one does not (``"pair"``, the chunk kept), where a step blows up
-    (``"unstable"``, the chunk dropped), where a trial of the implicit scheme is due
-    (``"trial"``) or at ``t1``."""
+    (:attr:`wants`) where one does not (``"pair"``: that chunk dropped, and the first with it
+    if it was the second), where a step blows up (``"unstable"``: the unchecked chunks
+    dropped), where no time is left for two chunks (``"end"``), where a trial of the implicit
+    scheme is due (``"trial"``) or at ``t1``."""
 
     boundary = EULER_BOUNDARY
 
@@ -473,7 +474,7 @@ def auto_run(system: System, x: np.ndarray, t0: float, t1: float, dt: float,
     stepper = stepper_for(system, pair, compiled)  # goes on after a failed trial
     assert isinstance(solver, stiff.Stepper) and not isinstance(stepper, stiff.Stepper)
     tally, direction = Tally(solver), np.zeros(0)
-    phase: _Explicit | _Euler | None = None  # the Euler phase a trial interrupted, if any
+    phase: _Euler | None = None  # the Euler phase a trial interrupted, if any
     while t < t1:
         costs = Costs.of(pair, tally.cost())
         if isinstance(phase, _Euler):  # an Euler phase goes on after its failed trial
