@@ -25,6 +25,13 @@ each one finishes (a rerun skips what is there: ``--redo LABEL`` measures one ag
 ``--k40 PROBLEM LABEL K`` checks an analogue's K on P = 40 slices of the same length: eta^1..eta^K
 of a real Parareal run against F's serial solution, both resumable (``out/k40/PROBLEM/``), summed
 up in ``docs/figures/frontier/k40_PROBLEM.json`` (docs/planning.md, "K at 40 slices").
+
+``--serial-ratios PROBLEM ROUNDS SCHEME DT ...`` measures serial runs' CPU per slice against the
+first one's in interleaved rounds (``PROBLEM_serial_ratios.json``: the fastest serial run's cost
+over F's where it is not F, which the speedups against it then use), and ``--full-serial PROBLEM
+SCHEME DT ...`` their errors at the full T against the problem's reference
+(``PROBLEM_full_serial.json``); DT ``rtol=R`` is an adaptive run (docs/benchmarks.md, "The target
+table").
 """
 
 from __future__ import annotations
