@@ -465,8 +465,7 @@ def test_a_parareal_route_is_written_as_a_config_that_runs(tmp_path):
     fine = Run("rk2", 5e-6, None, "r", "measured", 1e-8, 1.0, 1.0)
     coarse = Settings("euler", lagrange=(("epsilon", (1.1, 1.2)),), dt=1e-5)
     route = routes.parareal_route(1.0, 1.0, 0.1, 1, 2, "pipelined", "")
-    data = plan_config(cfg, route, fine, fine, SimpleNamespace(chosen=SimpleNamespace(
-        settings=coarse)))
+    data = plan_config(cfg, route, fine, fine, coarse)
     path = tmp_path / "PLAN.toml"
     path.write_text(toml_dumps(data))
     planned, _ = config.load(path)

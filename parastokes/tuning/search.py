@@ -129,6 +129,7 @@ class Candidate:
     weight_sum: float = 1.0
     estimated_speedup: float | None = None
     given: bool = False  # given explicitly (Space.extra): measured whatever its estimate
+    leading: bool = False  # searched before the others (Space.leading), budget and pruning bind
     screen: dict[str, Any] | None = None  # defect, screened eta and speedup, seconds
     step_limit: float | None = None
     margin: float | None = None  # 1 - step / step limit
@@ -169,6 +170,7 @@ class Candidate:
         return {
             **self.settings.as_dict(fine_dt),
             "given": self.given,
+            "leading": self.leading,
             "status": self.status,
             "reason": self.reason,
             "weight_sum": self.weight_sum,
@@ -623,6 +625,14 @@ def _counts(candidates: list[Candidate]) -> dict[str, int]:
     return counts
 
 
+def rank(cand: Candidate) -> int:
+    """The first member of a candidate's place in the search's queue (then its estimate): 0
+    given (``Space.extra``), 1 leading (``Space.leading``), 2 every other one; a screened
+    candidate goes back with the same rank, so each leading candidate is measured before any
+    other one is screened."""
+    return 0 if cand.given else 1 if cand.leading else 2
+
+
 def _key(search: _Search, cand: Candidate) -> float:
     """The search's estimate of a queued candidate: its (re)screened speedup once screened, else
     its optimistic speedup (at the model step until its real step is known)."""
@@ -791,6 +801,10 @@ def tune(
 
     candidates = [Candidate(s) for s in space.candidates(pilot_system.params, reaches)
                   if s != Settings(base_scheme)]
+    candidates += [Candidate(s) for s in dict.fromkeys(space.leading)
+                   if s != Settings(base_scheme) and s not in {c.settings for c in candidates}]
+    for cand in candidates:
+        cand.leading = cand.settings in space.leading
     candidates += [Candidate(s, given=True) for s in space.extra]
     queue: list[tuple] = []
     for n, cand in enumerate(candidates):
@@ -803,7 +817,7 @@ def tune(
         # the optimistic speedup at the model step, until step() measures the real one
         cand.estimated_speedup = (search.estimate(cand.settings, step) if math.isfinite(step)
                                   else -math.inf)
-        heapq.heappush(queue, (not cand.given, -cand.estimated_speedup, n))
+        heapq.heappush(queue, (rank(cand), -cand.estimated_speedup, n))
     best = baseline.speedup if baseline.status == "accepted" else -math.inf
     stopped, done = None, 0
     spent: dict[bool, list[float]] = {False: [], True: []}  # screen / measure times
@@ -840,7 +854,7 @@ def tune(
             before = cand.seconds
             search.deadline = None if cand.given else started + budget
             # the bound a candidate must beat: the best measured (not when given or exhaustive)
-            floor = -math.inf if exhaustive or cand.given else best
+            floor = -math.inf if exhaustive or cand.given or cand.leading else best
             if screened:
                 if cand.estimated_speedup > floor:
                     search.timed(cand, search.measure)
@@ -858,7 +872,7 @@ def tune(
                                f"cannot beat the best measured {best:.3g}")
             if cand.status == "pending":
                 if not screened:  # measured next when its screened estimate is the highest
-                    heapq.heappush(queue, (not cand.given, -_key(search, cand), n))
+                    heapq.heappush(queue, (rank(cand), -_key(search, cand), n))
                     spent[False].append(cand.seconds - before)
             else:
                 if screened:
