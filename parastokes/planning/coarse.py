@@ -61,10 +61,12 @@ def cpu_per_time(propagate: Callable[[float, float, np.ndarray], Any], x0: np.nd
                  t0: float, step: float, longest: float,
                  clock: Callable[[], float] = time.process_time) -> tuple[float, float]:
     """(CPU seconds per unit of simulated time, span measured) of ``propagate`` from ``(t0,
-    x0)``: one step first (its loops loaded), then :data:`ALPHA_STEPS` steps of ``step``, the
-    span doubled until the run takes :data:`ALPHA_SECONDS` or reaches ``longest``."""
-    propagate(t0, t0 + step, x0)
+    x0)``: :data:`ALPHA_STEPS` steps of ``step`` once untimed (its loops loaded; as many steps
+    as the timed run's first, so that Richardson's auxiliary steps r^q τ round to distinct
+    counts there too), then timed, the span doubled until the run takes :data:`ALPHA_SECONDS`
+    or reaches ``longest``."""
     steps = ALPHA_STEPS
+    propagate(t0, t0 + min(longest, steps * step), x0)
     while True:
         span = min(longest, steps * step)
         start = clock()
@@ -99,7 +101,7 @@ class Coarse:
     on."""
 
     candidate: Any  # tune's Candidate (settings, pilot η^k, the pilot's γ_G/γ_F)
-    alpha: float
+    alpha: float | None  # None: not usable (alpha_source says why)
     alpha_source: str
     iterations: int
     measured: dict[str, float] | None = None  # full_alpha's spans and rates
@@ -116,13 +118,17 @@ class Coarse:
                 "full_problem": self.measured}
 
 
-def ranked(accepted: Sequence[Any], alpha_of: Callable[[Any], tuple[float, str, Any]],
+def ranked(accepted: Sequence[Any],
+           alpha_of: Callable[[Any], tuple[float | None, str, Any]],
            wall: Callable[[float, int], float]) -> list[Coarse]:
     """The accepted candidates as :class:`Coarse`, α from ``alpha_of(candidate)`` = (α, where
     from, measurements), K tune's (the pilot's η^k scaled to the run's slices), ordered by
-    ``wall(α, K)`` (the least first; ties in tune's order)."""
+    ``wall(α, K)`` (the least first; ties in tune's order); those without an α (None: it blew
+    up on the full problem, the source says so) last."""
     rows = []
     for cand in accepted:
         alpha, source, measured = alpha_of(cand)
         rows.append(Coarse(cand, alpha, source, cand.iterations, measured))
-    return sorted(rows, key=lambda row: wall(row.alpha, row.iterations))
+    return sorted(rows, key=lambda row: (row.alpha is None,
+                                         0.0 if row.alpha is None else
+                                         wall(row.alpha, row.iterations)))

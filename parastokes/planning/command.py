@@ -259,6 +259,7 @@ def coarse_solvers(tuned: Any, system: Any, fine: Run, cfg: Any, cores: int) -> 
     was shortened (:func:`.coarse.full_alpha`), else tune's pilot's α (measured on the full
     problem already)."""
     from .. import integrate
+    from ..parallel import TaskError
     from .coarse import full_alpha, ranked
     from .routes import parareal_wall
 
@@ -272,8 +273,11 @@ def coarse_solvers(tuned: Any, system: Any, fine: Run, cfg: Any, cores: int) -> 
         if not measure:
             return cand.gamma_ratio, f"tune's pilot on the full problem ({shown} " \
                                      "points)", None
-        alpha, measured = full_alpha(cand.settings, system, propagator, x0, cfg.time.t0,
-                                     pilot.slice_length, cores)
+        try:
+            alpha, measured = full_alpha(cand.settings, system, propagator, x0, cfg.time.t0,
+                                         pilot.slice_length, cores)
+        except (integrate.BlowUpError, TaskError) as error:
+            return None, f"blew up on the full problem ({error})", None
         return alpha, (f"measured on the full problem ({len(system.positions(x0))} points: G "
                        f"over {measured['coarse_span']:.3g} s, F over "
                        f"{measured['fine_span']:.3g} s; tune's pilot of {shown} points "
@@ -284,6 +288,18 @@ def coarse_solvers(tuned: Any, system: Any, fine: Run, cfg: Any, cores: int) -> 
 
     accepted = [c for c in tuned.candidates if c.status == "accepted"]
     return ranked(accepted, alpha_of, wall)
+
+
+def rests_on(coarse: Any, pilot: Any, fine: Run) -> str:
+    """What a Parareal row rests on: where its α was measured (:class:`.coarse.Coarse`'s
+    ``alpha_source``), the pilot η^k its K comes from with the pilot's points and slices, G
+    and F."""
+    points = len(pilot.system.positions(pilot.x0))
+    errors = ", ".join(f"{e:.2g}" for e in coarse.candidate.pilot_errors)
+    return (f"α {coarse.alpha_source}; K from tune's pilot η^k = {errors} ({points} points, "
+            f"{pilot.n_slices} slices) scaled to the run's slices; G = "
+            f"{coarse.settings.label()} at {coarse.settings.coarse_dt:.3g} s; F = "
+            f"{fine.label()} ({fine.cost:.4g} s)")
 
 
 def _parareal_at(coarse: Any, pilot_slices: int, cores: int, target: float):
@@ -381,6 +397,7 @@ def main(args: argparse.Namespace, console: Any) -> int:
     best_text = f"{best.label()} ({best.cost:.4g} s)"
     rows = [routing.serial_route(best.cost, best_text)]
     unavailable: dict[str, str] = {}
+    tuned, ranking, coarse, why_pilot = None, [], None, None
     if args.cores >= 2:
         rows.append(routing.spatial_route(best.cost, best_text, args.cores, points))
         goal = (1.0 - 1.0 / F_FACTOR) * args.target
@@ -397,18 +414,17 @@ def main(args: argparse.Namespace, console: Any) -> int:
         else:
             ranking = coarse_solvers(tuned, system, fine, cfg, args.cores)
             coarse = ranking[0]
-            shown = tuned.pilot
-            evidence = (f"α {coarse.alpha_source}; K from tune's pilot η^k = "
-                        f"{', '.join(f'{e:.2g}' for e in coarse.candidate.pilot_errors)} "
-                        f"({len(shown.system.positions(shown.x0))} points, {shown.n_slices} "
-                        f"slices) scaled to the run's slices; G = {coarse.settings.label()} at "
-                        f"{coarse.settings.coarse_dt:.3g} s; F = {fine.label()} "
-                        f"({fine.cost:.4g} s)")
+            if coarse.alpha is None:
+                unavailable["parareal"] = ("every coarse solver tune accepted on its pilot blew "
+                                           f"up on the full problem (first: "
+                                           f"{coarse.alpha_source})")
+        if "parareal" not in unavailable:
+            evidence = rests_on(coarse, tuned.pilot, fine)
             for schedule in ("standard", "pipelined"):
                 rows.append(routing.parareal_route(
                     best.cost, fine.cost, coarse.alpha, coarse.iterations,
                     args.cores, schedule, evidence))
-            at = _parareal_at(coarse, shown.n_slices, args.cores, goal)
+            at = _parareal_at(coarse, tuned.pilot.n_slices, args.cores, goal)
             combined = routing.combined_route(best.cost, fine.cost, args.cores,
                                               points, "pipelined", at, evidence)
             if combined is None:
@@ -430,14 +446,14 @@ def main(args: argparse.Namespace, console: Any) -> int:
         "unavailable": unavailable,
         "chosen": chosen_route.route,
         "baseline": found.as_dict(),
-        "tune": None if "parareal" in unavailable or args.cores < 2 else tuned.report,
-        "coarse": None if "parareal" in unavailable or args.cores < 2 else {
+        "tune": None if tuned is None else tuned.report,
+        "coarse": None if tuned is None else {
             "pilot_points": len(tuned.pilot.system.positions(tuned.pilot.x0)),
             "pilot": why_pilot,
             "ranked": [row.as_dict() for row in ranking]},
     }
-    settings = None if "parareal" in unavailable or args.cores < 2 else coarse.settings
-    data = plan_config(cfg, chosen_route, fine, best, settings)
+    data = plan_config(cfg, chosen_route, fine, best,
+                       None if "parareal" in unavailable or coarse is None else coarse.settings)
     header = (f"Planned by `parastokes plan {args.config} --cores {args.cores} --target "
               f"{args.target:g}`: route {chosen_route.route}, predicted "
               f"{chosen_route.predicted_wall_seconds:.4g} s, "
