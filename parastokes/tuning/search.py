@@ -16,7 +16,9 @@ skips the step limit and margin; its screen counts the steps it took, which set 
 its pilot run measures γ_G from its real calls (an adaptive G's cost depends on the state).
 
 The next candidate is the one with the highest estimate: its optimistic speedup before the
-screen, its screened speedup after. A candidate whose optimistic speedup at its own step cannot
+screen, its screened speedup after; the given candidates (``Space.extra``) come first, then the
+leading ones (``Space.leading``, each screened and measured before any other is screened; not
+pruned), then the rest (:func:`rank`). A candidate whose optimistic speedup at its own step cannot
 beat the best measured one is pruned: without a budget the search chooses what measuring every
 candidate would choose. docs/tuning.md explains the choices and reports measurements.
 """
