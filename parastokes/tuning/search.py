@@ -64,6 +64,12 @@ MIN_STEPS = 10
 #: the slice map (ρ(DG)) and the pilot's η^k then judge it as any candidate.
 IMPLICIT_MIN_STEPS = 2
 
+#: The lower bracket of a linearly implicit scheme's step-limit search: this many steps per
+#: slice (or τ_f where that is larger). At τ_f, F at its own limit on the rod of 601 points,
+#: the bracket's first run took 33 000 implicit steps of the 61-node pilot and the whole of
+#: plan's 300 s for tune (docs/planning.md, "Round 5, fourth session").
+IMPLICIT_LO_STEPS = 400
+
 #: A budget below this many fine slices of the pilot makes the search frugal: a two-slice pilot
 #: window (one iteration), reference growth 1 instead of a measured ρ(DG) (docs/tuning.md, the
 #: vesicle).
@@ -363,13 +369,21 @@ class _Search:
             span = self.pilot.slice_length
             implicit = integrate.lookup(settings.scheme).implicit
             fewest = IMPLICIT_MIN_STEPS if implicit else MIN_STEPS
-            lo, hi = self.pilot.fine.dt, span / fewest
-            try:
-                self.limits[key] = stability.step_limit(system, settings.scheme, x0,
-                                                        self.pilot.t0, span, lo, max(hi, 2 * lo),
-                                                        stop=self.charge)
-            except ValueError:
-                self.limits[key] = math.nan
+            hi = span / fewest
+            # an implicit scheme's lower bracket: IMPLICIT_LO_STEPS steps per slice where that
+            # is above τ_f (its first run, the body's own change, then costs a few hundred
+            # implicit steps instead of a slice of fine steps), τ_f where that run fails
+            los = dict.fromkeys((max(self.pilot.fine.dt, span / IMPLICIT_LO_STEPS)
+                                 if implicit else self.pilot.fine.dt, self.pilot.fine.dt))
+            self.limits[key] = math.nan
+            for lo in los:
+                try:
+                    self.limits[key] = stability.step_limit(
+                        system, settings.scheme, x0, self.pilot.t0, span, lo, max(hi, 2 * lo),
+                        stop=self.charge)
+                    break
+                except ValueError:
+                    continue
         return self.limits[key]
 
     def estimated_step(self, settings: Settings) -> float:
