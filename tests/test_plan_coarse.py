@@ -81,12 +81,12 @@ def test_tune_finishes_the_leading_candidates_before_any_other():
 
 
 # ---- the pilot's size ----------------------------------------------------------------------
-def test_full_pilot_when_f_over_its_window_is_at_most_a_tenth_of_the_budget():
-    # F over T 400 s, 40 slices, a pilot of 3: 30 s = a tenth of 300 s
-    assert coarse.full_pilot(400.0, 40, 3, 300.0)
-    assert not coarse.full_pilot(400.01, 40, 3, 300.0)
-    assert coarse.full_pilot(400.0, 40, 2, 200.0)
-    assert not coarse.full_pilot(400.0, 40, 3, 299.9)
+def test_full_pilot_when_f_over_its_window_is_at_most_a_hundredth_of_the_budget():
+    # F over T 40 s, 40 slices, a pilot of 3: 3 s = a hundredth of 300 s
+    assert coarse.full_pilot(40.0, 40, 3, 300.0)
+    assert not coarse.full_pilot(40.01, 40, 3, 300.0)
+    assert coarse.full_pilot(40.0, 40, 2, 200.0)
+    assert not coarse.full_pilot(40.0, 40, 3, 299.9)
 
 
 def _rod(n_points: int, pilot: int | None = None):
@@ -97,12 +97,12 @@ def _rod(n_points: int, pilot: int | None = None):
 
 
 def test_pilot_points_are_the_runs_where_f_over_the_window_fits():
-    fine = Run("rk2", 1e-6, None, "F", "reference", 1e-9, 400.0, 400.0)
+    fine = Run("rk2", 1e-6, None, "F", "reference", 1e-9, 40.0, 40.0)
     full, why = pilot_points(_rod(121), fine, 40, 300.0)
-    assert full == 121 and "the full problem" in why and "30 s" in why
+    assert full == 121 and "the full problem" in why and "3 s" in why
     short, why = pilot_points(_rod(121), fine, 40, 299.0)
-    assert short == 61 and "a rod of 61 nodes" in why and "30 s" in why
-    # no budget: tune's default, 15 % of F (60 s): a window of 30 s is too dear
+    assert short == 61 and "a rod of 61 nodes" in why and "3 s" in why
+    # no budget: tune's default, 15 % of F (6 s): a window of 3 s is too dear
     assert pilot_points(_rod(121), fine, 40, None)[0] == 61
     assert pilot_points(_rod(121, pilot=31), fine, 40, 300.0) == (
         31, "the configuration's [tune] pilot_points")

@@ -34,8 +34,10 @@ __all__ = ["ALPHA_SECONDS", "ALPHA_STEPS", "FULL_PILOT_SHARE", "IMPLICIT_FRACTIO
 IMPLICIT_FRACTIONS = (1.0, 0.6, 0.3, 0.15)
 
 #: The pilot is the full problem where F over the pilot window takes at most this share of
-#: tune's budget (a candidate's pilot run costs about twice the window's fine solves).
-FULL_PILOT_SHARE = 0.1
+#: tune's budget: the baseline (its step-limit bisection and ρ(DG), some 25 fine slices) and
+#: the ladder (each about 3 fine slices and its ρ(DG)) need some 25 windows, and a given budget
+#: is wall time on a shared machine (a third of a core at the loads of docs/planning.md).
+FULL_PILOT_SHARE = 0.01
 
 #: α on the full problem: G and F each first run over this many of their own steps ...
 ALPHA_STEPS = 20
