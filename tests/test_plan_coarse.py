@@ -142,6 +142,14 @@ def test_cpu_per_time_doubles_the_span_until_it_takes_enough():
     assert span == 0.05 and clock.calls[-1] == 0.05  # never beyond a slice
 
 
+def test_cpu_per_time_over_a_whole_slice_times_it_at_once():
+    clock = Clock()
+    rate, span = coarse.cpu_per_time(clock.propagator(1e-6, 1e-3), np.zeros(3), 0.0, 1e-3,
+                                     0.5, clock, whole=True)
+    assert clock.calls == pytest.approx([0.02, 0.5]) and span == 0.5
+    assert rate == pytest.approx(1e-3)
+
+
 def test_full_alpha_is_the_ratio_of_the_rates_in_waves_of_auxiliary_solvers(monkeypatch):
     """G of N_G = 3 auxiliary solvers (all in one call, 3x a plain step each) on 2 cores: two
     waves of one solver's share, over F's rate: the direct computation."""
@@ -203,6 +211,38 @@ def test_ranking_follows_the_full_problems_alpha_not_the_pilots():
     assert (row["alpha"], row["pilot_alpha"], row["alpha_source"]) == (0.04, 0.3, "full")
 
 
+def test_the_first_row_is_measured_again_until_it_holds_its_place():
+    """A's α over a whole slice is worse than B's: B is measured too and stays first; a row
+    that blows up over the slice goes last; each row at most once."""
+    def wall(alpha, k):
+        return routes.parareal_wall(1.0, alpha, k, 40, "pipelined")
+
+    def rows():
+        cands = _accepted([(1.0, 0.5, 1), (0.6, 0.5, 1), (0.3, 0.5, 1)])
+        first = {1.0: 0.01, 0.6: 0.02, 0.3: 0.04}
+        return coarse.ranked(cands, lambda c: (first[c.settings.step_fraction], "few", None),
+                             wall)
+
+    again = {1.0: (0.03, "whole", None), 0.6: (0.025, "whole", None),
+             0.3: (0.001, "whole", None)}
+    seen = []
+
+    def measure(row):
+        seen.append(row.settings.step_fraction)
+        return again[row.settings.step_fraction]
+
+    out = coarse.confirmed(rows(), measure, wall)
+    assert seen == [1.0, 0.6] and [r.settings.step_fraction for r in out] == [0.6, 1.0, 0.3]
+    assert (out[0].alpha, out[0].alpha_source) == (0.025, "whole")
+    assert out[2].alpha == 0.04  # (never measured again: it never came first)
+    again[1.0] = (None, "blew up", None)
+    seen.clear()
+    out = coarse.confirmed(rows(), measure, wall)
+    assert seen == [1.0, 0.6] and [r.settings.step_fraction for r in out] == [0.6, 0.3, 1.0]
+    assert out[-1].alpha is None and out[-1].alpha_source == "blew up"
+    assert coarse.confirmed([], measure, wall) == []
+
+
 def test_a_parareal_row_says_what_its_alpha_and_k_rest_on():
     cand = _accepted([(0.3, 0.3, 1)])[0]
     row = coarse.Coarse(cand, 0.04, "measured on the full problem (601 points: ...)", 1)
@@ -231,10 +271,13 @@ def test_a_shortened_pilot_gives_alpha_measured_on_the_full_problem(tmp_path, ca
     assert usable == sorted(usable, reverse=True) and usable[0]
     for row in ranked:
         if row["alpha"] is None:
-            assert row["alpha_source"].startswith("blew up on the full problem (blow-up at")
+            assert row["alpha_source"].startswith("blew up on the full problem over a ")
             continue
         assert row["alpha_source"].startswith("measured on the full problem (21 points")
         assert row["full_problem"]["coarse_span"] > 0
+    first = ranked[0]  # its G run over a whole slice of the full problem
+    assert "(a whole slice)" in first["alpha_source"]
+    assert first["full_problem"]["coarse_span"] == pytest.approx(0.001)
     parareal = next(r for r in plan["routes"] if r["route"] == "parareal (pipelined)")
     assert parareal["settings"]["alpha"] == ranked[0]["alpha"]
     assert "(11 points, " in parareal["rests_on"]

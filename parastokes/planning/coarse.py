@@ -18,6 +18,7 @@ and the cost ratio α = γ_G/γ_F each route rests on (docs/planning.md, "Round 
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -26,7 +27,7 @@ from typing import Any
 import numpy as np
 
 __all__ = ["ALPHA_SECONDS", "ALPHA_STEPS", "FULL_PILOT_SHARE", "IMPLICIT_FRACTIONS", "Coarse",
-           "cpu_per_time", "full_alpha", "full_pilot", "leading", "ranked"]
+           "confirmed", "cpu_per_time", "full_alpha", "full_pilot", "leading", "ranked"]
 
 #: Fractions of the pilot's safe step of the plain implicit coarse solver searched first: the
 #: space's own 1 and 0.6, and the frontier's winners (the rod of 601 points: 1.25e-4 s, 0.18 of
@@ -61,14 +62,17 @@ def full_pilot(fine_cpu: float, n_slices: int, pilot_slices: int, budget: float)
 
 def cpu_per_time(propagate: Callable[[float, float, np.ndarray], Any], x0: np.ndarray,
                  t0: float, step: float, longest: float,
-                 clock: Callable[[], float] = time.process_time) -> tuple[float, float]:
+                 clock: Callable[[], float] = time.process_time,
+                 whole: bool = False) -> tuple[float, float]:
     """(CPU seconds per unit of simulated time, span measured) of ``propagate`` from ``(t0,
     x0)``: :data:`ALPHA_STEPS` steps of ``step`` once untimed (its loops loaded; as many steps
     as the timed run's first, so that Richardson's auxiliary steps r^q τ round to distinct
     counts there too), then timed, the span doubled until the run takes :data:`ALPHA_SECONDS`
-    or reaches ``longest``."""
+    or reaches ``longest``; ``whole``: timed over ``longest`` at once."""
     steps = ALPHA_STEPS
     propagate(t0, t0 + min(longest, steps * step), x0)
+    if whole:
+        steps = math.ceil(longest / step)
     while True:
         span = min(longest, steps * step)
         start = clock()
@@ -81,15 +85,17 @@ def cpu_per_time(propagate: Callable[[float, float, np.ndarray], Any], x0: np.nd
 
 def full_alpha(settings: Any, system: Any, fine: Any, x0: np.ndarray, t0: float,
                slice_length: float, cores: int,
-               clock: Callable[[], float] = time.process_time) -> tuple[float, dict[str, float]]:
+               clock: Callable[[], float] = time.process_time,
+               whole: bool = False) -> tuple[float, dict[str, float]]:
     """γ_G/γ_F of the coarse solver ``settings`` on the full ``system`` against the fine
     propagator ``fine`` (eq. 14's α): both CPU rates of :func:`cpu_per_time` times the slice,
     G's N_G auxiliary solvers in waves on ``cores`` workers as tune counts them
-    (``tuning.cost.gamma_ratio``); with the spans measured."""
+    (``tuning.cost.gamma_ratio``); with the spans measured. ``whole``: G over a whole slice
+    (its stability over a slice of the full problem checked too; a blow-up raises)."""
     from ..tuning import cost
 
     g_rate, g_span = cpu_per_time(settings.build(system), x0, t0, settings.dt, slice_length,
-                                  clock)
+                                  clock, whole)
     f_rate, f_span = cpu_per_time(fine, x0, t0, fine.dt, slice_length, clock)
     alpha = cost.gamma_ratio(settings, slice_length, g_rate * slice_length,
                              f_rate * slice_length, cores)
@@ -120,6 +126,12 @@ class Coarse:
                 "full_problem": self.measured}
 
 
+def _order(wall: Callable[[float, int], float]) -> Callable[[Coarse], tuple[bool, float]]:
+    """The ranking's key: usable rows first, by ``wall(α, K)``."""
+    return lambda row: (row.alpha is None,
+                        0.0 if row.alpha is None else wall(row.alpha, row.iterations))
+
+
 def ranked(accepted: Sequence[Any],
            alpha_of: Callable[[Any], tuple[float | None, str, Any]],
            wall: Callable[[float, int], float]) -> list[Coarse]:
@@ -131,6 +143,18 @@ def ranked(accepted: Sequence[Any],
     for cand in accepted:
         alpha, source, measured = alpha_of(cand)
         rows.append(Coarse(cand, alpha, source, cand.iterations, measured))
-    return sorted(rows, key=lambda row: (row.alpha is None,
-                                         0.0 if row.alpha is None else
-                                         wall(row.alpha, row.iterations)))
+    return sorted(rows, key=_order(wall))
+
+
+def confirmed(rows: list[Coarse], again: Callable[[Coarse], tuple[float | None, str, Any]],
+              wall: Callable[[float, int], float]) -> list[Coarse]:
+    """The ranking once its first row has been measured ``again`` (its G over a whole slice of
+    the full problem: (α, where from, measurements), α None where it blew up), repeated until
+    the first row is one so measured or none is usable; each row at most once."""
+    done: set[int] = set()
+    while rows and rows[0].alpha is not None and id(rows[0]) not in done:
+        top = rows[0]
+        done.add(id(top))
+        top.alpha, top.alpha_source, top.measured = again(top)
+        rows = sorted(rows, key=_order(wall))
+    return rows

@@ -256,11 +256,12 @@ def _tune(cfg: Any, resolved: Any, system: Any, fine: Run, cores: int, target: f
 def coarse_solvers(tuned: Any, system: Any, fine: Run, cfg: Any, cores: int) -> list[Any]:
     """tune's accepted coarse solvers, ranked by the least predicted wall time of Parareal on
     ``cores`` slices (either schedule) with α measured on the full problem where tune's pilot
-    was shortened (:func:`.coarse.full_alpha`), else tune's pilot's α (measured on the full
-    problem already)."""
+    was shortened (:func:`.coarse.full_alpha` over a few steps, then for the first of the
+    ranking over a whole slice, :func:`.coarse.confirmed`), else tune's pilot's α (measured on
+    the full problem already)."""
     from .. import integrate
     from ..parallel import TaskError
-    from .coarse import full_alpha, ranked
+    from .coarse import confirmed, full_alpha, ranked
     from .routes import parareal_wall
 
     pilot = tuned.pilot
@@ -269,17 +270,18 @@ def coarse_solvers(tuned: Any, system: Any, fine: Run, cfg: Any, cores: int) -> 
     propagator = integrate.Propagator(system, fine.scheme, fine.dt, rtol=fine.rtol)
     measure = shown < len(system.positions(x0))
 
-    def alpha_of(cand: Any) -> tuple[float, str, Any]:
+    def alpha_of(cand: Any, whole: bool = False) -> tuple[float | None, str, Any]:
         if not measure:
             return cand.gamma_ratio, f"tune's pilot on the full problem ({shown} " \
                                      "points)", None
+        span = "a whole slice" if whole else "a few steps"
         try:
             alpha, measured = full_alpha(cand.settings, system, propagator, x0, cfg.time.t0,
-                                         pilot.slice_length, cores)
+                                         pilot.slice_length, cores, whole=whole)
         except (integrate.BlowUpError, TaskError) as error:
-            return None, f"blew up on the full problem ({error})", None
+            return None, f"blew up on the full problem over {span} ({error})", None
         return alpha, (f"measured on the full problem ({len(system.positions(x0))} points: G "
-                       f"over {measured['coarse_span']:.3g} s, F over "
+                       f"over {measured['coarse_span']:.3g} s ({span}), F over "
                        f"{measured['fine_span']:.3g} s; tune's pilot of {shown} points "
                        f"gave {cand.gamma_ratio:.3g})"), measured
 
@@ -287,7 +289,10 @@ def coarse_solvers(tuned: Any, system: Any, fine: Run, cfg: Any, cores: int) -> 
         return min(parareal_wall(1.0, alpha, k, cores, s) for s in ("standard", "pipelined"))
 
     accepted = [c for c in tuned.candidates if c.status == "accepted"]
-    return ranked(accepted, alpha_of, wall)
+    rows = ranked(accepted, alpha_of, wall)
+    if not measure:
+        return rows
+    return confirmed(rows, lambda row: alpha_of(row.candidate, whole=True), wall)
 
 
 def rests_on(coarse: Any, pilot: Any, fine: Run) -> str:
