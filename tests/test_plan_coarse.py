@@ -241,6 +241,9 @@ def test_the_first_row_is_measured_again_until_it_holds_its_place():
     assert seen == [1.0, 0.6] and [r.settings.step_fraction for r in out] == [0.6, 0.3, 1.0]
     assert out[-1].alpha is None and out[-1].alpha_source == "blew up"
     assert coarse.confirmed([], measure, wall) == []
+    seen.clear()  # every row blew up over a few steps: none is run again
+    dead = coarse.ranked(_accepted([(1.0, 0.5, 1)]), lambda c: (None, "blew up", None), wall)
+    assert coarse.confirmed(dead, measure, wall)[0].alpha is None and seen == []
 
 
 def test_a_parareal_row_says_what_its_alpha_and_k_rest_on():
