@@ -453,7 +453,6 @@ def test_own_error_falls_back_to_half_the_step_where_twice_it_blows_up(monkeypat
 def test_a_parareal_route_is_written_as_a_config_that_runs(tmp_path):
     """The Parareal route's PLAN.toml (plan_config with tune's choice), as check and run read
     it: F, the coarse solver, slices, K, the schedule and the threads of the route."""
-    from types import SimpleNamespace
 
     from parastokes.planning.command import plan_config
     from parastokes.tuning import Settings
