@@ -19,7 +19,7 @@ import numpy as np
 import scipy.sparse as sp
 from numba import njit
 
-__all__ = ["coefficients", "near_mobility", "pair_block", "pair_blocks",
+__all__ = ["coefficients", "near_mobility", "pair_block", "pair_blocks", "pair_reach",
            "sorted_pairs", "taper"]
 
 _EIGHT_PI = 8.0 * np.pi
@@ -30,8 +30,9 @@ def coefficients(r2, e2):  # pragma: no cover - compiled
     """The scalars of 8π μ × a pair's mobility block at squared distance ``r2``, ε² = ``e2``:
     ``(diag, i3, q, p1, p2)`` of the Stokeslet diag I + i3 r rᵀ, the rotlet -i3 [r]ₓ, the
     curl -q [r]ₓ and the dipole p1 I + p2 r rᵀ (:func:`pair_blocks`)."""
-    i3 = (r2 + e2) ** -1.5
-    i5 = i3 / (r2 + e2)
+    s = r2 + e2
+    i3 = 1.0 / (s * math.sqrt(s))  # not s ** -1.5: a square root vectorizes, a power does not
+    i5 = i3 / s
     return ((r2 + 2.0 * e2) * i3, i3, 0.5 * (2.0 * r2 + 5.0 * e2) * i5,
             -0.5 * (r2 - 2.0 * e2) * i5,  # -1/4 of 8π × (4)'s p1
             1.5 * i5)                      # -1/4 of 8π × (4)'s p2
@@ -93,22 +94,15 @@ def pair_blocks(r: np.ndarray, eps: float, angular: bool) -> np.ndarray:
 
 
 @njit(cache=True)
-def _sweep(points, cutoff, order, axis):  # pragma: no cover - compiled
-    """:func:`sorted_pairs` by sort and sweep: the points in ``order`` along ``axis``, each
-    against those that follow within ``cutoff`` along it; a pass that counts, one that
-    fills."""
+def _swept(points, cutoff, order, axis):  # pragma: no cover - compiled
+    """The pairs of distinct points at most ``cutoff`` apart, each once, as two rows ``(i, j)``
+    (2, pairs): sort and sweep, the points in ``order`` along ``axis``, each against those that
+    follow within ``cutoff`` along it."""
     n = len(points)
     c2 = cutoff * cutoff
-    indptr = np.zeros(n + 1, dtype=np.int64)
-    source = np.empty(0, dtype=np.int64)
-    fill = np.zeros(n, dtype=np.int64)
-    for counting in (True, False):
-        for i in range(n):  # self pairs
-            if counting:
-                indptr[i + 1] += 1
-            else:
-                source[fill[i]] = i
-                fill[i] += 1
+    out = np.empty((2, 0), dtype=np.int64)
+    for counting in (True, False):  # a pass that counts, one that fills
+        count = 0
         for a in range(n):
             i = order[a]
             for b in range(a + 1, n):
@@ -120,21 +114,46 @@ def _sweep(points, cutoff, order, axis):  # pragma: no cover - compiled
                 d2 = points[i, 2] - points[j, 2]
                 if d0 * d0 + d1 * d1 + d2 * d2 > c2:
                     continue
-                if counting:
-                    indptr[i + 1] += 1
-                    indptr[j + 1] += 1
-                else:
-                    source[fill[i]] = j
-                    source[fill[j]] = i
-                    fill[i] += 1
-                    fill[j] += 1
+                if not counting:
+                    out[0, count], out[1, count] = i, j
+                count += 1
         if counting:
-            indptr[1:] = np.cumsum(indptr[1:])
-            source = np.empty(indptr[n], dtype=np.int64)
-            fill[:] = indptr[:n]
+            out = np.empty((2, count), dtype=np.int64)
+    return out[:, :count]
+
+
+@njit(cache=True)
+def _sweep(points, cutoff, order, axis):  # pragma: no cover - compiled
+    """:func:`sorted_pairs` from :func:`_swept`'s pairs and the self pairs: counted, filled,
+    sorted per row."""
+    n = len(points)
+    pairs = _swept(points, cutoff, order, axis)
+    indptr = np.zeros(n + 1, dtype=np.int64)
+    indptr[1:] = 1  # self pairs
+    for p in range(pairs.shape[1]):
+        indptr[pairs[0, p] + 1] += 1
+        indptr[pairs[1, p] + 1] += 1
+    indptr[1:] = np.cumsum(indptr[1:])
+    source = np.empty(indptr[n], dtype=np.int64)
+    fill = indptr[:n].copy()
+    for i in range(n):
+        source[fill[i]] = i
+        fill[i] += 1
+    for p in range(pairs.shape[1]):
+        i, j = pairs[0, p], pairs[1, p]
+        source[fill[i]], source[fill[j]] = j, i
+        fill[i] += 1
+        fill[j] += 1
     for i in range(n):
         source[indptr[i]:indptr[i + 1]].sort()
     return indptr, source
+
+
+def _sweep_order(points: np.ndarray) -> tuple[np.ndarray, int]:
+    """The sweep's order: the points sorted along the axis of their largest extent (a rod's or
+    chain's length), and that axis."""
+    axis = int(np.argmax(np.ptp(points, axis=0))) if len(points) else 0
+    return np.argsort(points[:, axis], kind="stable"), axis
 
 
 def sorted_pairs(points: np.ndarray, cutoff: float) -> tuple[np.ndarray, np.ndarray]:
@@ -143,9 +162,40 @@ def sorted_pairs(points: np.ndarray, cutoff: float) -> tuple[np.ndarray, np.ndar
     ``source[indptr[i]:indptr[i + 1]]``, ascending; compiled (:func:`_sweep`, along the axis
     of the points' largest extent: a rod's or chain's length)."""
     points = np.ascontiguousarray(points, dtype=float)
-    axis = int(np.argmax(np.ptp(points, axis=0))) if len(points) else 0
-    order = np.argsort(points[:, axis], kind="stable")
+    order, axis = _sweep_order(points)
     return _sweep(points, float(cutoff), order, axis)
+
+
+@njit(cache=True)
+def _reach_sweep(points, cutoff, order, axis, first, last):  # pragma: no cover - compiled
+    """:func:`pair_reach` from :func:`_swept`'s pairs."""
+    n = len(points)
+    pairs = _swept(points, cutoff, order, axis)
+    most, below, above = 0, -n, -n
+    for i in range(n):  # self pairs
+        below, above = max(below, i - first[i]), max(above, last[i] - i)
+    for p in range(pairs.shape[1]):
+        i, j = pairs[0, p], pairs[1, p]
+        most = max(most, abs(i - j))
+        below = max(below, i - first[j], j - first[i])
+        above = max(above, last[j] - i, last[i] - j)
+    return most, below, above
+
+
+def pair_reach(points: np.ndarray, cutoff: float, first: np.ndarray, last: np.ndarray
+               ) -> tuple[int, int, int]:
+    """How far the pairs of ``points`` at most ``cutoff`` apart (:func:`sorted_pairs`'s, none
+    stored) reach along the points' order: ``(most, below, above)``, the largest ``|i - j|``
+    of a pair (i, j) and, for the product of the near mobility with a matrix whose block row j
+    spans the block columns ``first[j]..last[j]`` (an empty row: ``first[j] = j + n``,
+    ``last[j] = j - n``), the most block columns that row i of the product reaches below and
+    above i (negative: none)."""
+    points = np.ascontiguousarray(points, dtype=float)
+    order, axis = _sweep_order(points)
+    most, below, above = _reach_sweep(points, float(cutoff), order, axis,
+                                      np.asarray(first, dtype=np.int64),
+                                      np.asarray(last, dtype=np.int64))
+    return int(most), int(below), int(above)
 
 
 def near_mobility(points: np.ndarray, epsilon: float, viscosity: float, angular: bool,
