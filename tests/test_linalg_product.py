@@ -120,3 +120,31 @@ def test_coefficients_are_the_kernels_scalars():
             ((r2 + 2 * e2) * r_eps ** -1.5, r_eps ** -1.5, 0.5 * (2 * r2 + 5 * e2) * r_eps ** -2.5,
              -0.5 * (r2 - 2 * e2) * r_eps ** -2.5, 1.5 * r_eps ** -2.5), strict=True):
         np.testing.assert_allclose(value, expected, rtol=1e-15, atol=0)
+
+
+def test_the_support_is_where_the_taper_falls_below_single_precision():
+    """support(c) is the bisected root of (1 - q)⁴ (4q + 1) = 2⁻²⁴ times c: the taper (over
+    1/(8π μ)) is at least NEGLIGIBLE_TAPER a relative 1e-12 within it, below it as far out."""
+    assert local.NEGLIGIBLE_TAPER == 2.0 ** -24
+    for cutoff in (1.0, 3.0, 0.7):
+        reach = local.support(cutoff)
+        assert 0.98 * cutoff < reach < cutoff
+        within, beyond = (local.taper(r * r, cutoff, 1.0) * 8 * np.pi
+                          for r in (reach * (1 - 1e-12), reach * (1 + 1e-12)))
+        assert within >= local.NEGLIGIBLE_TAPER > beyond
+
+
+def test_pairs_at_the_cutoff_leave_the_straight_rods_band():
+    """Points 0.2 apart along a line with a cutoff of 3 (15 spacings, as the paper's rod at ε =
+    5Δs and 3ε): the pairs 15 apart lie at the cutoff (a taper of 0 up to round-off) and are
+    left out, 14 apart (taper 9e-5) kept: with a tridiagonal K, A's band is (14 + 1) 6 + 5 = 95
+    rates, and the near mobility holds no pair 15 apart."""
+    n, size = 120, 6
+    points = np.stack([0.2 * np.arange(n), np.zeros(n), np.zeros(n)], axis=1)
+    points[:, 0] += 1e-15 * np.random.default_rng(4).standard_normal(n)  # round-off either way
+    rng = np.random.default_rng(5)
+    k, _ = _banded_k(rng, n, size, np.ones(n, dtype=int), np.ones(n, dtype=int))
+    a = banded.near_product(points, 1.0, 1.0, True, 3.0, k)
+    assert banded.bandwidth(a) == (95, 95)
+    m = local.near_mobility(points, 1.0, 1.0, True, 3.0)
+    assert banded.bandwidth(m) == (14 * size + size - 1,) * 2

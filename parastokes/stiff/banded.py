@@ -16,7 +16,7 @@ import numpy as np
 import scipy.sparse as sp
 from numba import njit
 
-from .local import coefficients, near_mobility, pair_reach, taper
+from .local import coefficients, near_mobility, pair_reach, support, taper
 
 __all__ = ["band_storage", "bandwidth", "block_product", "narrow", "near_product"]
 
@@ -108,14 +108,14 @@ def _strips(k_ptr, k_idx, k_blk, k_lo, blocks, lane):  # pragma: no cover - comp
 
 
 @njit(cache=True, fastmath=True, error_model="numpy")
-def _near_band(pad, eps, cutoff, viscosity, angular, strips, lp, k_lo, lane, kl, ku,
+def _near_band(pad, eps, cutoff, reach, viscosity, angular, strips, lp, k_lo, lane, kl, ku,
                data):  # pragma: no cover - compiled
     """``data`` = M K in LAPACK's band layout (entry (r, c) at ``data[ku + r - c, c]``). Per
     point i, over the window of points j = i - ``lp`` .. i + ``lp`` (``pad``: rows x, y, z
     and 1 for a point, 0 for the padding, point j at column ``lp`` + j): first the scalars of
     :func:`.local.coefficients` times :func:`.local.taper` of every j in one loop (it
-    vectorizes; all zero beyond the cutoff), then each pair multiplies K's strip j
-    (:func:`_strips`, blocks of ``lane`` columns) into the block row of i, held
+    vectorizes; all zero beyond ``reach``, :func:`.local.support`), then each pair multiplies
+    K's strip j (:func:`_strips`, blocks of ``lane`` columns) into the block row of i, held
     component-major (``row[a, lane B + b]``, block B from point i - lp - ``k_lo``), then
     written out. M's block is never formed: with r = X_i - X_j and a strip column's force
     rows k_f and torque rows k_n (``angular``), the velocity rows gain
@@ -125,7 +125,7 @@ def _near_band(pad, eps, cutoff, viscosity, angular, strips, lp, k_lo, lane, kl,
     strip = np.uint64(strips.shape[2])
     window = 2 * lp + 1
     width = window + strips.shape[2] // lane - 1  # the blocks of a row's window
-    depth, e2 = kl + ku + 1, eps * eps
+    depth, e2, reach2 = kl + ku + 1, eps * eps, reach * reach
     scalars = np.empty((8, window))
     row = np.empty((size, lane * width))
     px, py, pz, inside = pad[0], pad[1], pad[2], pad[3]
@@ -137,7 +137,7 @@ def _near_band(pad, eps, cutoff, viscosity, angular, strips, lp, k_lo, lane, kl,
             x, y, z = xi - px[i + w], yi - py[i + w], zi - pz[i + w]
             r2 = x * x + y * y + z * z
             diag, i3, q, p1, p2 = coefficients(r2, e2)
-            scale = taper(r2, cutoff, viscosity) * inside[i + w]
+            scale = taper(r2, cutoff, viscosity) * inside[i + w] if r2 <= reach2 else 0.0
             cx[w], cy[w], cz[w] = x, y, z
             cd[w], ci[w], cq[w] = diag * scale, i3 * scale, q * scale
             c1[w], c2[w] = p1 * scale, p2 * scale
@@ -146,7 +146,7 @@ def _near_band(pad, eps, cutoff, viscosity, angular, strips, lp, k_lo, lane, kl,
         o3, o4, o5 = row[3 % size], row[4 % size], row[5 % size]
         for w in range(window):
             i3 = ci[w]
-            if i3 == 0.0:  # no pair: beyond the cutoff, or the padding
+            if i3 == 0.0:  # no pair: beyond the reach, or the padding
                 continue
             x, y, z = cx[w], cy[w], cz[w]
             diag, q, p1, p2 = cd[w], cq[w], c1[w], c2[w]
@@ -210,7 +210,8 @@ def near_product(points: np.ndarray, epsilon: float, viscosity: float, angular: 
                          f"{(len(points) * size,) * 2} in blocks {(size, size)}")
     k_ptr, k_idx = k.indptr.astype(np.int64), k.indices.astype(np.int64)
     first, last = _row_extents(k_ptr, k_idx)
-    lp, below, above = pair_reach(points, cutoff, first, last)
+    reach = support(cutoff)
+    lp, below, above = pair_reach(points, reach, first, last)
     kl, ku = max(below * size + size - 1, 0), max(above * size + size - 1, 0)
     n = len(points) * size
     if not narrow(kl, ku, n):
@@ -224,8 +225,8 @@ def near_product(points: np.ndarray, epsilon: float, viscosity: float, angular: 
     pad[:3, lp:lp + len(points)] = points.T
     pad[3, lp:lp + len(points)] = 1.0
     data = np.zeros((kl + ku + 1, n), order="F")
-    _near_band(pad, float(epsilon), float(cutoff), float(viscosity), bool(angular), strips,
-               lp, k_lo, lane, kl, ku, data)
+    _near_band(pad, float(epsilon), float(cutoff), reach, float(viscosity), bool(angular),
+               strips, lp, k_lo, lane, kl, ku, data)
     return sp.dia_array((data, np.arange(ku, -kl - 1, -1)), shape=(n, n))
 
 

@@ -2,7 +2,8 @@
 
 The stiff modes of a body are short (a rod's bending modes of a few Δs, a vesicle's spring
 modes of one edge), and the fluid couples them through the kernels within a few ε of each
-point. :func:`near_mobility` keeps the pairs of points closer than ``cutoff`` (a compiled sort
+point. :func:`near_mobility` keeps the pairs of points closer than ``cutoff`` whose taper is
+not negligible (:func:`support`; a compiled sort
 and sweep, :func:`sorted_pairs`) and writes their blocks in free space, from the formulas of
 :mod:`parastokes.mrs.reference` ((1)-(4) of docs/kernels.md; the torque blob ψ_ε of the
 default variant): force -> velocity (Stokeslet), torque -> velocity (rotlet), force -> angular
@@ -19,8 +20,8 @@ import numpy as np
 import scipy.sparse as sp
 from numba import njit
 
-__all__ = ["coefficients", "near_mobility", "pair_block", "pair_blocks", "pair_reach",
-           "sorted_pairs", "taper"]
+__all__ = ["NEGLIGIBLE_TAPER", "coefficients", "near_mobility", "pair_block", "pair_blocks",
+           "pair_reach", "sorted_pairs", "support", "taper"]
 
 _EIGHT_PI = 8.0 * np.pi
 
@@ -66,6 +67,29 @@ def taper(r2, cutoff, viscosity):  # pragma: no cover - compiled
     q = min(math.sqrt(r2) / cutoff, 1.0)
     s = 1.0 - q
     return s * s * s * s * (4.0 * q + 1.0) / (_EIGHT_PI * viscosity)
+
+
+#: The taper (:func:`taper` times 8π μ) below which a pair is left out of the near mobility:
+#: single precision's unit round-off, the precision in which a step's banded elimination
+#: already rounds A (:data:`.solve.BAND_PRECISION`). On a straight rod whose cutoff is 15
+#: spacings the pairs 15 points apart lie at the cutoff to round-off (a taper of 1e-59): counted,
+#: they widened A's band from 95 to 101 rates (docs/benchmarks.md, "Round 5, fourth session").
+NEGLIGIBLE_TAPER = 2.0 ** -24
+
+
+def support(cutoff: float) -> float:
+    """The distance within ``cutoff`` beyond which :func:`taper` (times 8π μ) is below
+    :data:`NEGLIGIBLE_TAPER` (about 0.9895 ``cutoff``): the near mobility's pairs are those at
+    most this far apart. (1 - q)⁴ (4q + 1) decreases on [0, 1]: bisection to double's
+    round-off."""
+    low, high = 0.0, 1.0
+    for _ in range(64):
+        middle = 0.5 * (low + high)
+        if (1.0 - middle) ** 4 * (4.0 * middle + 1.0) >= NEGLIGIBLE_TAPER:
+            low = middle
+        else:
+            high = middle
+    return cutoff * low
 
 
 @njit(cache=True, error_model="numpy")
@@ -200,11 +224,12 @@ def pair_reach(points: np.ndarray, cutoff: float, first: np.ndarray, last: np.nd
 
 def near_mobility(points: np.ndarray, epsilon: float, viscosity: float, angular: bool,
                   cutoff: float) -> sp.bsr_array:
-    """The free-space mobility of the pairs closer than ``cutoff``, tapered by :func:`taper`:
+    """The free-space mobility of the pairs within :func:`support` of ``cutoff`` (a taper of at
+    least :data:`NEGLIGIBLE_TAPER`), tapered by :func:`taper` (support ``cutoff``):
     (n V, n V) sparse in blocks of V x V, V = 6 (``[u, w]`` from ``[f, n]``) with ``angular``,
     else 3, point-major rows and columns."""
     points = np.ascontiguousarray(points, dtype=float)
-    indptr, source = sorted_pairs(points, cutoff)
+    indptr, source = sorted_pairs(points, support(cutoff))
     target = np.repeat(np.arange(len(points)), np.diff(indptr))
     n, v = len(points), 6 if angular else 3
     blocks = np.empty((len(source), v, v))
