@@ -684,8 +684,9 @@ def _linalg_rod(m: int, eps: float) -> dict[str, Any]:
                              "load_average": [round(v, 2) for v in (*load, *os.getloadavg())],
                              "fused_vs_bsr_product": float(np.abs(a.toarray() - a_bsr.toarray())
                                                            .max() / np.abs(a_bsr.data).max()),
-                             "fused_vs_third_session": float(np.abs(a.data - a_previous.data)
-                                                             .max() / np.abs(a.data).max()),
+                             "fused_vs_third_session": float(
+                                 np.abs(a.toarray() - a_previous.toarray()).max()
+                                 / np.abs(a_previous.data).max()),
                              "single_vs_double_solve": float(np.abs(lu.solve(v) - exact).max()
                                                              / np.abs(exact).max()),
                              "stage_solve_same_bits": bool(np.array_equal(

@@ -81,21 +81,26 @@ def _banded_k(rng, n, size, below, above, empty=()):
 
 @pytest.mark.parametrize(("angular", "layout"), [
     (True, "line from the origin"), (False, "line from the origin"),
-    (True, "zigzag"), (False, "zigzag")])
+    (True, "line to the origin"), (True, "zigzag"), (False, "zigzag")])
 def test_fused_product_is_the_stored_mobility_times_k(angular, layout):
     """The windowed pass against M_near (stored, pair by pair) @ K, to round-off in every band
-    entry, with the reference's band, on: a line starting at the origin (the padding's zeros
-    sit at the origin, within the cutoff of the first points: only the padding's mask keeps
-    them out) and a zigzag whose pairs i, i + 2 are within the cutoff but i, i + 1 are not
-    (gaps in the window); K with rows reaching 0-2 blocks below and 0-3 above, and empty
-    rows."""
+    entry, with the reference's band, on: a line from and one to the origin (the window's
+    padding past either end sits at the origin, within the cutoff of the end points: only its
+    zero strips keep it out) and a zigzag whose pairs i, i + 2 are within the support but
+    i, i + 1 are not, 0.995 of the cutoff apart, where the taper is below 2⁻²⁴ (gaps in the
+    window); K with rows reaching 0-2 blocks below and 0-3 above, and empty rows."""
     rng = np.random.default_rng(3)
     n, size = 120, 6 if angular else 3
     if layout == "zigzag":
-        points = np.stack([0.45 * np.arange(n), 0.9 * (np.arange(n) % 2), np.zeros(n)], axis=1)
+        height = np.sqrt(0.995 ** 2 - 0.45 ** 2)  # neighbours 0.995 apart
+        points = np.stack([0.45 * np.arange(n), height * (np.arange(n) % 2), np.zeros(n)],
+                          axis=1)
     else:
         points = np.stack([0.3 * np.arange(n), 0.05 * rng.standard_normal(n),
                            np.zeros(n)], axis=1)
+        points[:, 0] -= points[0, 0]  # the first point at the origin (within 0.05)
+        if layout == "line to the origin":
+            points = points[::-1].copy()
     cutoff = 1.0
     k, dk = _banded_k(rng, n, size, rng.integers(0, 3, n), rng.integers(0, 4, n),
                       empty=(4, 17, 118))
@@ -106,9 +111,10 @@ def test_fused_product_is_the_stored_mobility_times_k(angular, layout):
     kl, ku = banded.bandwidth(sp.coo_array(expected))
     assert banded.bandwidth(a) == (kl, ku)
     assert np.abs(a.toarray() - expected).max() < 1e-13 * np.abs(expected).max()
-    if layout == "zigzag":  # the gaps: i, i + 1 are no pair, i, i + 2 are
+    if layout == "zigzag":  # the gaps: i, i + 1 are no pair (beyond the support), i, i + 2 are
         distance = np.linalg.norm(points[1:] - points[:-1], axis=1)
-        assert distance.min() > cutoff and np.linalg.norm(points[2] - points[0]) < cutoff
+        assert local.support(cutoff) < distance.min() <= distance.max() < cutoff
+        assert np.linalg.norm(points[2] - points[0]) < local.support(cutoff)
 
 
 def test_coefficients_are_the_kernels_scalars():

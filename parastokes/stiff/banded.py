@@ -92,18 +92,19 @@ def _lane(size: int) -> int:
 
 
 @njit(cache=True)
-def _strips(k_ptr, k_idx, k_blk, k_lo, blocks, lane):  # pragma: no cover - compiled
-    """The block rows of ``k`` as dense strips, component-major: ``out[j, c, lane (l - j +
-    k_lo) + b]`` = entry (c, b) of block (j, l), ``blocks`` blocks per strip, each padded with
-    zeros to ``lane`` columns."""
+def _strips(k_ptr, k_idx, k_blk, k_lo, blocks, lane, pad):  # pragma: no cover - compiled
+    """The block rows of ``k`` as dense strips, component-major: ``out[pad + j, c, lane (l - j
+    + k_lo) + b]`` = entry (c, b) of block (j, l), ``blocks`` blocks per strip, each padded with
+    zeros to ``lane`` columns, and ``pad`` strips of zeros before the first and after the
+    last."""
     rows, cols = k_blk.shape[1], k_blk.shape[2]
-    out = np.zeros((len(k_ptr) - 1, rows, blocks * lane))
+    out = np.zeros((len(k_ptr) - 1 + 2 * pad, rows, blocks * lane))
     for j in range(len(k_ptr) - 1):
         for q in range(k_ptr[j], k_ptr[j + 1]):
             first = (k_idx[q] - j + k_lo) * lane
             for c in range(rows):
                 for b in range(cols):
-                    out[j, c, first + b] = k_blk[q, c, b]
+                    out[pad + j, c, first + b] = k_blk[q, c, b]
     return out
 
 
@@ -111,11 +112,13 @@ def _strips(k_ptr, k_idx, k_blk, k_lo, blocks, lane):  # pragma: no cover - comp
 def _near_band(pad, eps, cutoff, reach, viscosity, angular, strips, lp, k_lo, lane, kl, ku,
                data):  # pragma: no cover - compiled
     """``data`` = M K in LAPACK's band layout (entry (r, c) at ``data[ku + r - c, c]``). Per
-    point i, over the window of points j = i - ``lp`` .. i + ``lp`` (``pad``: rows x, y, z
-    and 1 for a point, 0 for the padding, point j at column ``lp`` + j): first the scalars of
+    point i, over the window of points j = i - ``lp`` .. i + ``lp`` (``pad``: rows x, y, z,
+    point j at column ``lp`` + j, zeros for the padding past the ends, whose strips are zero
+    too, so that they add zeros): first the scalars of
     :func:`.local.coefficients` times :func:`.local.taper` of every j in one loop (it
     vectorizes; all zero beyond ``reach``, :func:`.local.support`), then each pair multiplies
-    K's strip j (:func:`_strips`, blocks of ``lane`` columns) into the block row of i, held
+    K's strip j (:func:`_strips`, blocks of ``lane`` columns, padded by ``lp`` strips) into
+    the block row of i, held
     component-major (``row[a, lane B + b]``, block B from point i - lp - ``k_lo``), then
     written out. M's block is never formed: with r = X_i - X_j and a strip column's force
     rows k_f and torque rows k_n (``angular``), the velocity rows gain
@@ -128,7 +131,7 @@ def _near_band(pad, eps, cutoff, reach, viscosity, angular, strips, lp, k_lo, la
     depth, e2, reach2 = kl + ku + 1, eps * eps, reach * reach
     scalars = np.empty((8, window))
     row = np.empty((size, lane * width))
-    px, py, pz, inside = pad[0], pad[1], pad[2], pad[3]
+    px, py, pz = pad[0], pad[1], pad[2]
     cx, cy, cz, cd, ci, cq, c1, c2 = (scalars[0], scalars[1], scalars[2], scalars[3],
                                       scalars[4], scalars[5], scalars[6], scalars[7])
     for i in range(data.shape[1] // size):
@@ -137,7 +140,7 @@ def _near_band(pad, eps, cutoff, reach, viscosity, angular, strips, lp, k_lo, la
             x, y, z = xi - px[i + w], yi - py[i + w], zi - pz[i + w]
             r2 = x * x + y * y + z * z
             diag, i3, q, p1, p2 = coefficients(r2, e2)
-            scale = taper(r2, cutoff, viscosity) * inside[i + w] if r2 <= reach2 else 0.0
+            scale = taper(r2, cutoff, viscosity) if r2 <= reach2 else 0.0
             cx[w], cy[w], cz[w] = x, y, z
             cd[w], ci[w], cq[w] = diag * scale, i3 * scale, q * scale
             c1[w], c2[w] = p1 * scale, p2 * scale
@@ -146,13 +149,13 @@ def _near_band(pad, eps, cutoff, reach, viscosity, angular, strips, lp, k_lo, la
         o3, o4, o5 = row[3 % size], row[4 % size], row[5 % size]
         for w in range(window):
             i3 = ci[w]
-            if i3 == 0.0:  # no pair: beyond the reach, or the padding
+            if i3 == 0.0:  # no pair: beyond the reach
                 continue
             x, y, z = cx[w], cy[w], cz[w]
             diag, q, p1, p2 = cd[w], cq[w], c1[w], c2[w]
             ux, uy, uz = i3 * x, i3 * y, i3 * z
             first = np.uint64(w * lane)
-            k = strips[i - lp + w]
+            k = strips[i + w]  # point i - lp + w
             f0, f1, f2 = k[0], k[1], k[2]
             if angular:
                 vx, vy, vz = q * x, q * y, q * z
@@ -220,10 +223,10 @@ def near_product(points: np.ndarray, epsilon: float, viscosity: float, angular: 
     k_lo = int(max((index - first).max(initial=0), 0))
     k_hi = int(max((last - index).max(initial=0), 0))
     lane = _lane(size)
-    strips = _strips(k_ptr, k_idx, np.ascontiguousarray(k.data), k_lo, k_lo + k_hi + 1, lane)
-    pad = np.zeros((4, len(points) + 2 * lp))
-    pad[:3, lp:lp + len(points)] = points.T
-    pad[3, lp:lp + len(points)] = 1.0
+    strips = _strips(k_ptr, k_idx, np.ascontiguousarray(k.data), k_lo, k_lo + k_hi + 1, lane,
+                     lp)
+    pad = np.zeros((3, len(points) + 2 * lp))
+    pad[:, lp:lp + len(points)] = points.T
     data = np.zeros((kl + ku + 1, n), order="F")
     _near_band(pad, float(epsilon), float(cutoff), reach, float(viscosity), bool(angular),
                strips, lp, k_lo, lane, kl, ku, data)
