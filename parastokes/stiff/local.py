@@ -14,6 +14,7 @@ whose order does not depend on it.
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -77,11 +78,12 @@ def taper(r2, cutoff, viscosity):  # pragma: no cover - compiled
 NEGLIGIBLE_TAPER = 2.0 ** -24
 
 
+@functools.cache
 def support(cutoff: float) -> float:
     """The distance within ``cutoff`` beyond which :func:`taper` (times 8π μ) is below
     :data:`NEGLIGIBLE_TAPER` (about 0.9895 ``cutoff``): the near mobility's pairs are those at
     most this far apart. (1 - q)⁴ (4q + 1) decreases on [0, 1]: bisection to double's
-    round-off."""
+    round-off (remembered per cutoff)."""
     low, high = 0.0, 1.0
     for _ in range(64):
         middle = 0.5 * (low + high)
