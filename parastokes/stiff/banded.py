@@ -93,18 +93,18 @@ def _lane(size: int) -> int:
 
 @njit(cache=True)
 def _strips(k_ptr, k_idx, k_blk, k_lo, blocks, lane, pad):  # pragma: no cover - compiled
-    """The block rows of ``k`` as dense strips, component-major: ``out[pad + j, c, lane (l - j
-    + k_lo) + b]`` = entry (c, b) of block (j, l), ``blocks`` blocks per strip, each padded with
-    zeros to ``lane`` columns, and ``pad`` strips of zeros before the first and after the
-    last."""
+    """The block rows of ``k`` as dense strips, component-major: ``out[j, c, lane (l - j +
+    k_lo) + b]`` = entry (c, b) of block (j, l), ``blocks`` blocks per strip, each padded with
+    zeros to ``lane`` columns, then ``pad`` strips of zeros (``out[-m]``, m <= pad, is one of
+    them too)."""
     rows, cols = k_blk.shape[1], k_blk.shape[2]
-    out = np.zeros((len(k_ptr) - 1 + 2 * pad, rows, blocks * lane))
+    out = np.zeros((len(k_ptr) - 1 + pad, rows, blocks * lane))
     for j in range(len(k_ptr) - 1):
         for q in range(k_ptr[j], k_ptr[j + 1]):
             first = (k_idx[q] - j + k_lo) * lane
             for c in range(rows):
                 for b in range(cols):
-                    out[pad + j, c, first + b] = k_blk[q, c, b]
+                    out[j, c, first + b] = k_blk[q, c, b]
     return out
 
 
@@ -155,7 +155,7 @@ def _near_band(pad, eps, cutoff, reach, viscosity, angular, strips, lp, k_lo, la
             diag, q, p1, p2 = cd[w], cq[w], c1[w], c2[w]
             ux, uy, uz = i3 * x, i3 * y, i3 * z
             first = np.uint64(w * lane)
-            k = strips[i + w]  # point i - lp + w
+            k = strips[i - lp + w]  # past either end: a strip of zeros
             f0, f1, f2 = k[0], k[1], k[2]
             if angular:
                 vx, vy, vz = q * x, q * y, q * z
