@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from parastokes.stiff import banded, local
+from parastokes import models
+from parastokes.stiff import banded, jacobian, local, solve
 
 
 def _brute_reach(points, cutoff, first, last):
@@ -154,3 +155,31 @@ def test_pairs_at_the_cutoff_leave_the_straight_rods_band():
     assert banded.bandwidth(a) == (95, 95)
     m = local.near_mobility(points, 1.0, 1.0, True, 3.0)
     assert banded.bandwidth(m) == (14 * size + size - 1,) * 2
+
+
+def test_the_elimination_width_rounds_up_to_lapacks_block_by_at_most_four():
+    """95 -> 96 and 92 -> 96 (4 more), 91 stays (5), 96 and 101 stay, 30 -> 32, 0 stays."""
+    assert [solve.elimination_width(kl) for kl in (95, 92, 91, 96, 101, 30, 0)] == [
+        96, 96, 91, 96, 101, 32, 0]
+
+
+def test_a_factorization_of_zero_diagonals_more_solves_the_same_system():
+    """A rod of 161 points at ε = 5Δs (the paper's band, kl = ku = 95) factorized with kl = 96
+    (its storage's extra diagonal zero, though the spare array it reuses was filled with NaN):
+    the solve of I - hγA against a dense solve in double, to single precision's accuracy."""
+    rod = models.rod_swimmer(n_points=161, length=32.0, n_threads=1)  # ε = 5Δs, as the paper's
+    x = rod.initial_state()
+    a = jacobian.local_jacobian(rod, 0.0, x, 6 * len(x))
+    kl = banded.bandwidth(a)[0]
+    assert kl == 95
+    assert kl % solve.GBTRF_BLOCK and solve.elimination_width(kl) > kl
+    for _ in range(2):  # the second takes the first's factors' memory: fill it with NaN
+        lu = solve.Factorization(a, 1e-4, 0.0)
+        assert lu._band[2] == solve.elimination_width(kl)
+        lu._band[0][:] = np.nan
+        del lu
+    lu = solve.Factorization(a, 1e-4, 0.0)
+    dense = np.eye(a.shape[0]) - 1e-4 * a.toarray()
+    rhs = np.random.default_rng(8).standard_normal(a.shape[0])
+    expected = np.linalg.solve(dense, rhs)
+    assert np.abs(lu.solve(rhs) - expected).max() < 1e-5 * np.abs(expected).max()

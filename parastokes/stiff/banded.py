@@ -276,11 +276,15 @@ def _fill(ptr, idx, blk, hgamma, kl, ku, ab):  # pragma: no cover - compiled
 
 @njit(cache=True)
 def _scaled_band(data, hgamma, kl, ku, ab):  # pragma: no cover - compiled
-    """Rows kl.. of ``ab`` = -hγ ``data`` (LAPACK's rows of A), plus 1 on the diagonal's row."""
+    """Rows kl.. of ``ab`` = -hγ ``data`` (LAPACK's rows of A), zeros below them down to row
+    2 kl + ku (the diagonals of a storage wider than ``data``'s band), plus 1 on the
+    diagonal's row."""
     for c in range(data.shape[1]):
         column, source = ab[kl:, c], data[:, c]
         for r in range(data.shape[0]):
             column[r] = -hgamma * source[r]
+        for r in range(data.shape[0], kl + ku + 1):
+            column[r] = 0.0
         ab[kl + ku, c] += 1.0
 
 
@@ -288,15 +292,16 @@ def band_storage(matrix: sp.sparray, hgamma: float, kl: int, ku: int,
                  dtype: type = np.float64, out: np.ndarray | None = None) -> np.ndarray:
     """``I - hγ A`` in LAPACK's layout for dgbtrf (sgbtrf: ``dtype`` float32): (2 kl + ku + 1,
     n) in Fortran order (into ``out`` if given, of that shape and dtype), entry (i, j) at row
-    ``kl + ku + i - j`` of column j. The first kl rows are dgbtrf's room for fill, which it
+    ``kl + ku + i - j`` of column j; ``kl`` may exceed A's lower bandwidth (zero diagonals:
+    :func:`.solve.elimination_width`). The first kl rows are dgbtrf's room for fill, which it
     does not read ("need not be set", LAPACK's documentation): from :func:`near_product`'s band
-    (a ``dia_array`` with offsets ku down to -kl, these rows already: one scaled copy) they are
-    left unset; a C-ordered array would be copied by scipy's wrapper, 2.6 ms of 5 on the
-    paper's rod."""
+    (a ``dia_array`` with offsets ku down to -kl or fewer, these rows already: one scaled
+    copy) they are left unset; a C-ordered array would be copied by scipy's wrapper, 2.6 ms of
+    5 on the paper's rod."""
     n = matrix.shape[0]
     shape = (2 * kl + ku + 1, n)
-    if isinstance(matrix, sp.dia_array) and np.array_equal(matrix.offsets,
-                                                            np.arange(ku, -kl - 1, -1)):
+    if isinstance(matrix, sp.dia_array) and len(matrix.offsets) <= kl + ku + 1 and (
+            np.array_equal(matrix.offsets, np.arange(ku, ku - len(matrix.offsets), -1))):
         ab = np.empty(shape, dtype=dtype, order="F") if out is None else out
         _scaled_band(matrix.data, float(hgamma), kl, ku, ab)
         return ab
