@@ -32,7 +32,8 @@ Run from the repository root (each part resumes from its JSON: a row already mea
   and 601 points, beside the same pieces as they were at the start of this session (coloured
   differences, stored M, BSR product, double-precision LU) and before round 5 (SuperLU), the
   stage solve beside its second session's loops and LAPACK's dgbtrs and sgbtrs, with the load
-  average, and the fused product of round 5's third session (:data:`PREVIOUS_PRODUCT`, loaded
+  average, the factorization with A's own lower bandwidth (not ``stiff.solve.elimination_width``),
+  and the fused product of round 5's third session (:data:`PREVIOUS_PRODUCT`, loaded
   from git) beside the current one; the counts of Jacobians and factorizations of a fixed and
   an adaptive ROS34PW2 run;
 - ``linalg_accuracy``: the 21 ROS2 and ROS34PW2 runs of ``short`` (fixed steps, ``A`` every 5
@@ -640,6 +641,13 @@ def _linalg_rod(m: int, eps: float) -> dict[str, Any]:
         finally:
             solve.BAND_PRECISION = np.float32
 
+    def own_width(matrix: Any) -> solve.Factorization:  # sgbtrf with A's own kl (95, not 96)
+        width, solve.elimination_width = solve.elimination_width, lambda kl: kl
+        try:
+            return solve.Factorization(matrix, hgamma, 0.0)
+        finally:
+            solve.elimination_width = width
+
     def session_start() -> None:  # this session's start: coloured K, M, BSR product, dgbtrf
         product = banded.block_product(
             local.near_mobility(rod.positions(x), eps, rod.viscosity, True, cutoff),
@@ -662,6 +670,7 @@ def _linalg_rod(m: int, eps: float) -> dict[str, Any]:
             rod.positions(x), eps, rod.viscosity, True, cutoff, k),
         "factorization": lambda: solve.Factorization(a, hgamma, 0.0),
         "factorization_double": lambda: double(a),
+        "factorization_own_width": lambda: own_width(a),
         "stage_solve": lambda: lu.solve(v),
         "stage_solve_signed": lambda: _band_solve_signed(lu_band, kl, ku, piv, v),
         "stage_solve_dgbtrs": lambda: lapack.dgbtrs(lu_double, kl, ku, v, piv),
