@@ -17,22 +17,34 @@ kernel thread; each scheme warmed up first by two untimed steps), its ratio to R
 average and the commit of the code. A run whose CPU time :func:`predicted_cpu` puts above
 ``--cap`` seconds is not run but recorded under ``skipped`` with the prediction. Results:
 ``docs/figures/stiff/adaptive_PROBLEM.json``.
+
+``--prices`` measures instead the prices ``auto`` counts an implicit step's work at
+(:func:`measure_prices`: ``auto.STEP_EVALS`` and ``auto.PRODUCT_EVALS`` of the problem's kind of
+factorization), into ``docs/figures/stiff/auto_prices.json``::
+
+    PYTHONPATH=. python benchmarks/adaptive.py --problem rod301 --prices [--rtols 1e-3 1e-4]
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import pathlib
 import subprocess
 import sys
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from benchmarks import stiff
 from parastokes import integrate, models
 from parastokes.integrate import auto
+from parastokes.integrate.adaptive import Watch, segment, stepper_for
+from parastokes.integrate.base import rates
 from parastokes.integrate.controller import estimate_order
 from parastokes.integrate.schemes import lookup, real_stability_boundary
 
@@ -206,28 +218,96 @@ def measure(name: str, rtols: list[float], schemes: list[str], cap: float) -> di
     return data
 
 
+def fit_prices(runs: list[dict[str, float]]) -> tuple[float, float]:
+    """The prices ``(S, P)`` of a stage set and of a GMRES product, in evaluations' worth of
+    CPU, that fit ``cpu / evaluation = S sets + P products`` over ``runs`` (each ``{cpu,
+    evaluation, sets, products}``: a run's CPU time, one evaluation's, its stage sets and its
+    products) by least squares, each run weighed by its CPU over its evaluation's (relative
+    residuals: a short run counts as much as a long one)."""
+    work = np.array([r["cpu"] / r["evaluation"] for r in runs])
+    counts = np.array([[r["sets"], r["products"]] for r in runs], dtype=float)
+    (step, product), *_ = np.linalg.lstsq(counts / work[:, None], np.ones(len(runs)), rcond=None)
+    return float(step), float(product)
+
+
+def _evaluation_cpu(system: Any, x: np.ndarray, t: float, repeats: int = 50) -> float:
+    """The CPU time of one evaluation of the rates at ``(t, x)``, the mean over ``repeats``
+    after one untimed."""
+    rates(system, t, x)
+    start = time.process_time()
+    for _ in range(repeats):
+        rates(system, t, x)
+    return (time.process_time() - start) / repeats
+
+
+def measure_prices(name: str, rtols: list[float]) -> dict[str, Any]:
+    """The adaptive runs of ``auto``'s two implicit schemes (:data:`auto.IMPLICIT`, whose stages
+    take no GMRES product, and :data:`auto.IMPLICIT_EXACT`) on problem ``name`` over its T at
+    each of ``rtols`` (atol = rtol/10), each run's CPU time beside one evaluation's measured just
+    before it in the same process, its stage sets and products (the stepper's counts), and
+    the prices :func:`fit_prices` draws from them, with the kind of factorization; saved to
+    ``auto_prices.json`` under ``name``."""
+    problem = PROBLEMS[name]()
+    system = problem.build()
+    x0 = system.initial_state()
+    out: dict[str, Any] = {"runs": [], "load": [os.getloadavg()[0]], "code": _code()}
+    banded = None
+    for scheme in (auto.IMPLICIT, auto.IMPLICIT_EXACT):
+        integrate.run(system, x0, 0.0, 2 * problem.first_step, scheme, problem.first_step,
+                      rtol=rtols[0], atol=0.1 * rtols[0])  # compiling is not its price
+        for rtol in rtols:
+            evaluation = _evaluation_cpu(system, x0, 0.0)
+            stepper = stepper_for(system, integrate.SCHEMES[scheme])
+            _, cpu = stiff._timed(lambda s=stepper, r=rtol: segment(
+                s, x0, 0.0, problem.t1, problem.first_step, (r, 0.1 * r),
+                Watch(system, x0, math.inf)))
+            banded = stepper.banded is not False  # type: ignore[union-attr]
+            out["runs"].append({"scheme": scheme, "rtol": rtol, "cpu": cpu,
+                                "evaluation": evaluation, "sets": stepper.steps,
+                                "products": stepper.iterations})  # type: ignore[union-attr]
+            print(name, out["runs"][-1], flush=True)
+    out["load"].append(os.getloadavg()[0])
+    out["banded"] = banded
+    out["step_evals"], out["product_evals"] = fit_prices(out["runs"])
+    path = OUT / "auto_prices.json"
+    data = stiff._load(path)
+    data[name] = out
+    stiff._save(path, data)
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--problem", choices=sorted(PROBLEMS), default="rod301")
-    parser.add_argument("--rtols", nargs="+", type=float, default=list(RTOLS))
+    parser.add_argument("--rtols", nargs="+", type=float, default=None,
+                        help="default: 1e-2 ... 1e-8 (with --prices: 1e-3 1e-4)")
     parser.add_argument("--schemes", nargs="+", choices=SCHEMES, default=list(SCHEMES))
     parser.add_argument("--cap", type=float, default=None,
                         help="seconds of CPU above which a run is skipped (default: the "
                              "problem's)")
     parser.add_argument("--redo", nargs="+", choices=(*SCHEMES, "rk2"), default=[],
                         help="measure these schemes' runs again (rk2: the yardstick)")
+    parser.add_argument("--prices", action="store_true",
+                        help="measure the prices of auto's implicit work instead (at --rtols, "
+                             "default 1e-3 1e-4)")
     args = parser.parse_args(argv)
-    if any(not 0 < r < 1 for r in args.rtols):
+    rtols = args.rtols or ([1e-3, 1e-4] if args.prices else list(RTOLS))
+    if any(not 0 < r < 1 for r in rtols):
         parser.error(f"--rtols: each must lie in (0, 1), got {args.rtols}")
     if args.cap is not None and not args.cap > 0:
         parser.error(f"--cap: must be positive seconds, got {args.cap}")
+    if args.prices:
+        out = measure_prices(args.problem, rtols)
+        print(args.problem, "STEP_EVALS", out["step_evals"], "PRODUCT_EVALS",
+              out["product_evals"], "banded", out["banded"])
+        return 0
     if args.redo:
         path = OUT / f"adaptive_{args.problem}.json"
         data = stiff._load(path)
         forget(data, args.redo)
         stiff._save(path, data)
     cap = PROBLEMS[args.problem]().cap if args.cap is None else args.cap
-    measure(args.problem, args.rtols, args.schemes, cap)
+    measure(args.problem, rtols, args.schemes, cap)
     return 0
 
 
