@@ -17,6 +17,9 @@ Run from the repository root::
     PYTHONPATH=. python benchmarks/planning.py experiments/table8_g1.toml --target 1e-6
     # the summary table of the records only
     PYTHONPATH=. python benchmarks/planning.py --table
+    # a new round of records beside the earlier ones (docs/figures/planning/NAME_plan4.json)
+    PYTHONPATH=. NUMBA_NUM_THREADS=1 nice -n 10 python benchmarks/planning.py --budget 600 \
+        --only rod601_full --tag plan4
 """
 
 from __future__ import annotations
@@ -49,7 +52,8 @@ TARGETS: dict[str, tuple[str, float]] = {
 }
 
 #: PLAN.json's keys a record keeps.
-PLAN_KEYS = ("best_serial", "fine", "routes", "unavailable", "chosen", "baseline", "tune")
+PLAN_KEYS = ("best_serial", "fine", "routes", "unavailable", "chosen", "baseline", "tune",
+             "coarse")
 
 
 def command(config: str, cores: int, target: float, budget: float, out: pathlib.Path
@@ -175,9 +179,15 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="of the target table's problems, these only")
     parser.add_argument("--redo", nargs="*", default=[], help="record names to measure again")
     parser.add_argument("--table", action="store_true", help="print the records' table only")
+    parser.add_argument("--tag", default="",
+                        help="appended to each record's name (NAME_TAG.json), so that a new "
+                             "round of measurements keeps the earlier records; --redo and the "
+                             "table take the tagged names")
     args = parser.parse_args(argv)
     jobs = ({pathlib.Path(c).stem: (c, args.target) for c in args.configs} if args.configs
             else {name: TARGETS[name] for name in args.only or TARGETS})
+    if args.tag:
+        jobs = {f"{name}_{args.tag}": job for name, job in jobs.items()}
     if not args.table:
         RECORDS.mkdir(parents=True, exist_ok=True)
         for name, (config, target) in jobs.items():

@@ -32,9 +32,13 @@ Run from the repository root (each part resumes from its JSON: a row already mea
   and 601 points, beside the same pieces as they were at the start of this session (coloured
   differences, stored M, BSR product, double-precision LU) and before round 5 (SuperLU), the
   stage solve beside its second session's loops and LAPACK's dgbtrs and sgbtrs, with the load
-  average;
-  the counts of Jacobians and factorizations of a fixed and an adaptive
-  ROS34PW2 run;
+  average, the factorization with A's own lower bandwidth (not ``stiff.solve.elimination_width``),
+  and the fused product of round 5's third session (:data:`PREVIOUS_PRODUCT`, loaded
+  from git) beside the current one; the counts of Jacobians and factorizations of a fixed and
+  an adaptive ROS34PW2 run;
+- ``linalg_accuracy``: the 21 ROS2 and ROS34PW2 runs of ``short`` (fixed steps, ``A`` every 5
+  and 10 steps, adaptive) with the current ``A`` and with the third session's product, in one
+  process: errors, steps and rejections of each (``docs/figures/stiff/linalg_accuracy.json``);
 - ``short``: work-precision over T = 0.005 s on those rods: forward Euler and RK2 at their
   limit, ROS2, ROS34PW2 and ROS2-Krylov at fixed steps, ROS2 and ROS34PW2 adaptive.
 
@@ -529,6 +533,28 @@ SHORT_T1201 = 2.5e-4
 #: Rounds of :func:`_interleaved` (each piece timed once per round, the least kept).
 ROUNDS = 9
 
+#: The commit whose ``stiff.banded`` (and ``.local``) held round 5's third-session fused
+#: product (a pair list, the scalars per pair): timed and run beside the current one.
+PREVIOUS_PRODUCT = "4ad4b43"
+
+
+def _previous_banded(commit: str = PREVIOUS_PRODUCT) -> Any:
+    """``parastokes.stiff.banded`` as it was at ``commit`` (with its ``.local``), loaded from
+    git into a package of its own (in the temporary directory), beside the current one."""
+    import importlib
+    import subprocess
+    import tempfile
+
+    package = pathlib.Path(tempfile.gettempdir()) / "parastokes_previous" / f"stiff_{commit}"
+    package.mkdir(parents=True, exist_ok=True)
+    (package / "__init__.py").write_text("")
+    for name in ("banded", "local"):
+        source = subprocess.run(["git", "show", f"{commit}:parastokes/stiff/{name}.py"],
+                                check=True, capture_output=True, text=True).stdout
+        (package / f"{name}.py").write_text(source)
+    sys.path.insert(0, str(package.parent))
+    return importlib.import_module(f"stiff_{commit}.banded")
+
 
 def _interleaved(pieces: dict[str, Callable[[], Any]], repeat: dict[str, int]
                  ) -> dict[str, float]:
@@ -601,6 +627,8 @@ def _linalg_rod(m: int, eps: float) -> dict[str, Any]:
     mob = local.near_mobility(rod.positions(x), eps, rod.viscosity, True, cutoff)
     a = banded.near_product(rod.positions(x), eps, rod.viscosity, True, cutoff, k)
     a_bsr = banded.block_product(mob, k)
+    previous = _previous_banded()
+    a_previous = previous.near_product(rod.positions(x), eps, rod.viscosity, True, cutoff, k)
     lu = solve.Factorization(a, hgamma, 0.0)
     v = np.ones(n)
     lu_band, piv, kl, ku = lu._band  # type: ignore[misc]
@@ -612,6 +640,13 @@ def _linalg_rod(m: int, eps: float) -> dict[str, Any]:
             return solve.Factorization(matrix, hgamma, 0.0)
         finally:
             solve.BAND_PRECISION = np.float32
+
+    def own_width(matrix: Any) -> solve.Factorization:  # sgbtrf with A's own kl (95, not 96)
+        width, solve.elimination_width = solve.elimination_width, lambda kl: kl
+        try:
+            return solve.Factorization(matrix, hgamma, 0.0)
+        finally:
+            solve.elimination_width = width
 
     def session_start() -> None:  # this session's start: coloured K, M, BSR product, dgbtrf
         product = banded.block_product(
@@ -631,14 +666,20 @@ def _linalg_rod(m: int, eps: float) -> dict[str, Any]:
         "product": lambda: banded.block_product(mob, k),
         "fused_product": lambda: banded.near_product(rod.positions(x), eps, rod.viscosity,
                                                      True, cutoff, k),
+        "fused_product_third_session": lambda: previous.near_product(
+            rod.positions(x), eps, rod.viscosity, True, cutoff, k),
         "factorization": lambda: solve.Factorization(a, hgamma, 0.0),
         "factorization_double": lambda: double(a),
+        "factorization_own_width": lambda: own_width(a),
         "stage_solve": lambda: lu.solve(v),
         "stage_solve_signed": lambda: _band_solve_signed(lu_band, kl, ku, piv, v),
         "stage_solve_dgbtrs": lambda: lapack.dgbtrs(lu_double, kl, ku, v, piv),
         "stage_solve_sgbtrs": lambda: lapack.sgbtrs(lu_band, kl, ku, v.astype(np.float32), piv),
         "fresh": lambda: solve.Factorization(jacobian.local_jacobian(rod, 0.0, x, n), hgamma,
                                              0.0),
+        "fresh_third_session": lambda: solve.Factorization(previous.near_product(
+            rod.positions(x), eps, rod.viscosity, True, cutoff,
+            sp.bsr_array(jacobian.load_jacobian(rod, 0.0, x), blocksize=(6, 6))), hgamma, 0.0),
         "session_start_fresh": session_start,
         "before_product_csc_splu": before,
     }
@@ -652,6 +693,9 @@ def _linalg_rod(m: int, eps: float) -> dict[str, Any]:
                              "load_average": [round(v, 2) for v in (*load, *os.getloadavg())],
                              "fused_vs_bsr_product": float(np.abs(a.toarray() - a_bsr.toarray())
                                                            .max() / np.abs(a_bsr.data).max()),
+                             "fused_vs_third_session": float(
+                                 np.abs(a.toarray() - a_previous.toarray()).max()
+                                 / np.abs(a_previous.data).max()),
                              "single_vs_double_solve": float(np.abs(lu.solve(v) - exact).max()
                                                              / np.abs(exact).max()),
                              "stage_solve_same_bits": bool(np.array_equal(
@@ -660,8 +704,9 @@ def _linalg_rod(m: int, eps: float) -> dict[str, Any]:
                              + ratio["before_product_csc_splu"]}
     for scheme, stages in (("ros2", 2), ("ros34pw2", 4)):
         for every in (5, 10):
-            entry[f"amortized_{scheme}_refresh{every}"] = (ratio["fresh"] / every
-                                                           + stages * ratio["stage_solve"])
+            for fresh in ("fresh", "fresh_third_session"):
+                entry[f"amortized_{scheme}_refresh{every}{fresh[5:]}"] = (
+                    ratio[fresh] / every + stages * ratio["stage_solve"])
     return entry
 
 
@@ -711,6 +756,65 @@ def linalg_part(rods: list[str]) -> dict[str, Any]:
     data["counts_rod301_ros34pw2"] = _counts()
     print(data["counts_rod301_ros34pw2"], flush=True)
     _save(OUT / "linalg.json", data)
+    return data
+
+
+def _accuracy_rows(rod: Any, reference: np.ndarray, limit: float) -> list[dict[str, Any]]:
+    """The 21 ROS2 and ROS34PW2 runs of ``--parts short`` on ``rod`` (fixed steps, ``A`` every
+    5 and 10 steps for ROS34PW2; adaptive, atol = rtol/10): error at T, steps, rejections."""
+    x0 = rod.initial_state()
+    steps = short_steps(limit, SHORT_T)
+    runs = [(s, dt, None, every) for s, periods in (("ros2", (5,)), ("ros34pw2", (5, 10)))
+            for dt in steps[s] for every in periods]
+    runs += [(s, 1e-4, rtol, 5) for s in ("ros2", "ros34pw2") for rtol in (1e-2, 1e-3, 1e-4,
+                                                                            1e-5)]
+    rows = []
+    for scheme, dt, rtol, every in runs:
+        stepper.REFRESH = every
+        tolerance = {} if rtol is None else {"rtol": rtol, "atol": 0.1 * rtol}
+        try:
+            result = integrate.run(rod, x0, 0.0, SHORT_T, scheme, dt,
+                                   **tolerance)  # type: ignore[arg-type]
+            row = {"error": _relative_error(result.state, reference, x0),
+                   "steps": result.n_steps, "rejected": result.n_rejected}
+        except integrate.BlowUpError:
+            row = {"error": math.inf}
+        finally:
+            stepper.REFRESH = 5
+        rows.append({"scheme": scheme, "dt": None if rtol else dt, "rtol": rtol,
+                     "refresh": every, **row})
+    return rows
+
+
+def linalg_accuracy_part(rods: list[str]) -> dict[str, Any]:
+    """The 21 ROS2 and ROS34PW2 runs (:func:`_accuracy_rows`) on the rods ``rods`` with the
+    current ``A`` and with that of :data:`PREVIOUS_PRODUCT`'s product (``stiff.jacobian``'s
+    ``near_product`` replaced), in one process, against ``--parts short``'s RK4 reference:
+    the largest relative change of an error, and whether the steps and rejections agree."""
+    from parastokes.stiff import jacobian
+
+    data = _load(OUT / "linalg_accuracy.json")
+    previous, current = _previous_banded().near_product, jacobian.near_product
+    for name in rods:
+        m, eps, limit = SHORT_RODS[name]
+        rod = models.rod_swimmer(n_points=m, epsilon=eps, n_threads=1)
+        reference, _ = reference_state(f"short_{name}", rod, SHORT_T, float(f"{0.5 * limit:.2g}"))
+        entry = {"current": _accuracy_rows(rod, reference, limit)}
+        jacobian.near_product = previous
+        try:
+            entry["third_session"] = _accuracy_rows(rod, reference, limit)
+        finally:
+            jacobian.near_product = current
+        pairs = list(zip(entry["current"], entry["third_session"], strict=True))
+        entry["largest_relative_error_change"] = max(
+            abs(a["error"] - b["error"]) / b["error"] for a, b in pairs
+            if math.isfinite(b["error"]))
+        entry["same_steps_and_rejections"] = all(
+            (a.get("steps"), a.get("rejected")) == (b.get("steps"), b.get("rejected"))
+            for a, b in pairs)
+        data[name] = entry
+        print(name, json.dumps(entry, indent=1), flush=True)
+        _save(OUT / "linalg_accuracy.json", data)
     return data
 
 
@@ -768,13 +872,16 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--parts", nargs="+", default=["rod", "vesicle", "parareal"],
                         choices=["rod", "rod601", "vesicle", "parareal", "parareal601",
-                                 "best_serial", "linalg", "short", "short1201"])
+                                 "best_serial", "linalg", "linalg_accuracy", "short",
+                                 "short1201"])
     parser.add_argument("--rods", nargs="+", default=list(SHORT_RODS), choices=list(SHORT_RODS),
-                        help="the rods of the parts linalg and short (default: both)")
+                        help="the rods of the parts linalg, linalg_accuracy and short "
+                             "(default: both)")
     args = parser.parse_args(argv)
     for part in args.parts:
-        if part in ("linalg", "short"):
-            {"linalg": linalg_part, "short": short_part}[part](args.rods)
+        if part in ("linalg", "linalg_accuracy", "short"):
+            {"linalg": linalg_part, "linalg_accuracy": linalg_accuracy_part,
+             "short": short_part}[part](args.rods)
             continue
         {"rod": rod_part, "rod601": fine_rod_part, "vesicle": vesicle_part,
          "parareal": parareal_part, "parareal601": fine_parareal_part,

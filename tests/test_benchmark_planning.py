@@ -108,3 +108,25 @@ def test_a_records_tune_report_lists_measured_candidates_and_counts_the_rest(pla
     record = planning.record_of(["py", "-m", "parastokes", "plan"], "a.toml", 1e-6, 40, 0, "",
                                 {**PLAN, "tune": report}, 1.0, 1.0, (0.5, 0.5), "abc1234")
     assert len(record["tune"]["candidates"]) == 2
+
+
+def test_a_tag_names_new_records_beside_the_earlier_ones(planning, tmp_path, monkeypatch,
+                                                         capsys):
+    monkeypatch.setattr(planning, "RECORDS", tmp_path)
+    earlier = {**PLAN, "target": 1e-6, "exit_status": 0, "load_average": [1.0, 1.0]}
+    (tmp_path / "rod601_full.json").write_text(json.dumps(earlier))
+    measured = []
+
+    def run_one(name, *_):
+        measured.append(name)
+        return {**earlier, "chosen": "spatial"}
+
+    monkeypatch.setattr(planning, "run_one", run_one)
+    assert planning.main(["--only", "rod601_full", "--tag", "plan4"]) == 0
+    assert measured == ["rod601_full_plan4"]
+    assert json.loads((tmp_path / "rod601_full.json").read_text())["chosen"] == "parareal"
+    assert json.loads((tmp_path / "rod601_full_plan4.json").read_text())["chosen"] == "spatial"
+    assert "| rod601_full_plan4 |" in capsys.readouterr().out
+    assert planning.main(["--only", "rod601_full", "--tag", "plan4"]) == 0  # resumed: kept
+    assert measured == ["rod601_full_plan4"]
+    assert "coarse" in planning.PLAN_KEYS

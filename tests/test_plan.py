@@ -453,7 +453,6 @@ def test_own_error_falls_back_to_half_the_step_where_twice_it_blows_up(monkeypat
 def test_a_parareal_route_is_written_as_a_config_that_runs(tmp_path):
     """The Parareal route's PLAN.toml (plan_config with tune's choice), as check and run read
     it: F, the coarse solver, slices, K, the schedule and the threads of the route."""
-    from types import SimpleNamespace
 
     from parastokes.planning.command import plan_config
     from parastokes.tuning import Settings
@@ -465,8 +464,7 @@ def test_a_parareal_route_is_written_as_a_config_that_runs(tmp_path):
     fine = Run("rk2", 5e-6, None, "r", "measured", 1e-8, 1.0, 1.0)
     coarse = Settings("euler", lagrange=(("epsilon", (1.1, 1.2)),), dt=1e-5)
     route = routes.parareal_route(1.0, 1.0, 0.1, 1, 2, "pipelined", "")
-    data = plan_config(cfg, route, fine, fine, SimpleNamespace(chosen=SimpleNamespace(
-        settings=coarse)))
+    data = plan_config(cfg, route, fine, fine, coarse)
     path = tmp_path / "PLAN.toml"
     path.write_text(toml_dumps(data))
     planned, _ = config.load(path)

@@ -718,3 +718,36 @@ def test_no_stable_baseline_names_every_scheme_tried_and_the_implicit_ones():
         tuning.tune(fine, t0=0.0, t1=2e-3, n_slices=8, cores=8, target=1e-3,
                     space=Space(schemes=("euler", "rk2"), parameters=(), richardson=(0,)),
                     pilot_slices=2, budget=300.0)
+
+
+def test_an_implicit_schemes_limit_search_starts_at_a_few_hundred_steps_per_slice(monkeypatch):
+    """The lower bracket of the step-limit bisection: span / IMPLICIT_LO_STEPS for an implicit
+    scheme (τ_f where that run fails, or where τ_f is larger), τ_f for an explicit one."""
+    from types import SimpleNamespace
+
+    tried = []
+
+    def step_limit(system, scheme, x0, t0, span, lo, hi, stop=None):
+        tried.append((scheme, lo, hi))
+        if fail and lo > 1e-6:
+            raise ValueError("not stable")
+        return hi
+
+    monkeypatch.setattr(stability, "step_limit", step_limit)
+    pilot = SimpleNamespace(slice_length=0.04, fine=SimpleNamespace(dt=1e-6), t0=0.0, x0=None)
+    fake = SimpleNamespace(pilot=pilot, limits={}, charge=None,
+                           _grid_system=lambda grid: (None, None))
+    fail = False
+    assert search_module._Search.limit(fake, Settings("ros34pw2")) == 0.02
+    assert tried == [("ros34pw2", 0.04 / search_module.IMPLICIT_LO_STEPS, 0.02)]
+    tried.clear()
+    search_module._Search.limit(fake, Settings("euler"))
+    assert tried == [("euler", 1e-6, 0.04 / search_module.MIN_STEPS)]
+    tried.clear()
+    fail, fake.limits = True, {}
+    assert search_module._Search.limit(fake, Settings("ros2")) == 0.02  # retried at τ_f
+    assert [lo for _, lo, _ in tried] == [1e-4, 1e-6]
+    tried.clear()
+    pilot.fine.dt, fake.limits = 2e-4, {}  # τ_f above span / 400: τ_f alone
+    search_module._Search.limit(fake, Settings("ros2"))
+    assert [lo for _, lo, _ in tried] == [2e-4]

@@ -214,10 +214,9 @@ def test_plan_writes_an_adaptive_coarse_solver_that_check_accepts(tmp_path):
     source = tmp_path / "rod.toml"
     source.write_text(CONFIG)
     cfg, _ = config.load(source)
-    tuned = SimpleNamespace(chosen=Candidate(Settings("auto", dt=2e-5, rtol=1e-3)))
     route = routes.parareal_route(1.0, 2.0, 0.1, 1, 2, "standard", "tuned")
     fine = Run("rk2", 1e-6, None, "F", "reference", 0.0, 0.3, 0.6)
-    data = plan_config(cfg, route, fine, fine, tuned)
+    data = plan_config(cfg, route, fine, fine, Settings("auto", dt=2e-5, rtol=1e-3))
     assert data["coarse"] == {"scheme": "auto", "dt": 2e-5, "rtol": 1e-3}
     out = tmp_path / "PLAN.toml"
     out.write_text(toml_dumps(data, "# plan"))

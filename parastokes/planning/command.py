@@ -191,21 +191,54 @@ def coarse_schemes(cfg: Any, found: Baseline, fine: Run) -> tuple[tuple[str, ...
             f"{alpha:.2g} of F (explicit coarse solvers cannot reach α <= {EXPLICIT_ALPHA:g})")
 
 
+def pilot_points(cfg: Any, fine: Run, cores: int, budget: float | None
+                 ) -> tuple[int | None, str]:
+    """Nodes per rod of tune's pilot, and why: the configuration's ``[tune] pilot_points``
+    where given; None (the full problem) for a body that is not a rod; else the run's own (the
+    full problem) where F over the pilot window fits
+    ``coarse.FULL_PILOT_SHARE`` of tune's budget (:func:`.coarse.full_pilot`; tune's default
+    budget where none is given, ``BUDGET_FRACTION`` of F), else ``PILOT_POINTS``."""
+    from ..tuning.command import PILOT_POINTS
+    from ..tuning.search import BUDGET_FRACTION
+    from .coarse import FULL_PILOT_SHARE, full_pilot
+
+    if cfg.tune.pilot_points is not None:
+        return cfg.tune.pilot_points, "the configuration's [tune] pilot_points"
+    points = getattr(cfg.model, "n_points", None)
+    if points is None or points <= PILOT_POINTS:
+        return None, "the full problem (no shorter pilot)"
+    slices = min(cfg.tune.pilot_slices or 3, cores)
+    allowed = BUDGET_FRACTION * fine.cost if budget is None else budget
+    window = fine.cost * slices / cores
+    if full_pilot(fine.cost, cores, slices, allowed):
+        return points, (f"the full problem: F over the pilot's {slices} slices costs about "
+                        f"{window:.3g} s, at most {FULL_PILOT_SHARE:g} of tune's budget "
+                        f"{allowed:.3g} s")
+    return PILOT_POINTS, (f"a rod of {PILOT_POINTS} nodes at the run's spacing: F over "
+                          f"{slices} slices of the full problem would cost about {window:.3g} "
+                          f"s, more than {FULL_PILOT_SHARE:g} of tune's budget {allowed:.3g} s")
+
+
 def _tune(cfg: Any, resolved: Any, system: Any, fine: Run, cores: int, target: float,
-          budget: float | None, schemes: tuple[str, ...] | None = None
-          ) -> tuple[Any, str | None]:
+          budget: float | None, schemes: tuple[str, ...] | None = None,
+          points: int | None = None) -> tuple[Any, str | None]:
     """tune's search with F = ``fine`` on ``cores`` slices, over ``schemes`` where given (else
-    the config's [tune] table or tune's defaults); (result, None) or (None, why)."""
+    the config's [tune] table or tune's defaults; with :data:`IMPLICIT_COARSE` among them, its
+    plain solver's ladder searched first, ``coarse.leading``), on a pilot rod of ``points``
+    nodes (default the config's or ``PILOT_POINTS``); (result, None) or (None, why)."""
     from dataclasses import replace
 
     from .. import integrate
     from ..tuning import TuningError, tune
     from ..tuning.command import PILOT_POINTS, config_space, pilot_system
+    from .coarse import leading
 
-    points = cfg.tune.pilot_points or PILOT_POINTS
+    points = points or cfg.tune.pilot_points or PILOT_POINTS
     space = config_space(cfg)
     if schemes is not None:
         space = replace(space, schemes=schemes)
+        if IMPLICIT_COARSE in schemes:
+            space = replace(space, leading=leading(IMPLICIT_COARSE))
     try:
         result = tune(integrate.Propagator(system, fine.scheme, fine.dt, rtol=fine.rtol),
                       t0=cfg.time.t0, t1=cfg.time.t1, n_slices=cores, cores=cores, target=target,
@@ -220,28 +253,83 @@ def _tune(cfg: Any, resolved: Any, system: Any, fine: Run, cores: int, target: f
     return result, None
 
 
-def _parareal_at(result: Any, cores: int, target: float):
-    """(α, K) of the tuned coarse solver on P slices: K from the pilot's η^k scaled to P slices
-    (:func:`parastokes.tuning.cost.predicted_iterations`), α with its N_G auxiliary solves in
-    ceil(N_G / P) rounds instead of ceil(N_G / N)."""
+def coarse_solvers(tuned: Any, system: Any, fine: Run, cfg: Any, cores: int) -> list[Any]:
+    """tune's accepted coarse solvers, ranked by the least predicted wall time of Parareal on
+    ``cores`` slices (either schedule) with α measured on the full problem where tune's pilot
+    was shortened (:func:`.coarse.full_alpha` over a few steps, then for the first of the
+    ranking over a whole slice, :func:`.coarse.confirmed`), else tune's pilot's α (measured on
+    the full problem already)."""
+    from .. import integrate
+    from ..parallel import TaskError
+    from .coarse import confirmed, full_alpha, ranked
+    from .routes import parareal_wall
+
+    pilot = tuned.pilot
+    shown = len(pilot.system.positions(pilot.x0))
+    x0 = system.initial_state()
+    propagator = integrate.Propagator(system, fine.scheme, fine.dt, rtol=fine.rtol)
+    measure = shown < len(system.positions(x0))
+
+    def alpha_of(cand: Any, whole: bool = False) -> tuple[float | None, str, Any]:
+        if not measure:
+            return cand.gamma_ratio, f"tune's pilot on the full problem ({shown} " \
+                                     "points)", None
+        span = "a whole slice" if whole else "a few steps"
+        try:
+            alpha, measured = full_alpha(cand.settings, system, propagator, x0, cfg.time.t0,
+                                         pilot.slice_length, cores, whole=whole)
+        except (integrate.BlowUpError, TaskError) as error:
+            return None, f"blew up on the full problem over {span} ({error})", None
+        return alpha, (f"measured on the full problem ({len(system.positions(x0))} points: G "
+                       f"over {measured['coarse_span']:.3g} s ({span}), F over "
+                       f"{measured['fine_span']:.3g} s; tune's pilot of {shown} points "
+                       f"gave {cand.gamma_ratio:.3g})"), measured
+
+    def wall(alpha: float, k: int) -> float:
+        return min(parareal_wall(1.0, alpha, k, cores, s) for s in ("standard", "pipelined"))
+
+    accepted = [c for c in tuned.candidates if c.status == "accepted"]
+    rows = ranked(accepted, alpha_of, wall)
+    if not measure:
+        return rows
+    return confirmed(rows, lambda row: alpha_of(row.candidate, whole=True), wall)
+
+
+def rests_on(coarse: Any, pilot: Any, fine: Run) -> str:
+    """What a Parareal row rests on: where its α was measured (:class:`.coarse.Coarse`'s
+    ``alpha_source``), the pilot η^k its K comes from with the pilot's points and slices, G
+    and F."""
+    points = len(pilot.system.positions(pilot.x0))
+    errors = ", ".join(f"{e:.2g}" for e in coarse.candidate.pilot_errors)
+    return (f"α {coarse.alpha_source}; K from tune's pilot η^k = {errors} ({points} points, "
+            f"{pilot.n_slices} slices) scaled to the run's slices; G = "
+            f"{coarse.settings.label()} at {coarse.settings.coarse_dt:.3g} s; F = "
+            f"{fine.label()} ({fine.cost:.4g} s)")
+
+
+def _parareal_at(coarse: Any, pilot_slices: int, cores: int, target: float):
+    """(α, K) of the coarse solver ``coarse`` (:class:`.coarse.Coarse`) on P slices: K from the
+    pilot's η^k scaled to P slices (:func:`parastokes.tuning.cost.predicted_iterations`), α
+    with its N_G auxiliary solves in ceil(N_G / P) rounds instead of ceil(N_G / N)."""
     from ..core.contracts import rounds
     from ..tuning import cost
 
-    chosen = result.chosen
+    chosen = coarse.candidate
     n_aux = chosen.settings.n_auxiliary
 
     def at(slices: int) -> tuple[float, int] | None:
-        k = cost.predicted_iterations(chosen.pilot_errors, result.pilot.n_slices, slices,
+        k = cost.predicted_iterations(chosen.pilot_errors, pilot_slices, slices,
                                       target, chosen.contraction)
         if k is None:
             return None
-        return chosen.gamma_ratio * rounds(n_aux, slices) / rounds(n_aux, cores), k
+        return coarse.alpha * rounds(n_aux, slices) / rounds(n_aux, cores), k
 
     return at
 
 
-def plan_config(cfg: Any, route: Any, fine: Run, best: Run, tuned: Any) -> dict[str, Any]:
-    """The configuration of the chosen route (a dict of TOML tables)."""
+def plan_config(cfg: Any, route: Any, fine: Run, best: Run, coarse: Any) -> dict[str, Any]:
+    """The configuration of the chosen route (a dict of TOML tables); ``coarse`` the coarse
+    solver's settings of a Parareal route (``tuning.Settings``; None for the others)."""
     data = {k: v for k, v in cfg.model_dump(mode="json", exclude_none=True).items()
             if k not in ("model", "tune")} | cfg.model.tables()
     settings = route.settings
@@ -254,7 +342,7 @@ def plan_config(cfg: Any, route: Any, fine: Run, best: Run, tuned: Any) -> dict[
         execution = {"executor": "serial", "threads": settings["threads"]}
     else:
         data["fine"] = _fine_config(fine)
-        data["coarse"] = tuned.chosen.settings.coarse_table()
+        data["coarse"] = coarse.coarse_table()
         data["parareal"] = {**data["parareal"], "n_slices": settings["slices"],
                             "max_iterations": settings["iterations"],
                             "schedule": settings["schedule"], "tol": 0.0}
@@ -262,7 +350,7 @@ def plan_config(cfg: Any, route: Any, fine: Run, best: Run, tuned: Any) -> dict[
         execution["threads"] = settings["threads"]
         if execution.get("executor", "processes") == "processes":
             execution["workers"] = settings["slices"]
-        if tuned.chosen.settings.n_auxiliary > settings["slices"]:
+        if coarse.n_auxiliary > settings["slices"]:
             execution["allow_oversubscribe"] = True
     data["execution"] = execution
     data["output"] = output
@@ -314,6 +402,7 @@ def main(args: argparse.Namespace, console: Any) -> int:
     best_text = f"{best.label()} ({best.cost:.4g} s)"
     rows = [routing.serial_route(best.cost, best_text)]
     unavailable: dict[str, str] = {}
+    tuned, ranking, coarse, why_pilot = None, [], None, None
     if args.cores >= 2:
         rows.append(routing.spatial_route(best.cost, best_text, args.cores, points))
         goal = (1.0 - 1.0 / F_FACTOR) * args.target
@@ -321,20 +410,26 @@ def main(args: argparse.Namespace, console: Any) -> int:
         schemes, searched = coarse_schemes(cfg, found, fine)
         console.print(f"tuning the coarse solver for F = {fine.label()} on {args.cores} slices "
                       f"to η^K <= {goal:.3g} ({searched}) ...")
-        tuned, why = _tune(cfg, resolved, system, fine, args.cores, goal, tune_budget, schemes)
+        pilot, why_pilot = pilot_points(cfg, fine, args.cores, tune_budget)
+        console.print(f"tune's pilot: {why_pilot}")
+        tuned, why = _tune(cfg, resolved, system, fine, args.cores, goal, tune_budget, schemes,
+                           pilot)
         if tuned is None:
             unavailable["parareal"] = why or "tune found no coarse solver"
         else:
-            chosen = tuned.chosen
-            evidence = (f"γ_G/γ_F measured by tune's pilot ({tuned.pilot.n_slices} slices), "
-                        f"pilot η^k = {', '.join(f'{e:.2g}' for e in chosen.pilot_errors)}; "
-                        f"G = {chosen.settings.label()}; F = {fine.label()} "
-                        f"({fine.cost:.4g} s)")
+            ranking = coarse_solvers(tuned, system, fine, cfg, args.cores)
+            coarse = ranking[0]
+            if coarse.alpha is None:
+                unavailable["parareal"] = ("every coarse solver tune accepted on its pilot blew "
+                                           f"up on the full problem (first: "
+                                           f"{coarse.alpha_source})")
+        if "parareal" not in unavailable:
+            evidence = rests_on(coarse, tuned.pilot, fine)
             for schedule in ("standard", "pipelined"):
                 rows.append(routing.parareal_route(
-                    best.cost, fine.cost, chosen.gamma_ratio, chosen.iterations,
+                    best.cost, fine.cost, coarse.alpha, coarse.iterations,
                     args.cores, schedule, evidence))
-            at = _parareal_at(tuned, args.cores, goal)
+            at = _parareal_at(coarse, tuned.pilot.n_slices, args.cores, goal)
             combined = routing.combined_route(best.cost, fine.cost, args.cores,
                                               points, "pipelined", at, evidence)
             if combined is None:
@@ -356,10 +451,14 @@ def main(args: argparse.Namespace, console: Any) -> int:
         "unavailable": unavailable,
         "chosen": chosen_route.route,
         "baseline": found.as_dict(),
-        "tune": None if "parareal" in unavailable or args.cores < 2 else tuned.report,
+        "tune": None if tuned is None else tuned.report,
+        "coarse": None if tuned is None else {
+            "pilot_points": len(tuned.pilot.system.positions(tuned.pilot.x0)),
+            "pilot": why_pilot,
+            "ranked": [row.as_dict() for row in ranking]},
     }
-    tuned_result = None if "parareal" in unavailable or args.cores < 2 else tuned
-    data = plan_config(cfg, chosen_route, fine, best, tuned_result)
+    data = plan_config(cfg, chosen_route, fine, best,
+                       None if "parareal" in unavailable or coarse is None else coarse.settings)
     header = (f"Planned by `parastokes plan {args.config} --cores {args.cores} --target "
               f"{args.target:g}`: route {chosen_route.route}, predicted "
               f"{chosen_route.predicted_wall_seconds:.4g} s, "

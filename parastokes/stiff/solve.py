@@ -33,8 +33,9 @@ from scipy.linalg import lapack
 from ..mobility.threads import LAPACK, blas_threads
 from .banded import band_storage, bandwidth, narrow
 
-__all__ = ["BAND_PRECISION", "GMRES_ACCEPT", "GMRES_MAXITER", "GMRES_RTOL", "GMRES_RTOL_ORDER3",
-           "SPARES", "Factorization", "Spares", "StageSolver", "StiffSolveError", "band_solve"]
+__all__ = ["BAND_PRECISION", "GBTRF_BLOCK", "GMRES_ACCEPT", "GMRES_MAXITER", "GMRES_RTOL",
+           "GMRES_RTOL_ORDER3", "SPARES", "Factorization", "Spares", "StageSolver",
+           "StiffSolveError", "band_solve", "elimination_width"]
 
 #: Relative residual of the GMRES stage solves, as scipy's GMRES measures it (W-methods keep
 #: their order with an inexact Jacobian, so the stage systems need not be solved to round-off).
@@ -115,6 +116,19 @@ def _ordering(matrix: sp.sparray) -> str:
 #: (docs/benchmarks.md, "Stiff bodies: cheaper implicit steps").
 BAND_PRECISION = np.float32
 _GBTRF = {"f": lapack.sgbtrf, "d": lapack.dgbtrf}
+#: The block of LAPACK's banded elimination (ILAENV's NB for xGBTRF).
+GBTRF_BLOCK = 32
+
+
+def elimination_width(kl: int) -> int:
+    """The lower bandwidth to eliminate a band of lower bandwidth ``kl`` with: the next multiple
+    of :data:`GBTRF_BLOCK` when it adds at most 4 zero diagonals, else ``kl``. The zero
+    diagonals change neither the factors' values nor the pivots, but sgbtrf's time does not
+    follow its work: on the paper's rod (kl = ku = 95) it took 1.12-1.15 ms with kl = 95 and
+    0.85-0.90 with 96 (0.98 with 101; one process, docs/benchmarks.md "Round 5, fourth
+    session")."""
+    up = -(-kl // GBTRF_BLOCK) * GBTRF_BLOCK
+    return up if up - kl <= 4 else kl
 
 
 class Spares:
@@ -153,8 +167,9 @@ SPARES = Spares()
 class Factorization:
     """The LU factorization of ``I - hγ A`` (``A`` sparse, square, nonzero): LAPACK's banded
     LU in :data:`BAND_PRECISION` (on one BLAS thread,
-    :func:`parastokes.mobility.threads.blas_threads`) when ``A``'s band is below an eighth of
-    its size (a rod's or chain's points in order), else SuperLU; a
+    :func:`parastokes.mobility.threads.blas_threads`; the lower bandwidth of
+    :func:`elimination_width`) when ``A``'s band is below an eighth of its size (a rod's or
+    chain's points in order), else SuperLU; a
     singular matrix is a :class:`StiffSolveError` at time ``t``. ``solve(v)`` solves with it
     (``v`` flat)."""
 
@@ -165,6 +180,7 @@ class Factorization:
         self._band: tuple[np.ndarray, np.ndarray, int, int] | None = None
         self._superlu: Any = None
         if narrow(kl, ku, n):
+            kl = elimination_width(kl)
             ab = band_storage(matrix, hgamma, kl, ku, BAND_PRECISION,
                               out=SPARES.take((2 * kl + ku + 1, n), BAND_PRECISION))
             with LAPACK, blas_threads(1):

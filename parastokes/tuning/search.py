@@ -16,7 +16,9 @@ skips the step limit and margin; its screen counts the steps it took, which set 
 its pilot run measures γ_G from its real calls (an adaptive G's cost depends on the state).
 
 The next candidate is the one with the highest estimate: its optimistic speedup before the
-screen, its screened speedup after. A candidate whose optimistic speedup at its own step cannot
+screen, its screened speedup after; the given candidates (``Space.extra``) come first, then the
+leading ones (``Space.leading``, each screened and measured before any other is screened; not
+pruned), then the rest (:func:`rank`). A candidate whose optimistic speedup at its own step cannot
 beat the best measured one is pruned: without a budget the search chooses what measuring every
 candidate would choose. docs/tuning.md explains the choices and reports measurements.
 """
@@ -61,6 +63,12 @@ MIN_STEPS = 10
 #: accuracy, not stability, so the search reaches up to two steps per slice; the stability of
 #: the slice map (ρ(DG)) and the pilot's η^k then judge it as any candidate.
 IMPLICIT_MIN_STEPS = 2
+
+#: The lower bracket of a linearly implicit scheme's step-limit search: this many steps per
+#: slice (or τ_f where that is larger). At τ_f, F at its own limit on the rod of 601 points,
+#: the bracket's first run took 33 000 implicit steps of the 61-node pilot and the whole of
+#: plan's 300 s for tune (docs/planning.md, "Round 5, fourth session").
+IMPLICIT_LO_STEPS = 400
 
 #: A budget below this many fine slices of the pilot makes the search frugal: a two-slice pilot
 #: window (one iteration), reference growth 1 instead of a measured ρ(DG) (docs/tuning.md, the
@@ -129,6 +137,7 @@ class Candidate:
     weight_sum: float = 1.0
     estimated_speedup: float | None = None
     given: bool = False  # given explicitly (Space.extra): measured whatever its estimate
+    leading: bool = False  # searched before the others (Space.leading), budget and pruning bind
     screen: dict[str, Any] | None = None  # defect, screened eta and speedup, seconds
     step_limit: float | None = None
     margin: float | None = None  # 1 - step / step limit
@@ -169,6 +178,7 @@ class Candidate:
         return {
             **self.settings.as_dict(fine_dt),
             "given": self.given,
+            "leading": self.leading,
             "status": self.status,
             "reason": self.reason,
             "weight_sum": self.weight_sum,
@@ -359,13 +369,21 @@ class _Search:
             span = self.pilot.slice_length
             implicit = integrate.lookup(settings.scheme).implicit
             fewest = IMPLICIT_MIN_STEPS if implicit else MIN_STEPS
-            lo, hi = self.pilot.fine.dt, span / fewest
-            try:
-                self.limits[key] = stability.step_limit(system, settings.scheme, x0,
-                                                        self.pilot.t0, span, lo, max(hi, 2 * lo),
-                                                        stop=self.charge)
-            except ValueError:
-                self.limits[key] = math.nan
+            hi = span / fewest
+            # an implicit scheme's lower bracket: IMPLICIT_LO_STEPS steps per slice where that
+            # is above τ_f (its first run, the body's own change, then costs a few hundred
+            # implicit steps instead of a slice of fine steps), τ_f where that run fails
+            los = dict.fromkeys((max(self.pilot.fine.dt, span / IMPLICIT_LO_STEPS)
+                                 if implicit else self.pilot.fine.dt, self.pilot.fine.dt))
+            self.limits[key] = math.nan
+            for lo in los:
+                try:
+                    self.limits[key] = stability.step_limit(
+                        system, settings.scheme, x0, self.pilot.t0, span, lo, max(hi, 2 * lo),
+                        stop=self.charge)
+                    break
+                except ValueError:
+                    continue
         return self.limits[key]
 
     def estimated_step(self, settings: Settings) -> float:
@@ -623,6 +641,14 @@ def _counts(candidates: list[Candidate]) -> dict[str, int]:
     return counts
 
 
+def rank(cand: Candidate) -> int:
+    """The first member of a candidate's place in the search's queue (then its estimate): 0
+    given (``Space.extra``), 1 leading (``Space.leading``), 2 every other one; a screened
+    candidate goes back with the same rank, so each leading candidate is measured before any
+    other one is screened."""
+    return 0 if cand.given else 1 if cand.leading else 2
+
+
 def _key(search: _Search, cand: Candidate) -> float:
     """The search's estimate of a queued candidate: its (re)screened speedup once screened, else
     its optimistic speedup (at the model step until its real step is known)."""
@@ -791,6 +817,10 @@ def tune(
 
     candidates = [Candidate(s) for s in space.candidates(pilot_system.params, reaches)
                   if s != Settings(base_scheme)]
+    candidates += [Candidate(s) for s in dict.fromkeys(space.leading)
+                   if s != Settings(base_scheme) and s not in {c.settings for c in candidates}]
+    for cand in candidates:
+        cand.leading = cand.settings in space.leading
     candidates += [Candidate(s, given=True) for s in space.extra]
     queue: list[tuple] = []
     for n, cand in enumerate(candidates):
@@ -803,7 +833,7 @@ def tune(
         # the optimistic speedup at the model step, until step() measures the real one
         cand.estimated_speedup = (search.estimate(cand.settings, step) if math.isfinite(step)
                                   else -math.inf)
-        heapq.heappush(queue, (not cand.given, -cand.estimated_speedup, n))
+        heapq.heappush(queue, (rank(cand), -cand.estimated_speedup, n))
     best = baseline.speedup if baseline.status == "accepted" else -math.inf
     stopped, done = None, 0
     spent: dict[bool, list[float]] = {False: [], True: []}  # screen / measure times
@@ -840,7 +870,7 @@ def tune(
             before = cand.seconds
             search.deadline = None if cand.given else started + budget
             # the bound a candidate must beat: the best measured (not when given or exhaustive)
-            floor = -math.inf if exhaustive or cand.given else best
+            floor = -math.inf if exhaustive or cand.given or cand.leading else best
             if screened:
                 if cand.estimated_speedup > floor:
                     search.timed(cand, search.measure)
@@ -858,7 +888,7 @@ def tune(
                                f"cannot beat the best measured {best:.3g}")
             if cand.status == "pending":
                 if not screened:  # measured next when its screened estimate is the highest
-                    heapq.heappush(queue, (not cand.given, -_key(search, cand), n))
+                    heapq.heappush(queue, (rank(cand), -_key(search, cand), n))
                     spent[False].append(cand.seconds - before)
             else:
                 if screened:

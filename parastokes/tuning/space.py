@@ -252,7 +252,12 @@ class Space:
       when given, of every scheme that takes rtol (:func:`takes_rtol`: the Rosenbrock ones);
     - ``max_weight``: candidates with ``Σ|w_j v_q|`` above it are pruned before any measurement;
     - ``extra``: solvers with their own step (e.g. the paper's, :func:`settings_from_config`),
-      always measured, never pruned.
+      always measured, never pruned;
+    - ``leading``: candidates searched before every other one (after ``extra``), in the order
+      of their estimates, each screened and measured before the next begins; unlike ``extra``
+      they take the safe step times their ``step_fraction``, and the budget and the pruning
+      bind them as any candidate (``plan``'s ladder of the plain implicit coarse solver,
+      docs/planning.md); one already in the space is moved forward, not repeated.
     """
 
     schemes: tuple[str, ...] = ("euler", "rk2")
@@ -266,6 +271,7 @@ class Space:
     coarse_rtols: tuple[float, ...] | None = None
     max_weight: float = 1e6
     extra: tuple[Settings, ...] = field(default=())
+    leading: tuple[Settings, ...] = field(default=())
 
     def check(self, params: Mapping[str, float], grid_ok: Any) -> None:
         """Raise :class:`TuningError` for choices the system cannot take."""
@@ -279,7 +285,7 @@ class Space:
         parameters = self.parameters or ()
         if len(set(parameters)) < len(parameters):
             raise TuningError(f"tune: parameters {list(parameters)} name one twice; give each once")
-        for scheme in self.schemes:
+        for scheme in (*self.schemes, *(s.scheme for s in self.leading)):
             if scheme not in integrate.SCHEMES and scheme != integrate.AUTO.name:
                 known = [*sorted(integrate.SCHEMES), integrate.AUTO.name]
                 raise TuningError(f"tune: unknown scheme {scheme!r}; use one of {known}")
@@ -416,7 +422,7 @@ def parse_space(options: Mapping[str, Any], base: Space | None = None) -> Space:
     for key, value in options.items():
         if value is None:
             continue
-        if key not in Space.__dataclass_fields__ or key == "extra":
+        if key not in Space.__dataclass_fields__ or key in ("extra", "leading"):
             raise TuningError(f"tune: unknown option {key!r}")
         if isinstance(value, Sequence) and not isinstance(value, str):
             value = tuple(value)
