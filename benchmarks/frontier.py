@@ -721,6 +721,114 @@ def full_serial(name: str, runs: Sequence[tuple[str, float, float | None]],
     return data
 
 
+def next_checkpoint(done: dict[str, Any], checkpoints: Sequence[float]
+                    ) -> tuple[float, float, float] | None:
+    """Where a checkpointed run goes on: ``(t, first step, CPU so far)`` of the last of
+    ``checkpoints`` recorded in ``done`` ("T" -> {"last_step", "cpu"}), ``(0, NaN, 0)`` where
+    none is (the run's own first step then), None where the last checkpoint is recorded."""
+    recorded = [t for t in checkpoints if f"{t:g}" in done]
+    if len(recorded) == len(checkpoints):
+        return None
+    if not recorded:
+        return 0.0, math.nan, 0.0
+    last = done[f"{recorded[-1]:g}"]
+    return recorded[-1], last["last_step"], last["cpu"]
+
+
+#: The interval of F's run that times F's CPU per unit time in the process of a checkpointed run.
+YARDSTICK = 1e-3
+
+
+def checkpointed_serial(name: str, scheme: str, dt: float, rtol: float | None,
+                        checkpoints: Sequence[float]) -> dict[str, Any]:
+    """One serial run (fixed steps ``dt`` where ``rtol`` is None, else adaptive from a first step
+    ``dt`` with atol = rtol / 10) over [0, max(checkpoints)] in segments ending at each
+    checkpoint, each adaptive segment from the last step the one before it tried (a solver's
+    output points: the steps are those of one run but for the cut to end on each checkpoint).
+    Each checkpoint's state goes to ``OUT/.NAME_state_KEY_tT.npy`` and its cumulative CPU time,
+    steps and last step to ``OUT/NAME_checkpoints.json`` under KEY, as it is reached: a rerun
+    goes on from the last one (resumable; :func:`checkpoint_errors` compares the states). F's
+    CPU over [0, YARDSTICK] is timed in the same process before it (under "yardsticks"): the
+    run's CPU over F's per unit time (:func:`cost_over_fine`) without a clock across processes."""
+    from parastokes import integrate
+
+    problem = PROBLEMS[name]
+    setup = build(problem, {"scheme": "euler", "dt": problem.fine[1]})
+    system = setup.system
+    key = run_key(scheme, dt, rtol)
+    done = _load(OUT / f"{name}_checkpoints.json").get(key, {})
+    start = next_checkpoint(done, checkpoints)
+    if start is None:
+        return done
+    t, step, cpu = start
+    step = dt if math.isnan(step) else step
+    fine_scheme, fine_dt = problem.fine
+    yardstick = _cpu(lambda: integrate.propagate(system, system.initial_state(), 0.0,
+                                                 YARDSTICK, fine_scheme, fine_dt))[1]
+    yardsticks = done.setdefault("yardsticks", [])
+    yardsticks.append({"fine": f"{fine_scheme} {fine_dt:g}", "t1": YARDSTICK, "cpu": yardstick,
+                       "from": t, "load_average": load_average()})
+    x = (system.initial_state() if t == 0.0
+         else np.load(OUT / f".{name}_state_{key.replace(' ', '_')}_t{t:g}.npy"))
+    for t_next in (c for c in checkpoints if c > t):
+        result, seconds = _cpu(lambda a=t, b=t_next, y=x, h=step: integrate.run(
+            system, y, a, b, scheme, h, rtol=rtol, atol=None if rtol is None else rtol / 10))
+        x, t, cpu = result.state, t_next, cpu + seconds
+        step = result.dt if rtol is not None else dt
+        np.save(OUT / f".{name}_state_{key.replace(' ', '_')}_t{t:g}.npy", x)
+        done[f"{t:g}"] = {"cpu": cpu, "steps": result.n_steps, "rejected": result.n_rejected,
+                          "last_step": step, "load_average": load_average()}
+        print(name, key, t, done[f"{t:g}"], flush=True)
+        _store(name, "checkpoints", key, done)   # (re-read: other runs write the file too)
+    return done
+
+
+def cost_over_fine(cpu: float, t1: float, yardstick_cpu: float,
+                   yardstick_t1: float = YARDSTICK) -> float:
+    """A serial run's CPU per unit time over F's: ``cpu`` over [0, ``t1``] against F's
+    ``yardstick_cpu`` over [0, ``yardstick_t1``] (fixed steps: F's CPU grows with t)."""
+    return (cpu / t1) / (yardstick_cpu / yardstick_t1)
+
+
+def checkpoint_errors(name: str, reference: str) -> dict[str, Any]:
+    """Eq. 34 at each checkpoint of each checkpointed run of ``OUT/NAME_checkpoints.json``
+    against the run keyed ``reference`` there (its state at the same T), over the positions and
+    over the whole state, and against ``problem.reference`` where its cache
+    ``OUT/.NAME_reference_tT.npy`` (:func:`full_serial`) is there, with each run's CPU over F's
+    per unit time (:func:`cost_over_fine`, the median of its yardsticks); written to
+    ``OUT/NAME_checkpoint_errors.json``."""
+    from parastokes.parareal import relative_change
+
+    problem = PROBLEMS[name]
+    positions = build(problem, {"scheme": "euler", "dt": problem.fine[1]}).system.positions
+    runs = _load(OUT / f"{name}_checkpoints.json")
+
+    def state(key: str, t: str) -> np.ndarray:
+        return np.load(OUT / f".{name}_state_{key.replace(' ', '_')}_t{t}.npy")
+
+    out: dict[str, Any] = {"reference": reference, "fine_reference": list(problem.reference)}
+    for key, done in runs.items():
+        sticks = [y["cpu"] for y in done.get("yardsticks", [])]
+        rows = out.setdefault(key, {})
+        for t, row in done.items():
+            if t == "yardsticks":
+                continue
+            x = state(key, t)
+            entry = {"cpu": row["cpu"], "cost_over_fine": cost_over_fine(
+                row["cpu"], float(t), float(np.median(sticks))) if sticks else None}
+            if key != reference and t in runs.get(reference, {}):
+                ref = state(reference, t)
+                entry["error_positions"] = relative_change(x, ref, positions)
+                entry["error_state"] = relative_change(x, ref)
+            fine_cache = OUT / f".{name}_reference_t{t}.npy"
+            if fine_cache.exists():
+                entry["error_positions_vs_fine_reference"] = relative_change(
+                    x, np.load(fine_cache), positions)
+            rows[t] = entry
+    _save(OUT / f"{name}_checkpoint_errors.json", out)
+    return out
+
+
 # ---- tables -------------------------------------------------------------------------------------
 
 def load_problem(name: str) -> dict[str, Any]:
@@ -1158,6 +1266,15 @@ def main(argv: Sequence[str] | None = None) -> None:
                         "(PROBLEM_full_serial.json)")
     parser.add_argument("--serial-t1", type=float, default=None,
                         help="with --full-serial: over [0, T] instead of the full problem's T")
+    parser.add_argument("--checkpointed", nargs=3, metavar=("PROBLEM", "SCHEME", "DT"),
+                        help="one serial run (DT rtol=R: adaptive) with its state and CPU at "
+                        "each of --checkpoints (resumable; PROBLEM_checkpoints.json)")
+    parser.add_argument("--checkpoints", nargs="+", type=float,
+                        default=[0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0],
+                        help="with --checkpointed: the times its states are kept at")
+    parser.add_argument("--checkpoint-errors", nargs=2, metavar=("PROBLEM", "REFERENCE"),
+                        help="errors of the checkpointed runs against the one keyed REFERENCE "
+                        "(e.g. 'ros34pw2-krylov rtol 1e-08'; PROBLEM_checkpoint_errors.json)")
     parser.add_argument("--k40", nargs=3, metavar=("PROBLEM", "LABEL", "K"),
                         help="eta^1..eta^K of G = LABEL over 40 slices of PROBLEM's slice length "
                         "against F's serial solution (resumable; OUT/k40_PROBLEM.json)")
@@ -1182,6 +1299,14 @@ def main(argv: Sequence[str] | None = None) -> None:
         name, *pairs = args.full_serial
         full_serial(name, [(s, problem_step(name, h), rtol) for s, h, rtol in _runs(pairs)],
                     args.serial_t1)
+        return
+    if args.checkpointed:
+        name, scheme, step = args.checkpointed
+        [(_, h, rtol)] = _runs([scheme, step])
+        checkpointed_serial(name, scheme, problem_step(name, h), rtol, sorted(args.checkpoints))
+        return
+    if args.checkpoint_errors:
+        print(json.dumps(checkpoint_errors(*args.checkpoint_errors), indent=1))
         return
     if args.serial_ratios:
         name, rounds, *pairs = args.serial_ratios

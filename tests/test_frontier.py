@@ -292,3 +292,87 @@ def test_a_serial_run_is_fixed_or_adaptive_with_atol_a_tenth_of_rtol(frontier, m
     assert calls == [(("system", "x0", 0.0, 0.5, "rk2", 1e-3), {"rtol": None, "atol": None}),
                      (("system", "x0", 0.0, 0.5, "ros34pw2-krylov", 1e-3),
                       {"rtol": 2.5, "atol": 0.25})]
+
+
+def test_a_checkpointed_run_goes_on_from_its_last_checkpoint(frontier):
+    done = {"0.01": {"last_step": 5e-4, "cpu": 9.0}, "0.02": {"last_step": 6e-4, "cpu": 12.0},
+            "yardsticks": []}
+    assert frontier.next_checkpoint(done, [0.01, 0.02, 0.05]) == (0.02, 6e-4, 12.0)
+    assert frontier.next_checkpoint(done, [0.01, 0.02]) is None
+    t, step, cpu = frontier.next_checkpoint({}, [0.01, 0.02])
+    assert (t, cpu) == (0.0, 0.0) and np.isnan(step)
+
+
+def test_cost_over_fine_is_cpu_per_unit_time_over_the_yardsticks(frontier):
+    # 340 s over T = 1 against F's 3.8 s over 1e-3 (3800 s over T = 1)
+    assert frontier.cost_over_fine(340.0, 1.0, 3.8, 1e-3) == pytest.approx(340 / 3800)
+    assert frontier.cost_over_fine(3.0, 0.5, 1.5, 0.25) == pytest.approx(1.0)
+
+
+def _fake_run(calls):
+    from types import SimpleNamespace
+
+    def run(system, x, t0, t1, scheme, h, rtol=None, atol=None):
+        calls.append((t0, t1, h, rtol, atol))
+        return SimpleNamespace(state=x + (t1 - t0), dt=(t1 - t0) / 2, n_steps=1, n_rejected=0)
+    return run
+
+
+@pytest.mark.parametrize("rtol", [None, 1e-5])
+def test_checkpointed_runs_carry_the_state_and_the_last_step_across_a_resume(
+        frontier, monkeypatch, tmp_path, rtol):
+    """Adaptive segments start from the step the one before tried (here half the segment),
+    fixed ones from dt; a second call goes on from the last checkpoint's state and CPU."""
+    from types import SimpleNamespace
+
+    from parastokes import integrate
+
+    monkeypatch.setattr(frontier, "OUT", tmp_path)
+    monkeypatch.setattr(frontier, "build", lambda problem, coarse: SimpleNamespace(
+        system=SimpleNamespace(initial_state=lambda: np.zeros(3))))
+    calls, sticks = [], []
+    monkeypatch.setattr(integrate, "run", _fake_run(calls))
+    monkeypatch.setattr(integrate, "propagate", lambda *a, **kw: sticks.append(a[3]))
+    done = frontier.checkpointed_serial("quick", "ros34pw2-krylov", 0.01, rtol, [0.125, 0.375])
+    atol = None if rtol is None else rtol / 10
+    assert calls == [(0.0, 0.125, 0.01, rtol, atol),            # (binary fractions: exact)
+                     (0.125, 0.375, 0.01 if rtol is None else 0.0625, rtol, atol)]
+    assert done["0.375"]["cpu"] >= done["0.125"]["cpu"] >= 0.0
+    calls.clear()
+    again = frontier.checkpointed_serial("quick", "ros34pw2-krylov", 0.01, rtol,
+                                         [0.125, 0.375, 0.625])
+    assert calls == [(0.375, 0.625, 0.01 if rtol is None else 0.125, rtol, atol)]
+    key = frontier.run_key("ros34pw2-krylov", 0.01, rtol).replace(" ", "_")
+    assert np.load(tmp_path / f".quick_state_{key}_t0.625.npy") == pytest.approx([0.625] * 3)
+    assert again["0.625"]["cpu"] >= again["0.375"]["cpu"] == done["0.375"]["cpu"]
+    assert sticks == [frontier.YARDSTICK] * 2 and len(again["yardsticks"]) == 2
+    assert frontier.checkpointed_serial("quick", "ros34pw2-krylov", 0.01, rtol, [0.125]) == again
+
+
+def test_checkpoint_errors_compare_states_at_the_same_time(frontier, monkeypatch, tmp_path):
+    import json
+    from types import SimpleNamespace
+
+    monkeypatch.setattr(frontier, "OUT", tmp_path)
+    monkeypatch.setattr(frontier, "build", lambda problem, coarse: SimpleNamespace(
+        system=SimpleNamespace(positions=lambda s: s[:, :3])))
+    ref = np.array([[1.0, 0.0, 0.0, 5.0], [0.0, 2.0, 0.0, 0.0]])
+    run = ref + [[0.25, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]]
+    np.save(tmp_path / ".quick_state_ref_t0.1.npy", ref)
+    np.save(tmp_path / ".quick_state_a_t0.1.npy", run)
+    np.save(tmp_path / ".quick_state_a_t0.2.npy", run)
+    np.save(tmp_path / ".quick_reference_t0.1.npy", 2 * ref)
+    (tmp_path / "quick_checkpoints.json").write_text(json.dumps({
+        "ref": {"0.1": {"cpu": 1.0}},
+        "a": {"0.1": {"cpu": 2.0}, "0.2": {"cpu": 3.0},
+              "yardsticks": [{"cpu": 1.0}, {"cpu": 2.0}, {"cpu": 9.0}]}}))
+    out = frontier.checkpoint_errors("quick", "ref")
+    a = out["a"]["0.1"]
+    assert a["error_positions"] == pytest.approx(0.25)            # point 0: 0.25 / 1
+    assert a["error_state"] == pytest.approx(0.5)                 # point 1: 1 / 2
+    # against twice ref: point 0 |(1.25, 0, 0) - (2, 0, 0)| / 2, point 1 |2 - 4| / 4
+    assert a["error_positions_vs_fine_reference"] == pytest.approx(0.5)
+    assert a["cost_over_fine"] == pytest.approx((2.0 / 0.1) / (2.0 / frontier.YARDSTICK))
+    assert "error_positions" not in out["a"]["0.2"]               # no reference state at 0.2
+    assert "error_positions" not in out["ref"]["0.1"]
+    assert out["ref"]["0.1"]["cost_over_fine"] is None
