@@ -202,6 +202,9 @@ CANDIDATES: dict[str, dict[str, Candidate]] = {
     },
     "rod601_long": {
         "ros34pw2 1.25e-4": Candidate("implicit", {"scheme": "ros34pw2", "dt": 1.25e-4}),
+        # G of an implicit, adaptive F (--implicit-fine: slices of 0.025 s, the full problem's)
+        "ros34pw2 6.25e-4": Candidate("implicit", {"scheme": "ros34pw2", "dt": 6.25e-4}),
+        "ros34pw2 1.25e-3": Candidate("implicit", {"scheme": "ros34pw2", "dt": 1.25e-3}),
     },
     "quick": {
         "grid 3, eps [1.2, 1.4], euler 2.2e-5": Candidate(
@@ -829,6 +832,63 @@ def checkpoint_errors(name: str, reference: str) -> dict[str, Any]:
     return out
 
 
+def implicit_fine_config(problem: Problem, coarse: dict[str, Any], rtol: float,
+                         slice_length: float, slices: int) -> dict[str, Any]:
+    """``problem``'s configuration over ``slices`` slices of ``slice_length`` with G =
+    ``coarse`` and an adaptive F: ``ros34pw2-krylov`` at ``rtol`` (atol rtol / 10, the serial
+    runs' tolerances) from a first step of F's fixed step."""
+    data = config_data(problem, coarse, t1=slice_length * slices, slices=slices)
+    data["fine"] = {"scheme": "ros34pw2-krylov", "dt": problem.fine[1], "rtol": rtol,
+                    "atol": rtol / 10}
+    return data
+
+
+def implicit_fine(name: str, labels: Sequence[str], rtol: float, slice_length: float,
+                  slices: int, iterations: int, rounds: int = 2) -> dict[str, Any]:
+    """Parareal with an implicit, adaptive F (:func:`implicit_fine_config`) and each G of
+    ``labels`` (``CANDIDATES[name]``): eta^1..eta^``iterations`` against F's serial solution
+    over ``slices`` slices of ``slice_length``, and alpha = gamma_G / gamma_F of whole slices
+    (an adaptive F has no step count to scale by) in ``rounds`` interleaved rounds, over the
+    first slice (F's start from its tiny first step) and over the second (from F's serial state);
+    written to ``OUT/NAME_implicit_fine.json`` under "rtol R, P x L" as each finishes."""
+    from parastokes import config, parareal
+
+    problem = PROBLEMS[name]
+
+    def setup(label: str) -> Any:
+        cfg = config.parse(implicit_fine_config(problem, CANDIDATES[name][label].coarse, rtol,
+                                                slice_length, slices), "frontier")
+        return config.build(cfg, config.resolve(cfg, "frontier"))
+
+    setups = {label: setup(label) for label in labels}
+    first = next(iter(setups.values()))
+    x0 = first.system.initial_state()
+    reference, serial_cpu = _cpu(lambda: parareal.serial_solution(
+        first.fine, x0, 0.0, slice_length * slices, slices))
+    key = f"rtol {rtol:g}, {slices} x {slice_length:g}"
+    result: dict[str, Any] = {"serial_cpu": serial_cpu, "labels": {}}
+    for label, s in setups.items():
+        errors: list[float] = []
+        parareal.run(s.fine, s.coarse, x0, t0=0.0, t1=slice_length * slices, n_slices=slices,
+                     tol=0.0, max_iterations=iterations, reference=reference,
+                     on_iteration=lambda it, e=errors: e.append(it.error))
+        result["labels"][label] = {"errors": errors, "alpha_first": [], "alpha_second": []}
+        print(label, errors, flush=True)
+    loads = [load_average()]
+    for _ in range(rounds):
+        for label, s in setups.items():
+            for piece, (t, x) in (("alpha_first", (0.0, x0)),
+                                  ("alpha_second", (slice_length, reference[1]))):
+                costs = parareal.measure_slice_costs(s.fine, s.coarse, t, t + slice_length, x,
+                                                     repeats=1, fine_steps=None,
+                                                     coarse_steps=None, clock=time.process_time)
+                result["labels"][label][piece].append(costs.task_ratio())
+        loads.append(load_average())
+    result["load_average"] = loads
+    _store(name, "implicit_fine", key, result)
+    return result
+
+
 # ---- tables -------------------------------------------------------------------------------------
 
 def load_problem(name: str) -> dict[str, Any]:
@@ -1275,6 +1335,10 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument("--checkpoint-errors", nargs=2, metavar=("PROBLEM", "REFERENCE"),
                         help="errors of the checkpointed runs against the one keyed REFERENCE "
                         "(e.g. 'ros34pw2-krylov rtol 1e-08'; PROBLEM_checkpoint_errors.json)")
+    parser.add_argument("--implicit-fine", nargs="+",
+                        metavar="PROBLEM RTOL SLICE_LENGTH SLICES K LABEL",
+                        help="Parareal with F = adaptive ros34pw2-krylov at RTOL and G = each "
+                        "LABEL: eta^1..eta^K and alpha (PROBLEM_implicit_fine.json)")
     parser.add_argument("--k40", nargs=3, metavar=("PROBLEM", "LABEL", "K"),
                         help="eta^1..eta^K of G = LABEL over 40 slices of PROBLEM's slice length "
                         "against F's serial solution (resumable; OUT/k40_PROBLEM.json)")
@@ -1307,6 +1371,10 @@ def main(argv: Sequence[str] | None = None) -> None:
         return
     if args.checkpoint_errors:
         print(json.dumps(checkpoint_errors(*args.checkpoint_errors), indent=1))
+        return
+    if args.implicit_fine:
+        name, rtol, length, slices, k, *labels = args.implicit_fine
+        implicit_fine(name, labels, float(rtol), float(length), int(slices), int(k))
         return
     if args.serial_ratios:
         name, rounds, *pairs = args.serial_ratios
