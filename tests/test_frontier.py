@@ -376,3 +376,18 @@ def test_checkpoint_errors_compare_states_at_the_same_time(frontier, monkeypatch
     assert "error_positions" not in out["a"]["0.2"]               # no reference state at 0.2
     assert "error_positions" not in out["ref"]["0.1"]
     assert out["ref"]["0.1"]["cost_over_fine"] is None
+
+
+def test_an_implicit_fine_configuration_is_adaptive_with_the_serial_runs_tolerances(frontier):
+    """F = ros34pw2-krylov at rtol (atol rtol / 10) from F's fixed step, over P slices of L,
+    and the configuration schema takes it as it is."""
+    from parastokes import config
+
+    problem = frontier.PROBLEMS["rod601_long"]
+    coarse = frontier.CANDIDATES["rod601_long"]["ros34pw2 rtol 1e-3"].coarse
+    data = frontier.implicit_fine_config(problem, coarse, 1e-5, 0.025, 4)
+    assert data["fine"] == {"scheme": "ros34pw2-krylov", "dt": 7.58e-7, "rtol": 1e-5,
+                            "atol": pytest.approx(1e-6)}
+    assert data["time"]["t1"] == pytest.approx(0.1) and data["parareal"]["n_slices"] == 4
+    cfg = config.parse(data, "test")
+    assert cfg.fine.rtol == 1e-5 and cfg.coarse.rtol == 1e-3
