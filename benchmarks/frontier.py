@@ -206,6 +206,8 @@ CANDIDATES: dict[str, dict[str, Candidate]] = {
         "ros34pw2 6.25e-4": Candidate("implicit", {"scheme": "ros34pw2", "dt": 6.25e-4}),
         "ros34pw2 1.25e-3": Candidate("implicit", {"scheme": "ros34pw2", "dt": 1.25e-3}),
         "ros34pw2 2.5e-4": Candidate("implicit", {"scheme": "ros34pw2", "dt": 2.5e-4}),
+        "ros34pw2 3.125e-4": Candidate("implicit", {"scheme": "ros34pw2", "dt": 3.125e-4}),
+        "ros34pw2 5e-4": Candidate("implicit", {"scheme": "ros34pw2", "dt": 5e-4}),
         "ros34pw2 rtol 1e-3": Candidate("implicit, adaptive",
                                         {"scheme": "ros34pw2", "dt": 1.25e-4, "rtol": 1e-3}),
         "ros34pw2 rtol 1e-2": Candidate("implicit, adaptive",
@@ -855,7 +857,8 @@ def implicit_fine(name: str, labels: Sequence[str], rtol: float, slice_length: f
     over ``slices`` slices of ``slice_length``, and alpha = gamma_G / gamma_F of whole slices
     (an adaptive F has no step count to scale by) in ``rounds`` interleaved rounds, over the
     first slice (F's start from its tiny first step) and over the second (from F's serial state);
-    written to ``OUT/NAME_implicit_fine.json`` under "rtol R, P x L" as each finishes."""
+    written to ``OUT/NAME_implicit_fine.json`` under "rtol R, P x L" (merged into the labels
+    of an earlier run of the same F there)."""
     from parastokes import config, parareal
     from parastokes.parallel import TaskError
 
@@ -896,6 +899,11 @@ def implicit_fine(name: str, labels: Sequence[str], rtol: float, slice_length: f
                 result["labels"][label][piece].append(costs.task_ratio())
         loads.append(load_average())
     result["load_average"] = loads
+    earlier = _load(OUT / f"{name}_implicit_fine.json").get(key, {})   # (other G, same F)
+    if earlier:
+        result = {**earlier, "labels": {**earlier.get("labels", {}), **result["labels"]},
+                  f"runs of {', '.join(labels)}": {k: result[k] for k in
+                                                   ("serial_cpu", "load_average")}}
     _store(name, "implicit_fine", key, result)
     return result
 
