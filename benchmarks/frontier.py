@@ -31,7 +31,11 @@ first one's in interleaved rounds (``PROBLEM_serial_ratios.json``: the fastest s
 over F's where it is not F, which the speedups against it then use), and ``--full-serial PROBLEM
 SCHEME DT ...`` their errors at the full T against the problem's reference
 (``PROBLEM_full_serial.json``); DT ``rtol=R`` is an adaptive run (docs/benchmarks.md, "The target
-table").
+table"). ``--checkpointed PROBLEM SCHEME DT`` runs one serial run over the full T keeping its state
+and CPU at ``--checkpoints`` (resumable; F timed in the same process), ``--checkpoint-errors
+PROBLEM REFERENCE`` compares them, and ``--implicit-fine PROBLEM RTOL L P K LABEL ...`` runs
+Parareal with an adaptive ``ros34pw2-krylov`` F (docs/benchmarks.md, "The rod of 601 points
+against its fastest serial run").
 """
 
 from __future__ import annotations
