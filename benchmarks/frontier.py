@@ -202,6 +202,9 @@ CANDIDATES: dict[str, dict[str, Candidate]] = {
     },
     "rod601_long": {
         "ros34pw2 1.25e-4": Candidate("implicit", {"scheme": "ros34pw2", "dt": 1.25e-4}),
+        # round 5, fourth session: the G `parastokes plan` chose (0.3 of its pilot's safe step)
+        "ros34pw2 2.14e-4 (plan's)": Candidate("implicit", {"scheme": "ros34pw2",
+                                                            "dt": 0.025 / 117}),
     },
     "quick": {
         "grid 3, eps [1.2, 1.4], euler 2.2e-5": Candidate(
