@@ -206,6 +206,9 @@ CANDIDATES: dict[str, dict[str, Candidate]] = {
     },
     "rod601_long": {
         "ros34pw2 1.25e-4": Candidate("implicit", {"scheme": "ros34pw2", "dt": 1.25e-4}),
+        # round 5, fourth session: the G `parastokes plan` chose (0.3 of its pilot's safe step)
+        "ros34pw2 2.14e-4 (plan's)": Candidate("implicit", {"scheme": "ros34pw2",
+                                                            "dt": 0.025 / 117}),
         # G of an implicit, adaptive F (--implicit-fine: slices of 0.025 s, the full problem's)
         "ros34pw2 6.25e-4": Candidate("implicit", {"scheme": "ros34pw2", "dt": 6.25e-4}),
         "ros34pw2 1.25e-3": Candidate("implicit", {"scheme": "ros34pw2", "dt": 1.25e-3}),

@@ -11,7 +11,7 @@ Subpackages (import them as ``from parastokes import mrs, models, integrate, par
 - :mod:`parastokes.parallel`: executors (serial, process pool, MPI).
 """
 
-__version__ = "0.5.2"
+__version__ = "0.5.3"
 
 #: Modules that moved into a folder, under the names the documentation of earlier rounds imported
 #: them by (``from parastokes import io``): loaded on first use, each the module itself.

@@ -470,7 +470,8 @@ def auto_run(system: System, x: np.ndarray, t0: float, t1: float, dt: float,
     budget, euler_budget, failed, euler_failed, previous = 0.0, 0.0, 0, 0, None
     solver = stepper_for(system, implicit)  # one for the run: its Jacobian serves every trial
     # the W-method's probe before a trial of the exact Jacobian's scheme (its own A and LU)
-    probe = stepper_for(system, SCHEMES[IMPLICIT]) if implicit.krylov else None
+    probe = stepper_for(system, SCHEMES[IMPLICIT]) if getattr(implicit, "krylov", False) else None
+    assert probe is None or isinstance(probe, stiff.Stepper)
     stepper = stepper_for(system, pair, compiled)  # goes on after a failed trial
     assert isinstance(solver, stiff.Stepper) and not isinstance(stepper, stiff.Stepper)
     tally, direction = Tally(solver), np.zeros(0)

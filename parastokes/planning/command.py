@@ -424,6 +424,7 @@ def main(args: argparse.Namespace, console: Any) -> int:
                                            f"up on the full problem (first: "
                                            f"{coarse.alpha_source})")
         if "parareal" not in unavailable:
+            assert coarse is not None and tuned is not None
             evidence = rests_on(coarse, tuned.pilot, fine)
             for schedule in ("standard", "pipelined"):
                 rows.append(routing.parareal_route(
